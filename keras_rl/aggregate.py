@@ -1,0 +1,76 @@
+"""Several seeds of one experiment: ``summary.md`` and a plot of all curves."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from keras_rl.results import atomic_write_text, plt, read_episodes, save_figure
+
+
+def episodes_to_threshold_stats(reached: list[int | None]) -> dict[str, Any]:
+    """Success rate and the distribution of episodes-to-threshold over successful seeds.
+
+    IQR is the 25th to 75th percentile (NumPy's default linear interpolation).
+    """
+    hits = np.array([r for r in reached if r is not None], dtype=float)
+    stats: dict[str, Any] = {"seeds": len(reached), "successes": int(hits.size),
+                             "success_rate": hits.size / len(reached) if reached else 0.0}
+    if hits.size:
+        q25, q50, q75 = np.percentile(hits, [25, 50, 75])
+        stats.update(median=float(q50), q25=float(q25), q75=float(q75),
+                     min=int(hits.min()), max=int(hits.max()))
+    else:
+        stats.update(median=None, q25=None, q75=None, min=None, max=None)
+    return stats
+
+
+def write_aggregate(out_dir: Path, summaries: list[dict[str, Any]], threshold: float, title: str,
+                    metric_label: str, post_reference: str = "") -> dict[str, Any]:
+    """Write ``summary.md`` and ``curves.png`` for the seeds in ``summaries``."""
+    out_dir = Path(out_dir)
+    summaries = sorted(summaries, key=lambda s: s["seed"])
+    stats = episodes_to_threshold_stats([s["reached_at_episode"] for s in summaries])
+    walls = [s["wall_seconds"] for s in summaries]
+    fmt = lambda v: "n/a" if v is None else (f"{v:g}" if isinstance(v, float) else str(v))  # noqa: E731
+    lines = [
+        f"# {title}",
+        "",
+        f"Criterion: {summaries[0]['criterion']}." if summaries else "",
+        "",
+        "| seeds | success rate | episodes to threshold: median | IQR (25th-75th) | min | max | wall s (median) |",
+        "|---|---|---|---|---|---|---|",
+        f"| {stats['seeds']} | {stats['successes']}/{stats['seeds']} ({stats['success_rate']:.0%}) "
+        f"| {fmt(stats['median'])} | {fmt(stats['q25'])}-{fmt(stats['q75'])} | {fmt(stats['min'])} "
+        f"| {fmt(stats['max'])} | {np.median(walls):.1f} |",
+        "",
+    ]
+    if post_reference:
+        lines += [post_reference, ""]
+    lines += ["| seed | status | reached at episode | episodes run | env steps | final metric | wall s |",
+              "|---|---|---|---|---|---|---|"]
+    for s in summaries:
+        lines.append(f"| {s['seed']} | {s['status']} | {fmt(s['reached_at_episode'])} | {s['episodes_run']} "
+                     f"| {s['total_steps']} | {fmt(None if s['final_metric'] is None else round(s['final_metric'], 1))} "
+                     f"| {s['wall_seconds']:.1f} |")
+    if summaries:
+        lines += ["", f"Command: `{summaries[0]['command']}`", ""]
+    atomic_write_text(out_dir / "summary.md", "\n".join(lines))
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for s in summaries:
+        csv_path = out_dir / f"seed_{s['seed']}" / "episodes.csv"
+        if not csv_path.is_file():
+            continue
+        rows = read_episodes(csv_path)
+        ax.plot([r["episode"] for r in rows], [r["metric"] for r in rows], lw=1.2, label=f"seed {s['seed']}")
+    ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
+    ax.set_xlabel("episode")
+    ax.set_ylabel(metric_label)
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2, loc="lower right")
+    save_figure(fig, out_dir / "curves.png")
+    return stats

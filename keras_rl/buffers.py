@@ -1,0 +1,98 @@
+"""Replay buffers: one numpy matrix preallocated once, batches as a NamedTuple.
+
+A transition is one float32 row ``[state | action | reward | next_state | done]``.
+Sampling gathers rows with a single fancy index, and the compiled update receives
+that one matrix and splits it (``Layout.split``): one host-to-graph conversion per
+step instead of five. Discrete actions are stored as exact small floats.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+
+
+class Batch(NamedTuple):
+    states: Any  # [B, obs]
+    actions: Any  # [B, act]
+    rewards: Any  # [B]
+    next_states: Any  # [B, obs]
+    dones: Any  # [B], 1.0 where the stored transition is terminal
+
+
+class Layout(NamedTuple):
+    """Column layout of a packed transition row."""
+
+    obs_dim: int
+    action_dim: int
+
+    @property
+    def width(self) -> int:
+        return 2 * self.obs_dim + self.action_dim + 2
+
+    def split(self, rows) -> Batch:
+        """Views of a packed [B, width] matrix (numpy or tf) as a Batch."""
+        o, a = self.obs_dim, self.action_dim
+        return Batch(rows[:, :o], rows[:, o:o + a], rows[:, o + a],
+                     rows[:, o + a + 1:2 * o + a + 1], rows[:, 2 * o + a + 1])
+
+    def pack(self, batch: Batch) -> np.ndarray:
+        """The inverse of ``split`` for numpy batches."""
+        return np.concatenate([
+            np.asarray(batch.states, np.float32).reshape(len(batch.rewards), -1),
+            np.asarray(batch.actions, np.float32).reshape(len(batch.rewards), -1),
+            np.asarray(batch.rewards, np.float32).reshape(-1, 1),
+            np.asarray(batch.next_states, np.float32).reshape(len(batch.rewards), -1),
+            np.asarray(batch.dones, np.float32).reshape(-1, 1),
+        ], axis=1)
+
+
+class ReplayBuffer:
+    """A ring buffer with FIFO eviction at capacity, like ``deque(maxlen=capacity)``.
+
+    ``sample_rows`` draws without replacement by default, as ``random.sample`` does in
+    posts 000 and 003; ``replace=True`` gives the usual SB3/CleanRL sampling.
+    """
+
+    def __init__(self, capacity: int, layout: Layout, rng: np.random.Generator):
+        if capacity <= 0:
+            raise ValueError(f"capacity must be positive, got {capacity}")
+        self.capacity = int(capacity)
+        self.layout = layout
+        self.rng = rng
+        self.data = np.zeros((self.capacity, layout.width), dtype=np.float32)
+        self._next = 0  # the slot the next transition is written to
+        self._size = 0
+
+    def __len__(self) -> int:
+        return self._size
+
+    def add(self, state, action, reward: float, next_state, done: bool) -> None:
+        o, a = self.layout.obs_dim, self.layout.action_dim
+        row = self.data[self._next]
+        row[:o] = np.ravel(state)
+        row[o:o + a] = np.ravel(action)
+        row[o + a] = reward
+        row[o + a + 1:2 * o + a + 1] = np.ravel(next_state)
+        row[2 * o + a + 1] = float(done)
+        self._next = (self._next + 1) % self.capacity
+        self._size = min(self._size + 1, self.capacity)
+
+    def sample_rows(self, batch_size: int, replace: bool = False) -> np.ndarray:
+        if not replace and batch_size > self._size:
+            raise ValueError(f"cannot sample {batch_size} without replacement from {self._size}")
+        if replace:
+            idx = self.rng.integers(0, self._size, size=batch_size)
+        else:
+            idx = self.rng.choice(self._size, size=batch_size, replace=False)
+        return self.data[idx]
+
+    def sample(self, batch_size: int, replace: bool = False) -> Batch:
+        return self.layout.split(self.sample_rows(batch_size, replace))
+
+    def ordered(self) -> Batch:
+        """All stored transitions, oldest first (for tests and inspection)."""
+        start = self._next if self._size == self.capacity else 0
+        idx = (start + np.arange(self._size)) % self.capacity
+        return self.layout.split(self.data[idx])

@@ -1,0 +1,173 @@
+"""``keras-rl``: reproduce a post over seeds, or evaluate a saved run.
+
+    keras-rl reproduce pendulum --variant faithful --seeds 0-9 --workers 2 --out results/pendulum
+    keras-rl evaluate results/pendulum/faithful/seed_0 --episodes 5 --gif pendulum.gif
+    keras-rl list
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any, Sequence
+
+from keras_rl.errors import ConfigError, KerasRLError
+
+EXIT_OK, EXIT_CRITERION, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+POST_NUMBERS = {"pendulum": "The post reports the EMA passing -300 after 153 episodes (one run)."}
+
+
+def parse_seeds(text: str) -> list[int]:
+    """``"0-9"``, ``"1,3,5"``, ``"0-2,7"`` -> a sorted list of distinct seeds."""
+    seeds: set[int] = set()
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            continue
+        try:
+            if "-" in part[1:]:
+                lo_text, hi_text = part.split("-", 1)
+                lo, hi = int(lo_text), int(hi_text)
+                if lo > hi:
+                    raise ConfigError(f"seed range {part!r} runs backwards; write {hi}-{lo}")
+                seeds.update(range(lo, hi + 1))
+            else:
+                seeds.add(int(part))
+        except ValueError:
+            raise ConfigError(f"cannot read seeds {text!r}: use a list like 0,1,2 or a range like 0-9") from None
+    if not seeds:
+        raise ConfigError(f"no seeds in {text!r}")
+    if min(seeds) < 0:
+        raise ConfigError(f"seeds must be zero or more, got {min(seeds)}")
+    return sorted(seeds)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="keras-rl", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    rep = sub.add_parser("reproduce", help="train one experiment over one or more seeds")
+    rep.add_argument("experiment", help="experiment name (see `keras-rl list`)")
+    rep.add_argument("--variant", default="faithful", help="faithful (the post's code as it ran) or fixed")
+    rep.add_argument("--seeds", default="0", help="seed list or range: 13, 0-9, 0,3,5 (default 0)")
+    rep.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
+    rep.add_argument("--out", type=Path, default=None,
+                     help="output folder (default results/<experiment>/<variant>); one seed_<n>/ per seed")
+    rep.add_argument("--workers", type=int, default=1, help="processes for several seeds (default 1)")
+    rep.add_argument("--set", dest="overrides", action="append", default=[], metavar="FIELD=VALUE",
+                     help="override a config field, e.g. --set tau=0.005 (repeatable)")
+    rep.add_argument("--min-success-rate", type=float, default=1.0,
+                     help="exit 0 only if at least this share of seeds succeed (default 1.0: all)")
+    rep.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+    ev = sub.add_parser("evaluate", help="reload a run's saved policy and play greedy episodes")
+    ev.add_argument("run_dir", type=Path, help="a seed's run folder, e.g. results/pendulum/faithful/seed_0")
+    ev.add_argument("--episodes", type=int, default=5)
+    ev.add_argument("--seed", type=int, default=None, help="env seed (default: the run's seed + 10000)")
+    ev.add_argument("--gif", type=Path, default=None, help="record the first episode to this GIF")
+
+    sub.add_parser("list", help="list the experiments and their variants")
+    return parser
+
+
+def _run_one(args: tuple[str, dict[str, Any], str, bool, int]) -> dict[str, Any]:
+    """Worker entry point (module level so that spawn can pickle it)."""
+    from keras_rl.experiments import get_experiment
+    from keras_rl.loop import run_seed
+
+    name, config_dict, out_dir, progress, position = args
+    experiment = get_experiment(name)
+    config = experiment.config_cls.from_dict(config_dict)
+    return run_seed(experiment, config, Path(out_dir), progress=progress, position=position)
+
+
+def reproduce(args: argparse.Namespace) -> int:
+    from keras_rl.aggregate import write_aggregate
+    from keras_rl.experiments import get_experiment
+
+    experiment = get_experiment(args.experiment)
+    seeds = parse_seeds(args.seeds)
+    if args.workers < 1:
+        raise ConfigError(f"--workers must be at least 1, got {args.workers}")
+    if not 0 <= args.min_success_rate <= 1:
+        raise ConfigError(f"--min-success-rate must be in [0, 1], got {args.min_success_rate}")
+    overrides = {} if args.episodes is None else {"episodes": args.episodes}
+    if args.episodes is not None and args.episodes <= 0:
+        raise ConfigError(f"--episodes must be positive, got {args.episodes}")
+    base = experiment.config_cls.for_variant(args.variant, **overrides).with_text_overrides(args.overrides)
+    out = args.out or Path("results") / experiment.name / args.variant
+    jobs = [(experiment.name, base.replace(seed=s).to_dict(), str(out / f"seed_{s}"),
+             not args.no_progress, i % args.workers) for i, s in enumerate(seeds)]
+
+    summaries: list[dict[str, Any]] = []
+    interrupted = False
+    try:
+        if args.workers == 1 or len(seeds) == 1:
+            for job in jobs:
+                summaries.append(_run_one(job))
+                if summaries[-1]["status"] == "interrupted":
+                    interrupted = True
+                    break
+        else:
+            ctx = multiprocessing.get_context("spawn")  # TensorFlow is not fork-safe
+            with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx) as pool:
+                for summary in pool.map(_run_one, jobs):
+                    summaries.append(summary)
+                    interrupted |= summary["status"] == "interrupted"
+    except KeyboardInterrupt:
+        interrupted = True
+    failures = [s for s in summaries if s["status"] in ("non_finite_loss", "error")]
+    for s in failures:
+        print(f"error: seed {s['seed']}: {s['message']}", file=sys.stderr)
+    if summaries and len(seeds) > 1:
+        write_aggregate(out, summaries, base.threshold, f"{experiment.name} ({args.variant}), "
+                        f"{len(summaries)} seeds", experiment.metric_label, POST_NUMBERS.get(experiment.name, ""))
+    for s in summaries:
+        where = f"episode {s['reached_at_episode']}" if s["success"] else "not reached"
+        print(f"{experiment.name}/{args.variant} seed {s['seed']}: {s['status']}, threshold {where} "
+              f"({s['episodes_run']} episodes, {s['total_steps']} steps, {s['wall_seconds']:.1f} s) -> {out}")
+    if interrupted:
+        print("interrupted: partial results are on disk, marked unfinished", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if failures:
+        return EXIT_CRITERION
+    rate = sum(s["success"] for s in summaries) / len(seeds)
+    return EXIT_OK if rate >= args.min_success_rate else EXIT_CRITERION
+
+
+def evaluate(args: argparse.Namespace) -> int:
+    from keras_rl.loop import evaluate_run
+
+    result = evaluate_run(args.run_dir, episodes=args.episodes, gif=args.gif, seed=args.seed, progress=True)
+    print(f"mean score over {result['episodes']} greedy episodes: {result['mean']:.2f} "
+          f"(std {result['std']:.2f})" + (f"; GIF: {result['gif']}" if "gif" in result else ""))
+    return EXIT_OK
+
+
+def list_experiments() -> int:
+    from keras_rl.experiments import EXPERIMENTS
+
+    for name, exp in sorted(EXPERIMENTS.items()):
+        print(f"{name:12s} {exp.description}; variants: {', '.join(exp.config_cls.VARIANTS)}")
+    return EXIT_OK
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        if args.command == "reproduce":
+            return reproduce(args)
+        if args.command == "evaluate":
+            return evaluate(args)
+        return list_experiments()
+    except KerasRLError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":
+    sys.exit(main())

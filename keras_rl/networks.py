@@ -1,0 +1,49 @@
+"""Subclassed Keras models, one per network in the posts."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import keras
+import tensorflow as tf
+
+
+class Actor(keras.Model):
+    """Post 000 §2.2: Dense 64 relu, Dense 64 relu, Dense(action_dim, tanh), times the bound.
+
+    The post wraps the scaling in a fresh ``Lambda`` layer on every call; a plain
+    multiplication computes the same thing without creating layers in the hot loop.
+    """
+
+    def __init__(self, action_dim: int, action_bound: float, hidden_units: Sequence[int] = (64, 64)):
+        super().__init__()
+        self.action_bound = float(action_bound)
+        self.hidden = [keras.layers.Dense(units, activation="relu") for units in hidden_units]
+        self.out = keras.layers.Dense(action_dim, activation="tanh")
+
+    def call(self, state: tf.Tensor) -> tf.Tensor:  # [B, obs] -> [B, act]
+        x = state
+        for layer in self.hidden:
+            x = layer(x)
+        return self.out(x) * self.action_bound
+
+
+class Critic(keras.Model):
+    """Post 000 §2.2: concat(state, action), Dense 64 relu, Dense 64 relu, Dense 1."""
+
+    def __init__(self, hidden_units: Sequence[int] = (64, 64)):
+        super().__init__()
+        self.hidden = [keras.layers.Dense(units, activation="relu") for units in hidden_units]
+        self.out = keras.layers.Dense(1)
+
+    def call(self, state: tf.Tensor, action: tf.Tensor) -> tf.Tensor:  # -> [B, 1]
+        x = tf.concat([state, action], axis=-1)
+        for layer in self.hidden:
+            x = layer(x)
+        return self.out(x)
+
+
+def build(model: keras.Model, *input_dims: int) -> keras.Model:
+    """Create a model's variables by calling it once on zeros of the given widths."""
+    model(*[tf.zeros((1, dim)) for dim in input_dims])
+    return model

@@ -1,0 +1,162 @@
+"""Run folders: what each seed writes, written atomically so nothing is ever half a file.
+
+A run folder holds ``config.json``, ``episodes.csv``, ``summary.json``, ``curve.png``
+and ``<network>.weights.h5``. ``episodes.csv`` is rewritten (atomically) after every
+episode, so Ctrl-C, a NaN or a crash leaves a valid file with every finished episode.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import platform
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only; no display needed
+import matplotlib.pyplot as plt  # noqa: E402
+
+EPISODE_COLUMNS = ("episode", "steps", "total_steps", "score", "metric",
+                   "critic_loss", "actor_loss", "wall_seconds")
+"""``episode`` counts from 1; ``steps`` is that episode's length; ``metric`` is the post's
+progress metric (post 000: the EMA); losses are means over the episode's updates
+(empty before training starts); ``wall_seconds`` is the time since the run started."""
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write to a temporary file beside ``path``, fsync, then rename over it."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_write_json(path: Path, obj: Any) -> None:
+    atomic_write_text(path, json.dumps(obj, indent=2) + "\n")
+
+
+def save_figure(fig, path: Path) -> None:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def save_weights(model, path: Path) -> None:
+    """``model.save_weights`` to a temporary ``.weights.h5`` name, then rename."""
+    path = Path(path)
+    tmp = path.with_name(f".tmp-{os.getpid()}-{path.name}")
+    try:
+        model.save_weights(str(tmp))
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def library_versions() -> dict[str, str]:
+    import gymnasium
+    import keras
+    import numpy
+    import tensorflow
+
+    from keras_rl import __version__
+
+    return {"keras_rl": __version__, "python": platform.python_version(),
+            "tensorflow": tensorflow.__version__, "keras": keras.__version__,
+            "keras_backend": keras.backend.backend(), "gymnasium": gymnasium.__version__,
+            "numpy": numpy.__version__}
+
+
+def format_row(row: dict[str, Any]) -> dict[str, str]:
+    out = {}
+    for key in EPISODE_COLUMNS:
+        value = row.get(key)
+        if value is None:
+            out[key] = ""
+        elif isinstance(value, float):
+            out[key] = f"{value:.6f}" if key == "wall_seconds" else repr(value)
+        else:
+            out[key] = str(value)
+    return out
+
+
+def episodes_csv_text(rows: Iterable[dict[str, Any]]) -> str:
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=EPISODE_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow(format_row(row))
+    return buf.getvalue()
+
+
+def read_episodes(path: Path) -> list[dict[str, Any]]:
+    """Parse an ``episodes.csv`` back into typed rows."""
+    with open(path, newline="") as fh:
+        reader = csv.DictReader(fh)
+        if reader.fieldnames is None or "score" not in reader.fieldnames:
+            raise ValueError(f"{path} is not an episodes.csv (no header with 'score')")
+        rows = []
+        for raw in reader:
+            rows.append({k: (float(v) if v not in ("", None) and k not in ("episode", "steps", "total_steps")
+                             else (int(v) if v not in ("", None) else None)) for k, v in raw.items()})
+        return rows
+
+
+def plot_curve(path: Path, rows: list[dict[str, Any]], threshold: float, title: str,
+               metric_label: str, score_label: str = "score") -> None:
+    """Score and metric per episode with the threshold line, like the post's figure."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    episodes = [r["episode"] for r in rows]
+    ax.plot(episodes, [r["score"] for r in rows], color="tab:blue", lw=0.8, label=score_label)
+    ax.plot(episodes, [r["metric"] for r in rows], color="tab:orange", lw=1.6, label=metric_label)
+    ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
+    ax.set_xlabel("episode")
+    ax.set_ylabel(score_label)
+    ax.set_title(title)
+    ax.legend(loc="lower right")
+    ax.grid(alpha=0.3)
+    save_figure(fig, path)
+
+
+@dataclass
+class RunRecorder:
+    """Writes one seed's run folder as the run goes."""
+
+    out_dir: Path
+    rows: list[dict[str, Any]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.out_dir = Path(self.out_dir)
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+
+    def write_config(self, config_dict: dict[str, Any]) -> None:
+        atomic_write_json(self.out_dir / "config.json", config_dict)
+
+    def add_episode(self, row: dict[str, Any]) -> None:
+        self.rows.append(row)
+        atomic_write_text(self.out_dir / "episodes.csv", episodes_csv_text(self.rows))
+
+    def write_summary(self, summary: dict[str, Any]) -> None:
+        atomic_write_json(self.out_dir / "summary.json", summary)
+
+    def command_line(self) -> str:
+        return " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
