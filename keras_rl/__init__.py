@@ -17,6 +17,6 @@ if "keras" in sys.modules and os.environ.get("KERAS_BACKEND", "tensorflow") != "
     )
 os.environ["KERAS_BACKEND"] = "tensorflow"
 # TensorFlow's C++ start-up chatter (CPU feature notices) hides our own output.
-os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
+os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
 __version__ = "0.1.0"

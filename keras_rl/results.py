@@ -159,4 +159,14 @@ class RunRecorder:
         atomic_write_json(self.out_dir / "summary.json", summary)
 
     def command_line(self) -> str:
-        return " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
+        return command_line()
+
+
+def command_line() -> str:
+    """The command that produced this run, as a user would type it."""
+    prog = Path(sys.argv[0]).name
+    if prog in ("__main__.py", "keras-rl", "cli.py"):
+        prog = "keras-rl"
+    elif prog.endswith(".py"):
+        prog = f"python {sys.argv[0]}"
+    return " ".join([prog, *sys.argv[1:]])
