@@ -27,17 +27,14 @@ def parse_seeds(text: str) -> list[int]:
         part = part.strip()
         if not part:
             continue
+        lo_text, dash, hi_text = part.partition("-") if "-" in part[1:] else (part, "", part)
         try:
-            if "-" in part[1:]:
-                lo_text, hi_text = part.split("-", 1)
-                lo, hi = int(lo_text), int(hi_text)
-                if lo > hi:
-                    raise ConfigError(f"seed range {part!r} runs backwards; write {hi}-{lo}")
-                seeds.update(range(lo, hi + 1))
-            else:
-                seeds.add(int(part))
+            lo, hi = int(lo_text), int(hi_text)
         except ValueError:
             raise ConfigError(f"cannot read seeds {text!r}: use a list like 0,1,2 or a range like 0-9") from None
+        if lo > hi:
+            raise ConfigError(f"seed range {part!r} runs backwards; write {hi}-{lo}")
+        seeds.update(range(lo, hi + 1))
     if not seeds:
         raise ConfigError(f"no seeds in {text!r}")
     if min(seeds) < 0:

@@ -202,7 +202,7 @@ class DDPGAgent:
 
     def train_batch(self, batch: Batch) -> dict[str, float]:
         """One update on a given batch (for tests and benchmarks)."""
-        rows = self.learner.layout.pack(batch)
+        rows = self.learner.layout.pack(Batch(*batch))
         return {k: float(v) for k, v in self.learner.train(rows).items()}
 
     def networks(self) -> dict[str, keras.Model]:

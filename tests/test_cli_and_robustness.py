@@ -1,0 +1,161 @@
+"""Bad input gets a clear error; interrupted or failed runs keep what they wrote."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from keras_rl.cli import main, parse_seeds
+from keras_rl.configs import PendulumDDPGConfig
+from keras_rl.experiments import get_experiment
+from keras_rl.loop import run_seed
+from keras_rl.results import read_episodes
+
+CLI = [sys.executable, "-m", "keras_rl"]
+
+
+def run_cli(*args, **kwargs):
+    return subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=600, **kwargs)
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("runs") / "p"
+    proc = run_cli("reproduce", "pendulum", "--seeds", "3", "--episodes", "7", "--no-progress",
+                   "--set", "stop_at_threshold=false", "--set", "train_start=600", "--out", str(out))
+    assert proc.returncode == 1, proc.stderr  # 7 episodes cannot reach -300: criterion fails
+    return out / "seed_3"
+
+
+def test_parse_seeds():
+    assert parse_seeds("0-3") == [0, 1, 2, 3]
+    assert parse_seeds("5,1,1,2-3") == [1, 2, 3, 5]
+    assert parse_seeds("13") == [13]
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["reproduce", "cartpool"], "unknown experiment 'cartpool'"),
+    (["reproduce", "pendulum", "--seeds", "5-2"], "runs backwards"),
+    (["reproduce", "pendulum", "--seeds", "a-b"], "cannot read seeds"),
+    (["reproduce", "pendulum", "--episodes", "0"], "--episodes must be positive"),
+    (["reproduce", "pendulum", "--episodes", "-3"], "--episodes must be positive"),
+    (["reproduce", "pendulum", "--variant", "fastest"], "unknown variant 'fastest'"),
+    (["reproduce", "pendulum", "--set", "actor_lr=-0.001"], "actor_lr must be positive"),
+    (["reproduce", "pendulum", "--set", "tau=2"], "tau must be in (0, 1]"),
+    (["reproduce", "pendulum", "--set", "gamma=nan"], "gamma must be finite"),
+    (["reproduce", "pendulum", "--set", "batch_size=lots"], "batch_size expects a int"),
+    (["reproduce", "pendulum", "--set", "warp=9"], "unknown pendulum config field 'warp'"),
+    (["reproduce", "pendulum", "--workers", "0"], "--workers must be at least 1"),
+    (["reproduce", "pendulum", "--set", "env_id=NoSuchEnv-v9"], "unknown environment 'NoSuchEnv-v9'"),
+    (["reproduce", "pendulum", "--set", "env_id=CartPole-v1", "--no-progress"], "needs a continuous Box action space"),
+    (["evaluate", "/no/such/run"], "does not exist"),
+])
+def test_bad_input_is_named_and_exits_non_zero(argv, message, capsys, tmp_path):
+    if argv[0] == "reproduce":
+        argv = [*argv, "--out", str(tmp_path / "out")]
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_evaluate_refuses_a_folder_without_config(tmp_path, capsys):
+    assert main(["evaluate", str(tmp_path)]) == 2
+    assert "has no config.json" in capsys.readouterr().err
+
+
+def test_evaluate_refuses_a_corrupt_config(short_run, tmp_path, capsys):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "config.json").write_text('{"experiment": "pendulum", "tau": ')
+    assert main(["evaluate", str(bad)]) == 2
+    assert "is corrupt" in capsys.readouterr().err
+
+
+def test_evaluate_refuses_corrupt_or_missing_weights(short_run, tmp_path, capsys):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "config.json").write_text((short_run / "config.json").read_text())
+    assert main(["evaluate", str(bad)]) == 2
+    assert "actor.weights.h5 is missing" in capsys.readouterr().err
+    (bad / "actor.weights.h5").write_bytes(b"\x89HDF\r\n garbage")
+    assert main(["evaluate", str(bad)]) == 2
+    assert "could not be loaded" in capsys.readouterr().err
+
+
+def test_run_folder_has_every_file(short_run):
+    for name in ("config.json", "episodes.csv", "summary.json", "curve.png", "actor.weights.h5", "critic.weights.h5"):
+        assert (short_run / name).is_file(), name
+    summary = json.loads((short_run / "summary.json").read_text())
+    assert summary["status"] == "completed" and summary["success"] is False
+    assert summary["reached_at_episode"] is None and summary["episodes_run"] == 7
+    assert summary["versions"]["keras_backend"] == "tensorflow"
+    rows = read_episodes(short_run / "episodes.csv")
+    assert [r["episode"] for r in rows] == list(range(1, 8))
+    assert all(r["steps"] == 200 for r in rows) and rows[-1]["total_steps"] == 1400
+    assert rows[0]["critic_loss"] is None and rows[-1]["critic_loss"] is not None  # training from step 600
+
+
+def test_evaluate_plays_greedy_episodes_and_writes_a_gif(short_run, tmp_path):
+    gif = tmp_path / "pendulum.gif"
+    proc = run_cli("evaluate", str(short_run), "--episodes", "2", "--gif", str(gif))
+    assert proc.returncode == 0, proc.stderr
+    assert "mean score over 2 greedy episodes" in proc.stdout
+    result = json.loads((short_run / "evaluation.json").read_text())
+    assert len(result["scores"]) == 2 and all(-2000 < s <= 0 for s in result["scores"])
+    assert gif.read_bytes()[:6] in (b"GIF87a", b"GIF89a")
+    from PIL import Image
+
+    with Image.open(gif) as img:
+        assert img.n_frames == 200
+
+
+class NaNRewardAfter(gym.Wrapper):
+    def __init__(self, env, after_steps):
+        super().__init__(env)
+        self.after, self.steps = after_steps, 0
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self.steps += 1
+        return obs, (float("nan") if self.steps > self.after else reward), terminated, truncated, info
+
+
+def test_nan_in_a_loss_stops_the_run_and_keeps_the_episodes(tmp_path):
+    exp = get_experiment("pendulum")
+    config = PendulumDDPGConfig.for_variant("faithful", episodes=10, train_start=64, batch_size=16)
+    env = NaNRewardAfter(exp.make_env(config), after_steps=450)
+    summary = run_seed(exp, config, tmp_path, progress=False, env=env)
+    assert summary["status"] == "non_finite_loss" and not summary["finished"]
+    assert "critic_loss became nan" in summary["message"]
+    rows = read_episodes(tmp_path / "episodes.csv")
+    assert [r["episode"] for r in rows] == [1, 2]  # the episode that hit NaN is not recorded
+    assert json.loads((tmp_path / "summary.json").read_text())["status"] == "non_finite_loss"
+
+
+def test_ctrl_c_leaves_valid_files_marked_unfinished(tmp_path):
+    out = tmp_path / "run"
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen([*CLI, "reproduce", "pendulum", "--seeds", "0", "--no-progress",
+                             "--set", "stop_at_threshold=false", "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    csv = out / "seed_0" / "episodes.csv"
+    deadline = time.time() + 300
+    while time.time() < deadline:
+        if csv.is_file() and len(csv.read_text().splitlines()) >= 4:
+            break
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr
+    assert "interrupted" in stderr
+    summary = json.loads((out / "seed_0" / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["finished"] is False
+    rows = read_episodes(csv)
+    assert len(rows) >= 3 and summary["episodes_run"] == len(rows)
+    assert not list((out / "seed_0").glob(".*.tmp"))  # no half-written temporary files

@@ -1,0 +1,48 @@
+import keras
+import numpy as np
+import pytest
+
+from keras_rl.metrics import PostEMA, crossed
+from keras_rl.targets import soft_update
+
+
+def test_soft_update_mixes_by_tau():
+    target = [keras.Variable(np.array([1.0, 2.0])), keras.Variable(np.array([[0.0]]))]
+    source = [keras.Variable(np.array([3.0, -2.0])), keras.Variable(np.array([[10.0]]))]
+    soft_update(target, source, 0.25)
+    np.testing.assert_allclose(target[0].numpy(), [1.5, 1.0])
+    np.testing.assert_allclose(target[1].numpy(), [[2.5]])
+    np.testing.assert_allclose(source[0].numpy(), [3.0, -2.0])  # the source is untouched
+
+
+def test_soft_update_tau_one_is_a_hard_copy():
+    target = [keras.Variable(np.array([1.0, 2.0]))]
+    source = [keras.Variable(np.array([7.0, 8.0]))]
+    soft_update(target, source, 1.0)
+    np.testing.assert_array_equal(target[0].numpy(), [7.0, 8.0])
+
+
+def test_soft_update_refuses_mismatched_lists():
+    with pytest.raises(ValueError):
+        soft_update([keras.Variable(1.0)], [keras.Variable(1.0), keras.Variable(2.0)], 0.5)
+
+
+def test_post_ema_starts_at_first_score_then_mixes_0_9_0_1():
+    ema = PostEMA(0.9)
+    assert ema.update(-1200.0) == -1200.0
+    assert ema.update(-200.0) == pytest.approx(0.9 * -1200 + 0.1 * -200)  # -1100
+    assert ema.update(-100.0) == pytest.approx(0.9 * -1100 + 0.1 * -100)  # -1000
+
+
+def test_post_ema_restarts_when_it_is_exactly_zero():
+    # `if score_avg != 0 else score`: 0 doubles as "not started".
+    ema = PostEMA(0.9)
+    ema.update(0.0)
+    assert ema.update(-50.0) == -50.0
+
+
+def test_threshold_crossing_strict_and_inclusive():
+    assert not crossed(-300.0, -300.0, inclusive=False)
+    assert crossed(-299.9, -300.0, inclusive=False)
+    assert crossed(475.0, 475.0, inclusive=True)
+    assert not crossed(float("nan"), 0.0, inclusive=True)
