@@ -8,9 +8,11 @@
 from __future__ import annotations
 
 import argparse
+import json
 import multiprocessing
+import os
+import signal
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -82,6 +84,46 @@ def _run_one(args: tuple[str, dict[str, Any], str, bool, int]) -> dict[str, Any]
     return run_seed(experiment, config, Path(out_dir), progress=progress, position=position)
 
 
+def _worker(job: tuple[str, dict[str, Any], str, bool, int]) -> None:
+    if _run_one(job)["status"] == "interrupted":
+        raise SystemExit(EXIT_INTERRUPTED)
+
+
+def _run_in_processes(jobs: list, workers: int) -> bool:
+    """Run seeds in at most ``workers`` spawned processes; True if Ctrl-C stopped them.
+
+    Each seed writes its own folder, so results are read back from disk. On Ctrl-C no
+    further seed starts; running seeds get SIGINT (a terminal sends it to them as well),
+    write their partial results, and are waited for.
+    """
+    ctx = multiprocessing.get_context("spawn")  # TensorFlow is not fork-safe
+    pending, running, interrupted = list(jobs), [], False
+    try:
+        while pending or running:
+            while pending and len(running) < workers:
+                proc = ctx.Process(target=_worker, args=(pending.pop(0),))
+                proc.start()
+                running.append(proc)
+            running[0].join(timeout=0.5)
+            for proc in [p for p in running if not p.is_alive()]:
+                running.remove(proc)
+                if proc.exitcode == EXIT_INTERRUPTED:
+                    interrupted, pending = True, []
+    except KeyboardInterrupt:
+        interrupted = True
+    if interrupted:
+        for proc in running:
+            if proc.is_alive():
+                os.kill(proc.pid, signal.SIGINT)
+        for proc in running:
+            while proc.is_alive():
+                try:
+                    proc.join()
+                except KeyboardInterrupt:  # a second Ctrl-C while the seeds flush: keep waiting
+                    pass
+    return interrupted
+
+
 def reproduce(args: argparse.Namespace) -> int:
     from keras_rl.aggregate import write_aggregate
     from keras_rl.experiments import get_experiment
@@ -100,23 +142,20 @@ def reproduce(args: argparse.Namespace) -> int:
     jobs = [(experiment.name, base.replace(seed=s).to_dict(), str(out / f"seed_{s}"),
              not args.no_progress, i % args.workers) for i, s in enumerate(seeds)]
 
-    summaries: list[dict[str, Any]] = []
-    interrupted = False
-    try:
-        if args.workers == 1 or len(seeds) == 1:
+    if args.workers == 1 or len(seeds) == 1:
+        interrupted = False
+        try:
             for job in jobs:
-                summaries.append(_run_one(job))
-                if summaries[-1]["status"] == "interrupted":
+                if _run_one(job)["status"] == "interrupted":
                     interrupted = True
                     break
-        else:
-            ctx = multiprocessing.get_context("spawn")  # TensorFlow is not fork-safe
-            with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx) as pool:
-                for summary in pool.map(_run_one, jobs):
-                    summaries.append(summary)
-                    interrupted |= summary["status"] == "interrupted"
-    except KeyboardInterrupt:
-        interrupted = True
+        except KeyboardInterrupt:  # arrived outside a seed's episode loop
+            interrupted = True
+    else:
+        interrupted = _run_in_processes(jobs, args.workers)
+    # Read back what each seed wrote (a worker interrupted mid-run reports only on disk).
+    summaries = [json.loads(p.read_text()) for p in (Path(job[2]) / "summary.json" for job in jobs)
+                 if p.is_file()]
     failures = [s for s in summaries if s["status"] in ("non_finite_loss", "error")]
     for s in failures:
         print(f"error: seed {s['seed']}: {s['message']}", file=sys.stderr)

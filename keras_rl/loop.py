@@ -44,6 +44,9 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
     status, message, reached_at = "running", "", None
     start = time.perf_counter()
     total_steps = 0
+    # A summary from the start: a run killed outright (SIGKILL, power loss) still says so,
+    # and no stale summary from an earlier run in this folder survives.
+    recorder.write_summary(_summary(experiment, config, recorder, status, message, None, 0, 0.0))
     try:
         for episode in range(1, config.episodes + 1):
             obs, _ = env.reset(seed=config.seed if episode == 1 else None)

@@ -138,19 +138,22 @@ def test_nan_in_a_loss_stops_the_run_and_keeps_the_episodes(tmp_path):
     assert json.loads((tmp_path / "summary.json").read_text())["status"] == "non_finite_loss"
 
 
-def test_ctrl_c_leaves_valid_files_marked_unfinished(tmp_path):
+@pytest.mark.parametrize("seeds,workers", [("0", 1), ("0-2", 2)])
+def test_ctrl_c_leaves_valid_files_marked_unfinished(tmp_path, seeds, workers):
     out = tmp_path / "run"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    proc = subprocess.Popen([*CLI, "reproduce", "pendulum", "--seeds", "0", "--no-progress",
-                             "--set", "stop_at_threshold=false", "--out", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    # A new session, so that SIGINT can go to the whole group as a terminal's Ctrl-C does.
+    proc = subprocess.Popen([*CLI, "reproduce", "pendulum", "--seeds", seeds, "--workers", str(workers),
+                             "--no-progress", "--set", "stop_at_threshold=false", "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            start_new_session=True)
     csv = out / "seed_0" / "episodes.csv"
     deadline = time.time() + 300
     while time.time() < deadline:
         if csv.is_file() and len(csv.read_text().splitlines()) >= 4:
             break
         time.sleep(0.2)
-    proc.send_signal(signal.SIGINT)
+    os.killpg(proc.pid, signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 130, stderr
     assert "interrupted" in stderr
@@ -159,3 +162,5 @@ def test_ctrl_c_leaves_valid_files_marked_unfinished(tmp_path):
     rows = read_episodes(csv)
     assert len(rows) >= 3 and summary["episodes_run"] == len(rows)
     assert not list((out / "seed_0").glob(".*.tmp"))  # no half-written temporary files
+    if workers > 1:
+        assert not (out / "seed_2").exists()  # the queued seed never started
