@@ -8,6 +8,7 @@ leaves the graph: no ``get_weights``/``set_weights``, no ``.predict``.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import keras
 import numpy as np
@@ -18,6 +19,7 @@ from keras_rl.configs import PendulumDDPGConfig
 from keras_rl.errors import NonFiniteLossError
 from keras_rl.networks import Actor, Critic, build
 from keras_rl.noise import OUNoise
+from keras_rl.results import load_weights, save_weights
 from keras_rl.targets import soft_update
 
 
@@ -157,7 +159,7 @@ class DDPGAgent:
 
     def begin_episode(self, obs: np.ndarray) -> np.ndarray:
         self.noise.reset()  # §2.4: pre_noise = np.zeros(action_size)
-        self.episode_losses = {"critic_loss": 0.0, "actor_loss": 0.0}
+        self.episode_losses = dict.fromkeys(self.loss_names, 0.0)
         self._state = np.asarray(obs, dtype=np.float32)
         self._action = self._explore(self.learner.act(self._state))
         return self._action
@@ -205,6 +207,13 @@ class DDPGAgent:
         rows = self.learner.layout.pack(Batch(*batch))
         return {k: float(v) for k, v in self.learner.train(rows).items()}
 
-    def networks(self) -> dict[str, keras.Model]:
-        """What a run folder saves: ``<name>.weights.h5`` for each entry."""
-        return {"actor": self.learner.actor, "critic": self.learner.critic}
+    loss_names = ("critic_loss", "actor_loss")
+
+    def save(self, run_dir: Path) -> None:
+        """``actor.weights.h5`` and ``critic.weights.h5`` (§2.4 saves the actor)."""
+        save_weights(self.learner.actor, Path(run_dir) / "actor.weights.h5")
+        save_weights(self.learner.critic, Path(run_dir) / "critic.weights.h5")
+
+    def load_policy(self, run_dir: Path) -> None:
+        """§3: ``agent.actor.load_weights(...)``: only the actor is needed to play."""
+        load_weights(self.learner.actor, Path(run_dir) / "actor.weights.h5")

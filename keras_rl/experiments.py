@@ -26,8 +26,6 @@ class Experiment:
     metric_label: str
     threshold_inclusive: bool
     """Success is ``metric >= threshold`` when True, ``metric > threshold`` when False."""
-    policy_network: str
-    """The network ``evaluate`` loads and plays greedily."""
     description: str
 
 
@@ -52,7 +50,6 @@ EXPERIMENTS: dict[str, Experiment] = {
         make_metric=lambda c: PostEMA(c.ema_decay),
         metric_label="EMA 0.9 (post's score_avg)",
         threshold_inclusive=False,
-        policy_network="actor",
         description="post 000: DDPG on Pendulum-v1 (g=10), success = EMA > -300",
     ),
 }

@@ -12,8 +12,7 @@ import numpy as np
 from keras_rl.errors import NonFiniteLossError, RunFolderError
 from keras_rl.experiments import Experiment, get_experiment
 from keras_rl.metrics import crossed
-from keras_rl.results import (RunRecorder, atomic_write_json, library_versions, plot_curve,
-                              save_weights)
+from keras_rl.results import RunRecorder, atomic_write_json, library_versions, plot_curve
 from keras_rl.seeding import configure_tensorflow, seed_everything
 
 
@@ -27,11 +26,11 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
     """
     configure_tensorflow(threads)
     seed_everything(config.seed)
-    recorder = RunRecorder(Path(out_dir))
-    recorder.write_config(config.to_dict())
     env = env if env is not None else experiment.make_env(config)
     env.action_space.seed(config.seed)
     agent = experiment.make_agent(config, env)
+    recorder = RunRecorder(Path(out_dir), agent.loss_names)
+    recorder.write_config(config.to_dict())
     metric = experiment.make_metric(config)
 
     bar = None
@@ -87,8 +86,7 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
                            total_steps, time.perf_counter() - start)
         recorder.write_summary(summary)
         if status in ("completed", "interrupted"):
-            for name, model in agent.networks().items():
-                save_weights(model, recorder.out_dir / f"{name}.weights.h5")
+            agent.save(recorder.out_dir)
         if recorder.rows:
             plot_curve(recorder.out_dir / "curve.png", recorder.rows, config.threshold,
                        f"{experiment.name} ({config.variant}), seed {config.seed}", experiment.metric_label)
@@ -146,19 +144,12 @@ def evaluate_run(run_dir: Path, episodes: int = 5, gif: Path | None = None, seed
     if episodes <= 0:
         raise ConfigError(f"--episodes must be positive, got {episodes}")
     experiment, config = load_run_config(run_dir)
-    weights = Path(run_dir) / f"{experiment.policy_network}.weights.h5"
-    if not weights.is_file():
-        raise RunFolderError(f"{weights} is missing; the run did not save its {experiment.policy_network}")
     configure_tensorflow(1)
     seed = config.seed + 10_000 if seed is None else seed
     seed_everything(seed)
     env = experiment.make_env(config, render_mode="rgb_array" if gif else None)
     agent = experiment.make_agent(config, env)
-    model = agent.networks()[experiment.policy_network]
-    try:
-        model.load_weights(str(weights))
-    except Exception as exc:  # h5py/keras raise many kinds for a damaged file
-        raise RunFolderError(f"{weights} could not be loaded ({type(exc).__name__}: {exc})") from None
+    agent.load_policy(run_dir)
 
     scores, frames = [], []
     for episode in range(episodes):

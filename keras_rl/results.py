@@ -23,11 +23,12 @@ import matplotlib
 matplotlib.use("Agg")  # files only; no display needed
 import matplotlib.pyplot as plt  # noqa: E402
 
-EPISODE_COLUMNS = ("episode", "steps", "total_steps", "score", "metric",
-                   "critic_loss", "actor_loss", "wall_seconds")
-"""``episode`` counts from 1; ``steps`` is that episode's length; ``metric`` is the post's
-progress metric (post 000: the EMA); losses are means over the episode's updates
-(empty before training starts); ``wall_seconds`` is the time since the run started."""
+def episode_columns(loss_names: tuple[str, ...]) -> tuple[str, ...]:
+    """``episode`` counts from 1; ``steps`` is that episode's length; ``metric`` is the post's
+    progress metric (post 000: the EMA; post 003: the 100-episode mean); each loss is the
+    mean over the episode's updates (empty before training starts); ``wall_seconds`` is the
+    time since the run started."""
+    return ("episode", "steps", "total_steps", "score", "metric", *loss_names, "wall_seconds")
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
@@ -72,6 +73,19 @@ def save_weights(model, path: Path) -> None:
         tmp.unlink(missing_ok=True)
 
 
+def load_weights(model, path: Path) -> None:
+    """``model.load_weights`` with a RunFolderError that names a missing or damaged file."""
+    from keras_rl.errors import RunFolderError
+
+    path = Path(path)
+    if not path.is_file():
+        raise RunFolderError(f"{path} is missing; the run did not save it")
+    try:
+        model.load_weights(str(path))
+    except Exception as exc:  # h5py/keras raise many kinds for a damaged file
+        raise RunFolderError(f"{path} could not be loaded ({type(exc).__name__}: {exc})") from None
+
+
 def library_versions() -> dict[str, str]:
     import gymnasium
     import keras
@@ -86,9 +100,9 @@ def library_versions() -> dict[str, str]:
             "numpy": numpy.__version__}
 
 
-def format_row(row: dict[str, Any]) -> dict[str, str]:
+def format_row(row: dict[str, Any], columns: tuple[str, ...]) -> dict[str, str]:
     out = {}
-    for key in EPISODE_COLUMNS:
+    for key in columns:
         value = row.get(key)
         if value is None:
             out[key] = ""
@@ -99,12 +113,12 @@ def format_row(row: dict[str, Any]) -> dict[str, str]:
     return out
 
 
-def episodes_csv_text(rows: Iterable[dict[str, Any]]) -> str:
+def episodes_csv_text(rows: Iterable[dict[str, Any]], columns: tuple[str, ...]) -> str:
     buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=EPISODE_COLUMNS, lineterminator="\n")
+    writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
     writer.writeheader()
     for row in rows:
-        writer.writerow(format_row(row))
+        writer.writerow(format_row(row, columns))
     return buf.getvalue()
 
 
@@ -142,6 +156,7 @@ class RunRecorder:
     """Writes one seed's run folder as the run goes."""
 
     out_dir: Path
+    loss_names: tuple[str, ...] = ()
     rows: list[dict[str, Any]] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -153,7 +168,8 @@ class RunRecorder:
 
     def add_episode(self, row: dict[str, Any]) -> None:
         self.rows.append(row)
-        atomic_write_text(self.out_dir / "episodes.csv", episodes_csv_text(self.rows))
+        atomic_write_text(self.out_dir / "episodes.csv",
+                          episodes_csv_text(self.rows, episode_columns(self.loss_names)))
 
     def write_summary(self, summary: dict[str, Any]) -> None:
         atomic_write_json(self.out_dir / "summary.json", summary)
