@@ -37,8 +37,9 @@ class Layout(NamedTuple):
         return Batch(rows[:, :o], rows[:, o:o + a], rows[:, o + a],
                      rows[:, o + a + 1:2 * o + a + 1], rows[:, 2 * o + a + 1])
 
-    def pack(self, batch: Batch) -> np.ndarray:
-        """The inverse of ``split`` for numpy batches."""
+    def pack(self, batch) -> np.ndarray:
+        """The inverse of ``split`` for numpy batches (any 5-tuple in Batch order)."""
+        batch = Batch(*batch)
         return np.concatenate([
             np.asarray(batch.states, np.float32).reshape(len(batch.rewards), -1),
             np.asarray(batch.actions, np.float32).reshape(len(batch.rewards), -1),

@@ -19,7 +19,6 @@ from typing import Any, Sequence
 from keras_rl.errors import ConfigError, KerasRLError
 
 EXIT_OK, EXIT_CRITERION, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
-POST_NUMBERS = {"pendulum": "The post reports the EMA passing -300 after 153 episodes (one run)."}
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -52,6 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep = sub.add_parser("reproduce", help="train one experiment over one or more seeds")
     rep.add_argument("experiment", help="experiment name (see `keras-rl list`)")
     rep.add_argument("--variant", default="faithful", help="faithful (the post's code as it ran) or fixed")
+    rep.add_argument("--framework", default="keras", help="keras (ours) or torch (where the experiment has one)")
     rep.add_argument("--seeds", default="0", help="seed list or range: 13, 0-9, 0,3,5 (default 0)")
     rep.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
     rep.add_argument("--out", type=Path, default=None,
@@ -134,11 +134,18 @@ def reproduce(args: argparse.Namespace) -> int:
         raise ConfigError(f"--workers must be at least 1, got {args.workers}")
     if not 0 <= args.min_success_rate <= 1:
         raise ConfigError(f"--min-success-rate must be in [0, 1], got {args.min_success_rate}")
-    overrides = {} if args.episodes is None else {"episodes": args.episodes}
+    overrides = {"framework": args.framework}
+    if args.episodes is not None:
+        overrides["episodes"] = args.episodes
     if args.episodes is not None and args.episodes <= 0:
         raise ConfigError(f"--episodes must be positive, got {args.episodes}")
     base = experiment.config_cls.for_variant(args.variant, **overrides).with_text_overrides(args.overrides)
-    out = args.out or Path("results") / experiment.name / args.variant
+    if args.framework == "torch":
+        from keras_rl.torch import require_torch
+
+        require_torch()
+    suffix = "" if args.framework == "keras" else f"-{args.framework}"
+    out = args.out or Path("results") / experiment.name / f"{args.variant}{suffix}"
     jobs = [(experiment.name, base.replace(seed=s).to_dict(), str(out / f"seed_{s}"),
              not args.no_progress, i % args.workers) for i, s in enumerate(seeds)]
 
@@ -160,11 +167,11 @@ def reproduce(args: argparse.Namespace) -> int:
     for s in failures:
         print(f"error: seed {s['seed']}: {s['message']}", file=sys.stderr)
     if summaries and len(seeds) > 1:
-        write_aggregate(out, summaries, base.threshold, f"{experiment.name} ({args.variant}), "
-                        f"{len(summaries)} seeds", experiment.metric_label, POST_NUMBERS.get(experiment.name, ""))
+        write_aggregate(out, summaries, base.threshold, f"{experiment.name} ({args.variant}, {args.framework}), "
+                        f"{len(summaries)} seeds", experiment.metric_label, experiment.post_reference)
     for s in summaries:
         where = f"episode {s['reached_at_episode']}" if s["success"] else "not reached"
-        print(f"{experiment.name}/{args.variant} seed {s['seed']}: {s['status']}, threshold {where} "
+        print(f"{experiment.name}/{args.variant}/{args.framework} seed {s['seed']}: {s['status']}, threshold {where} "
               f"({s['episodes_run']} episodes, {s['total_steps']} steps, {s['wall_seconds']:.1f} s) -> {out}")
     if interrupted:
         print("interrupted: partial results are on disk, marked unfinished", file=sys.stderr)

@@ -28,11 +28,15 @@ class ExperimentConfig:
     """The seed post this config reproduces."""
     VARIANTS: ClassVar[dict[str, dict[str, Any]]] = {"faithful": {}}
     """Named sets of overrides. ``faithful`` is always the empty set: the defaults."""
+    FRAMEWORKS: ClassVar[tuple[str, ...]] = ("keras",)
+    """Frameworks this experiment is implemented in."""
 
     variant: str = "faithful"
     """Which named variant produced this config (for the record; set by ``for_variant``)."""
     seed: int = 0
-    """Seeds Python, NumPy, TensorFlow and the env's first ``reset``."""
+    """Seeds Python, NumPy, TensorFlow (or PyTorch) and the env's first ``reset``."""
+    framework: str = "keras"
+    """``keras`` (ours) or, where the experiment has one, ``torch``."""
 
     # -- construction -------------------------------------------------------------------
     @classmethod
@@ -108,6 +112,12 @@ class ExperimentConfig:
                 raise ConfigError(f"{f.name} must be in [0, 1), got {value!r}")
         if self.seed < 0:
             raise ConfigError(f"seed must be zero or more, got {self.seed}")
+        init = getattr(self, "init", "keras")
+        if init not in ("keras", "torch"):
+            raise ConfigError(f"init must be 'keras' or 'torch', got {init!r}")
+        if self.framework not in self.FRAMEWORKS:
+            raise ConfigError(f"{self.experiment} has no {self.framework!r} version; "
+                              f"choose one of {', '.join(self.FRAMEWORKS)}")
 
 
 def positive(default: Any) -> Any:
@@ -233,4 +243,59 @@ class PendulumDDPGConfig(ExperimentConfig):
     nothing and the targets start from their own random init. False: a real hard copy."""
 
 
-CONFIGS: dict[str, type[ExperimentConfig]] = {PendulumDDPGConfig.experiment: PendulumDDPGConfig}
+@dataclass(frozen=True)
+class CartPoleDQNConfig(ExperimentConfig):
+    """Post 003: the PyTorch DQN tutorial on ``CartPole-v1``.
+
+    ``In [N]`` refers to the notebook cells of ``../shared/seeds/003_57d1feb4b7fdd940.txt``;
+    the training loop after ``optimize_model`` is not in the post's text and follows the
+    tutorial as issue #3 gives it.
+    """
+
+    experiment: ClassVar[str] = "cartpole"
+    post: ClassVar[str] = "003_57d1feb4b7fdd940"
+    FRAMEWORKS: ClassVar[tuple[str, ...]] = ("keras", "torch")
+
+    env_id: str = "CartPole-v1"
+    """In [27]: ``env = gym.make("CartPole-v1")``."""
+    hidden_units: tuple[int, ...] = (128, 128)
+    """In [16]: ``nn.Linear(n_observations, 128)``, ``nn.Linear(128, 128)``, ``nn.Linear(128, n_actions)``."""
+    init: str = "torch"
+    """``torch``: ``nn.Linear``'s U(-1/sqrt(fan_in), 1/sqrt(fan_in)) for weights and biases,
+    as the tutorial's network gets. ``keras``: Keras' Glorot-uniform kernels, zero biases."""
+    batch_size: int = positive(128)
+    """In [23]: ``BATCH_SIZE = 128``; also the warm-up: ``if len(memory) < BATCH_SIZE: return``."""
+    gamma: float = unit(0.99)
+    """In [23]: ``GAMMA = 0.99``."""
+    eps_start: float = unit(0.9)
+    """In [23]: ``EPS_START = 0.9``."""
+    eps_end: float = fraction(0.05)
+    """In [23]: ``EPS_END = 0.05``."""
+    eps_decay: float = positive(1000.0)
+    """In [23]: ``EPS_DECAY = 1000``, in env steps: ``exp(-1. * steps_done / EPS_DECAY)`` (In [31])."""
+    tau: float = unit(0.005)
+    """In [23]: ``TAU = 0.005``; the target is soft-updated after every env step."""
+    lr: float = positive(1e-4)
+    """In [23]: ``LR = 1e-4``; In [28]: ``optim.AdamW(policy_net.parameters(), lr=LR, amsgrad=True)``."""
+    weight_decay: float = non_negative(0.01)
+    """torch AdamW's default ``weight_decay=0.01``: the tutorial never sets it, so it gets it."""
+    adam_eps: float = positive(1e-8)
+    """torch AdamW's default ``eps=1e-8`` (added after the bias-corrected sqrt)."""
+    amsgrad: bool = True
+    """In [28]: ``amsgrad=True``."""
+    grad_clip_value: float = positive(100.0)
+    """``torch.nn.utils.clip_grad_value_(policy_net.parameters(), 100)`` before ``optimizer.step()``."""
+    buffer_size: int = positive(10000)
+    """In [28]: ``memory = ReplayMemory(10000)``: a deque, sampled with ``random.sample``."""
+    episodes: int = positive(600)
+    """``num_episodes = 600`` when a GPU is available (50 otherwise); we use 600."""
+    threshold: float = 475.0
+    """CartPole-v1's reward threshold: success is the 100-episode mean duration >= 475."""
+    mean_window: int = positive(100)
+    """``plot_durations``: ``durations_t.unfold(0, 100, 1).mean(1)``, zeros before 100 episodes."""
+    stop_at_threshold: bool = False
+    """The tutorial trains all ``num_episodes``; it never stops early."""
+
+
+CONFIGS: dict[str, type[ExperimentConfig]] = {
+    c.experiment: c for c in (PendulumDDPGConfig, CartPoleDQNConfig)}

@@ -33,3 +33,15 @@ def require_box_actions(env: gym.Env, algorithm: str) -> tuple[int, int, float]:
             f"{algorithm} scales tanh by one symmetric bound; {env_id}'s action bounds are "
             f"{space.low}..{space.high}")
     return env.observation_space.shape[0], space.shape[0], float(space.high[0])
+
+
+def require_discrete_actions(env: gym.Env, algorithm: str) -> tuple[int, int]:
+    """(obs_dim, n_actions) of a flat-observation Discrete env, or an error saying why not."""
+    env_id = env.spec.id if env.spec else type(env.unwrapped).__name__
+    if not isinstance(env.action_space, gym.spaces.Discrete):
+        raise EnvironmentMismatchError(
+            f"{algorithm} needs a Discrete action space, but {env_id} has {env.action_space}")
+    if len(env.observation_space.shape) != 1:
+        raise EnvironmentMismatchError(f"{algorithm} needs flat observations; {env_id} has "
+                                       f"shape {env.observation_space.shape}")
+    return env.observation_space.shape[0], int(env.action_space.n)

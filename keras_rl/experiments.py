@@ -7,10 +7,10 @@ from typing import Any, Callable
 
 import gymnasium as gym
 
-from keras_rl.configs import ExperimentConfig, PendulumDDPGConfig
+from keras_rl.configs import CartPoleDQNConfig, ExperimentConfig, PendulumDDPGConfig
 from keras_rl.errors import ConfigError
-from keras_rl.envs import make_env, require_box_actions
-from keras_rl.metrics import PostEMA
+from keras_rl.envs import make_env, require_box_actions, require_discrete_actions
+from keras_rl.metrics import PostEMA, RollingMean
 
 
 @dataclass(frozen=True)
@@ -27,6 +27,10 @@ class Experiment:
     threshold_inclusive: bool
     """Success is ``metric >= threshold`` when True, ``metric > threshold`` when False."""
     description: str
+    summary_extras: Callable[[list[dict[str, Any]], Any], dict[str, Any]] = lambda rows, config: {}
+    """Experiment-specific numbers for ``summary.json``."""
+    post_reference: str = ""
+    """What the post itself reports, for ``summary.md``."""
 
 
 def _pendulum_env(config: PendulumDDPGConfig, render_mode: str | None = None) -> gym.Env:
@@ -41,6 +45,30 @@ def _pendulum_agent(config: PendulumDDPGConfig, env: gym.Env):
     return DDPGAgent(config, obs_dim, action_dim, bound)
 
 
+def _cartpole_env(config: CartPoleDQNConfig, render_mode: str | None = None) -> gym.Env:
+    return make_env(config.env_id, render_mode=render_mode)
+
+
+def _cartpole_agent(config: CartPoleDQNConfig, env: gym.Env):
+    obs_dim, n_actions = require_discrete_actions(env, "DQN (post 003)")
+    if config.framework == "torch":
+        from keras_rl.torch import require_torch
+
+        require_torch().set_num_threads(1)
+        from keras_rl.torch.dqn_tutorial import TutorialDQNAgent
+
+        return TutorialDQNAgent(config, obs_dim, n_actions, env.action_space)
+    from keras_rl.dqn import DQNAgent
+
+    return DQNAgent(config, obs_dim, n_actions, env.action_space)
+
+
+def _cartpole_extras(rows: list[dict[str, Any]], config: CartPoleDQNConfig) -> dict[str, Any]:
+    last = [r["score"] for r in rows[-config.mean_window:]]
+    return {"last_100_mean": sum(last) / len(last) if last else None,
+            "last_100_share_at_500": sum(s >= 500 for s in last) / len(last) if last else None}
+
+
 EXPERIMENTS: dict[str, Experiment] = {
     "pendulum": Experiment(
         name="pendulum",
@@ -51,6 +79,21 @@ EXPERIMENTS: dict[str, Experiment] = {
         metric_label="EMA 0.9 (post's score_avg)",
         threshold_inclusive=False,
         description="post 000: DDPG on Pendulum-v1 (g=10), success = EMA > -300",
+        post_reference="The post reports the EMA passing -300 after 153 episodes (one run).",
+    ),
+    "cartpole": Experiment(
+        name="cartpole",
+        config_cls=CartPoleDQNConfig,
+        make_env=_cartpole_env,
+        make_agent=_cartpole_agent,
+        make_metric=lambda c: RollingMean(c.mean_window),
+        metric_label="100-episode mean duration",
+        threshold_inclusive=True,
+        description="post 003: the PyTorch DQN tutorial on CartPole-v1 (keras or torch), "
+                    "success = 100-episode mean >= 475 within 600 episodes",
+        summary_extras=_cartpole_extras,
+        post_reference=("The tutorial claims the model \"constantly achieves 500 steps within 600 training "
+                        "episodes\"; CartPole-v1's reward threshold is 475."),
     ),
 }
 

@@ -38,7 +38,7 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
         from tqdm.auto import tqdm
 
         bar = tqdm(total=config.episodes, position=position, leave=position == 0, dynamic_ncols=True,
-                   desc=f"{experiment.name}/{config.variant} seed {config.seed}", unit="ep")
+                   desc=f"{experiment.name}/{config.variant}/{config.framework} seed {config.seed}", unit="ep")
 
     status, message, reached_at = "running", "", None
     start = time.perf_counter()
@@ -89,7 +89,8 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
             agent.save(recorder.out_dir)
         if recorder.rows:
             plot_curve(recorder.out_dir / "curve.png", recorder.rows, config.threshold,
-                       f"{experiment.name} ({config.variant}), seed {config.seed}", experiment.metric_label)
+                       f"{experiment.name} ({config.variant}, {config.framework}), seed {config.seed}",
+                       experiment.metric_label)
         env.close()
     return summary
 
@@ -115,6 +116,8 @@ def _summary(experiment: Experiment, config, recorder: RunRecorder, status: str,
         "final_metric": rows[-1]["metric"] if rows else None,
         "best_metric": max((r["metric"] for r in rows), default=None),
         "wall_seconds": round(wall, 3),
+        **experiment.summary_extras(rows, config),
+        "framework": config.framework,
         "command": recorder.command_line(),
         "versions": library_versions(),
     }

@@ -22,6 +22,24 @@ class PostEMA:
         return self.value
 
 
+class RollingMean:
+    """Post 003's ``plot_durations``: the mean of the last ``window`` durations.
+
+    The tutorial plots ``torch.cat((torch.zeros(99), means))``: zero until ``window``
+    episodes exist, then ``unfold(0, 100, 1).mean(1)``. We report the same numbers.
+    """
+
+    def __init__(self, window: int = 100):
+        self.window = window
+        self.scores: list[float] = []
+
+    def update(self, score: float) -> float:
+        self.scores.append(score)
+        if len(self.scores) < self.window:
+            return 0.0
+        return sum(self.scores[-self.window:]) / self.window
+
+
 def crossed(value: float, threshold: float, inclusive: bool) -> bool:
     """Whether ``value`` passes ``threshold`` (``>=`` when inclusive, else ``>``)."""
     if not math.isfinite(value):

@@ -45,5 +45,38 @@ class Critic(keras.Model):
 
 def build(model: keras.Model, *input_dims: int) -> keras.Model:
     """Create a model's variables by calling it once on zeros of the given widths."""
-    model(*[tf.zeros((1, dim)) for dim in input_dims])
+    model(*[tf.zeros((1, dim), model.compute_dtype) for dim in input_dims])
     return model
+
+
+def torch_linear_init(fan_in: int) -> keras.initializers.Initializer:
+    """``nn.Linear``'s default: kaiming_uniform(a=sqrt(5)) = U(-1/sqrt(fan_in), 1/sqrt(fan_in)),
+    for weights and biases alike."""
+    bound = 1.0 / fan_in ** 0.5
+    return keras.initializers.RandomUniform(-bound, bound)
+
+
+class QNetwork(keras.Model):
+    """Post 003 In [16]: Linear 128, relu, Linear 128, relu, Linear n_actions.
+
+    ``init="torch"`` draws every weight and bias like ``nn.Linear``; ``"keras"`` keeps
+    Dense's Glorot-uniform kernels and zero biases.
+    """
+
+    def __init__(self, obs_dim: int, n_actions: int, hidden_units: Sequence[int] = (128, 128),
+                 init: str = "torch", dtype: str | None = None):
+        super().__init__(dtype=dtype)
+        fan_ins = [obs_dim, *hidden_units]
+        widths = [*hidden_units, n_actions]
+        self.dense = []
+        for i, (fan_in, width) in enumerate(zip(fan_ins, widths)):
+            kwargs = ({"kernel_initializer": torch_linear_init(fan_in), "bias_initializer": torch_linear_init(fan_in)}
+                      if init == "torch" else {})
+            activation = "relu" if i < len(hidden_units) else None
+            self.dense.append(keras.layers.Dense(width, activation=activation, dtype=dtype, **kwargs))
+
+    def call(self, state: tf.Tensor) -> tf.Tensor:  # [B, obs] -> [B, n_actions]
+        x = state
+        for layer in self.dense:
+            x = layer(x)
+        return x

@@ -1,0 +1,170 @@
+"""Post 003 as the PyTorch tutorial wrote it: ``DQN``, ``ReplayMemory``, ``select_action``,
+``optimize_model`` and the state-dict soft update, wrapped in our agent verbs.
+
+What changed from the notebook: globals became attributes (``steps_done``, the networks,
+the optimizer, ``memory``), Python's ``random`` became a seeded ``random.Random``, and the
+device is the CPU. The arithmetic and its order are the tutorial's.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from collections import deque, namedtuple
+from pathlib import Path
+
+import numpy as np
+
+from keras_rl.configs import CartPoleDQNConfig
+from keras_rl.errors import NonFiniteLossError, RunFolderError
+from keras_rl.torch import require_torch
+
+torch = require_torch()
+nn = torch.nn
+F = torch.nn.functional
+
+Transition = namedtuple("Transition", ("state", "action", "next_state", "reward"))
+
+
+class ReplayMemory:
+    def __init__(self, capacity: int, rng: random.Random):
+        self.memory = deque([], maxlen=capacity)
+        self.rng = rng
+
+    def push(self, *args):
+        self.memory.append(Transition(*args))
+
+    def sample(self, batch_size):
+        return self.rng.sample(self.memory, batch_size)
+
+    def __len__(self):
+        return len(self.memory)
+
+
+class DQN(nn.Module):
+    def __init__(self, n_observations, n_actions, hidden=(128, 128)):
+        super().__init__()
+        self.layer1 = nn.Linear(n_observations, hidden[0])
+        self.layer2 = nn.Linear(hidden[0], hidden[1])
+        self.layer3 = nn.Linear(hidden[1], n_actions)
+
+    def forward(self, x):
+        x = F.relu(self.layer1(x))
+        x = F.relu(self.layer2(x))
+        return self.layer3(x)
+
+
+class TutorialDQNAgent:
+    """The tutorial's code path behind ``begin_episode``/``step``; see ``keras_rl.dqn.DQNAgent``."""
+
+    loss_names = ("loss",)
+
+    def __init__(self, config: CartPoleDQNConfig, n_observations: int, n_actions: int, action_space):
+        self.config = c = config
+        torch.manual_seed(c.seed)
+        self.policy_net = DQN(n_observations, n_actions, c.hidden_units)
+        self.target_net = DQN(n_observations, n_actions, c.hidden_units)
+        self.target_net.load_state_dict(self.policy_net.state_dict())
+        self.optimizer = torch.optim.AdamW(self.policy_net.parameters(), lr=c.lr, amsgrad=c.amsgrad,
+                                           weight_decay=c.weight_decay, eps=c.adam_eps)
+        self.criterion = nn.SmoothL1Loss()
+        self.random = random.Random(c.seed)
+        self.memory = ReplayMemory(c.buffer_size, self.random)
+        self.action_space = action_space
+        self.steps_done = 0
+        self.updates = 0
+        self.episode_losses: dict[str, float] = {}
+        self._state = None
+        self._action = None
+
+    # -- the tutorial's functions ----------------------------------------------------------
+    def select_action(self, state, sample: float | None = None):
+        c = self.config
+        sample = self.random.random() if sample is None else sample
+        eps_threshold = c.eps_end + (c.eps_start - c.eps_end) * math.exp(-1. * self.steps_done / c.eps_decay)
+        self.steps_done += 1
+        if sample > eps_threshold:
+            with torch.no_grad():
+                return self.policy_net(state).max(1)[1].view(1, 1)
+        return torch.tensor([[self.action_space.sample()]], dtype=torch.long)
+
+    def optimize_model(self, transitions=None):
+        c = self.config
+        if transitions is None:
+            if len(self.memory) < c.batch_size:
+                return None
+            transitions = self.memory.sample(c.batch_size)
+        batch = Transition(*zip(*transitions))
+        non_final_mask = torch.tensor(tuple(map(lambda s: s is not None, batch.next_state)), dtype=torch.bool)
+        non_final_next_states = [s for s in batch.next_state if s is not None]
+        state_batch = torch.cat(batch.state)
+        action_batch = torch.cat(batch.action)
+        reward_batch = torch.cat(batch.reward)
+
+        state_action_values = self.policy_net(state_batch).gather(1, action_batch)
+        next_state_values = torch.zeros(len(transitions), dtype=reward_batch.dtype)  # float32 as in the tutorial, float64 in a parity test
+        with torch.no_grad():
+            if non_final_next_states:
+                next_state_values[non_final_mask] = self.target_net(torch.cat(non_final_next_states)).max(1)[0]
+        expected_state_action_values = (next_state_values * c.gamma) + reward_batch
+
+        loss = self.criterion(state_action_values, expected_state_action_values.unsqueeze(1))
+        self.optimizer.zero_grad()
+        loss.backward()
+        torch.nn.utils.clip_grad_value_(self.policy_net.parameters(), c.grad_clip_value)
+        self.optimizer.step()
+        return loss
+
+    def soft_update(self):
+        target_net_state_dict = self.target_net.state_dict()
+        policy_net_state_dict = self.policy_net.state_dict()
+        for key in policy_net_state_dict:
+            target_net_state_dict[key] = policy_net_state_dict[key] * self.config.tau + \
+                target_net_state_dict[key] * (1 - self.config.tau)
+        self.target_net.load_state_dict(target_net_state_dict)
+
+    # -- our agent verbs --------------------------------------------------------------------
+    def begin_episode(self, obs) -> int:
+        self.episode_losses = dict.fromkeys(self.loss_names, 0.0)
+        self._state = torch.tensor(obs, dtype=torch.float32).unsqueeze(0)
+        self._action = self.select_action(self._state)
+        return self._action.item()
+
+    def step(self, reward: float, obs, terminated: bool, truncated: bool) -> int | None:
+        reward_t = torch.tensor([reward])
+        next_state = None if terminated else torch.tensor(obs, dtype=torch.float32).unsqueeze(0)
+        self.memory.push(self._state, self._action, next_state, reward_t)
+        self._state = next_state
+        loss = self.optimize_model()
+        self.soft_update()
+        if loss is not None:
+            self.updates += 1
+            value = loss.item()
+            if not math.isfinite(value):
+                raise NonFiniteLossError(f"loss became {value} at update {self.updates}; the run stops here")
+            self.episode_losses["loss"] += value
+        if terminated or truncated:
+            return None
+        self._action = self.select_action(self._state)
+        return self._action.item()
+
+    def greedy_action(self, obs) -> int:
+        with torch.no_grad():
+            return int(self.policy_net(torch.tensor(np.asarray(obs), dtype=torch.float32).unsqueeze(0)).max(1)[1])
+
+    def save(self, run_dir: Path) -> None:
+        from keras_rl.results import atomic_write_bytes
+        import io
+
+        buf = io.BytesIO()
+        torch.save(self.policy_net.state_dict(), buf)
+        atomic_write_bytes(Path(run_dir) / "q_network.pt", buf.getvalue())
+
+    def load_policy(self, run_dir: Path) -> None:
+        path = Path(run_dir) / "q_network.pt"
+        if not path.is_file():
+            raise RunFolderError(f"{path} is missing; the run did not save it")
+        try:
+            self.policy_net.load_state_dict(torch.load(path, weights_only=True))
+        except Exception as exc:
+            raise RunFolderError(f"{path} could not be loaded ({type(exc).__name__}: {exc})") from None
