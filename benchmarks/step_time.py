@@ -25,19 +25,21 @@ import numpy as np  # noqa: E402
 from keras_rl.seeding import configure_tensorflow, seed_everything  # noqa: E402
 
 
-def time_ours_pendulum(steps: int, warmup: int) -> float:
-    from keras_rl.configs import PendulumDDPGConfig
+def time_agent(experiment: str, steps: int, warmup: int, **overrides) -> float:
+    """ms per env step of one of our agents (the same loop body as ``keras_rl.loop.run_seed``)."""
     from keras_rl.experiments import get_experiment
 
-    exp = get_experiment("pendulum")
-    config = PendulumDDPGConfig()
+    exp = get_experiment(experiment)
+    config = exp.config_cls.for_variant("faithful", **overrides)
     env = exp.make_env(config)
+    env.action_space.seed(0)
     agent = exp.make_agent(config, env)
+    train_start = getattr(config, "train_start", getattr(config, "batch_size", 0))
 
     def play(n: int) -> float:
         done_steps, start = 0, time.perf_counter()
         while done_steps < n:
-            obs, _ = env.reset(seed=0)
+            obs, _ = env.reset(seed=done_steps)
             action = agent.begin_episode(obs)
             while action is not None and done_steps < n:
                 obs, reward, terminated, truncated, _ = env.step(action)
@@ -45,7 +47,7 @@ def time_ours_pendulum(steps: int, warmup: int) -> float:
                 done_steps += 1
         return time.perf_counter() - start
 
-    play(config.train_start + warmup)  # fill to train_start, then trace/compile/warm up
+    play(train_start + warmup)  # fill to the first update, then trace/compile/warm up
     assert agent.updates >= warmup
     before = agent.updates
     elapsed = play(steps)
@@ -84,14 +86,23 @@ def main() -> None:
     warnings.filterwarnings("ignore")  # the post's tuple action makes Gymnasium's checker warn every step
 
     rows = []
-    ours = time_ours_pendulum(args.steps, args.warmup)
+    ours = time_agent("pendulum", args.steps, args.warmup)
     post = time_post000_eager(args.steps, args.warmup)
     rows.append(("pendulum (post 000)", "post's eager loop (get/set_weights)", post, "keras_rl compiled (XLA)", ours))
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        print("(no torch installed: the CartPole row needs the torch extra)")
+    else:
+        ours = time_agent("cartpole", args.steps, args.warmup)
+        tutorial = time_agent("cartpole", args.steps, args.warmup, framework="torch")
+        rows.append(("cartpole (post 003)", "PyTorch tutorial code (state-dict soft update)", tutorial,
+                     "keras_rl compiled (XLA)", ours))
 
-    print(f"{'experiment':22s} {'baseline':40s} {'ms/step':>8s}   {'ours':26s} {'ms/step':>8s} {'speed-up':>9s}")
+    print(f"{'experiment':22s} {'baseline':48s} {'ms/step':>8s}   {'ours':26s} {'ms/step':>8s} {'speed-up':>9s}")
     result = {"steps": args.steps, "threads": args.threads, "rows": []}
     for name, base_name, base, ours_name, mine in rows:
-        print(f"{name:22s} {base_name:40s} {base:8.3f}   {ours_name:26s} {mine:8.3f} {base / mine:8.1f}x")
+        print(f"{name:22s} {base_name:48s} {base:8.3f}   {ours_name:26s} {mine:8.3f} {base / mine:8.1f}x")
         result["rows"].append({"experiment": name, "baseline": base_name, "baseline_ms_per_step": base,
                                "ours": ours_name, "ours_ms_per_step": mine, "speedup": base / mine})
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
