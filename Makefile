@@ -14,7 +14,7 @@ install: $(BIN)/python
 	$(BIN)/pip install --quiet -e .
 
 install-test: $(BIN)/python
-	$(BIN)/pip install --quiet -e ".[test]"
+	$(BIN)/pip install --quiet -e ".[test,torch]"
 
 ## The main reproduction: post 000's faithful DDPG on Pendulum-v1 to EMA > -300.
 reproduce: install

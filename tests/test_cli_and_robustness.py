@@ -164,3 +164,41 @@ def test_ctrl_c_leaves_valid_files_marked_unfinished(tmp_path, seeds, workers):
     assert not list((out / "seed_0").glob(".*.tmp"))  # no half-written temporary files
     if workers > 1:
         assert not (out / "seed_2").exists()  # the queued seed never started
+
+
+def test_torch_framework_without_torch_is_a_clear_error(monkeypatch, capsys, tmp_path):
+    monkeypatch.setitem(sys.modules, "torch", None)  # makes `import torch` fail
+    assert main(["reproduce", "cartpole", "--framework", "torch", "--out", str(tmp_path)]) == 2
+    assert "the torch framework needs PyTorch" in capsys.readouterr().err
+
+
+def test_framework_the_experiment_does_not_have(capsys, tmp_path):
+    assert main(["reproduce", "pendulum", "--framework", "torch", "--out", str(tmp_path)]) == 2
+    assert "pendulum has no 'torch' version" in capsys.readouterr().err
+
+
+def test_dqn_on_a_box_action_env_is_refused(capsys, tmp_path):
+    assert main(["reproduce", "cartpole", "--set", "env_id=Pendulum-v1", "--no-progress", "--out", str(tmp_path)]) == 2
+    assert "needs a Discrete action space" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("framework,weights", [("keras", "q_network.weights.h5"), ("torch", "q_network.pt")])
+def test_cartpole_run_folder_and_evaluate_with_gif(tmp_path, framework, weights):
+    if framework == "torch":
+        pytest.importorskip("torch", reason="needs the torch extra")
+    out = tmp_path / "c"
+    proc = run_cli("reproduce", "cartpole", "--framework", framework, "--seeds", "2", "--episodes", "20",
+                   "--no-progress", "--out", str(out))
+    assert proc.returncode == 1, proc.stderr  # 20 episodes cannot reach a 100-episode mean of 475
+    run_dir = out / "seed_2"
+    for name in ("config.json", "episodes.csv", "summary.json", "curve.png", weights):
+        assert (run_dir / name).is_file(), name
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["framework"] == framework and summary["episodes_run"] == 20
+    assert summary["last_100_share_at_500"] == 0.0
+    gif = tmp_path / "cartpole.gif"
+    proc = run_cli("evaluate", str(run_dir), "--episodes", "2", "--gif", str(gif))
+    assert proc.returncode == 0, proc.stderr
+    scores = json.loads((run_dir / "evaluation.json").read_text())["scores"]
+    assert len(scores) == 2 and all(1 <= s <= 500 for s in scores)
+    assert gif.read_bytes()[:6] in (b"GIF87a", b"GIF89a")

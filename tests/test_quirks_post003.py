@@ -1,0 +1,78 @@
+"""Post 003 (the PyTorch DQN tutorial): its behaviours, each shown by a test."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from keras_rl.configs import CartPoleDQNConfig
+from keras_rl.dqn import DQNAgent, epsilon, huber
+from keras_rl.metrics import RollingMean
+from keras_rl.seeding import seed_everything
+
+OBS = np.array([0.01, -0.02, 0.03, 0.04], np.float32)
+
+
+def make_agent(**overrides):
+    seed_everything(0)
+    space = gym.spaces.Discrete(2)
+    space.seed(0)
+    return DQNAgent(CartPoleDQNConfig(**overrides), 4, 2, space)
+
+
+def test_P003_EPS_decays_per_env_step_across_episodes():
+    agent = make_agent()
+    agent.begin_episode(OBS)
+    for _ in range(9):
+        agent.step(1.0, OBS, False, False)
+    agent.step(1.0, OBS, True, False)  # episode over: no selection for the next state
+    agent.begin_episode(OBS)
+    assert agent.steps_done == 11  # one select_action per env step, counting across episodes
+    assert epsilon(agent.config, 0) == pytest.approx(0.9)
+    assert epsilon(agent.config, 1000) == pytest.approx(0.05 + 0.85 * math.exp(-1))
+    # by 3000 steps (about 100 short early episodes) exploration is nearly over
+    assert epsilon(agent.config, 3000) < 0.1
+
+
+def test_P003_WARMUP_first_update_at_batch_size_transitions():
+    agent = make_agent(batch_size=16)
+    agent.begin_episode(OBS)
+    for step in range(1, 30):
+        agent.step(1.0, OBS, False, False)
+        assert agent.updates == max(0, step - 15)
+
+
+def test_P003_TRUNCATION_bootstraps_only_termination_is_terminal():
+    agent = make_agent()
+    agent.begin_episode(OBS)
+    agent.step(1.0, OBS, terminated=False, truncated=True)  # the 500-step limit
+    agent.begin_episode(OBS)
+    agent.step(1.0, OBS, terminated=True, truncated=False)  # the pole fell
+    np.testing.assert_array_equal(agent.buffer.ordered().dones, [0.0, 1.0])
+
+
+def test_P003_WEIGHT_DECAY_adamw_default_shrinks_weights_even_without_gradient():
+    decayed, plain = make_agent(), make_agent(weight_decay=0.0)
+    rows = decayed.learner.layout.pack((np.zeros((128, 4)), np.zeros((128, 1)), np.zeros(128),
+                                        np.zeros((128, 4)), np.ones(128)))
+    w0 = decayed.learner.q_network.get_weights()[0].copy()
+    decayed.learner.train(rows)
+    plain.learner.train(rows)
+    # a zero state gives the first kernel a zero gradient: only the decay moves it
+    np.testing.assert_allclose(decayed.learner.q_network.get_weights()[0], w0 * (1 - 1e-4 * 0.01), rtol=1e-6)
+    np.testing.assert_array_equal(plain.learner.q_network.get_weights()[0], w0)
+
+
+def test_smooth_l1_is_huber_delta_1_mean():
+    x = np.array([-3.0, -0.5, 0.0, 0.2, 2.0], np.float32)
+    expected = np.mean([2.5, 0.125, 0.0, 0.02, 1.5])
+    assert float(huber(x)) == pytest.approx(expected, rel=1e-6)
+
+
+def test_P003_METRIC_100_episode_mean_is_zero_until_100_episodes():
+    metric = RollingMean(100)
+    values = [metric.update(float(d)) for d in range(1, 151)]
+    assert values[98] == 0.0  # the tutorial pads the first 99 with zeros
+    assert values[99] == pytest.approx(np.mean(range(1, 101)))
+    assert values[149] == pytest.approx(np.mean(range(51, 151)))
