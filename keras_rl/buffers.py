@@ -80,6 +80,13 @@ class ReplayBuffer:
         self._next = (self._next + 1) % self.capacity
         self._size = min(self._size + 1, self.capacity)
 
+    def add_rows(self, rows: np.ndarray) -> None:
+        """Append packed rows (oldest first), evicting the oldest at capacity."""
+        for row in rows:
+            self.data[self._next] = row
+            self._next = (self._next + 1) % self.capacity
+            self._size = min(self._size + 1, self.capacity)
+
     def sample_rows(self, batch_size: int, replace: bool = False) -> np.ndarray:
         if not replace and batch_size > self._size:
             raise ValueError(f"cannot sample {batch_size} without replacement from {self._size}")
@@ -97,3 +104,45 @@ class ReplayBuffer:
         start = self._next if self._size == self.capacity else 0
         idx = (start + np.arange(self._size)) % self.capacity
         return self.layout.split(self.data[idx])
+
+
+class PoppingBuffer:
+    """Post 001's ``ReplayBuffer``: ``sample`` shuffles the whole deque and pops a batch.
+
+    Sampling without replacement that consumes the buffer. To draw exactly what the post
+    drew, ``sample_rows`` shuffles a list of row indices in deque order with
+    ``random.Random.shuffle`` (the post calls ``random.shuffle(self.memory)``) and pops the
+    first ``batch_size``; new transitions are appended on the right, like ``deque.append``.
+    The post's ``maxlen`` argument is ignored (its deque is unbounded); ``capacity`` here is
+    preallocation only and is sized by the caller so it is never reached (an error says so
+    if it is).
+    """
+
+    def __init__(self, capacity: int, layout: Layout, rng):
+        self.capacity = int(capacity)
+        self.layout = layout
+        self.rng = rng  # a random.Random
+        self.data = np.zeros((self.capacity, layout.width), dtype=np.float32)
+        self.order: list[int] = []  # row indices, oldest first, as the deque holds them
+        self._free = list(range(self.capacity - 1, -1, -1))
+
+    def __len__(self) -> int:
+        return len(self.order)
+
+    def add_rows(self, rows: np.ndarray) -> None:
+        if len(rows) > len(self._free):
+            raise ValueError(f"PoppingBuffer capacity {self.capacity} exceeded: {len(self.order)} held, "
+                             f"{len(rows)} more; size it for train_above + the longest episode")
+        for row in rows:
+            i = self._free.pop()
+            self.data[i] = row
+            self.order.append(i)
+
+    def sample_rows(self, batch_size: int) -> np.ndarray:
+        if batch_size > len(self.order):
+            raise ValueError(f"cannot pop {batch_size} from {len(self.order)}")
+        self.rng.shuffle(self.order)
+        taken, self.order = self.order[:batch_size], self.order[batch_size:]
+        rows = self.data[taken]
+        self._free.extend(taken)
+        return rows

@@ -297,5 +297,105 @@ class CartPoleDQNConfig(ExperimentConfig):
     """The tutorial trains all ``num_episodes``; it never stops early."""
 
 
+@dataclass(frozen=True)
+class MountainCarDDPGConfig(ExperimentConfig):
+    """Post 001: DDPG on ``MountainCarContinuous-v0``, written in Keras 2 / TF1 graph style.
+
+    Quotes are from ``../shared/seeds/001_98f9c3d244106c52.txt``.
+    """
+
+    experiment: ClassVar[str] = "mountaincar"
+    post: ClassVar[str] = "001_98f9c3d244106c52"
+    VARIANTS: ClassVar[dict[str, dict[str, Any]]] = {
+        "faithful": {},
+        "faithful-intended": {"actor_gradient": "dpg_intended"},
+        "fixed": {
+            "actor_gradient": "dpg_intended",
+            "dqda_at_buffer_actions": False,
+            "store_raw_next_state": False,
+            "episode_returns_as_rewards": False,
+            "done_includes_truncation": False,
+            "popping_buffer": False,
+            "exploration": "ou",
+        },
+    }
+
+    env_id: str = "MountainCarContinuous-v0"
+    """``env = gym.make("MountainCarContinuous-v0")``: 999-step time limit."""
+    critic_hidden: int = positive(32)
+    """Critic: BatchNormalization, ``Dense(32, selu)``, concat action, ``Dense(32, selu)``, ``Dense(1)``."""
+    actor_hidden: tuple[int, ...] = (32, 32, 32)
+    """Actor: ``GaussianNoise(1.0)``, BatchNormalization, 3 x ``Dense(32, selu)``, ``Dense(1, tanh)``."""
+    actor_input_noise: float = non_negative(1.0)
+    """``layers.GaussianNoise(1.0)`` on the actor's input (inactive at learning phase 0)."""
+    critic_lr: float = positive(5e-4)
+    """``optimizers.Adam(lr = 0.0005)`` in ``Critic.__build_loss_function``."""
+    actor_lr: float = positive(5e-5)
+    """``optimizers.Adam(lr=0.00005)`` in ``Actor.__make_loss_function``."""
+    tau: float = unit(0.001)
+    """``Agent(..., tau = 0.001, ...)``."""
+    gamma: float = unit(0.999)
+    """``Agent(..., gamma =0.999)``: the bootstrap discount."""
+    return_discount: float = unit(0.999)
+    """``_compute_discounted_R(R, discount_rate=.999)``: the per-episode returns."""
+    batch_size: int = positive(32)
+    """``ReplayBuffer(maxlen=20000, batch_size=32)``."""
+    train_above: int = positive(1000)
+    """``if len(agent.memory)> 1000: agent.train()``, checked every env step."""
+    train_down_to: int = non_negative(100)
+    """``while (len(self.memory)) > 100:`` pop and train batch after batch."""
+    buffer_size: int = positive(100_000)
+    """Only for ``popping_buffer=False`` (the fixed variant's ring buffer)."""
+    train_start: int = positive(1000)
+    """Only for ``popping_buffer=False``: update every step from this many transitions."""
+    episodes: int = positive(100)
+    """``for iterate in range(100):``."""
+    goal_window: int = positive(50)
+    """Success looks at the goal being reached in the last ``goal_window`` episodes."""
+    goal_min_hits: int = non_negative(1)
+    """... in at least this many of them (derived from 10+ seeds, see FIDELITY.md)."""
+    threshold: float = 0.5
+    """Progress metric: the share of the last ``goal_window`` episodes that reached the goal."""
+    stop_at_threshold: bool = False
+    """The post runs all 100 iterations."""
+    ou_sigma: float = non_negative(0.5)
+    """``exploration="ou"`` only: rl-zoo3's OU noise sigma for DDPG on this task."""
+    ou_theta: float = non_negative(0.15)
+    ou_dt: float = positive(1e-2)
+
+    # -- quirk switches; see reproductions/FIDELITY.md ---------------------------------
+    learning_phase_training: bool = False
+    """P001-PHASE: Keras 2's learning phase is never fed, so it stays 0: GaussianNoise off,
+    BatchNormalization on its never-updated moving statistics (an affine layer with
+    trainable gamma and beta). True would call every network in training mode."""
+    actor_gradient: str = "dpg_literal"
+    """P001-ACTORGRAD: ``dpg_literal`` (what ``get_updates(loss=tf.gradients(...))`` computes:
+    the gradient of the sum of the first-order gradients) or ``dpg_intended``."""
+    dqda_at_buffer_actions: bool = True
+    """P001-DQDA: ``get_gradient(states, actions)`` evaluates dQ/da at the *stored* actions,
+    after the critic's update. False: at mu(s)."""
+    store_raw_next_state: bool = True
+    """P001-NEXTSTATE: the state is normalised to [0,1] but ``next_frame`` is stored raw."""
+    episode_returns_as_rewards: bool = True
+    """P001-RETURNS: transitions enter the buffer at episode end with their rewards replaced
+    by the episode's standardised discounted returns. False: raw rewards, stored each step."""
+    done_includes_truncation: bool = True
+    """P001-DONE: the old 4-tuple ``done`` is true at the 999-step limit too."""
+    popping_buffer: bool = True
+    """P001-POP: shuffle-and-pop sampling that consumes the buffer, trained in bursts
+    (P001-TRIGGER). False: a ring buffer and one update per env step."""
+    exploration: str = "none"
+    """P001-NOEXPLORE: the actor acts with no added noise (``none``); ``ou`` adds OU noise."""
+
+    def validate(self) -> None:
+        super().validate()
+        if self.actor_gradient not in ("dpg_literal", "dpg_intended"):
+            raise ConfigError(f"actor_gradient must be dpg_literal or dpg_intended, got {self.actor_gradient!r}")
+        if self.exploration not in ("none", "ou"):
+            raise ConfigError(f"exploration must be none or ou, got {self.exploration!r}")
+        if self.train_down_to >= self.train_above:
+            raise ConfigError("train_down_to must be below train_above")
+
+
 CONFIGS: dict[str, type[ExperimentConfig]] = {
-    c.experiment: c for c in (PendulumDDPGConfig, CartPoleDQNConfig)}
+    c.experiment: c for c in (PendulumDDPGConfig, CartPoleDQNConfig, MountainCarDDPGConfig)}

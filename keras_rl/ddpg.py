@@ -1,8 +1,15 @@
-"""DDPG as post 000 wrote it: a compiled learner and an agent with Dopamine's three verbs.
+"""DDPG: one compiled learner for posts 000 and 001, and post 000's agent.
 
-The learner owns one compiled update (Acme's ``_step``): the post's two GradientTape
-blocks, critic first, then actor, then the soft update of both targets. It never
-leaves the graph: no ``get_weights``/``set_weights``, no ``.predict``.
+The learner owns one compiled update (Acme's ``_step``): critic first, then actor, then
+the soft update of both targets. It never leaves the graph: no ``get_weights``/
+``set_weights``, no ``.predict``. How the actor's gradient is formed is a switch:
+
+- ``mean_q`` (post 000 §2.3.3): minimise ``-mean(Q(s, mu(s)))`` with a GradientTape;
+- ``dpg_intended`` (post 001, as its formula means): ``tape.gradient(mu(s), theta,
+  output_gradients=-dQ/da)``, the first-order deterministic policy gradient, summed;
+- ``dpg_literal`` (post 001, as its Keras 2 code computes): that list of gradients is
+  handed to ``optimizer.get_updates(loss=...)``, which differentiates it *again*: the
+  step follows ``d/dtheta sum_k sum(g_k)``, a second-order quantity (FIDELITY P001-ACTORGRAD).
 """
 
 from __future__ import annotations
@@ -29,7 +36,11 @@ class DDPGLearner:
     def __init__(self, actor: keras.Model, critic: keras.Model, target_actor: keras.Model,
                  target_critic: keras.Model, actor_optimizer: keras.optimizers.Optimizer,
                  critic_optimizer: keras.optimizers.Optimizer, gamma: float, tau: float,
-                 broadcast_target: bool, layout: Layout, xla: bool = True):
+                 broadcast_target: bool, layout: Layout, xla: bool = True, actor_update: str = "mean_q",
+                 dqda_at_buffer_actions: bool = False):
+        if actor_update not in ("mean_q", "dpg_intended", "dpg_literal"):
+            raise ValueError(f"actor_update must be mean_q, dpg_intended or dpg_literal, got {actor_update!r}")
+        self.actor_update, self.dqda_at_buffer_actions = actor_update, bool(dqda_at_buffer_actions)
         self.actor, self.critic = actor, critic
         self.target_actor, self.target_critic = target_actor, target_critic
         self.actor_optimizer, self.critic_optimizer = actor_optimizer, critic_optimizer
@@ -81,15 +92,42 @@ class DDPGLearner:
         critic_grads = tape.gradient(critic_loss, self.critic.trainable_variables)
         self.critic_optimizer.apply_gradients(zip(critic_grads, self.critic.trainable_variables))
 
-        with tf.GradientTape() as tape:
-            q_values = self.critic(states, self.actor(states))  # the freshly updated critic
-            actor_loss = -tf.reduce_mean(q_values)
-        actor_grads = tape.gradient(actor_loss, self.actor.trainable_variables)
+        actor_grads, actor_loss = self.actor_gradients(states, actions)
         self.actor_optimizer.apply_gradients(zip(actor_grads, self.actor.trainable_variables))
 
         soft_update(self.target_actor.variables, self.actor.variables, self.tau)
         soft_update(self.target_critic.variables, self.critic.variables, self.tau)
         return {"critic_loss": critic_loss, "actor_loss": actor_loss}
+
+    def actor_gradients(self, states, actions):
+        """The actor's gradients (see the module docstring) and a loss to report, -mean Q."""
+        variables = self.actor.trainable_variables
+        if self.actor_update == "mean_q":
+            with tf.GradientTape() as tape:
+                q_values = self.critic(states, self.actor(states))  # the freshly updated critic
+                actor_loss = -tf.reduce_mean(q_values)
+            return tape.gradient(actor_loss, variables), actor_loss
+        # post 001: dQ/da from the updated critic, at the buffer's actions (as the post feeds
+        # `actions`) or at mu(s); a constant for the actor's update (a placeholder in Keras 2)
+        policy_actions = self.actor(states)
+        at = actions if self.dqda_at_buffer_actions else policy_actions
+        with tf.GradientTape() as tape:
+            tape.watch(at)
+            q_values = self.critic(states, at)
+        dq_da = tf.stop_gradient(tape.gradient(q_values, at))  # [B, act]
+        actor_loss = -tf.reduce_mean(q_values)
+        if self.actor_update == "dpg_intended":
+            with tf.GradientTape() as tape:
+                mu = self.actor(states)
+            return tape.gradient(mu, variables, output_gradients=-dq_da), actor_loss
+        # dpg_literal: Keras 2's get_updates(loss=[g_1..g_k]) calls K.gradients(loss, params),
+        # i.e. tf.gradients of a list, which differentiates the sum of all its entries.
+        with tf.GradientTape() as outer:
+            with tf.GradientTape() as inner:
+                mu = self.actor(states)
+            first = inner.gradient(mu, variables, output_gradients=-dq_da)
+            total = tf.add_n([tf.reduce_sum(g) for g in first])
+        return outer.gradient(total, variables, unconnected_gradients=tf.UnconnectedGradients.ZERO), actor_loss
 
     def _train_rows(self, rows):
         return self.update(self.layout.split(rows))

@@ -105,9 +105,12 @@ def _summary(experiment: Experiment, config, recorder: RunRecorder, status: str,
         "status": status,
         "finished": status == "completed",
         "message": message,
-        "success": reached_at is not None,
+        "success": (crossed(rows[-1]["metric"], config.threshold, experiment.threshold_inclusive)
+                    and len(rows) == config.episodes if experiment.success_at_end and rows
+                    else reached_at is not None),
         "criterion": (f"metric {'>=' if experiment.threshold_inclusive else '>'} {config.threshold:g} "
-                      f"within {config.episodes} episodes"),
+                      + (f"after all {config.episodes} episodes" if experiment.success_at_end
+                         else f"within {config.episodes} episodes")),
         "reached_at_episode": reached_at,
         "episodes_run": len(rows),
         "budget_episodes": config.episodes,

@@ -40,6 +40,21 @@ class RollingMean:
         return sum(self.scores[-self.window:]) / self.window
 
 
+class GoalShare:
+    """Post 001 (MountainCarContinuous): the share of the last ``window`` episodes that
+    reached the goal. An episode reached it iff its return is positive: the goal pays
+    +100 and the action cost is at most 0.1 per step over at most 999 steps."""
+
+    def __init__(self, window: int = 50):
+        self.window = window
+        self.hits: list[bool] = []
+
+    def update(self, score: float) -> float:
+        self.hits.append(score > 0)
+        recent = self.hits[-self.window:]
+        return sum(recent) / self.window
+
+
 def crossed(value: float, threshold: float, inclusive: bool) -> bool:
     """Whether ``value`` passes ``threshold`` (``>=`` when inclusive, else ``>``)."""
     if not math.isfinite(value):

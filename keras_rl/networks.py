@@ -80,3 +80,47 @@ class QNetwork(keras.Model):
         for layer in self.dense:
             x = layer(x)
         return x
+
+
+class MountainCarActor(keras.Model):
+    """Post 001 ``Actor.__make_model``: GaussianNoise(1.0) -> BatchNormalization ->
+    3 x Dense 32 selu -> Dense(action_dim, tanh).
+
+    ``training`` is the Keras 2 learning phase the post's code ran with. Its ``K.function``
+    and ``predict`` calls never feed it, so it stays at its default, 0 (FIDELITY
+    P001-PHASE): the noise layer is the identity and BatchNormalization normalises with its
+    initial moving statistics (mean 0, variance 1), which nothing ever updates.
+    """
+
+    def __init__(self, action_dim: int = 1, hidden_units: Sequence[int] = (32, 32, 32), noise_std: float = 1.0,
+                 training: bool = False):
+        super().__init__()
+        self.learning_phase = training
+        self.noise = keras.layers.GaussianNoise(noise_std)
+        self.norm = keras.layers.BatchNormalization()
+        self.hidden = [keras.layers.Dense(units, activation="selu") for units in hidden_units]
+        self.out = keras.layers.Dense(action_dim, activation="tanh")
+
+    def call(self, state: tf.Tensor) -> tf.Tensor:  # [B, obs] -> [B, act]
+        x = self.norm(self.noise(state, training=self.learning_phase), training=self.learning_phase)
+        for layer in self.hidden:
+            x = layer(x)
+        return self.out(x)
+
+
+class MountainCarCritic(keras.Model):
+    """Post 001 ``Critic.__make_model``: state -> BatchNormalization -> Dense 32 selu ->
+    concatenate with the action -> Dense 32 selu -> Dense 1. ``training`` as for the actor."""
+
+    def __init__(self, hidden_units: int = 32, training: bool = False):
+        super().__init__()
+        self.learning_phase = training
+        self.norm = keras.layers.BatchNormalization()
+        self.fc1 = keras.layers.Dense(hidden_units, activation="selu")
+        self.fc2 = keras.layers.Dense(hidden_units, activation="selu")
+        self.out = keras.layers.Dense(1)
+
+    def call(self, state: tf.Tensor, action: tf.Tensor) -> tf.Tensor:  # -> [B, 1]
+        x = self.fc1(self.norm(state, training=self.learning_phase))
+        x = self.fc2(tf.concat([x, action], axis=-1))
+        return self.out(x)
