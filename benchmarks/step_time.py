@@ -72,6 +72,42 @@ def time_post000_eager(steps: int, warmup: int) -> float:
     return elapsed / steps * 1e3
 
 
+def time_post001_updates(batches_wanted: int) -> tuple[float, float]:
+    """ms per training batch (one critic + one literal actor update + soft updates):
+    the post's ``Agent.train`` mirrored eagerly vs our compiled learner, same popped data."""
+    from keras_rl.buffers import PoppingBuffer
+    from keras_rl.configs import MountainCarDDPGConfig
+    from keras_rl.episodic_ddpg import EpisodicDDPGAgent
+    from keras_rl.reference.post001_eager import PostAgent, fill, functional_models
+
+    import random
+
+    rng = np.random.default_rng(0)
+    n = 100 + 32 * batches_wanted
+    actor, critic = functional_models()
+    target_actor, target_critic = functional_models()
+    post = PostAgent(actor, critic, target_actor, target_critic)
+    fill(post, n, rng)
+    post.train()  # warm up
+    fill(post, n, rng)
+    start = time.perf_counter()
+    batches = post.train()
+    post_ms = (time.perf_counter() - start) / batches * 1e3
+
+    agent = EpisodicDDPGAgent(MountainCarDDPGConfig(), np.array([-1.2, -0.07]), np.array([0.6, 0.07]), 1, 999)
+    buffer = PoppingBuffer(n + 1, agent.layout, random.Random(0))
+    rows = rng.normal(size=(n, agent.layout.width)).astype(np.float32)
+    buffer.add_rows(rows)
+    agent.learner.train(buffer.sample_rows(32))  # trace and compile
+    buffer.add_rows(rows[:32])
+    start, ours_batches = time.perf_counter(), 0
+    while len(buffer) > 100:
+        agent.learner.train(buffer.sample_rows(32))
+        ours_batches += 1
+    ours_ms = (time.perf_counter() - start) / ours_batches * 1e3
+    return post_ms, ours_ms
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--steps", type=int, default=400, help="timed env steps per side (default 400)")
@@ -98,6 +134,10 @@ def main() -> None:
         tutorial = time_agent("cartpole", args.steps, args.warmup, framework="torch")
         rows.append(("cartpole (post 003)", "PyTorch tutorial code (state-dict soft update)", tutorial,
                      "keras_rl compiled (XLA)", ours))
+
+    post_ms, ours_ms = time_post001_updates(max(20, args.steps // 4))
+    rows.append(("mountaincar (post 001)", "post's Agent.train, eager mirror (per batch)", post_ms,
+                 "keras_rl compiled (XLA)", ours_ms))
 
     print(f"{'experiment':22s} {'baseline':48s} {'ms/step':>8s}   {'ours':26s} {'ms/step':>8s} {'speed-up':>9s}")
     result = {"steps": args.steps, "threads": args.threads, "rows": []}

@@ -24,8 +24,6 @@ class Experiment:
     make_metric: Callable[[Any], Any]
     """``make_metric(config)`` -> an object with ``update(score) -> value``."""
     metric_label: str
-    threshold_inclusive: bool
-    """Success is ``metric >= threshold`` when True, ``metric > threshold`` when False."""
     description: str
     summary_extras: Callable[[list[dict[str, Any]], Any], dict[str, Any]] = lambda rows, config: {}
     """Experiment-specific numbers for ``summary.json``."""
@@ -99,7 +97,6 @@ EXPERIMENTS: dict[str, Experiment] = {
         make_agent=_pendulum_agent,
         make_metric=lambda c: PostEMA(c.ema_decay),
         metric_label="EMA 0.9 (post's score_avg)",
-        threshold_inclusive=False,
         description="post 000: DDPG on Pendulum-v1 (g=10), success = EMA > -300",
         post_reference="The post reports the EMA passing -300 after 153 episodes (one run).",
     ),
@@ -110,7 +107,6 @@ EXPERIMENTS: dict[str, Experiment] = {
         make_agent=_cartpole_agent,
         make_metric=lambda c: RollingMean(c.mean_window),
         metric_label="100-episode mean duration",
-        threshold_inclusive=True,
         description="post 003: the PyTorch DQN tutorial on CartPole-v1 (keras or torch), "
                     "success = 100-episode mean >= 475 within 600 episodes",
         summary_extras=_cartpole_extras,
@@ -124,7 +120,6 @@ EXPERIMENTS: dict[str, Experiment] = {
         make_agent=_mountaincar_agent,
         make_metric=lambda c: GoalShare(c.goal_window),
         metric_label="share of the last 50 episodes that reached the goal",
-        threshold_inclusive=True,
         description="post 001: DDPG on MountainCarContinuous-v0 from Keras 2 graph code; "
                     "success = the goal in enough of the last 50 of 100 episodes",
         summary_extras=_mountaincar_extras,

@@ -11,7 +11,6 @@ import numpy as np
 
 from keras_rl.errors import NonFiniteLossError, RunFolderError
 from keras_rl.experiments import Experiment, get_experiment
-from keras_rl.metrics import crossed
 from keras_rl.results import RunRecorder, atomic_write_json, library_versions, plot_curve
 from keras_rl.seeding import configure_tensorflow, seed_everything
 
@@ -45,7 +44,7 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
     total_steps = 0
     # A summary from the start: a run killed outright (SIGKILL, power loss) still says so,
     # and no stale summary from an earlier run in this folder survives.
-    recorder.write_summary(_summary(experiment, config, recorder, status, message, None, 0, 0.0))
+    recorder.write_summary(_summary(experiment, config, metric, recorder, status, message, None, 0, 0.0))
     try:
         for episode in range(1, config.episodes + 1):
             obs, _ = env.reset(seed=config.seed if episode == 1 else None)
@@ -67,7 +66,7 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
             if bar is not None:
                 bar.update(1)
                 bar.set_postfix(score=f"{score:.1f}", metric=f"{value:.1f}", steps=total_steps, refresh=False)
-            if reached_at is None and crossed(value, config.threshold, experiment.threshold_inclusive):
+            if reached_at is None and metric.passes(value, config.threshold):
                 reached_at = episode
                 if config.stop_at_threshold:
                     break
@@ -82,7 +81,7 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
     finally:
         if bar is not None:
             bar.close()
-        summary = _summary(experiment, config, recorder, status, message, reached_at,
+        summary = _summary(experiment, config, metric, recorder, status, message, reached_at,
                            total_steps, time.perf_counter() - start)
         recorder.write_summary(summary)
         if status in ("completed", "interrupted"):
@@ -95,7 +94,7 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
     return summary
 
 
-def _summary(experiment: Experiment, config, recorder: RunRecorder, status: str, message: str,
+def _summary(experiment: Experiment, config, metric, recorder: RunRecorder, status: str, message: str,
              reached_at: int | None, total_steps: int, wall: float) -> dict[str, Any]:
     rows = recorder.rows
     return {
@@ -105,10 +104,10 @@ def _summary(experiment: Experiment, config, recorder: RunRecorder, status: str,
         "status": status,
         "finished": status == "completed",
         "message": message,
-        "success": (crossed(rows[-1]["metric"], config.threshold, experiment.threshold_inclusive)
+        "success": (metric.passes(rows[-1]["metric"], config.threshold)
                     and len(rows) == config.episodes if experiment.success_at_end and rows
                     else reached_at is not None),
-        "criterion": (f"metric {'>=' if experiment.threshold_inclusive else '>'} {config.threshold:g} "
+        "criterion": (f"metric {metric.comparison} {config.threshold:g} "
                       + (f"after all {config.episodes} episodes" if experiment.success_at_end
                          else f"within {config.episodes} episodes")),
         "reached_at_episode": reached_at,

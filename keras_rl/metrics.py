@@ -5,13 +5,31 @@ from __future__ import annotations
 import math
 
 
-class PostEMA:
+import operator
+
+COMPARISONS = {">": operator.gt, ">=": operator.ge, "<=": operator.le, "<": operator.lt}
+
+
+class Metric:
+    """A per-episode progress metric: ``update(score) -> value``, and ``passes`` to judge it."""
+
+    comparison = ">="
+
+    def passes(self, value: float, threshold: float) -> bool:
+        """Whether ``value`` meets ``threshold`` by this metric's comparison (never for NaN)."""
+        return math.isfinite(value) and COMPARISONS[self.comparison](value, threshold)
+
+
+class PostEMA(Metric):
     """Post 000 §2.4: ``score_avg = 0.9 * score_avg + 0.1 * score if score_avg != 0 else score``.
 
     The average starts at 0 and 0 means "not started", so the first score initialises
     it. Faithfully, an average that lands exactly on 0.0 would restart from the next
     score; with Pendulum's real-valued returns that does not happen in practice.
+    Success is ``score_avg > -300``: strictly above.
     """
+
+    comparison = ">"
 
     def __init__(self, decay: float = 0.9):
         self.decay = decay
@@ -22,7 +40,7 @@ class PostEMA:
         return self.value
 
 
-class RollingMean:
+class RollingMean(Metric):
     """Post 003's ``plot_durations``: the mean of the last ``window`` durations.
 
     The tutorial plots ``torch.cat((torch.zeros(99), means))``: zero until ``window``
@@ -40,7 +58,7 @@ class RollingMean:
         return sum(self.scores[-self.window:]) / self.window
 
 
-class GoalShare:
+class GoalShare(Metric):
     """Post 001 (MountainCarContinuous): the share of the last ``window`` episodes that
     reached the goal. An episode reached it iff its return is positive: the goal pays
     +100 and the action cost is at most 0.1 per step over at most 999 steps."""
@@ -55,8 +73,3 @@ class GoalShare:
         return sum(recent) / self.window
 
 
-def crossed(value: float, threshold: float, inclusive: bool) -> bool:
-    """Whether ``value`` passes ``threshold`` (``>=`` when inclusive, else ``>``)."""
-    if not math.isfinite(value):
-        return False
-    return value >= threshold if inclusive else value > threshold

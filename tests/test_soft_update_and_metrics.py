@@ -2,7 +2,7 @@ import keras
 import numpy as np
 import pytest
 
-from keras_rl.metrics import PostEMA, crossed
+from keras_rl.metrics import GoalShare, PostEMA, RollingMean
 from keras_rl.targets import soft_update
 
 
@@ -41,8 +41,8 @@ def test_post_ema_restarts_when_it_is_exactly_zero():
     assert ema.update(-50.0) == -50.0
 
 
-def test_threshold_crossing_strict_and_inclusive():
-    assert not crossed(-300.0, -300.0, inclusive=False)
-    assert crossed(-299.9, -300.0, inclusive=False)
-    assert crossed(475.0, 475.0, inclusive=True)
-    assert not crossed(float("nan"), 0.0, inclusive=True)
+def test_threshold_comparisons_strict_and_inclusive():
+    assert not PostEMA().passes(-300.0, -300.0) and PostEMA().passes(-299.9, -300.0)  # score_avg > -300
+    assert RollingMean().passes(475.0, 475.0)  # CartPole: reaching 475
+    assert GoalShare().passes(0.5, 0.5)
+    assert not RollingMean().passes(float("nan"), 0.0)
