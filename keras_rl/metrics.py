@@ -73,3 +73,26 @@ class GoalShare(Metric):
         return sum(recent) / self.window
 
 
+
+
+class ReturnSpread(Metric):
+    """Post 001's "roughly converged": the spread (max - min) of the last ``window`` returns.
+
+    Infinite until ``window`` episodes exist. Success is a spread at or below the threshold.
+    """
+
+    comparison = "<="
+
+    def __init__(self, window: int = 10):
+        self.window = window
+        self.scores: list[float] = []
+
+    def update(self, score: float) -> float:
+        self.scores.append(score)
+        if len(self.scores) < self.window:
+            return float("inf")
+        recent = self.scores[-self.window:]
+        return max(recent) - min(recent)
+
+    def passes(self, value: float, threshold: float) -> bool:
+        return value <= threshold  # inf (too few episodes) never passes; NaN never passes

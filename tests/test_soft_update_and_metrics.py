@@ -46,3 +46,19 @@ def test_threshold_comparisons_strict_and_inclusive():
     assert RollingMean().passes(475.0, 475.0)  # CartPole: reaching 475
     assert GoalShare().passes(0.5, 0.5)
     assert not RollingMean().passes(float("nan"), 0.0)
+
+
+def test_return_spread_is_infinite_until_the_window_fills_then_max_minus_min():
+    from keras_rl.metrics import ReturnSpread
+
+    m = ReturnSpread(3)
+    assert m.update(-99.0) == float("inf") and not m.passes(float("inf"), 2.0)
+    m.update(-98.0)
+    assert m.update(-99.5) == pytest.approx(1.5) and m.passes(1.5, 2.0)
+    assert m.update(-90.0) == pytest.approx(9.5) and not m.passes(9.5, 2.0)
+
+
+def test_goal_share_counts_positive_returns_over_the_window():
+    m = GoalShare(4)
+    values = [m.update(s) for s in (-99.0, 93.0, -1.0, 90.0, 95.0)]
+    assert values == [0.0, 0.25, 0.25, 0.5, 0.75]
