@@ -34,3 +34,53 @@ def test_faithful_pendulum_reaches_minus_300_in_2_of_3_seeds_within_300_episodes
         if s["success"]:
             assert s["final_metric"] > -300 and s["episodes_run"] == s["reached_at_episode"]
     assert (out / "summary.md").is_file() and (out / "curves.png").is_file()
+
+
+def reproduce(tmp_path, *args):
+    out = tmp_path / "runs"
+    proc = subprocess.run([sys.executable, "-m", "keras_rl", "reproduce", *args, "--no-progress",
+                           "--min-success-rate", "0", "--out", str(out)],
+                          capture_output=True, text=True, timeout=3600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return out
+
+
+@pytest.mark.slow
+def test_keras_cartpole_reaches_475_in_at_least_1_of_4_seeds_within_600_episodes(tmp_path):
+    """k=1 of n=4 seeds must bring the 100-episode mean duration to 475 within 600 episodes.
+
+    Derivation (results/cartpole/faithful/summary.md, 10 seeds, the tutorial's 600-episode
+    budget): the tutorial's DQN is unstable on CartPole, so success is far from certain per
+    seed (see the measured success rate there; episodes-to-475 spread over the last third of
+    the budget). Treating a seed on another machine as a fresh draw with that success rate
+    p, k=1 of 4 fails with probability (1-p)^4, about 3% at p=0.6; k=2 of 4 would fail 18%
+    of the time, too flaky. Teeth: a learner that does not learn stays near 20 steps per
+    episode (the random policy), far below 475, and never passes. Seeds are tried in order
+    and the test stops at the first success (each run stops at the threshold), so on this
+    machine it costs one run: seed 0 reached 475 at episode 435.
+    """
+    reached = []
+    for seed in (0, 2, 3, 6):
+        out = reproduce(tmp_path / f"s{seed}", "cartpole", "--seeds", str(seed), "--set", "stop_at_threshold=true")
+        summary = json.loads((out / f"seed_{seed}" / "summary.json").read_text())
+        reached.append(summary["reached_at_episode"])
+        if summary["success"]:
+            assert summary["final_metric"] >= 475 and summary["reached_at_episode"] <= 600
+            break
+    assert any(r is not None for r in reached), reached
+
+
+@pytest.mark.slow
+def test_faithful_mountaincar_converges_in_2_of_3_seeds(tmp_path):
+    """k=2 of n=3 seeds must meet post 001's faithful criterion after its 100 episodes:
+    the returns of the last 10 episodes lie within 2.0 of each other ("roughly converged").
+
+    Derivation: see reproductions/FIDELITY.md (P001 criterion) and
+    results/mountaincar/faithful/summary.md. Teeth: an actor whose parameters keep moving
+    (a too-large learning rate, a broken soft update, exploration noise) changes its
+    deterministic episode returns by far more than 2 between episodes.
+    """
+    out = reproduce(tmp_path, "mountaincar", "--variant", "faithful", "--seeds", "0-2", "--workers", "2")
+    summaries = [json.loads((out / f"seed_{s}" / "summary.json").read_text()) for s in range(3)]
+    assert sum(s["success"] for s in summaries) >= 2, [s["final_metric"] for s in summaries]
+    assert all(s["episodes_run"] == 100 for s in summaries)

@@ -1,3 +1,33 @@
+"""Settle post 001's Keras 2 semantics by running its graph code under Keras 2 itself.
+
+    pip install "tf-keras~=2.21.0"      # Keras 2 (tf.keras 2.x) on TF 2.21, not a project dependency
+    python reproductions/settlements/post001_keras2_graph.py
+
+Builds the post's Actor (GaussianNoise(1.0) -> BatchNormalization -> 3 x Dense 32 selu ->
+Dense 1 tanh) in TF1 graph mode, with the post's own construction of the actor update:
+``loss = tf.gradients(actor.output, actor.trainable_weights, -q_gradient)`` handed to
+``Adam.get_updates(loss=loss, params=...)`` and run through ``K.function``. It prints:
+
+- whether ``predict`` / ``K.function`` are deterministic (GaussianNoise active or not);
+- the norms of the first-order gradients and of what ``get_updates`` differentiates;
+- which of the two the weight change after one Adam step follows (Adam's first step moves
+  every weight by about lr * sign(gradient), so sign agreement identifies the gradient);
+- whether BatchNormalization's moving statistics ever change, and whether gamma trains.
+
+Output recorded on 2026-11-21 (tf_keras 2.21.0), quoted in reproductions/FIDELITY.md:
+
+    tf_keras 2.21.0 learning_phase: Tensor("keras_learning_phase:0", shape=(), dtype=bool)
+    predict deterministic (noise off): True
+    K.function deterministic: True  equals predict: True
+    first-order grads norms: [1.2512038946151733, 2.244622230529785, 4.8520731925964355, 5.93057918548584]
+    second-order (what get_updates sees) norms: [13.598580360412598, 24.242570877075195, 63.91739273071289, 65.67870330810547]
+    sign agreement of the update with -second-order: 1.0  with -first-order: 0.623162583518931
+    BN moving mean/var unchanged after updates: True True  gamma changed: True
+    BN moving stats [0. 0.] [1. 1.]
+
+tf_keras differs from standalone Keras 2.2 in one place that matters here: its
+``K.function`` needs at least one output, so the update function gets ``actor.output``.
+"""
 import numpy as np, tensorflow as tf
 tf.compat.v1.disable_eager_execution()
 import tf_keras as keras
