@@ -50,11 +50,12 @@ def test_keras_cartpole_reaches_475_in_at_least_1_of_4_seeds_within_600_episodes
     """k=1 of n=4 seeds must bring the 100-episode mean duration to 475 within 600 episodes.
 
     Derivation (results/cartpole/faithful/summary.md, 10 seeds, the tutorial's 600-episode
-    budget): the tutorial's DQN is unstable on CartPole, so success is far from certain per
-    seed (see the measured success rate there; episodes-to-475 spread over the last third of
-    the budget). Treating a seed on another machine as a fresh draw with that success rate
-    p, k=1 of 4 fails with probability (1-p)^4, about 3% at p=0.6; k=2 of 4 would fail 18%
-    of the time, too flaky. Teeth: a learner that does not learn stays near 20 steps per
+    budget): 8/10 seeds reached 475, at episodes 434-580 (median 477.5, IQR 457-507): late
+    in the budget, because the tutorial's DQN keeps collapsing and recovering on CartPole.
+    Treating a seed on another machine as a fresh draw with p = 0.8 (and allowing for a
+    lower true rate, p = 0.6), k=1 of 4 fails with probability (1-p)^4 = 0.2% (2.6%);
+    k=3 of 4 would fail 18% (52%) of the time, too flaky. The budget stays the tutorial's
+    600: the slowest success used 580. Teeth: a learner that does not learn stays near 20 steps per
     episode (the random policy), far below 475, and never passes. Seeds are tried in order
     and the test stops at the first success (each run stops at the threshold), so on this
     machine it costs one run: seed 0 reached 475 at episode 435.
