@@ -10,14 +10,17 @@ import numpy as np
 from keras_rl.results import atomic_write_text, plt, read_episodes, save_figure
 
 
-def episodes_to_threshold_stats(reached: list[int | None]) -> dict[str, Any]:
+def episodes_to_threshold_stats(reached: list[int | None], success: list[bool] | None = None) -> dict[str, Any]:
     """Success rate and the distribution of episodes-to-threshold over successful seeds.
 
-    IQR is the 25th to 75th percentile (NumPy's default linear interpolation).
+    ``success`` defaults to "reached the threshold"; experiments judged at the end of the
+    run (post 001) pass their own. IQR is the 25th to 75th percentile (NumPy's default
+    linear interpolation).
     """
-    hits = np.array([r for r in reached if r is not None], dtype=float)
-    stats: dict[str, Any] = {"seeds": len(reached), "successes": int(hits.size),
-                             "success_rate": hits.size / len(reached) if reached else 0.0}
+    success = [r is not None for r in reached] if success is None else success
+    hits = np.array([r for r, ok in zip(reached, success) if ok and r is not None], dtype=float)
+    stats: dict[str, Any] = {"seeds": len(reached), "successes": int(sum(success)),
+                             "success_rate": sum(success) / len(reached) if reached else 0.0}
     if hits.size:
         q25, q50, q75 = np.percentile(hits, [25, 50, 75])
         stats.update(median=float(q50), q25=float(q25), q75=float(q75),
@@ -32,7 +35,8 @@ def write_aggregate(out_dir: Path, summaries: list[dict[str, Any]], threshold: f
     """Write ``summary.md`` and ``curves.png`` for the seeds in ``summaries``."""
     out_dir = Path(out_dir)
     summaries = sorted(summaries, key=lambda s: s["seed"])
-    stats = episodes_to_threshold_stats([s["reached_at_episode"] for s in summaries])
+    stats = episodes_to_threshold_stats([s["reached_at_episode"] for s in summaries],
+                                        [bool(s["success"]) for s in summaries])
     walls = [s["wall_seconds"] for s in summaries]
     fmt = lambda v: "n/a" if v is None else (f"{v:g}" if isinstance(v, float) else str(v))  # noqa: E731
     lines = [
@@ -74,3 +78,29 @@ def write_aggregate(out_dir: Path, summaries: list[dict[str, Any]], threshold: f
     ax.legend(fontsize=7, ncol=2, loc="lower right")
     save_figure(fig, out_dir / "curves.png")
     return stats
+
+
+def rebuild(parent: Path) -> dict[str, Any]:
+    """Rewrite ``summary.md`` and ``curves.png`` of a multi-seed folder from its seeds' files."""
+    import json
+
+    from keras_rl.errors import RunFolderError
+    from keras_rl.experiments import get_experiment
+
+    parent = Path(parent)
+    paths = sorted(parent.glob("seed_*/summary.json"))
+    if not paths:
+        raise RunFolderError(f"{parent} holds no seed_*/summary.json")
+    try:
+        summaries = [json.loads(p.read_text()) for p in paths]
+        configs = [json.loads((p.parent / "config.json").read_text()) for p in paths]
+    except (OSError, ValueError) as exc:
+        raise RunFolderError(f"{parent}: a seed folder is unreadable ({exc})") from None
+    keys = {(c["experiment"], c["variant"], c.get("framework", "keras")) for c in configs}
+    if len(keys) != 1:
+        raise RunFolderError(f"{parent} mixes runs of different experiments/variants/frameworks: {sorted(keys)}")
+    (name, variant, framework), = keys
+    experiment = get_experiment(name)
+    return write_aggregate(parent, summaries, configs[0]["threshold"],
+                           f"{name} ({variant}, {framework}), {len(summaries)} seeds",
+                           experiment.metric_label, experiment.post_reference)

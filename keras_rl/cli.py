@@ -2,6 +2,7 @@
 
     keras-rl reproduce pendulum --variant faithful --seeds 0-9 --workers 2 --out results/pendulum
     keras-rl evaluate results/pendulum/faithful/seed_0 --episodes 5 --gif pendulum.gif
+    keras-rl aggregate results/pendulum/faithful
     keras-rl list
 """
 
@@ -68,6 +69,9 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--episodes", type=int, default=5)
     ev.add_argument("--seed", type=int, default=None, help="env seed (default: the run's seed + 10000)")
     ev.add_argument("--gif", type=Path, default=None, help="record the first episode to this GIF")
+
+    ag = sub.add_parser("aggregate", help="rebuild summary.md and curves.png of a multi-seed folder")
+    ag.add_argument("parent", type=Path, help="a folder of seed_<n>/ run folders, e.g. results/pendulum/faithful")
 
     sub.add_parser("list", help="list the experiments and their variants")
     return parser
@@ -206,6 +210,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             return reproduce(args)
         if args.command == "evaluate":
             return evaluate(args)
+        if args.command == "aggregate":
+            from keras_rl.aggregate import rebuild
+
+            stats = rebuild(args.parent)
+            print(f"{args.parent}/summary.md: {stats['successes']}/{stats['seeds']} seeds succeeded")
+            return EXIT_OK
         return list_experiments()
     except KerasRLError as exc:
         print(f"error: {exc}", file=sys.stderr)
