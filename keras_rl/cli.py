@@ -70,6 +70,18 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--seed", type=int, default=None, help="env seed (default: the run's seed + 10000)")
     ev.add_argument("--gif", type=Path, default=None, help="record the first episode to this GIF")
 
+    cp = sub.add_parser("compare", help="run or reuse the same seeds in Keras and PyTorch and report the difference")
+    cp.add_argument("experiment")
+    cp.add_argument("--seeds", default="0-9")
+    cp.add_argument("--variant", default="faithful")
+    cp.add_argument("--workers", type=int, default=1)
+    cp.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
+    cp.add_argument("--runs", type=Path, default=Path("results"), help="where run folders are found and made")
+    cp.add_argument("--out", type=Path, default=Path("results/compare"), help="report folder root")
+    cp.add_argument("--rerun", action="store_true", help="replace existing run folders instead of reusing them")
+    cp.add_argument("--reuse-only", action="store_true", help="run nothing; fail if a seed is missing")
+    cp.add_argument("--no-progress", action="store_true")
+
     ag = sub.add_parser("aggregate", help="rebuild summary.md and curves.png of a multi-seed folder")
     ag.add_argument("parent", type=Path, help="a folder of seed_<n>/ run folders, e.g. results/pendulum/faithful")
 
@@ -210,6 +222,23 @@ def main(argv: Sequence[str] | None = None) -> int:
             return reproduce(args)
         if args.command == "evaluate":
             return evaluate(args)
+        if args.command == "compare":
+            from keras_rl.compare import compare
+            from keras_rl.results import command_line
+
+            if args.workers < 1:
+                raise ConfigError(f"--workers must be at least 1, got {args.workers}")
+            if args.episodes is not None and args.episodes <= 0:
+                raise ConfigError(f"--episodes must be positive, got {args.episodes}")
+            try:
+                out = compare(args.experiment, parse_seeds(args.seeds), args.variant, args.workers, args.runs, args.out,
+                              args.rerun, args.reuse_only, args.episodes, not args.no_progress, command_line())
+            except KeyboardInterrupt:
+                print("interrupted: the runs so far are on disk; run compare again to reuse them", file=sys.stderr)
+                return EXIT_INTERRUPTED
+            print(f"report: {out / 'report.md'}")
+            print((out / "report.md").read_text().split("**Verdict.** ")[-1].splitlines()[0])
+            return EXIT_OK
         if args.command == "aggregate":
             from keras_rl.aggregate import rebuild
 

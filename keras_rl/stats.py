@@ -1,0 +1,69 @@
+"""Multi-seed statistics for comparing two sets of runs (SciPy underneath).
+
+- ``median_difference_ci``: a percentile-bootstrap 95% CI of median(a) - median(b), the
+  two samples resampled independently (``scipy.stats.bootstrap``).
+- ``mann_whitney``: the two-sided Mann-Whitney U test (``scipy.stats.mannwhitneyu``).
+- ``iqm_ci``: the interquartile mean (the mean of the middle 50%, ``trim_mean(x, 0.25)``)
+  with rliable's stratified-bootstrap percentile CI. rliable resamples runs with
+  replacement *within each task* and recomputes the aggregate; with one task per
+  comparison, as here, that is the ordinary bootstrap over seeds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+
+def iqm(x) -> float:
+    """Interquartile mean: the 25%-trimmed mean (rliable's ``aggregate_iqm``)."""
+    return float(stats.trim_mean(np.asarray(x, float), 0.25, axis=None))
+
+
+@dataclass(frozen=True)
+class Interval:
+    estimate: float
+    low: float
+    high: float
+
+    def __str__(self) -> str:
+        return f"{self.estimate:.4g} [{self.low:.4g}, {self.high:.4g}]"
+
+
+def _bootstrap(samples: tuple, statistic, rng: np.random.Generator, n_resamples: int) -> tuple[float, float]:
+    if any(len(s) < 2 for s in samples) or all(np.ptp(s) == 0 for s in samples):
+        value = statistic(*samples)  # a degenerate sample has a degenerate interval
+        return float(value), float(value)
+    res = stats.bootstrap(samples, statistic, n_resamples=n_resamples, confidence_level=0.95,
+                          method="percentile", vectorized=False, random_state=rng)
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def median_difference_ci(a, b, rng: np.random.Generator | None = None, n_resamples: int = 10_000) -> Interval:
+    """median(a) - median(b) with a 95% percentile-bootstrap interval."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    rng = np.random.default_rng(0) if rng is None else rng
+
+    def diff(x, y):
+        return np.median(x) - np.median(y)
+
+    low, high = _bootstrap((a, b), diff, rng, n_resamples)
+    return Interval(float(diff(a, b)), low, high)
+
+
+def iqm_ci(x, rng: np.random.Generator | None = None, n_resamples: int = 10_000) -> Interval:
+    """IQM of one set of runs with a 95% (stratified, one task) bootstrap interval."""
+    x = np.asarray(x, float)
+    rng = np.random.default_rng(0) if rng is None else rng
+    low, high = _bootstrap((x,), iqm, rng, n_resamples)
+    return Interval(iqm(x), low, high)
+
+
+def mann_whitney(a, b) -> tuple[float, float]:
+    """(U statistic of ``a``, two-sided p-value); (nan, nan) when either sample is empty."""
+    if len(a) == 0 or len(b) == 0:
+        return float("nan"), float("nan")
+    res = stats.mannwhitneyu(a, b, alternative="two-sided")
+    return float(res.statistic), float(res.pvalue)

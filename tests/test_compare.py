@@ -1,0 +1,110 @@
+"""``keras-rl compare`` and its statistics helpers."""
+
+import json
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from keras_rl.cli import main
+from keras_rl.results import read_episodes
+from keras_rl.stats import iqm, iqm_ci, mann_whitney, median_difference_ci
+
+
+def test_mann_whitney_against_a_hand_computed_u():
+    # a = [1, 2, 3] all below b = [4, 5]: U_a = 0; exact two-sided p = 2 * 1 / C(5, 2) = 0.2
+    u, p = mann_whitney([1, 2, 3], [4, 5])
+    assert u == 0 and p == pytest.approx(0.2)
+    u, _ = mann_whitney([4, 5], [1, 2, 3])
+    assert u == 6  # len(a) * len(b) - 0
+
+
+def test_iqm_is_the_mean_of_the_middle_half():
+    assert iqm([1, 2, 3, 4, 5, 6, 7, 8]) == pytest.approx(4.5)  # mean of 3, 4, 5, 6
+    assert iqm([0, 0, 1, 100]) == pytest.approx(0.5)  # mean of 0, 1: robust to the 100
+
+
+def test_bootstrap_intervals_with_a_fixed_rng_are_scipys_percentile_intervals():
+    x = np.array([3.0, 7, 1, 9, 4, 4, 8, 2, 6, 5])
+    ci = iqm_ci(x, np.random.default_rng(42), n_resamples=2000)
+    ref = stats.bootstrap((x,), iqm, n_resamples=2000, method="percentile", vectorized=False,
+                          random_state=np.random.default_rng(42)).confidence_interval
+    assert (ci.low, ci.high) == (ref.low, ref.high)
+    assert ci.low <= ci.estimate <= ci.high and x.min() <= ci.low and ci.high <= x.max()
+    assert iqm_ci(x, np.random.default_rng(42), n_resamples=2000) == ci  # same RNG, same interval
+
+
+def test_median_difference_interval_of_separated_samples_excludes_zero():
+    a, b = [10, 11, 12, 13, 14], [20, 21, 22, 23, 24]
+    ci = median_difference_ci(a, b, np.random.default_rng(0), n_resamples=2000)
+    assert ci.estimate == -10 and ci.high < 0 and ci.low >= -14  # every resample's difference lies in [-14, -6]
+    same = median_difference_ci([5, 5, 5], [5, 5, 5])
+    assert (same.estimate, same.low, same.high) == (0, 0, 0)
+
+
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory):
+    pytest.importorskip("torch", reason="compare needs the torch extra")
+    root = tmp_path_factory.mktemp("cmp")
+    proc = subprocess.run([sys.executable, "-m", "keras_rl", "compare", "cartpole", "--seeds", "0-1", "--episodes", "20",
+                           "--runs", str(root / "runs"), "--out", str(root / "out"), "--workers", "2", "--no-progress"],
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return root
+
+
+def test_compare_writes_a_well_formed_report_whose_numbers_the_csvs_reproduce(compared):
+    out = compared / "out" / "cartpole"
+    report = (out / "report.md").read_text()
+    for png in ("curves.png", "episodes_to_threshold.png"):
+        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "**Verdict.**" in report and "Mann-Whitney" in report
+    for fw, folder in (("keras", "faithful"), ("torch", "faithful-torch")):
+        finals, walls, ms = [], [], []
+        for seed in (0, 1):
+            run = compared / "runs" / "cartpole" / folder / f"seed_{seed}"
+            rows = read_episodes(run / "episodes.csv")
+            summary = json.loads((run / "summary.json").read_text())
+            assert len(rows) == 20 and summary["framework"] == fw
+            finals.append(rows[-1]["metric"])
+            walls.append(summary["wall_seconds"])
+            ms.append(summary["wall_seconds"] / summary["total_steps"] * 1e3)
+        line = next(l for l in report.splitlines() if l.startswith(f"| {fw} |"))
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        assert cells[1] == "0/2"  # 20 episodes cannot reach a 100-episode mean of 475
+        assert float(cells[4].split(" ")[0]) == pytest.approx(iqm(finals), abs=1e-3)
+        assert float(cells[5]) == pytest.approx(np.median(walls), abs=0.05)
+        assert float(cells[6]) == pytest.approx(np.median(ms), abs=5e-4)
+
+
+def test_compare_reuses_matching_runs_and_refuses_mismatched_ones(compared, capsys):
+    runs, out = compared / "runs", compared / "out2"
+    args = ["compare", "cartpole", "--seeds", "0-1", "--episodes", "20", "--runs", str(runs), "--out", str(out),
+            "--no-progress", "--reuse-only"]
+    assert main(args) == 0  # everything reusable: nothing runs
+    assert (out / "cartpole" / "report.md").is_file()
+    # a different config: refuse to mix, name the field
+    assert main([*args[:4], "--episodes", "25", *args[6:]]) == 2
+    assert "different config (episodes=20 here, 25 wanted)" in capsys.readouterr().err
+    # mismatched seed sets
+    assert main([*args[:3], "0-2", *args[4:]]) == 2
+    err = capsys.readouterr().err
+    assert "mismatched seed sets" in err and "keras lacks seeds [2]" in err
+    # another code version
+    summary_path = runs / "cartpole" / "faithful-torch" / "seed_1" / "summary.json"
+    summary = json.loads(summary_path.read_text())
+    summary["versions"]["keras_rl"] = "0.0.1"
+    summary_path.write_text(json.dumps(summary))
+    assert main(args) == 2
+    assert re.search(r"made by keras_rl 0.0.1, this is [\d.]+; refusing to mix code versions", capsys.readouterr().err)
+
+
+def test_compare_without_torch_or_without_a_torch_version_is_a_clear_error(monkeypatch, capsys, tmp_path):
+    assert main(["compare", "pendulum", "--runs", str(tmp_path)]) == 2
+    assert "pendulum has no PyTorch version yet" in capsys.readouterr().err
+    monkeypatch.setitem(sys.modules, "torch", None)
+    assert main(["compare", "cartpole", "--runs", str(tmp_path)]) == 2
+    assert "the torch framework needs PyTorch" in capsys.readouterr().err
