@@ -69,7 +69,8 @@ def write_aggregate(out_dir: Path, summaries: list[dict[str, Any]], threshold: f
         if not csv_path.is_file():
             continue
         rows = read_episodes(csv_path)
-        ax.plot([r["episode"] for r in rows], [r["metric"] for r in rows], lw=1.2, label=f"seed {s['seed']}")
+        metric = [r["metric"] if r["metric"] is not None and np.isfinite(r["metric"]) else np.nan for r in rows]
+        ax.plot([r["episode"] for r in rows], metric, lw=1.2, label=f"seed {s['seed']}")
     ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
     ax.set_xlabel("episode")
     ax.set_ylabel(metric_label)
@@ -85,7 +86,7 @@ def rebuild(parent: Path) -> dict[str, Any]:
     import json
 
     from keras_rl.errors import RunFolderError
-    from keras_rl.experiments import get_experiment
+    from keras_rl.experiments import get_experiment, metric_label
 
     parent = Path(parent)
     paths = sorted(parent.glob("seed_*/summary.json"))
@@ -101,6 +102,16 @@ def rebuild(parent: Path) -> dict[str, Any]:
         raise RunFolderError(f"{parent} mixes runs of different experiments/variants/frameworks: {sorted(keys)}")
     (name, variant, framework), = keys
     experiment = get_experiment(name)
+    from keras_rl.results import plot_curve
+
+    for path, config in zip(paths, configs):  # redraw each seed's curve from its CSV
+        rows = read_episodes(path.parent / "episodes.csv")
+        if rows:
+            plot_curve(path.parent / "curve.png", rows, config["threshold"],
+                       f"{name} ({variant}, {framework}), seed {config['seed']}",
+                       metric_label(experiment, experiment.config_cls.from_dict(config)),
+                       metric_in_score_units=experiment.metric_in_score_units)
     return write_aggregate(parent, summaries, configs[0]["threshold"],
                            f"{name} ({variant}, {framework}), {len(summaries)} seeds",
-                           experiment.metric_label, experiment.post_reference)
+                           metric_label(experiment, experiment.config_cls.from_dict(configs[0])),
+                           experiment.post_reference)

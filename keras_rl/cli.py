@@ -142,7 +142,7 @@ def _run_in_processes(jobs: list, workers: int) -> bool:
 
 def reproduce(args: argparse.Namespace) -> int:
     from keras_rl.aggregate import write_aggregate
-    from keras_rl.experiments import get_experiment
+    from keras_rl.experiments import get_experiment, metric_label
 
     experiment = get_experiment(args.experiment)
     seeds = parse_seeds(args.seeds)
@@ -184,7 +184,7 @@ def reproduce(args: argparse.Namespace) -> int:
         print(f"error: seed {s['seed']}: {s['message']}", file=sys.stderr)
     if summaries and len(seeds) > 1:
         write_aggregate(out, summaries, base.threshold, f"{experiment.name} ({args.variant}, {args.framework}), "
-                        f"{len(summaries)} seeds", experiment.metric_label, experiment.post_reference)
+                        f"{len(summaries)} seeds", metric_label(experiment, base), experiment.post_reference)
     for s in summaries:
         where = f"episode {s['reached_at_episode']}" if s["success"] else "not reached"
         print(f"{experiment.name}/{args.variant}/{args.framework} seed {s['seed']}: {s['status']}, threshold {where} "

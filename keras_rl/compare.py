@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from keras_rl.errors import ConfigError, RunFolderError
-from keras_rl.experiments import Experiment, get_experiment
+from keras_rl.experiments import Experiment, get_experiment, metric_label
 from keras_rl.results import atomic_write_text, plt, read_episodes, save_figure
 from keras_rl.stats import iqm_ci, mann_whitney, median_difference_ci
 
@@ -167,7 +167,7 @@ def write_report(out_dir: Path, experiment: Experiment, variant: str, runs: dict
         ax.fill_between(episodes, q25, q75, color=color, alpha=0.25, label=f"{fw} IQR")
     ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
     ax.set_xlabel("episode")
-    ax.set_ylabel(experiment.metric_label)
+    ax.set_ylabel(metric_label(experiment, experiment.config_cls.for_variant(variant)))
     ax.set_title(f"{experiment.name} ({variant}): {n} seeds per framework")
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize=8)

@@ -23,7 +23,8 @@ class Experiment:
     """``make_agent(config, env)`` -> an agent with begin_episode/step/greedy_action/networks."""
     make_metric: Callable[[Any], Any]
     """``make_metric(config)`` -> an object with ``update(score) -> value``."""
-    metric_label: str
+    metric_label: str | Callable[[Any], str]
+    """The metric's name in plots and tables; a function of the config where it depends on it."""
     description: str
     summary_extras: Callable[[list[dict[str, Any]], Any], dict[str, Any]] = lambda rows, config: {}
     """Experiment-specific numbers for ``summary.json``."""
@@ -31,6 +32,8 @@ class Experiment:
     """What the post itself reports, for ``summary.md``."""
     success_at_end: bool = False
     """Judge success on the final metric (post 001) rather than on a first crossing."""
+    metric_in_score_units: bool = True
+    """False when the metric is not on the score's scale (plots give it its own axis)."""
 
 
 def _pendulum_env(config: PendulumDDPGConfig, render_mode: str | None = None) -> gym.Env:
@@ -120,14 +123,21 @@ EXPERIMENTS: dict[str, Experiment] = {
         make_agent=_mountaincar_agent,
         make_metric=lambda c: (ReturnSpread(c.converge_window) if c.criterion == "converged"
                                else GoalShare(c.goal_window)),
-        metric_label="converged: return spread of the last 10 episodes; goal: share of the last 50 at the goal",
+        metric_label=lambda c: (f"spread of the last {c.converge_window} returns" if c.criterion == "converged"
+                                else f"share of the last {c.goal_window} episodes at the goal"),
         description="post 001: DDPG on MountainCarContinuous-v0 from Keras 2 graph code; "
                     "success = converged (faithful) or the goal in half the last 50 episodes (fixed)",
         summary_extras=_mountaincar_extras,
         post_reference="The post says it \"roughly converged within 100 trials\" and gives no number.",
         success_at_end=True,
+        metric_in_score_units=False,
     ),
 }
+
+
+def metric_label(experiment: Experiment, config) -> str:
+    label = experiment.metric_label
+    return label(config) if callable(label) else label
 
 
 def get_experiment(name: str) -> Experiment:

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from keras_rl.errors import NonFiniteLossError, RunFolderError
-from keras_rl.experiments import Experiment, get_experiment
+from keras_rl.experiments import Experiment, get_experiment, metric_label
 from keras_rl.results import RunRecorder, atomic_write_json, library_versions, plot_curve
 from keras_rl.seeding import configure_tensorflow, seed_everything
 
@@ -89,7 +89,7 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
         if recorder.rows:
             plot_curve(recorder.out_dir / "curve.png", recorder.rows, config.threshold,
                        f"{experiment.name} ({config.variant}, {config.framework}), seed {config.seed}",
-                       experiment.metric_label)
+                       metric_label(experiment, config), metric_in_score_units=experiment.metric_in_score_units)
         env.close()
     return summary
 

@@ -8,6 +8,7 @@ episode, so Ctrl-C, a NaN or a crash leaves a valid file with every finished epi
 from __future__ import annotations
 
 import csv
+import math
 import io
 import json
 import os
@@ -136,17 +137,29 @@ def read_episodes(path: Path) -> list[dict[str, Any]]:
 
 
 def plot_curve(path: Path, rows: list[dict[str, Any]], threshold: float, title: str,
-               metric_label: str, score_label: str = "score") -> None:
-    """Score and metric per episode with the threshold line, like the post's figure."""
+               metric_label: str, score_label: str = "score", metric_in_score_units: bool = True) -> None:
+    """Score and metric per episode with the threshold line, like the post's figure.
+
+    A metric in other units than the score (post 001's goal share or return spread) gets
+    its own axis on the right, with the threshold drawn there.
+    """
     fig, ax = plt.subplots(figsize=(7, 4))
     episodes = [r["episode"] for r in rows]
     ax.plot(episodes, [r["score"] for r in rows], color="tab:blue", lw=0.8, label=score_label)
-    ax.plot(episodes, [r["metric"] for r in rows], color="tab:orange", lw=1.6, label=metric_label)
-    ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
+    metric_ax = ax if metric_in_score_units else ax.twinx()
+    metric = [r["metric"] if r["metric"] is not None and math.isfinite(r["metric"]) else float("nan") for r in rows]
+    metric_ax.plot(episodes, metric, color="tab:orange", lw=1.6, label=metric_label)
+    metric_ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
+    if not metric_in_score_units:
+        metric_ax.set_ylabel(metric_label, color="tab:orange", fontsize=8)
     ax.set_xlabel("episode")
     ax.set_ylabel(score_label)
     ax.set_title(title)
-    ax.legend(loc="lower right")
+    handles = ax.get_legend_handles_labels()
+    if metric_ax is not ax:
+        extra = metric_ax.get_legend_handles_labels()
+        handles = (handles[0] + extra[0], handles[1] + extra[1])
+    ax.legend(*handles, loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     save_figure(fig, path)
 
