@@ -128,6 +128,13 @@ def _run_in_processes(jobs: list, workers: int) -> bool:
     except KeyboardInterrupt:
         interrupted = True
     if interrupted:
+        # A terminal's Ctrl-C reached the workers too; give them a moment to flush, and
+        # interrupt only those that did not hear it (SIGINT sent to this process alone).
+        try:
+            for proc in running:
+                proc.join(timeout=2.0)
+        except KeyboardInterrupt:
+            pass
         for proc in running:
             if proc.is_alive():
                 os.kill(proc.pid, signal.SIGINT)

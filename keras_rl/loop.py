@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import signal
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -79,19 +82,34 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
         status, message = "error", f"{type(exc).__name__}: {exc}"
         raise
     finally:
-        if bar is not None:
-            bar.close()
-        summary = _summary(experiment, config, metric, recorder, status, message, reached_at,
-                           total_steps, time.perf_counter() - start)
-        recorder.write_summary(summary)
-        if status in ("completed", "interrupted"):
-            agent.save(recorder.out_dir)
-        if recorder.rows:
-            plot_curve(recorder.out_dir / "curve.png", recorder.rows, config.threshold,
-                       f"{experiment.name} ({config.variant}, {config.framework}), seed {config.seed}",
-                       metric_label(experiment, config), metric_in_score_units=experiment.metric_in_score_units)
-        env.close()
+        # A second Ctrl-C (or the one a parent forwards) must not cut the flush short.
+        with sigint_deferred():
+            if bar is not None:
+                bar.close()
+            summary = _summary(experiment, config, metric, recorder, status, message, reached_at,
+                               total_steps, time.perf_counter() - start)
+            recorder.write_summary(summary)
+            if status in ("completed", "interrupted"):
+                agent.save(recorder.out_dir)
+            if recorder.rows:
+                plot_curve(recorder.out_dir / "curve.png", recorder.rows, config.threshold,
+                           f"{experiment.name} ({config.variant}, {config.framework}), seed {config.seed}",
+                           metric_label(experiment, config), metric_in_score_units=experiment.metric_in_score_units)
+            env.close()
     return summary
+
+
+@contextlib.contextmanager
+def sigint_deferred():
+    """Hold SIGINT back while results are written; re-deliver none (the run is ending anyway)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _summary(experiment: Experiment, config, metric, recorder: RunRecorder, status: str, message: str,

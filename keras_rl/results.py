@@ -180,9 +180,11 @@ class RunRecorder:
         atomic_write_json(self.out_dir / "config.json", config_dict)
 
     def add_episode(self, row: dict[str, Any]) -> None:
-        self.rows.append(row)
+        # The row counts as recorded only once the file holding it is in place, so an
+        # interrupt during the write leaves rows and file in agreement.
         atomic_write_text(self.out_dir / "episodes.csv",
-                          episodes_csv_text(self.rows, episode_columns(self.loss_names)))
+                          episodes_csv_text([*self.rows, row], episode_columns(self.loss_names)))
+        self.rows.append(row)
 
     def write_summary(self, summary: dict[str, Any]) -> None:
         atomic_write_json(self.out_dir / "summary.json", summary)
