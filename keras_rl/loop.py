@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-import contextlib
 import json
-import signal
-import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -14,7 +11,7 @@ import numpy as np
 
 from keras_rl.errors import NonFiniteLossError, RunFolderError
 from keras_rl.experiments import Experiment, get_experiment, metric_label
-from keras_rl.results import RunRecorder, atomic_write_json, library_versions, plot_curve
+from keras_rl.results import RunRecorder, atomic_write_json, library_versions, plot_curve, sigint_deferred
 from keras_rl.seeding import configure_tensorflow, seed_everything
 
 
@@ -83,7 +80,7 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
         raise
     finally:
         # A second Ctrl-C (or the one a parent forwards) must not cut the flush short.
-        with sigint_deferred():
+        with sigint_deferred(reraise=False):
             if bar is not None:
                 bar.close()
             summary = _summary(experiment, config, metric, recorder, status, message, reached_at,
@@ -97,19 +94,6 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
                            metric_label(experiment, config), metric_in_score_units=experiment.metric_in_score_units)
             env.close()
     return summary
-
-
-@contextlib.contextmanager
-def sigint_deferred():
-    """Hold SIGINT back while results are written; re-deliver none (the run is ending anyway)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 def _summary(experiment: Experiment, config, metric, recorder: RunRecorder, status: str, message: str,

@@ -7,14 +7,17 @@ episode, so Ctrl-C, a NaN or a crash leaves a valid file with every finished epi
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import math
 import io
 import json
 import os
 import platform
+import signal
 import sys
 import tempfile
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
@@ -30,6 +33,27 @@ def episode_columns(loss_names: tuple[str, ...]) -> tuple[str, ...]:
     mean over the episode's updates (empty before training starts); ``wall_seconds`` is the
     time since the run started."""
     return ("episode", "steps", "total_steps", "score", "metric", *loss_names, "wall_seconds")
+
+
+@contextlib.contextmanager
+def sigint_deferred(reraise: bool = True):
+    """Hold Ctrl-C back until the block is done, so a write and its bookkeeping stay together.
+
+    A SIGINT that arrives inside the block is remembered and raised as KeyboardInterrupt
+    when the block ends (``reraise=False``: dropped, for a flush that is the run's last act).
+    Outside the main thread signals cannot be handled, and the block runs as it is.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if caught and reraise:
+        raise KeyboardInterrupt
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
@@ -180,11 +204,11 @@ class RunRecorder:
         atomic_write_json(self.out_dir / "config.json", config_dict)
 
     def add_episode(self, row: dict[str, Any]) -> None:
-        # The row counts as recorded only once the file holding it is in place, so an
-        # interrupt during the write leaves rows and file in agreement.
-        atomic_write_text(self.out_dir / "episodes.csv",
-                          episodes_csv_text([*self.rows, row], episode_columns(self.loss_names)))
-        self.rows.append(row)
+        # The file and the in-memory rows change together: Ctrl-C waits for both.
+        with sigint_deferred():
+            atomic_write_text(self.out_dir / "episodes.csv",
+                              episodes_csv_text([*self.rows, row], episode_columns(self.loss_names)))
+            self.rows.append(row)
 
     def write_summary(self, summary: dict[str, Any]) -> None:
         atomic_write_json(self.out_dir / "summary.json", summary)
