@@ -6,10 +6,8 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import gymnasium as gym
-import numpy as np
 import pytest
 
 from keras_rl.cli import main, parse_seeds
