@@ -53,6 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("experiment", help="experiment name (see `keras-rl list`)")
     rep.add_argument("--variant", default="faithful", help="faithful (the post's code as it ran) or fixed")
     rep.add_argument("--framework", default="keras", help="keras (ours) or torch (where the experiment has one)")
+    rep.add_argument("--matched-init", action="store_true",
+                     help="torch only: start from the Keras networks' initial weights for the same seed")
     rep.add_argument("--seeds", default="0", help="seed list or range: 13, 0-9, 0,3,5 (default 0)")
     rep.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
     rep.add_argument("--out", type=Path, default=None,
@@ -74,6 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("experiment")
     cp.add_argument("--seeds", default="0-9")
     cp.add_argument("--variant", default="faithful")
+    cp.add_argument("--matched-init", action="store_true",
+                    help="torch runs start from the Keras runs' initial weights (report in <out>/<experiment>/matched-init)")
     cp.add_argument("--workers", type=int, default=1)
     cp.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
     cp.add_argument("--runs", type=Path, default=Path("results"), help="where run folders are found and made")
@@ -157,7 +161,7 @@ def reproduce(args: argparse.Namespace) -> int:
         raise ConfigError(f"--workers must be at least 1, got {args.workers}")
     if not 0 <= args.min_success_rate <= 1:
         raise ConfigError(f"--min-success-rate must be in [0, 1], got {args.min_success_rate}")
-    overrides = {"framework": args.framework}
+    overrides = {"framework": args.framework, "matched_init": args.matched_init}
     if args.episodes is not None:
         overrides["episodes"] = args.episodes
     if args.episodes is not None and args.episodes <= 0:
@@ -167,8 +171,9 @@ def reproduce(args: argparse.Namespace) -> int:
         from keras_rl.torch import require_torch
 
         require_torch()
-    suffix = "" if args.framework == "keras" else f"-{args.framework}"
-    out = args.out or Path("results") / experiment.name / f"{args.variant}{suffix}"
+    from keras_rl.compare import run_folder
+
+    out = args.out or run_folder(Path("results"), experiment.name, args.variant, args.framework, args.matched_init)
     jobs = [(experiment.name, base.replace(seed=s).to_dict(), str(out / f"seed_{s}"),
              not args.no_progress, i % args.workers) for i, s in enumerate(seeds)]
 
@@ -239,7 +244,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise ConfigError(f"--episodes must be positive, got {args.episodes}")
             try:
                 out = compare(args.experiment, parse_seeds(args.seeds), args.variant, args.workers, args.runs, args.out,
-                              args.rerun, args.reuse_only, args.episodes, not args.no_progress, command_line())
+                              args.rerun, args.reuse_only, args.episodes, not args.no_progress, command_line(),
+                              args.matched_init)
             except KeyboardInterrupt:
                 print("interrupted: the runs so far are on disk; run compare again to reuse them", file=sys.stderr)
                 return EXIT_INTERRUPTED

@@ -22,9 +22,30 @@ FRAMEWORKS = ("keras", "torch")
 IGNORED_FIELDS = {"seed", "framework"}
 
 
-def run_folder(runs_root: Path, experiment: str, variant: str, framework: str) -> Path:
-    suffix = "" if framework == "keras" else f"-{framework}"
+def run_folder(runs_root: Path, experiment: str, variant: str, framework: str, matched_init: bool = False) -> Path:
+    """``results/<experiment>/<variant>[-torch[-matched-init]]``, as ``keras-rl reproduce`` names them."""
+    suffix = "" if framework == "keras" else f"-{framework}" + ("-matched-init" if matched_init else "")
     return Path(runs_root) / experiment / f"{variant}{suffix}"
+
+
+def framework_overrides(framework: str, matched_init: bool) -> dict[str, Any]:
+    return {"framework": framework, "matched_init": matched_init and framework == "torch"}
+
+
+_MISSING = object()
+
+
+def _field_defaults(config_dict: dict[str, Any]) -> dict[str, Any]:
+    """The defaults of the config class that ``config_dict`` belongs to (as JSON values)."""
+    import dataclasses
+
+    from keras_rl.configs import CONFIGS
+
+    cls = CONFIGS.get(config_dict.get("experiment"))
+    if cls is None:
+        return {}
+    return json.loads(json.dumps({f.name: f.default for f in dataclasses.fields(cls)
+                                  if f.default is not dataclasses.MISSING}))
 
 
 def check_reusable(seed_dir: Path, expected: dict[str, Any], code_version: str) -> str | None:
@@ -40,7 +61,11 @@ def check_reusable(seed_dir: Path, expected: dict[str, Any], code_version: str) 
     except (OSError, ValueError) as exc:
         raise RunFolderError(f"{seed_dir} is corrupt ({exc}); delete it or pass --rerun") from None
     expected = json.loads(json.dumps(expected))  # compare as config.json stores it (tuples -> lists)
-    differing = sorted(k for k in expected if k not in IGNORED_FIELDS and config.get(k) != expected[k])
+    defaults = _field_defaults(expected)
+    # A field added to the config after the run was made is absent from its config.json;
+    # the run used that field's default behaviour, so it matches only if the default is wanted.
+    differing = sorted(k for k in expected if k not in IGNORED_FIELDS
+                       and config.get(k, defaults.get(k, _MISSING)) != expected[k])
     if differing:
         raise RunFolderError(
             f"{seed_dir} was made with a different config ({', '.join(f'{k}={config.get(k)!r} here, {expected[k]!r} wanted' for k in differing[:3])}); "
@@ -55,14 +80,14 @@ def check_reusable(seed_dir: Path, expected: dict[str, Any], code_version: str) 
 
 
 def gather(experiment: Experiment, variant: str, seeds: list[int], runs_root: Path, rerun: bool,
-           reuse_only: bool, overrides: dict[str, Any]) -> dict[str, list[Path]]:
+           reuse_only: bool, overrides: dict[str, Any], matched_init: bool = False) -> dict[str, list[int]]:
     """For each framework, the seed folders to use and the jobs still to run."""
     from keras_rl import __version__
 
     todo: dict[str, list[int]] = {}
     for framework in FRAMEWORKS:
-        base = experiment.config_cls.for_variant(variant, framework=framework, **overrides)
-        folder = run_folder(runs_root, experiment.name, variant, framework)
+        base = experiment.config_cls.for_variant(variant, **framework_overrides(framework, matched_init), **overrides)
+        folder = run_folder(runs_root, experiment.name, variant, framework, matched_init)
         todo[framework] = []
         for seed in seeds:
             expected = base.replace(seed=seed).to_dict()
@@ -129,11 +154,13 @@ def verdict(result: dict[str, Any], n: int) -> str:
 
 
 def write_report(out_dir: Path, experiment: Experiment, variant: str, runs: dict[str, list[dict[str, Any]]],
-                 result: dict[str, Any], threshold: float, command: str) -> None:
+                 result: dict[str, Any], threshold: float, command: str, matched_init: bool = False) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     n = len(runs["keras"])
     fmt = lambda v: "n/a" if v is None or (isinstance(v, float) and not np.isfinite(v)) else f"{v:g}"  # noqa: E731
-    lines = [f"# {experiment.name} ({variant}): Keras vs PyTorch, {n} seeds", "",
+    init = ("matched init: each torch run starts from its Keras twin's initial weights, so only the framework differs"
+            if matched_init else "default init: each framework initialises its networks its own way, as a user of it would get")
+    lines = [f"# {experiment.name} ({variant}): Keras vs PyTorch, {n} seeds", "", f"Initialisation: {init}.", "",
              f"Seeds: {', '.join(str(r['seed']) for r in runs['keras'])}. "
              f"Success: {runs['keras'][0]['summary']['criterion']}. Command: `{command}`", "",
              "| framework | success | episodes to threshold: median | IQR | final metric IQM [95% CI] | wall s per seed (median) | ms/step (median) |",
@@ -192,7 +219,9 @@ def write_report(out_dir: Path, experiment: Experiment, variant: str, runs: dict
 
 def compare(name: str, seeds: list[int], variant: str = "faithful", workers: int = 1, runs_root: Path = Path("results"),
             out_root: Path = Path("results/compare"), rerun: bool = False, reuse_only: bool = False,
-            episodes: int | None = None, progress: bool = True, command: str = "") -> Path:
+            episodes: int | None = None, progress: bool = True, command: str = "", matched_init: bool = False) -> Path:
+    """Write ``<out_root>/<name>/report.md`` (``<out_root>/<name>/matched-init/`` with
+    ``matched_init``: the torch runs start from the Keras runs' initial weights)."""
     from keras_rl.cli import _run_in_processes, _run_one
     from keras_rl.torch import require_torch
 
@@ -202,11 +231,11 @@ def compare(name: str, seeds: list[int], variant: str = "faithful", workers: int
                           f"(frameworks: {', '.join(experiment.config_cls.FRAMEWORKS)})")
     require_torch()
     overrides = {} if episodes is None else {"episodes": episodes}
-    todo = gather(experiment, variant, seeds, runs_root, rerun, reuse_only, overrides)
+    todo = gather(experiment, variant, seeds, runs_root, rerun, reuse_only, overrides, matched_init)
     jobs = []
     for framework, missing in todo.items():
-        base = experiment.config_cls.for_variant(variant, framework=framework, **overrides)
-        folder = run_folder(runs_root, name, variant, framework)
+        base = experiment.config_cls.for_variant(variant, **framework_overrides(framework, matched_init), **overrides)
+        folder = run_folder(runs_root, name, variant, framework, matched_init)
         jobs += [(name, base.replace(seed=s).to_dict(), str(folder / f"seed_{s}"), progress, i % workers)
                  for i, s in enumerate(missing)]
     if jobs:
@@ -220,13 +249,13 @@ def compare(name: str, seeds: list[int], variant: str = "faithful", workers: int
                     break
         if interrupted:
             raise KeyboardInterrupt
-    runs = {fw: load_runs(run_folder(runs_root, name, variant, fw), seeds) for fw in FRAMEWORKS}
+    runs = {fw: load_runs(run_folder(runs_root, name, variant, fw, matched_init), seeds) for fw in FRAMEWORKS}
     for fw, rs in runs.items():
         unfinished = [r["seed"] for r in rs if r["summary"]["status"] != "completed"]
         if unfinished:
             raise RunFolderError(f"{fw} runs of seeds {unfinished} did not finish; the comparison needs them all")
     config = experiment.config_cls.for_variant(variant, **overrides)
     result = analyse(runs, config.episodes)
-    out_dir = Path(out_root) / name
-    write_report(out_dir, experiment, variant, runs, result, config.threshold, command)
+    out_dir = Path(out_root) / name / ("matched-init" if matched_init else "")
+    write_report(out_dir, experiment, variant, runs, result, config.threshold, command, matched_init)
     return out_dir

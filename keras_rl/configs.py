@@ -28,7 +28,7 @@ class ExperimentConfig:
     """The seed post this config reproduces."""
     VARIANTS: ClassVar[dict[str, dict[str, Any]]] = {"faithful": {}}
     """Named sets of overrides. ``faithful`` is always the empty set: the defaults."""
-    FRAMEWORKS: ClassVar[tuple[str, ...]] = ("keras",)
+    FRAMEWORKS: ClassVar[tuple[str, ...]] = ("keras", "torch")
     """Frameworks this experiment is implemented in."""
 
     variant: str = "faithful"
@@ -37,6 +37,10 @@ class ExperimentConfig:
     """Seeds Python, NumPy, TensorFlow (or PyTorch) and the env's first ``reset``."""
     framework: str = "keras"
     """``keras`` (ours) or, where the experiment has one, ``torch``."""
+    matched_init: bool = False
+    """``torch`` only (``--matched-init``): build the Keras networks with the same seed and
+    copy their initial weights into the PyTorch ones, so that only the framework differs.
+    False: each framework initialises its networks its own default way."""
 
     # -- construction -------------------------------------------------------------------
     @classmethod
@@ -118,6 +122,9 @@ class ExperimentConfig:
         if self.framework not in self.FRAMEWORKS:
             raise ConfigError(f"{self.experiment} has no {self.framework!r} version; "
                               f"choose one of {', '.join(self.FRAMEWORKS)}")
+        if self.matched_init and self.framework != "torch":
+            raise ConfigError("matched_init copies Keras' initial weights into the PyTorch networks; "
+                              f"it needs framework 'torch', not {self.framework!r}")
 
 
 def positive(default: Any) -> Any:
@@ -254,7 +261,6 @@ class CartPoleDQNConfig(ExperimentConfig):
 
     experiment: ClassVar[str] = "cartpole"
     post: ClassVar[str] = "003_57d1feb4b7fdd940"
-    FRAMEWORKS: ClassVar[tuple[str, ...]] = ("keras", "torch")
 
     env_id: str = "CartPole-v1"
     """In [27]: ``env = gym.make("CartPole-v1")``."""

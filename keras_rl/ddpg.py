@@ -132,6 +132,15 @@ class DDPGLearner:
     def _train_rows(self, rows):
         return self.update(self.layout.split(rows))
 
+    def save(self, run_dir: Path) -> None:
+        """``actor.weights.h5`` and ``critic.weights.h5`` (post 000 §2.4 saves the actor)."""
+        save_weights(self.actor, Path(run_dir) / "actor.weights.h5")
+        save_weights(self.critic, Path(run_dir) / "critic.weights.h5")
+
+    def load_policy(self, run_dir: Path) -> None:
+        """Post 000 §3: ``agent.actor.load_weights(...)``: only the actor is needed to play."""
+        load_weights(self.actor, Path(run_dir) / "actor.weights.h5")
+
     def _act_one(self, state):
         return self.actor(state[None, :])[0]  # [act]
 
@@ -145,6 +154,22 @@ def compile_step(fn, xla: bool, *specs: tf.TensorSpec):
     return tf.function(fn, jit_compile=xla, input_signature=list(specs)).get_concrete_function()
 
 
+def post000_networks(config: PendulumDDPGConfig, obs_dim: int, action_dim: int,
+                     action_bound: float) -> tuple[keras.Model, keras.Model, keras.Model, keras.Model]:
+    """Post 000's four Keras networks, in the order the agent draws their initial weights:
+    actor, target actor, critic, target critic (returned as actor, critic, targets)."""
+    c = config
+    actor = build(Actor(action_dim, action_bound, c.hidden_units), obs_dim)
+    target_actor = build(Actor(action_dim, action_bound, c.hidden_units), obs_dim)
+    critic = build(Critic(c.hidden_units), obs_dim, action_dim)
+    target_critic = build(Critic(c.hidden_units), obs_dim, action_dim)
+    if not c.target_copy_is_noop:
+        # The fixed variant does what §2.4's update_target_networks(1.0) meant to do.
+        soft_update(target_actor.variables, actor.variables, 1.0)
+        soft_update(target_critic.variables, critic.variables, 1.0)
+    return actor, critic, target_actor, target_critic
+
+
 class DDPGAgent:
     """Post 000's agent: noisy actions, a FIFO buffer, one update per env step.
 
@@ -154,23 +179,20 @@ class DDPGAgent:
 
     def __init__(self, config: PendulumDDPGConfig, obs_dim: int, action_dim: int,
                  action_bound: float, xla: bool = True):
-        self.config = config
-        c = config
+        self.config = c = config
         self.action_bound = float(action_bound)
-        actor = build(Actor(action_dim, action_bound, c.hidden_units), obs_dim)
-        target_actor = build(Actor(action_dim, action_bound, c.hidden_units), obs_dim)
-        critic = build(Critic(c.hidden_units), obs_dim, action_dim)
-        target_critic = build(Critic(c.hidden_units), obs_dim, action_dim)
-        if not c.target_copy_is_noop:
-            # The fixed variant does what §2.4's update_target_networks(1.0) meant to do.
-            soft_update(target_actor.variables, actor.variables, 1.0)
-            soft_update(target_critic.variables, critic.variables, 1.0)
-        self.learner = DDPGLearner(
-            actor, critic, target_actor, target_critic,
-            keras.optimizers.Adam(learning_rate=c.actor_lr),
-            keras.optimizers.Adam(learning_rate=c.critic_lr),
-            gamma=c.gamma, tau=c.tau, broadcast_target=c.broadcast_target,
-            layout=Layout(obs_dim, action_dim), xla=xla)
+        if c.framework == "torch":
+            from keras_rl.torch.ddpg import post000_learner
+
+            self.learner = post000_learner(c, obs_dim, action_dim, action_bound)
+        else:
+            actor, critic, target_actor, target_critic = post000_networks(c, obs_dim, action_dim, action_bound)
+            self.learner = DDPGLearner(
+                actor, critic, target_actor, target_critic,
+                keras.optimizers.Adam(learning_rate=c.actor_lr),
+                keras.optimizers.Adam(learning_rate=c.critic_lr),
+                gamma=c.gamma, tau=c.tau, broadcast_target=c.broadcast_target,
+                layout=Layout(obs_dim, action_dim), xla=xla)
         buffer_rng, noise_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(c.seed).spawn(2))
         self.buffer = ReplayBuffer(c.buffer_size, Layout(obs_dim, action_dim), buffer_rng)
         self.noise = OUNoise(action_dim, noise_rng, theta=c.noise_theta, mu=c.noise_mu, dt=c.noise_dt,
@@ -248,10 +270,8 @@ class DDPGAgent:
     loss_names = ("critic_loss", "actor_loss")
 
     def save(self, run_dir: Path) -> None:
-        """``actor.weights.h5`` and ``critic.weights.h5`` (§2.4 saves the actor)."""
-        save_weights(self.learner.actor, Path(run_dir) / "actor.weights.h5")
-        save_weights(self.learner.critic, Path(run_dir) / "critic.weights.h5")
+        """The learner's weight files: ``actor``/``critic`` ``.weights.h5`` (Keras) or ``.pt`` (torch)."""
+        self.learner.save(run_dir)
 
     def load_policy(self, run_dir: Path) -> None:
-        """§3: ``agent.actor.load_weights(...)``: only the actor is needed to play."""
-        load_weights(self.learner.actor, Path(run_dir) / "actor.weights.h5")
+        self.learner.load_policy(run_dir)

@@ -22,7 +22,6 @@ from keras_rl.ddpg import DDPGLearner
 from keras_rl.errors import NonFiniteLossError
 from keras_rl.networks import MountainCarActor, MountainCarCritic, build
 from keras_rl.noise import OUNoise
-from keras_rl.results import load_weights, save_weights
 from keras_rl.targets import soft_update
 
 
@@ -39,6 +38,21 @@ def standardised_discounted_returns(rewards, discount: float = 0.999) -> np.ndar
     return discounted
 
 
+def post001_networks(config: MountainCarDDPGConfig, obs_dim: int, action_dim: int):
+    """Post 001's four Keras networks in the order ``Agent.__init__`` makes them (actor,
+    target actor, critic, target critic), targets hard-copied; returned as actor, critic, targets."""
+    c = config
+    actor, target_actor = (build(MountainCarActor(action_dim, c.actor_hidden, c.actor_input_noise,
+                                                  c.learning_phase_training), obs_dim) for _ in range(2))
+    critic, target_critic = (build(MountainCarCritic(c.critic_hidden, c.learning_phase_training), obs_dim, action_dim)
+                             for _ in range(2))
+    # Agent.__init__: target.model.set_weights(main.model.get_weights()): functional models
+    # are built, so unlike post 000 this copy is real.
+    soft_update(target_actor.variables, actor.variables, 1.0)
+    soft_update(target_critic.variables, critic.variables, 1.0)
+    return actor, critic, target_actor, target_critic
+
+
 class EpisodicDDPGAgent:
     """Post 001's ``Agent`` and main loop body, with Dopamine's verbs."""
 
@@ -51,25 +65,19 @@ class EpisodicDDPGAgent:
         self.obs_low = np.asarray(obs_low, np.float32)
         self.obs_span = np.asarray(obs_high, np.float32) - self.obs_low
 
-        def actor():
-            return build(MountainCarActor(action_dim, c.actor_hidden, c.actor_input_noise,
-                                          c.learning_phase_training), obs_dim)
-
-        def critic():
-            return build(MountainCarCritic(c.critic_hidden, c.learning_phase_training), obs_dim, action_dim)
-
-        main_actor, target_actor, main_critic, target_critic = actor(), actor(), critic(), critic()
-        # Agent.__init__: target.model.set_weights(main.model.get_weights()): functional models
-        # are built, so unlike post 000 this copy is real.
-        soft_update(target_actor.variables, main_actor.variables, 1.0)
-        soft_update(target_critic.variables, main_critic.variables, 1.0)
         layout = Layout(obs_dim, action_dim)
-        self.learner = DDPGLearner(
-            main_actor, main_critic, target_actor, target_critic,
-            keras.optimizers.Adam(learning_rate=c.actor_lr),  # Keras 2 Adam: eps 1e-7, same update rule
-            keras.optimizers.Adam(learning_rate=c.critic_lr),
-            gamma=c.gamma, tau=c.tau, broadcast_target=False, layout=layout, xla=xla,
-            actor_update=c.actor_gradient, dqda_at_buffer_actions=c.dqda_at_buffer_actions)
+        if c.framework == "torch":
+            from keras_rl.torch.ddpg import post001_learner
+
+            self.learner = post001_learner(c, obs_dim, action_dim)
+        else:
+            main_actor, main_critic, target_actor, target_critic = post001_networks(c, obs_dim, action_dim)
+            self.learner = DDPGLearner(
+                main_actor, main_critic, target_actor, target_critic,
+                keras.optimizers.Adam(learning_rate=c.actor_lr),  # Keras 2 Adam: eps 1e-7, same update rule
+                keras.optimizers.Adam(learning_rate=c.critic_lr),
+                gamma=c.gamma, tau=c.tau, broadcast_target=False, layout=layout, xla=xla,
+                actor_update=c.actor_gradient, dqda_at_buffer_actions=c.dqda_at_buffer_actions)
         seeds = np.random.SeedSequence(c.seed).spawn(2)
         if c.popping_buffer:
             capacity = c.train_above + max_episode_steps + 1  # the most it can ever hold
@@ -153,8 +161,7 @@ class EpisodicDDPGAgent:
         return self.learner.act(self.normalise(obs)).numpy()
 
     def save(self, run_dir: Path) -> None:
-        save_weights(self.learner.actor, Path(run_dir) / "actor.weights.h5")
-        save_weights(self.learner.critic, Path(run_dir) / "critic.weights.h5")
+        self.learner.save(run_dir)
 
     def load_policy(self, run_dir: Path) -> None:
-        load_weights(self.learner.actor, Path(run_dir) / "actor.weights.h5")
+        self.learner.load_policy(run_dir)

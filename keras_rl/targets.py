@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
-from typing import Sequence
-
-import keras
+from typing import Any, Sequence
 
 
-def soft_update(target: Sequence[keras.Variable], source: Sequence[keras.Variable], tau: float) -> None:
+def soft_update(target: Sequence[Any], source: Sequence[Any], tau: float) -> None:
     """Polyak-average ``source`` into ``target`` in place; ``tau=1`` is a hard copy.
 
-    Works eagerly and inside ``tf.function`` (no host round-trip, unlike the posts'
-    ``get_weights``/``set_weights``). Lists must pair up one to one.
+    Keras variables are assigned (eagerly or inside ``tf.function``: no host round-trip,
+    unlike the posts' ``get_weights``/``set_weights``); PyTorch tensors (parameters and
+    buffers) are overwritten in place, under ``torch.no_grad()`` at the caller. Both
+    compute the same float32 expression, so the two frameworks' targets agree bit for bit
+    given equal inputs. Lists must pair up one to one.
     """
     for t, s in zip(target, source, strict=True):
-        t.assign(tau * s + (1.0 - tau) * t)
+        if hasattr(t, "assign"):
+            t.assign(tau * s + (1.0 - tau) * t)
+        else:
+            t.copy_(tau * s + (1.0 - tau) * t)

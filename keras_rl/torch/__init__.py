@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-from keras_rl.errors import ConfigError
+import io
+from pathlib import Path
+
+from keras_rl.errors import ConfigError, RunFolderError
 
 
 def require_torch():
@@ -13,3 +16,26 @@ def require_torch():
         raise ConfigError("the torch framework needs PyTorch: pip install -e '.[torch]' "
                           "(pinned torch==2.13.0, the CPU wheel on these machines)") from None
     return torch
+
+
+def save_state(module, path: Path) -> None:
+    """``torch.save(module.state_dict())`` written atomically (temporary name, then rename)."""
+    from keras_rl.results import atomic_write_bytes
+
+    torch = require_torch()
+    buf = io.BytesIO()
+    torch.save(module.state_dict(), buf)
+    atomic_write_bytes(Path(path), buf.getvalue())
+
+
+def load_state(module, path: Path) -> None:
+    """``module.load_state_dict(torch.load(path))`` with a RunFolderError naming a missing or
+    damaged file."""
+    torch = require_torch()
+    path = Path(path)
+    if not path.is_file():
+        raise RunFolderError(f"{path} is missing; the run did not save it")
+    try:
+        module.load_state_dict(torch.load(path, weights_only=True))
+    except Exception as exc:  # pickle, zip and shape errors all mean a damaged file here
+        raise RunFolderError(f"{path} could not be loaded ({type(exc).__name__}: {exc})") from None

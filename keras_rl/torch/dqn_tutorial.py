@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from keras_rl.configs import CartPoleDQNConfig
-from keras_rl.errors import NonFiniteLossError, RunFolderError
-from keras_rl.torch import require_torch
+from keras_rl.errors import NonFiniteLossError
+from keras_rl.torch import load_state, require_torch, save_state
 
 torch = require_torch()
 nn = torch.nn
@@ -64,6 +64,13 @@ class TutorialDQNAgent:
         torch.manual_seed(c.seed)
         self.policy_net = DQN(n_observations, n_actions, c.hidden_units)
         self.target_net = DQN(n_observations, n_actions, c.hidden_units)
+        if c.matched_init:  # the Keras agent's first network, same seed (the target copies it)
+            from keras_rl.networks import QNetwork, build
+            from keras_rl.torch.ddpg import dense_pairs, copy_from_keras
+
+            q_network = build(QNetwork(n_observations, n_actions, c.hidden_units, c.init), n_observations)
+            net = self.policy_net
+            copy_from_keras(net, q_network, dense_pairs([net.layer1, net.layer2, net.layer3], q_network.dense))
         self.target_net.load_state_dict(self.policy_net.state_dict())
         self.optimizer = torch.optim.AdamW(self.policy_net.parameters(), lr=c.lr, amsgrad=c.amsgrad,
                                            weight_decay=c.weight_decay, eps=c.adam_eps)
@@ -153,18 +160,7 @@ class TutorialDQNAgent:
             return int(self.policy_net(torch.tensor(np.asarray(obs), dtype=torch.float32).unsqueeze(0)).max(1)[1])
 
     def save(self, run_dir: Path) -> None:
-        from keras_rl.results import atomic_write_bytes
-        import io
-
-        buf = io.BytesIO()
-        torch.save(self.policy_net.state_dict(), buf)
-        atomic_write_bytes(Path(run_dir) / "q_network.pt", buf.getvalue())
+        save_state(self.policy_net, Path(run_dir) / "q_network.pt")
 
     def load_policy(self, run_dir: Path) -> None:
-        path = Path(run_dir) / "q_network.pt"
-        if not path.is_file():
-            raise RunFolderError(f"{path} is missing; the run did not save it")
-        try:
-            self.policy_net.load_state_dict(torch.load(path, weights_only=True))
-        except Exception as exc:
-            raise RunFolderError(f"{path} could not be loaded ({type(exc).__name__}: {exc})") from None
+        load_state(self.policy_net, Path(run_dir) / "q_network.pt")

@@ -1,0 +1,350 @@
+"""PyTorch ports of posts 000 and 001: the same DDPG update as ``keras_rl.ddpg.DDPGLearner``.
+
+Only the learner is ported. The agents (``DDPGAgent``, ``EpisodicDDPGAgent``), buffers,
+noise, configs, quirk switches and result files are the Keras versions' own, so a
+difference in outcome between ``--framework keras`` and ``--framework torch`` comes from
+the framework: its kernels, its float summation order, and (unless ``matched_init``)
+its default initialisation.
+
+What a PyTorch user porting these posts would write, with two decisions made so that
+both frameworks run the same algorithm:
+
+- **Optimiser.** Both posts use Keras' ``Adam`` (``epsilon=1e-7`` added to ``sqrt(v)``
+  *before* the bias correction). ``torch.optim.Adam`` adds its ``eps`` after it, which
+  for gradients below ~3e-4 changes the first steps by more than 1e-5. ``KerasAdam`` is
+  ``torch.optim.Adam`` with ``eps`` rescaled every step so the arithmetic is Keras'.
+- **Initialisation.** By default each network gets PyTorch's own ``nn.Linear`` init,
+  as a PyTorch user would get; Keras' is Glorot-uniform kernels and zero biases.
+  ``matched_init=True`` (``--matched-init``) builds the Keras networks with the same seed
+  and copies their initial weights in (``copy_from_keras``), which isolates the framework.
+
+Post 001's settlements carry over as Keras decided them (FIDELITY P001-PHASE,
+P001-ACTORGRAD): learning phase 0 (noise layer off, BatchNormalization on its never-updated
+moving statistics with Keras' epsilon 1e-3) and the literal second-order actor step.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from keras_rl.buffers import Batch, Layout
+from keras_rl.configs import MountainCarDDPGConfig, PendulumDDPGConfig
+from keras_rl.targets import soft_update
+from keras_rl.torch import load_state, require_torch, save_state
+
+torch = require_torch()
+nn = torch.nn
+F = torch.nn.functional
+
+
+class KerasAdam(torch.optim.Adam):
+    """``torch.optim.Adam`` stepping as ``keras.optimizers.Adam`` does.
+
+    Keras: ``p -= lr * sqrt(1-b2^t)/(1-b1^t) * m / (sqrt(v) + eps)``. torch:
+    ``p -= lr/(1-b1^t) * m / (sqrt(v)/sqrt(1-b2^t) + eps_t)``. The two are equal when
+    ``eps_t = eps / sqrt(1-b2^t)``, so that is the ``eps`` each step gets.
+    """
+
+    def __init__(self, params, lr: float, epsilon: float = 1e-7, betas=(0.9, 0.999)):
+        if not lr > 0:
+            raise ValueError(f"learning rate must be positive, got {lr}")
+        super().__init__(params, lr=lr, betas=betas, eps=epsilon)
+        self.epsilon = float(epsilon)
+        self.iterations = 0
+
+    @torch.no_grad()
+    def step(self, closure=None):
+        self.iterations += 1
+        for group in self.param_groups:
+            group["eps"] = self.epsilon / math.sqrt(1.0 - group["betas"][1] ** self.iterations)
+        return super().step(closure)
+
+
+# -- networks --------------------------------------------------------------------------------
+class Actor(nn.Module):
+    """Post 000 §2.2: Linear 64 relu, Linear 64 relu, Linear(action_dim) tanh, times the bound."""
+
+    def __init__(self, obs_dim: int, action_dim: int, action_bound: float, hidden_units: Sequence[int] = (64, 64)):
+        super().__init__()
+        widths = [obs_dim, *hidden_units]
+        self.hidden = nn.ModuleList(nn.Linear(a, b) for a, b in zip(widths, widths[1:]))
+        self.out = nn.Linear(widths[-1], action_dim)
+        self.action_bound = float(action_bound)
+
+    def forward(self, state):  # [B, obs] -> [B, act]
+        x = state
+        for layer in self.hidden:
+            x = F.relu(layer(x))
+        return torch.tanh(self.out(x)) * self.action_bound
+
+    def keras_pairs(self, model) -> list:
+        return dense_pairs([*self.hidden, self.out], [*model.hidden, model.out])
+
+
+class Critic(nn.Module):
+    """Post 000 §2.2: concat(state, action), Linear 64 relu, Linear 64 relu, Linear 1."""
+
+    def __init__(self, obs_dim: int, action_dim: int, hidden_units: Sequence[int] = (64, 64)):
+        super().__init__()
+        widths = [obs_dim + action_dim, *hidden_units]
+        self.hidden = nn.ModuleList(nn.Linear(a, b) for a, b in zip(widths, widths[1:]))
+        self.out = nn.Linear(widths[-1], 1)
+
+    def forward(self, state, action):  # -> [B, 1]
+        x = torch.cat([state, action], dim=-1)
+        for layer in self.hidden:
+            x = F.relu(layer(x))
+        return self.out(x)
+
+    def keras_pairs(self, model) -> list:
+        return dense_pairs([*self.hidden, self.out], [*model.hidden, model.out])
+
+
+class KerasBatchNorm(nn.Module):
+    """Keras' ``BatchNormalization`` on the last axis: epsilon 1e-3, momentum 0.99, the
+    moving variance updated with the *biased* batch variance (``nn.BatchNorm1d`` uses the
+    unbiased one). ``training`` is the Keras learning phase (post 001 ran with 0)."""
+
+    def __init__(self, features: int, training: bool = False, epsilon: float = 1e-3, momentum: float = 0.99):
+        super().__init__()
+        self.weight = nn.Parameter(torch.ones(features))  # gamma
+        self.bias = nn.Parameter(torch.zeros(features))  # beta
+        self.register_buffer("running_mean", torch.zeros(features))
+        self.register_buffer("running_var", torch.ones(features))
+        self.learning_phase, self.epsilon, self.momentum = bool(training), float(epsilon), float(momentum)
+
+    def forward(self, x):
+        if self.learning_phase:
+            mean, var = x.mean(0), x.var(0, unbiased=False)
+            with torch.no_grad():
+                self.running_mean.copy_(self.running_mean * self.momentum + mean * (1 - self.momentum))
+                self.running_var.copy_(self.running_var * self.momentum + var * (1 - self.momentum))
+        else:
+            mean, var = self.running_mean, self.running_var
+        return (x - mean) * torch.rsqrt(var + self.epsilon) * self.weight + self.bias
+
+    def keras_pairs(self, layer) -> list:
+        return [(self.weight, layer.gamma, False), (self.bias, layer.beta, False),
+                (self.running_mean, layer.moving_mean, False), (self.running_var, layer.moving_variance, False)]
+
+
+class MountainCarActor(nn.Module):
+    """Post 001 ``Actor.__make_model``: GaussianNoise(1.0) -> BatchNormalization ->
+    3 x Linear 32 selu -> Linear(action_dim) tanh; ``training`` is the learning phase."""
+
+    def __init__(self, obs_dim: int, action_dim: int = 1, hidden_units: Sequence[int] = (32, 32, 32),
+                 noise_std: float = 1.0, training: bool = False):
+        super().__init__()
+        self.learning_phase, self.noise_std = bool(training), float(noise_std)
+        self.norm = KerasBatchNorm(obs_dim, training)
+        widths = [obs_dim, *hidden_units]
+        self.hidden = nn.ModuleList(nn.Linear(a, b) for a, b in zip(widths, widths[1:]))
+        self.out = nn.Linear(widths[-1], action_dim)
+
+    def forward(self, state):
+        x = state + self.noise_std * torch.randn_like(state) if self.learning_phase else state
+        x = self.norm(x)
+        for layer in self.hidden:
+            x = F.selu(layer(x))
+        return torch.tanh(self.out(x))
+
+    def keras_pairs(self, model) -> list:
+        return self.norm.keras_pairs(model.norm) + dense_pairs([*self.hidden, self.out], [*model.hidden, model.out])
+
+
+class MountainCarCritic(nn.Module):
+    """Post 001 ``Critic.__make_model``: BatchNormalization -> Linear 32 selu -> concat the
+    action -> Linear 32 selu -> Linear 1."""
+
+    def __init__(self, obs_dim: int, action_dim: int = 1, hidden_units: int = 32, training: bool = False):
+        super().__init__()
+        self.norm = KerasBatchNorm(obs_dim, training)
+        self.fc1 = nn.Linear(obs_dim, hidden_units)
+        self.fc2 = nn.Linear(hidden_units + action_dim, hidden_units)
+        self.out = nn.Linear(hidden_units, 1)
+
+    def forward(self, state, action):
+        x = F.selu(self.fc1(self.norm(state)))
+        x = F.selu(self.fc2(torch.cat([x, action], dim=-1)))
+        return self.out(x)
+
+    def keras_pairs(self, model) -> list:
+        return self.norm.keras_pairs(model.norm) + dense_pairs(
+            [self.fc1, self.fc2, self.out], [model.fc1, model.fc2, model.out])
+
+
+def dense_pairs(linears, denses) -> list:
+    """(torch tensor, Keras variable, transpose?) for each Linear/Dense pair."""
+    if len(linears) != len(denses):
+        raise ValueError(f"{len(linears)} torch layers vs {len(denses)} Keras layers")
+    pairs = []
+    for linear, dense in zip(linears, denses):
+        pairs += [(linear.weight, dense.kernel, True), (linear.bias, dense.bias, False)]
+    return pairs
+
+
+def copy_from_keras(module, keras_model, pairs: list | None = None) -> None:
+    """Overwrite ``module``'s weights (and BatchNorm statistics) with ``keras_model``'s.
+
+    ``pairs`` defaults to ``module.keras_pairs(keras_model)``: (tensor, variable, transpose?)."""
+    with torch.no_grad():
+        for tensor, variable, transpose in pairs if pairs is not None else module.keras_pairs(keras_model):
+            value = np.asarray(variable.numpy())
+            value = value.T if transpose else value
+            if tuple(tensor.shape) != value.shape:
+                raise ValueError(f"shape mismatch copying Keras {variable.path} {value.shape} "
+                                 f"into torch {tuple(tensor.shape)}")
+            tensor.copy_(torch.from_numpy(np.ascontiguousarray(value)))
+
+
+def max_abs_difference(module, keras_model) -> float:
+    """The largest |torch - Keras| over every paired weight (for parity tests)."""
+    worst = 0.0
+    for tensor, variable, transpose in module.keras_pairs(keras_model):
+        value = np.asarray(variable.numpy())
+        value = value.T if transpose else value
+        worst = max(worst, float(np.max(np.abs(tensor.detach().numpy() - value))))
+    return worst
+
+
+# -- the learner -----------------------------------------------------------------------------
+class TorchDDPGLearner:
+    """``keras_rl.ddpg.DDPGLearner`` in PyTorch: the same ``train``/``act``/``train_and_act``/
+    ``save``/``load_policy``, the same update order (critic, actor, soft updates) and the same
+    ``actor_update`` modes (``mean_q``, ``dpg_intended``, ``dpg_literal``)."""
+
+    def __init__(self, actor, critic, target_actor, target_critic, actor_lr: float, critic_lr: float,
+                 gamma: float, tau: float, broadcast_target: bool, layout: Layout, actor_update: str = "mean_q",
+                 dqda_at_buffer_actions: bool = False):
+        if actor_update not in ("mean_q", "dpg_intended", "dpg_literal"):
+            raise ValueError(f"actor_update must be mean_q, dpg_intended or dpg_literal, got {actor_update!r}")
+        self.actor, self.critic, self.target_actor, self.target_critic = actor, critic, target_actor, target_critic
+        self.actor_optimizer = KerasAdam(actor.parameters(), lr=actor_lr)
+        self.critic_optimizer = KerasAdam(critic.parameters(), lr=critic_lr)
+        self.gamma, self.tau = float(gamma), float(tau)
+        self.broadcast_target = bool(broadcast_target)
+        self.layout = layout
+        self.actor_update, self.dqda_at_buffer_actions = actor_update, bool(dqda_at_buffer_actions)
+
+    # Keras variables include BatchNormalization's moving statistics; so do these lists.
+    @staticmethod
+    def _variables(module) -> list:
+        return [*module.parameters(), *module.buffers()]
+
+    def train(self, rows: np.ndarray) -> dict:
+        return self.update(self.layout.split(torch.from_numpy(np.ascontiguousarray(rows, np.float32))))
+
+    @torch.no_grad()
+    def act(self, state: np.ndarray):
+        """The actor's action for one state [obs] -> [act], a tensor (``.numpy()`` gives the array)."""
+        return self.actor(torch.as_tensor(np.asarray(state, np.float32))[None, :])[0]
+
+    def train_and_act(self, rows: np.ndarray, state: np.ndarray):
+        return self.train(rows), self.act(state)
+
+    @torch.no_grad()
+    def targets(self, rewards, next_states, dones):
+        """The critic's regression targets, [B,B] under P000-BROADCAST, else [B,1]."""
+        next_q = self.target_critic(next_states, self.target_actor(next_states))  # [B, 1]
+        rewards = rewards[:, None]
+        if self.broadcast_target:
+            return rewards + self.gamma * next_q * (1.0 - dones[None, :])  # [B, B], as in the Keras learner
+        return rewards + self.gamma * next_q * (1.0 - dones[:, None])
+
+    def update(self, batch: Batch) -> dict:
+        states, actions, rewards, next_states, dones = batch
+        targets = self.targets(rewards, next_states, dones)
+
+        q_values = self.critic(states, actions)
+        critic_loss = torch.mean(torch.square(q_values - targets))
+        self.critic_optimizer.zero_grad(set_to_none=False)
+        critic_loss.backward()
+        self.critic_optimizer.step()
+
+        grads, actor_loss = self.actor_gradients(states, actions)
+        for p, g in zip(self.actor.parameters(), grads):
+            p.grad = g
+        self.actor_optimizer.step()
+
+        with torch.no_grad():
+            soft_update(self._variables(self.target_actor), self._variables(self.actor), self.tau)
+            soft_update(self._variables(self.target_critic), self._variables(self.critic), self.tau)
+        return {"critic_loss": critic_loss.detach(), "actor_loss": actor_loss.detach()}
+
+    def actor_gradients(self, states, actions):
+        """The actor's gradients, as in ``DDPGLearner.actor_gradients``, and -mean Q to report."""
+        params = list(self.actor.parameters())
+        if self.actor_update == "mean_q":
+            actor_loss = -torch.mean(self.critic(states, self.actor(states)))
+            return torch.autograd.grad(actor_loss, params), actor_loss
+        policy_actions = self.actor(states)  # [B, act], with its graph for the step below
+        at = (actions if self.dqda_at_buffer_actions else policy_actions).detach().requires_grad_(True)
+        q_values = self.critic(states, at)
+        (dq_da,) = torch.autograd.grad(q_values.sum(), at)  # a constant for the actor's step
+        actor_loss = -torch.mean(q_values)
+        if self.actor_update == "dpg_intended":
+            return torch.autograd.grad(policy_actions, params, grad_outputs=-dq_da), actor_loss
+        # dpg_literal: the gradient of the sum of every entry of the first-order gradients.
+        first = torch.autograd.grad(policy_actions, params, grad_outputs=-dq_da, create_graph=True)
+        total = sum(g.sum() for g in first)
+        second = torch.autograd.grad(total, params, allow_unused=True)
+        return tuple(torch.zeros_like(p) if g is None else g for p, g in zip(params, second)), actor_loss
+
+    def save(self, run_dir: Path) -> None:
+        """``actor.pt`` and ``critic.pt`` (state dicts)."""
+        save_state(self.actor, Path(run_dir) / "actor.pt")
+        save_state(self.critic, Path(run_dir) / "critic.pt")
+
+    def load_policy(self, run_dir: Path) -> None:
+        load_state(self.actor, Path(run_dir) / "actor.pt")
+
+
+def _hard_copy(target, source) -> None:
+    with torch.no_grad():
+        soft_update(TorchDDPGLearner._variables(target), TorchDDPGLearner._variables(source), 1.0)
+
+
+def _match(nets: Sequence, keras_nets: Sequence) -> None:
+    for net, keras_net in zip(nets, keras_nets, strict=True):
+        copy_from_keras(net, keras_net)
+
+
+def post000_learner(config: PendulumDDPGConfig, obs_dim: int, action_dim: int, action_bound: float) -> TorchDDPGLearner:
+    """Post 000's learner in PyTorch (see ``keras_rl.ddpg.DDPGAgent``)."""
+    c = config
+    torch.manual_seed(c.seed)
+    actor, target_actor = (Actor(obs_dim, action_dim, action_bound, c.hidden_units) for _ in range(2))
+    critic, target_critic = (Critic(obs_dim, action_dim, c.hidden_units) for _ in range(2))
+    if c.matched_init:
+        from keras_rl.ddpg import post000_networks  # the Keras agent's draws, same seed and order
+
+        _match((actor, critic, target_actor, target_critic), post000_networks(c, obs_dim, action_dim, action_bound))
+    elif not c.target_copy_is_noop:
+        _hard_copy(target_actor, actor)
+        _hard_copy(target_critic, critic)
+    return TorchDDPGLearner(actor, critic, target_actor, target_critic, c.actor_lr, c.critic_lr, c.gamma, c.tau,
+                            c.broadcast_target, Layout(obs_dim, action_dim))
+
+
+def post001_learner(config: MountainCarDDPGConfig, obs_dim: int, action_dim: int) -> TorchDDPGLearner:
+    """Post 001's learner in PyTorch (see ``keras_rl.episodic_ddpg.EpisodicDDPGAgent``)."""
+    c = config
+    torch.manual_seed(c.seed)
+    actor, target_actor = (MountainCarActor(obs_dim, action_dim, c.actor_hidden, c.actor_input_noise,
+                                            c.learning_phase_training) for _ in range(2))
+    critic, target_critic = (MountainCarCritic(obs_dim, action_dim, c.critic_hidden, c.learning_phase_training)
+                             for _ in range(2))
+    if c.matched_init:
+        from keras_rl.episodic_ddpg import post001_networks
+
+        _match((actor, critic, target_actor, target_critic), post001_networks(c, obs_dim, action_dim))
+    else:
+        _hard_copy(target_actor, actor)  # Agent.__init__'s set_weights copy
+        _hard_copy(target_critic, critic)
+    return TorchDDPGLearner(actor, critic, target_actor, target_critic, c.actor_lr, c.critic_lr, c.gamma, c.tau,
+                            False, Layout(obs_dim, action_dim), actor_update=c.actor_gradient,
+                            dqda_at_buffer_actions=c.dqda_at_buffer_actions)
