@@ -55,9 +55,9 @@ def _cartpole_env(config: CartPoleDQNConfig, render_mode: str | None = None) -> 
 def _cartpole_agent(config: CartPoleDQNConfig, env: gym.Env):
     obs_dim, n_actions = require_discrete_actions(env, "DQN (post 003)")
     if config.framework == "torch":
-        from keras_rl.torch import require_torch
+        from keras_rl.torch import single_threaded
 
-        require_torch().set_num_threads(1)
+        single_threaded()
         from keras_rl.torch.dqn_tutorial import TutorialDQNAgent
 
         return TutorialDQNAgent(config, obs_dim, n_actions, env.action_space)

@@ -34,7 +34,7 @@ import numpy as np
 from keras_rl.buffers import Batch, Layout
 from keras_rl.configs import MountainCarDDPGConfig, PendulumDDPGConfig
 from keras_rl.targets import soft_update
-from keras_rl.torch import load_state, require_torch, save_state
+from keras_rl.torch import load_state, require_torch, save_state, single_threaded
 
 torch = require_torch()
 nn = torch.nn
@@ -316,6 +316,7 @@ def _match(nets: Sequence, keras_nets: Sequence) -> None:
 def post000_learner(config: PendulumDDPGConfig, obs_dim: int, action_dim: int, action_bound: float) -> TorchDDPGLearner:
     """Post 000's learner in PyTorch (see ``keras_rl.ddpg.DDPGAgent``)."""
     c = config
+    single_threaded()
     torch.manual_seed(c.seed)
     actor, target_actor = (Actor(obs_dim, action_dim, action_bound, c.hidden_units) for _ in range(2))
     critic, target_critic = (Critic(obs_dim, action_dim, c.hidden_units) for _ in range(2))
@@ -333,6 +334,7 @@ def post000_learner(config: PendulumDDPGConfig, obs_dim: int, action_dim: int, a
 def post001_learner(config: MountainCarDDPGConfig, obs_dim: int, action_dim: int) -> TorchDDPGLearner:
     """Post 001's learner in PyTorch (see ``keras_rl.episodic_ddpg.EpisodicDDPGAgent``)."""
     c = config
+    single_threaded()
     torch.manual_seed(c.seed)
     actor, target_actor = (MountainCarActor(obs_dim, action_dim, c.actor_hidden, c.actor_input_noise,
                                             c.learning_phase_training) for _ in range(2))
