@@ -1,4 +1,8 @@
-"""ms per env step (acting + one update) of our compiled loop vs the posts' own code paths.
+"""Speed of each post three ways: the post's original code path, our Keras, our PyTorch.
+
+Pendulum and CartPole: ms per env step (acting + one update). MountainCar: ms per training
+batch, since post 001 trains in bursts at episode ends. For CartPole the post *is* PyTorch,
+so the original code path and our PyTorch version are the same code (the tutorial's).
 
     python benchmarks/step_time.py [--steps 400] [--json out.json]
     /usr/bin/time -v python benchmarks/step_time.py      # adds peak memory (Maximum resident set size)
@@ -12,7 +16,6 @@ Only ratios measured in one run mean anything on a shared machine.
 from __future__ import annotations
 
 import argparse
-import json
 import resource
 import sys
 import time
@@ -72,15 +75,16 @@ def time_post000_eager(steps: int, warmup: int) -> float:
     return elapsed / steps * 1e3
 
 
-def time_post001_updates(batches_wanted: int) -> tuple[float, float]:
-    """ms per training batch (one critic + one literal actor update + soft updates):
-    the post's ``Agent.train`` mirrored eagerly vs our compiled learner, same popped data."""
+def time_post001_updates(batches_wanted: int, with_torch: bool) -> tuple[float, float, float | None]:
+    """ms per training batch (one critic + one literal actor update + soft updates) on the
+    same popped data: the post's ``Agent.train`` mirrored eagerly, our compiled Keras
+    learner, and our PyTorch learner."""
+    import random
+
     from keras_rl.buffers import PoppingBuffer
     from keras_rl.configs import MountainCarDDPGConfig
     from keras_rl.episodic_ddpg import EpisodicDDPGAgent
     from keras_rl.reference.post001_eager import PostAgent, fill, functional_models
-
-    import random
 
     rng = np.random.default_rng(0)
     n = 100 + 32 * batches_wanted
@@ -94,18 +98,22 @@ def time_post001_updates(batches_wanted: int) -> tuple[float, float]:
     batches = post.train()
     post_ms = (time.perf_counter() - start) / batches * 1e3
 
-    agent = EpisodicDDPGAgent(MountainCarDDPGConfig(), np.array([-1.2, -0.07]), np.array([0.6, 0.07]), 1, 999)
-    buffer = PoppingBuffer(n + 1, agent.layout, random.Random(0))
-    rows = rng.normal(size=(n, agent.layout.width)).astype(np.float32)
-    buffer.add_rows(rows)
-    agent.learner.train(buffer.sample_rows(32))  # trace and compile
-    buffer.add_rows(rows[:32])
-    start, ours_batches = time.perf_counter(), 0
-    while len(buffer) > 100:
-        agent.learner.train(buffer.sample_rows(32))
-        ours_batches += 1
-    ours_ms = (time.perf_counter() - start) / ours_batches * 1e3
-    return post_ms, ours_ms
+    rows = rng.normal(size=(n, 2 * 2 + 1 + 2)).astype(np.float32)  # [state 2 | action | reward | next 2 | done]
+
+    def ours(framework: str) -> float:
+        agent = EpisodicDDPGAgent(MountainCarDDPGConfig(framework=framework), np.array([-1.2, -0.07]),
+                                  np.array([0.6, 0.07]), 1, 999)
+        buffer = PoppingBuffer(n + 1, agent.layout, random.Random(0))
+        buffer.add_rows(rows)
+        agent.learner.train(buffer.sample_rows(32))  # trace and compile / warm up
+        buffer.add_rows(rows[:32])
+        start, count = time.perf_counter(), 0
+        while len(buffer) > 100:  # the post's burst: pop and train until 100 are left
+            agent.learner.train(buffer.sample_rows(32))
+            count += 1
+        return (time.perf_counter() - start) / count * 1e3
+
+    return post_ms, ours("keras"), ours("torch") if with_torch else None
 
 
 def main() -> None:
@@ -120,36 +128,49 @@ def main() -> None:
     import warnings
 
     warnings.filterwarnings("ignore")  # the post's tuple action makes Gymnasium's checker warn every step
-
-    rows = []
-    ours = time_agent("pendulum", args.steps, args.warmup)
-    post = time_post000_eager(args.steps, args.warmup)
-    rows.append(("pendulum (post 000)", "post's eager loop (get/set_weights)", post, "keras_rl compiled (XLA)", ours))
     try:
         import torch  # noqa: F401
     except ImportError:
-        print("(no torch installed: the CartPole row needs the torch extra)")
+        has_torch = False
+        print("(no torch installed: the PyTorch column and the CartPole row need the torch extra)")
     else:
-        ours = time_agent("cartpole", args.steps, args.warmup)
+        has_torch = True
+
+    # (experiment, unit, the post's original code path, its ms, our Keras ms, our PyTorch ms)
+    rows = []
+    keras_ms = time_agent("pendulum", args.steps, args.warmup)
+    torch_ms = time_agent("pendulum", args.steps, args.warmup, framework="torch") if has_torch else None
+    post_ms = time_post000_eager(args.steps, args.warmup)
+    rows.append(("pendulum (post 000)", "env step", "the post's eager Keras loop (get/set_weights)",
+                 post_ms, keras_ms, torch_ms))
+    if has_torch:
+        keras_ms = time_agent("cartpole", args.steps, args.warmup)
         tutorial = time_agent("cartpole", args.steps, args.warmup, framework="torch")
-        rows.append(("cartpole (post 003)", "PyTorch tutorial code (state-dict soft update)", tutorial,
-                     "keras_rl compiled (XLA)", ours))
+        # the post *is* PyTorch: our PyTorch version is the tutorial's own code path
+        rows.append(("cartpole (post 003)", "env step", "the PyTorch tutorial's code (= our PyTorch)",
+                     tutorial, keras_ms, tutorial))
+    post_ms, keras_ms, torch_ms = time_post001_updates(max(20, args.steps // 4), has_torch)
+    rows.append(("mountaincar (post 001)", "train batch", "the post's Agent.train, eager mirror",
+                 post_ms, keras_ms, torch_ms))
 
-    post_ms, ours_ms = time_post001_updates(max(20, args.steps // 4))
-    rows.append(("mountaincar (post 001)", "post's Agent.train, eager mirror (per batch)", post_ms,
-                 "keras_rl compiled (XLA)", ours_ms))
-
-    print(f"{'experiment':22s} {'baseline':48s} {'ms/step':>8s}   {'ours':26s} {'ms/step':>8s} {'speed-up':>9s}")
+    fmt = lambda v: f"{v:8.3f}" if v is not None else f"{'n/a':>8s}"  # noqa: E731
+    print(f"{'experiment':23s} {'per':11s} {'original code path':46s} {'orig ms':>8s} {'Keras ms':>8s} "
+          f"{'torch ms':>8s} {'orig/Keras':>10s} {'torch/Keras':>11s}")
     result = {"steps": args.steps, "threads": args.threads, "rows": []}
-    for name, base_name, base, ours_name, mine in rows:
-        print(f"{name:22s} {base_name:48s} {base:8.3f}   {ours_name:26s} {mine:8.3f} {base / mine:8.1f}x")
-        result["rows"].append({"experiment": name, "baseline": base_name, "baseline_ms_per_step": base,
-                               "ours": ours_name, "ours_ms_per_step": mine, "speedup": base / mine})
+    for name, unit, original, orig, mine, theirs in rows:
+        torch_ratio = f"{theirs / mine:10.1f}x" if theirs is not None else f"{'n/a':>11s}"
+        print(f"{name:23s} {unit:11s} {original:46s} {fmt(orig)} {fmt(mine)} {fmt(theirs)} "
+              f"{orig / mine:9.1f}x {torch_ratio}")
+        result["rows"].append({"experiment": name, "per": unit, "original": original, "original_ms": orig,
+                               "keras_ms": mine, "torch_ms": theirs, "original_over_keras": orig / mine,
+                               "torch_over_keras": theirs / mine if theirs is not None else None})
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak RSS of this process: {peak_mb:.0f} MB")
     result["peak_rss_mb"] = peak_mb
     if args.json:
-        args.json.write_text(json.dumps(result, indent=2) + "\n")
+        from keras_rl.results import atomic_write_json
+
+        atomic_write_json(args.json, result)
 
 
 if __name__ == "__main__":

@@ -171,8 +171,30 @@ def test_torch_framework_without_torch_is_a_clear_error(monkeypatch, capsys, tmp
 
 
 def test_framework_the_experiment_does_not_have(capsys, tmp_path):
-    assert main(["reproduce", "pendulum", "--framework", "torch", "--out", str(tmp_path)]) == 2
-    assert "pendulum has no 'torch' version" in capsys.readouterr().err
+    assert main(["reproduce", "pendulum", "--framework", "jax", "--out", str(tmp_path)]) == 2
+    assert "pendulum has no 'jax' version; choose one of keras, torch" in capsys.readouterr().err
+    assert main(["reproduce", "pendulum", "--matched-init", "--out", str(tmp_path)]) == 2
+    assert "needs framework 'torch', not 'keras'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("experiment,episodes", [("pendulum", 6), ("mountaincar", 2)])
+def test_torch_ddpg_run_folder_evaluate_and_corrupt_checkpoint(tmp_path, experiment, episodes):
+    pytest.importorskip("torch", reason="needs the torch extra")
+    out = tmp_path / "t"
+    proc = run_cli("reproduce", experiment, "--framework", "torch", "--matched-init", "--seeds", "1",
+                   "--episodes", str(episodes), "--no-progress", "--out", str(out))
+    assert proc.returncode == 1, proc.stderr  # too few episodes for either criterion
+    run_dir = out / "seed_1"
+    for name in ("config.json", "episodes.csv", "summary.json", "curve.png", "actor.pt", "critic.pt"):
+        assert (run_dir / name).is_file(), name
+    config = json.loads((run_dir / "config.json").read_text())
+    assert config["framework"] == "torch" and config["matched_init"] is True
+    assert len(read_episodes(run_dir / "episodes.csv")) == episodes
+    proc = run_cli("evaluate", str(run_dir), "--episodes", "1")
+    assert proc.returncode == 0, proc.stderr
+    (run_dir / "actor.pt").write_bytes(b"\x00garbage")
+    proc = run_cli("evaluate", str(run_dir), "--episodes", "1")
+    assert proc.returncode == 2 and "actor.pt could not be loaded" in proc.stderr
 
 
 def test_dqn_on_a_box_action_env_is_refused(capsys, tmp_path):

@@ -102,9 +102,31 @@ def test_compare_reuses_matching_runs_and_refuses_mismatched_ones(compared, caps
     assert re.search(r"made by keras_rl 0.0.1, this is [\d.]+; refusing to mix code versions", capsys.readouterr().err)
 
 
-def test_compare_without_torch_or_without_a_torch_version_is_a_clear_error(monkeypatch, capsys, tmp_path):
-    assert main(["compare", "pendulum", "--runs", str(tmp_path)]) == 2
-    assert "pendulum has no PyTorch version yet" in capsys.readouterr().err
+@pytest.mark.parametrize("experiment", ["cartpole", "pendulum", "mountaincar"])
+def test_compare_without_torch_is_a_clear_error(monkeypatch, capsys, tmp_path, experiment):
     monkeypatch.setitem(sys.modules, "torch", None)
-    assert main(["compare", "cartpole", "--runs", str(tmp_path)]) == 2
+    assert main(["compare", experiment, "--runs", str(tmp_path)]) == 2
     assert "the torch framework needs PyTorch" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())  # nothing ran, nothing written
+
+
+def test_compare_pendulum_with_matched_init_keeps_its_runs_and_report_apart(tmp_path):
+    pytest.importorskip("torch", reason="compare needs the torch extra")
+    args = ["compare", "pendulum", "--seeds", "0-1", "--episodes", "6", "--runs", str(tmp_path / "runs"),
+            "--out", str(tmp_path / "out"), "--no-progress"]
+    assert main([*args, "--matched-init"]) == 0
+    report = (tmp_path / "out" / "pendulum" / "matched-init" / "report.md").read_text()
+    assert "Initialisation: matched init" in report and "| torch | 0/2 |" in report
+    torch_run = tmp_path / "runs" / "pendulum" / "faithful-torch-matched-init" / "seed_1"
+    assert json.loads((torch_run / "config.json").read_text())["matched_init"] is True
+    keras_rows = read_episodes(tmp_path / "runs" / "pendulum" / "faithful" / "seed_1" / "episodes.csv")
+    torch_rows = read_episodes(torch_run / "episodes.csv")
+    # same seed, same env and noise draws, same initial weights: the warm-up episodes (no
+    # updates before 1000 transitions) are the same in both frameworks to float32 rounding
+    for k, t in zip(keras_rows[:5], torch_rows[:5]):
+        assert t["score"] == pytest.approx(k["score"], rel=1e-4)
+    # the default-init comparison reuses the Keras runs and makes its own torch folder
+    assert main(["compare", "pendulum", *args[2:], "--reuse-only"]) == 2
+    assert main(args) == 0
+    assert (tmp_path / "runs" / "pendulum" / "faithful-torch" / "seed_0" / "actor.pt").is_file()
+    assert "Initialisation: default init" in (tmp_path / "out" / "pendulum" / "report.md").read_text()
