@@ -15,8 +15,8 @@ import numpy as np
 
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.experiments import Experiment, get_experiment, metric_label
-from keras_rl.results import atomic_write_text, plt, read_episodes, save_figure
-from keras_rl.stats import iqm_ci, mann_whitney, median_difference_ci
+from keras_rl.results import atomic_write_json, atomic_write_text, plt, read_episodes, save_figure
+from keras_rl.stats import fisher_exact, iqm_ci, mann_whitney, median_difference_ci
 
 FRAMEWORKS = ("keras", "torch")
 IGNORED_FIELDS = {"seed", "framework"}
@@ -133,6 +133,8 @@ def analyse(runs: dict[str, list[dict[str, Any]]], budget: int) -> dict[str, Any
     a, b = reached["keras"], reached["torch"]
     out["median_difference"] = (median_difference_ci(a, b, np.random.default_rng(0)) if a and b else None)
     out["mann_whitney"] = mann_whitney(a, b)
+    k, t = out["frameworks"]["keras"], out["frameworks"]["torch"]
+    out["fisher_p"] = fisher_exact(k["successes"], len(k["seeds"]), t["successes"], len(t["seeds"]))
     out["budget"] = budget
     return out
 
@@ -140,17 +142,38 @@ def analyse(runs: dict[str, list[dict[str, Any]]], budget: int) -> dict[str, Any
 def verdict(result: dict[str, Any], n: int) -> str:
     diff, (_, p) = result["median_difference"], result["mann_whitney"]
     k, t = result["frameworks"]["keras"], result["frameworks"]["torch"]
+    rates = f"success {k['successes']}/{n} (Keras) vs {t['successes']}/{n} (PyTorch), Fisher p = {result['fisher_p']:.2f}"
+    if result["fisher_p"] < 0.05:
+        more = "Keras" if k["successes"] > t["successes"] else "PyTorch"
+        return f"The frameworks differ: {more} succeeds more often ({rates}, {n} seeds each)."
     if diff is None or not np.isfinite(p):
-        return (f"Too few successes to compare episodes-to-threshold (keras {k['successes']}/{n}, "
-                f"torch {t['successes']}/{n}); no verdict on speed of learning.")
+        return (f"No detectable difference in success ({rates}), and too few successes to compare "
+                "episodes-to-threshold: no verdict on speed of learning.")
     excludes_zero = diff.low > 0 or diff.high < 0
     if p < 0.05 and excludes_zero:
         faster = "Keras" if diff.estimate < 0 else "PyTorch"
         return (f"The frameworks differ: {faster} reaches the threshold sooner (median difference {diff}, "
-                f"Mann-Whitney p = {p:.3f}, {n} seeds each).")
-    return (f"No detectable difference between the frameworks at {n} seeds: the median difference in "
+                f"Mann-Whitney p = {p:.3f}, {n} seeds each; {rates}).")
+    return (f"No detectable difference between the frameworks at {n} seeds: {rates}; the median difference in "
             f"episodes to threshold is {diff} (95% bootstrap CI includes 0) and Mann-Whitney p = {p:.2f}; "
             f"a difference smaller than that interval could still exist.")
+
+
+def _jsonable(value: Any) -> Any:
+    """The analysis as plain JSON (intervals as {estimate, low, high}; NaN as null)."""
+    import dataclasses
+
+    if dataclasses.is_dataclass(value):
+        return _jsonable(dataclasses.asdict(value))
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(value) if np.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
 
 
 def write_report(out_dir: Path, experiment: Experiment, variant: str, runs: dict[str, list[dict[str, Any]]],
@@ -170,15 +193,21 @@ def write_report(out_dir: Path, experiment: Experiment, variant: str, runs: dict
         lines.append(f"| {fw} | {f['successes']}/{n} | {fmt(f['median'])} | {fmt(f['q25'])}-{fmt(f['q75'])} "
                      f"| {f['final_iqm']} | {f['wall_seconds_median']:.1f} | {f['ms_per_step_median']:.3f} |")
     u, p = result["mann_whitney"]
-    lines += ["", f"- Median episodes-to-threshold, keras minus torch: {result['median_difference'] or 'n/a'} "
+    lines += ["", f"- Success rates, keras vs torch: Fisher exact test (two-sided) p = {fmt(result['fisher_p'])}.",
+              f"- Median episodes-to-threshold, keras minus torch: {result['median_difference'] or 'n/a'} "
               "(percentile bootstrap, 10000 resamples, 95%).",
               f"- Mann-Whitney U (keras vs torch episodes-to-threshold, two-sided): U = {fmt(u)}, p = {fmt(p)}.",
               "- Final metric IQM: interquartile mean over seeds with a stratified-bootstrap 95% CI (rliable's method; "
               "one task, so the strata are the one task).",
-              "- Wall time and ms/step come from each run's summary (seeds ran two at a time on two cores).",
+              "- Wall time and ms/step come from each run's summary, as the runs ran: two seeds at a time on two "
+              "cores, sometimes beside other work, and not always at the same time for both frameworks. Read them "
+              "loosely; `benchmarks/step_time.py` measures speed in one process.",
               "", f"**Verdict.** {verdict(result, n)}", "",
               "![curves](curves.png) ![episodes to threshold](episodes_to_threshold.png)", ""]
     atomic_write_text(out_dir / "report.md", "\n".join(lines))
+    atomic_write_json(out_dir / "result.json", _jsonable({
+        "experiment": experiment.name, "variant": variant, "matched_init": matched_init, "command": command,
+        "verdict": verdict(result, n), **result}))
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
     for fw, color in zip(FRAMEWORKS, ("tab:blue", "tab:orange")):
@@ -195,7 +224,9 @@ def write_report(out_dir: Path, experiment: Experiment, variant: str, runs: dict
     ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
     ax.set_xlabel("episode")
     ax.set_ylabel(metric_label(experiment, experiment.config_cls.for_variant(variant)))
-    ax.set_title(f"{experiment.name} ({variant}): {n} seeds per framework")
+    lengths = {len(r["rows"]) for rs in runs.values() for r in rs}
+    ragged = "\n(seeds stop at the threshold: later points cover fewer seeds)" if len(lengths) > 1 else ""
+    ax.set_title(f"{experiment.name} ({variant}): {n} seeds per framework{ragged}", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize=8)
     save_figure(fig, out_dir / "curves.png")

@@ -67,3 +67,12 @@ def mann_whitney(a, b) -> tuple[float, float]:
         return float("nan"), float("nan")
     res = stats.mannwhitneyu(a, b, alternative="two-sided")
     return float(res.statistic), float(res.pvalue)
+
+
+def fisher_exact(successes_a: int, n_a: int, successes_b: int, n_b: int) -> float:
+    """Two-sided Fisher exact test p-value for two success rates (SciPy's ``fisher_exact``)."""
+    for s, n in ((successes_a, n_a), (successes_b, n_b)):
+        if not 0 <= s <= n:
+            raise ValueError(f"successes must lie in [0, n], got {s} of {n}")
+    table = [[successes_a, n_a - successes_a], [successes_b, n_b - successes_b]]
+    return float(stats.fisher_exact(table, alternative="two-sided").pvalue)

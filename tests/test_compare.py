@@ -11,7 +11,7 @@ from scipy import stats
 
 from keras_rl.cli import main
 from keras_rl.results import read_episodes
-from keras_rl.stats import iqm, iqm_ci, mann_whitney, median_difference_ci
+from keras_rl.stats import fisher_exact, iqm, iqm_ci, mann_whitney, median_difference_ci
 
 
 def test_mann_whitney_against_a_hand_computed_u():
@@ -20,6 +20,15 @@ def test_mann_whitney_against_a_hand_computed_u():
     assert u == 0 and p == pytest.approx(0.2)
     u, _ = mann_whitney([4, 5], [1, 2, 3])
     assert u == 6  # len(a) * len(b) - 0
+
+
+def test_fisher_exact_against_a_hand_computed_p():
+    # 10/10 vs 5/10: P(table) = C(10,10) C(10,5) / C(20,15) = 252 / 15504; the only other table
+    # as unlikely is its mirror (5/10 vs 10/10), so the two-sided p is twice that
+    assert fisher_exact(10, 10, 5, 10) == pytest.approx(2 * 252 / 15504)
+    assert fisher_exact(3, 10, 3, 10) == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="successes must lie in"):
+        fisher_exact(11, 10, 0, 10)
 
 
 def test_iqm_is_the_mean_of_the_middle_half():
@@ -62,6 +71,11 @@ def test_compare_writes_a_well_formed_report_whose_numbers_the_csvs_reproduce(co
     for png in ("curves.png", "episodes_to_threshold.png"):
         assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "**Verdict.**" in report and "Mann-Whitney" in report
+    assert "Fisher exact test (two-sided) p = 1." in report  # 0/2 vs 0/2
+    result = json.loads((out / "result.json").read_text())  # the same numbers, for machines
+    assert result["experiment"] == "cartpole" and result["fisher_p"] == 1.0 and result["matched_init"] is False
+    assert result["verdict"] in report
+    assert "No detectable difference in success (success 0/2 (Keras) vs 0/2 (PyTorch)" in report
     for fw, folder in (("keras", "faithful"), ("torch", "faithful-torch")):
         finals, walls, ms = [], [], []
         for seed in (0, 1):
@@ -78,6 +92,7 @@ def test_compare_writes_a_well_formed_report_whose_numbers_the_csvs_reproduce(co
         assert float(cells[4].split(" ")[0]) == pytest.approx(iqm(finals), abs=1e-3)
         assert float(cells[5]) == pytest.approx(np.median(walls), abs=0.05)
         assert float(cells[6]) == pytest.approx(np.median(ms), abs=5e-4)
+        assert result["frameworks"][fw]["final_iqm"]["estimate"] == pytest.approx(iqm(finals))
 
 
 def test_compare_reuses_matching_runs_and_refuses_mismatched_ones(compared, capsys):

@@ -1,0 +1,122 @@
+"""The findings table of results/README.md, computed from the committed run folders.
+
+    python reproductions/findings_table.py            # print the table
+    python reproductions/findings_table.py --write    # replace it in results/README.md
+
+and the Keras-vs-PyTorch summary, one row per ``results/compare/**/result.json``.
+
+One row per post x variant x framework: success rate, episodes to threshold (median and
+IQR over the seeds that got there), the post's own number, ms per env step (median over
+seeds of wall seconds / env steps, as the runs ran: two seeds at a time, often beside
+other work) and the command that regenerates the row's folder.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+BEGIN, END = "<!-- findings-table:begin -->", "<!-- findings-table:end -->"
+COMPARE_BEGIN, COMPARE_END = "<!-- compare-table:begin -->", "<!-- compare-table:end -->"
+REPRODUCE = "keras-rl reproduce {exp} --variant {variant} --framework {fw}{matched} --seeds 0-9 --workers 2 --no-progress --min-success-rate 0"
+
+# (post, experiment, variant, framework, matched init, success criterion, the post's own number)
+ROWS = [
+    ("000 Pendulum DDPG", "pendulum", "faithful", "keras", False, "EMA > -300", "153 (one run)"),
+    ("000 Pendulum DDPG", "pendulum", "faithful", "torch", False, "EMA > -300", "153 (one run)"),
+    ("000 Pendulum DDPG", "pendulum", "faithful", "torch", True, "EMA > -300", "153 (one run)"),
+    ("000 Pendulum DDPG", "pendulum", "fixed", "keras", False, "EMA > -300", "-"),
+    ("003 CartPole DQN", "cartpole", "faithful", "keras", False, "100-ep. mean >= 475 in 600", "\"500 within 600\" (no number)"),
+    ("003 CartPole DQN", "cartpole", "faithful", "torch", False, "100-ep. mean >= 475 in 600", "\"500 within 600\" (no number)"),
+    ("001 MountainCar DDPG", "mountaincar", "faithful", "keras", False, "last-10 spread <= 2.0", "\"roughly converged within 100\""),
+    ("001 MountainCar DDPG", "mountaincar", "faithful", "torch", False, "last-10 spread <= 2.0", "\"roughly converged within 100\""),
+    ("001 MountainCar DDPG", "mountaincar", "faithful", "torch", True, "last-10 spread <= 2.0", "\"roughly converged within 100\""),
+    ("001 MountainCar DDPG", "mountaincar", "faithful-intended", "keras", False, "last-10 spread <= 2.0", "-"),
+    ("001 MountainCar DDPG", "mountaincar", "fixed", "keras", False, "goal in >= 50% of last 50", "-"),
+]
+
+
+def row_numbers(folder: Path) -> dict | None:
+    summaries = [json.loads(p.read_text()) for p in sorted(folder.glob("seed_*/summary.json"))]
+    if not summaries:
+        return None
+    hits = [s["reached_at_episode"] for s in summaries if s["success"]]
+    ms = [s["wall_seconds"] / s["total_steps"] * 1e3 for s in summaries if s["total_steps"]]
+    q25, q50, q75 = np.percentile(hits, [25, 50, 75]) if hits else (np.nan,) * 3
+    return {"seeds": sorted(s["seed"] for s in summaries), "successes": len(hits), "n": len(summaries),
+            "median": q50, "q25": q25, "q75": q75, "ms": float(np.median(ms)) if ms else np.nan,
+            "unfinished": sum(s["status"] != "completed" for s in summaries)}
+
+
+def table() -> str:
+    from keras_rl.compare import run_folder
+
+    lines = ["| post | variant | framework | success | criterion | episodes to threshold: median (IQR) | the post | ms/step | command |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for post, exp, variant, fw, matched, criterion, theirs in ROWS:
+        folder = run_folder(ROOT / "results", exp, variant, fw, matched)
+        numbers = row_numbers(folder)
+        framework = fw + (" (matched init)" if matched else "")
+        command = REPRODUCE.format(exp=exp, variant=variant, fw=fw, matched=" --matched-init" if matched else "")
+        if numbers is None:
+            lines.append(f"| {post} | {variant} | {framework} | not run | {criterion} | - | {theirs} | - | `{command}` |")
+            continue
+        g = lambda v: "-" if not np.isfinite(v) else f"{v:g}"  # noqa: E731
+        success = f"{numbers['successes']}/{numbers['n']}" + (f" ({numbers['unfinished']} unfinished)"
+                                                               if numbers["unfinished"] else "")
+        lines.append(f"| {post} | {variant} | {framework} | {success} | {criterion} | "
+                     f"{g(numbers['median'])} ({g(numbers['q25'])}-{g(numbers['q75'])}) | {theirs} | "
+                     f"{numbers['ms']:.2f} | `{command}` |")
+    return "\n".join(lines)
+
+
+def compare_table() -> str:
+    """One row per committed ``results/compare/**/result.json``."""
+    lines = ["| experiment | torch init | success keras / torch (Fisher p) | episodes to threshold, median keras / torch | keras - torch [95% CI] | Mann-Whitney p | report |",
+             "|---|---|---|---|---|---|---|"]
+    g = lambda v: "-" if v is None else f"{v:.3g}"  # noqa: E731
+    for path in sorted((ROOT / "results" / "compare").glob("**/result.json")):
+        r = json.loads(path.read_text())
+        k, t = r["frameworks"]["keras"], r["frameworks"]["torch"]
+        d = r["median_difference"]
+        diff = "-" if d is None else f"{d['estimate']:g} [{d['low']:g}, {d['high']:g}]"
+        link = path.parent.relative_to(ROOT / "results") / "report.md"
+        lines.append(f"| {r['experiment']} ({r['variant']}) | {'matched to Keras' if r['matched_init'] else 'torch default'} "
+                     f"| {k['successes']}/{len(k['seeds'])} / {t['successes']}/{len(t['seeds'])} ({g(r['fisher_p'])}) "
+                     f"| {g(k['median'])} / {g(t['median'])} | {diff} | {g(r['mann_whitney'][1])} | [{link}]({link}) |")
+    return "\n".join(lines)
+
+
+def _replace(content: str, begin: str, end: str, text: str) -> str:
+    if begin not in content or end not in content:
+        raise SystemExit(f"results/README.md has no {begin} ... {end} markers to replace")
+    head, rest = content.split(begin, 1)
+    _, tail = rest.split(end, 1)
+    return f"{head}{begin}\n{text}\n{end}{tail}"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--write", action="store_true", help="replace the table in results/README.md")
+    args = parser.parse_args()
+    text, compared = table(), compare_table()
+    if not args.write:
+        print(text, compared, sep="\n\n")
+        return
+    from keras_rl.results import atomic_write_text
+
+    readme = ROOT / "results" / "README.md"
+    content = _replace(readme.read_text(), BEGIN, END, text)
+    atomic_write_text(readme, _replace(content, COMPARE_BEGIN, COMPARE_END, compared))
+    print(f"updated {readme}")
+
+
+if __name__ == "__main__":
+    main()
