@@ -1,4 +1,4 @@
-"""Full-training threshold test (slow): post 000's faithful DDPG reaches EMA > -300."""
+"""Full-training threshold tests (slow): each post reaches its threshold within a budget."""
 
 import json
 import subprocess
@@ -85,3 +85,26 @@ def test_faithful_mountaincar_converges_in_2_of_3_seeds(tmp_path):
     summaries = [json.loads((out / f"seed_{s}" / "summary.json").read_text()) for s in range(3)]
     assert sum(s["success"] for s in summaries) >= 2, [s["final_metric"] for s in summaries]
     assert all(s["episodes_run"] == 100 for s in summaries)
+
+
+@pytest.mark.slow
+def test_torch_port_of_post_000_reaches_minus_300_in_2_of_3_seeds_within_300_episodes(tmp_path):
+    """The PyTorch port (default torch init) under the same rule as the Keras test above.
+
+    Derivation (results/pendulum/faithful-torch, 10 seeds, budget 1000): 10/10 succeeded,
+    episodes-to-threshold median 132.5, IQR 124.5-159, range 112-219; seeds 0-2 reached it
+    at 130, 126 and 219. 300 episodes is 1.4x the slowest seed seen; one of three may miss.
+    Teeth: a port whose update is wrong (a sign, a missing soft update, the wrong Adam)
+    stays near the random policy's -1200.
+    """
+    pytest.importorskip("torch", reason="needs the torch extra")
+    out = tmp_path / "runs"
+    proc = subprocess.run([sys.executable, "-m", "keras_rl", "reproduce", "pendulum", "--framework", "torch",
+                           "--seeds", "0-2", "--episodes", "300", "--workers", "2", "--no-progress",
+                           "--min-success-rate", "0.66", "--out", str(out)],
+                          capture_output=True, text=True, timeout=1800)
+    summaries = [json.loads((out / f"seed_{s}" / "summary.json").read_text()) for s in range(3)]
+    reached = [s["reached_at_episode"] for s in summaries]
+    assert sum(r is not None for r in reached) >= 2, (reached, proc.stderr[-2000:])
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert all(s["framework"] == "torch" for s in summaries)
