@@ -81,7 +81,8 @@ def compare_table() -> str:
     """One row per committed ``results/compare/**/result.json``."""
     lines = ["| experiment | torch init | success keras / torch (Fisher p) | episodes to threshold, median keras / torch | keras - torch [95% CI] | Mann-Whitney p | report |",
              "|---|---|---|---|---|---|---|"]
-    g = lambda v: "-" if v is None else f"{v:.3g}"  # noqa: E731
+    g = lambda v: "-" if v is None else f"{v:.2g}"  # noqa: E731  (p-values)
+    m = lambda v: "-" if v is None else f"{v:g}"  # noqa: E731  (medians, exact)
     for path in sorted((ROOT / "results" / "compare").glob("**/result.json")):
         r = json.loads(path.read_text())
         k, t = r["frameworks"]["keras"], r["frameworks"]["torch"]
@@ -90,7 +91,7 @@ def compare_table() -> str:
         link = path.parent.relative_to(ROOT / "results") / "report.md"
         lines.append(f"| {r['experiment']} ({r['variant']}) | {'matched to Keras' if r['matched_init'] else 'torch default'} "
                      f"| {k['successes']}/{len(k['seeds'])} / {t['successes']}/{len(t['seeds'])} ({g(r['fisher_p'])}) "
-                     f"| {g(k['median'])} / {g(t['median'])} | {diff} | {g(r['mann_whitney'][1])} | [{link}]({link}) |")
+                     f"| {m(k['median'])} / {m(t['median'])} | {diff} | {g(r['mann_whitney'][1])} | [{link}]({link}) |")
     return "\n".join(lines)
 
 

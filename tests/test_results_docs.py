@@ -1,0 +1,29 @@
+"""results/README.md's generated tables match the committed run folders and reports."""
+
+import importlib.util
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def load_generator():
+    spec = importlib.util.spec_from_file_location("findings_table", ROOT / "reproductions" / "findings_table.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def block(text: str, begin: str, end: str) -> str:
+    return text.split(begin, 1)[1].split(end, 1)[0].strip()
+
+
+def test_the_findings_and_compare_tables_are_up_to_date():
+    gen = load_generator()
+    readme = (ROOT / "results" / "README.md").read_text()
+    assert block(readme, gen.BEGIN, gen.END) == gen.table(), \
+        "results/README.md is stale: run python reproductions/findings_table.py --write"
+    assert block(readme, gen.COMPARE_BEGIN, gen.COMPARE_END) == gen.compare_table(), \
+        "results/README.md is stale: run python reproductions/findings_table.py --write"
+    assert "not run" not in gen.table()  # every row of the single table has its runs committed
+    for experiment in ("pendulum", "cartpole", "mountaincar"):
+        assert (ROOT / "results" / "compare" / experiment / "report.md").is_file(), experiment
