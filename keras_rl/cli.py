@@ -223,7 +223,8 @@ def list_experiments() -> int:
     from keras_rl.experiments import EXPERIMENTS
 
     for name, exp in sorted(EXPERIMENTS.items()):
-        print(f"{name:12s} {exp.description}; variants: {', '.join(exp.config_cls.VARIANTS)}")
+        print(f"{name:12s} {exp.description}; variants: {', '.join(exp.config_cls.VARIANTS)}; "
+              f"frameworks: {', '.join(exp.config_cls.FRAMEWORKS)}")
     return EXIT_OK
 
 

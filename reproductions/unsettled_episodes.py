@@ -1,0 +1,43 @@
+"""Per seed, how many episodes in a window had a metric above the threshold (post 001: the
+last-10 return spread above 2.0, i.e. episodes where the returns had not settled).
+
+    python reproductions/unsettled_episodes.py results/mountaincar/faithful \\
+        results/mountaincar/faithful-torch-matched-init results/mountaincar/faithful-torch
+
+Used in results/README.md to show that matched-init PyTorch runs follow their Keras twins.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from keras_rl.results import read_episodes  # noqa: E402
+
+
+def unsettled(folder: Path, first: int, last: int, threshold: float) -> dict[int, int]:
+    counts = {}
+    for seed_dir in sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1])):
+        rows = read_episodes(seed_dir / "episodes.csv")
+        counts[int(seed_dir.name.split("_")[1])] = sum(
+            row["metric"] > threshold for row in rows if first <= row["episode"] <= last)
+    return counts
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("folders", type=Path, nargs="+")
+    parser.add_argument("--first", type=int, default=20)
+    parser.add_argument("--last", type=int, default=70)
+    parser.add_argument("--threshold", type=float, default=2.0)
+    args = parser.parse_args()
+    for folder in args.folders:
+        counts = unsettled(folder, args.first, args.last, args.threshold)
+        print(f"{folder}: " + " ".join(str(counts[s]) for s in sorted(counts)))
+
+
+if __name__ == "__main__":
+    main()
