@@ -128,13 +128,11 @@ def main() -> None:
     import warnings
 
     warnings.filterwarnings("ignore")  # the post's tuple action makes Gymnasium's checker warn every step
-    try:
-        import torch  # noqa: F401
-    except ImportError:
-        has_torch = False
+    import importlib.util
+
+    has_torch = importlib.util.find_spec("torch") is not None
+    if not has_torch:
         print("(no torch installed: the PyTorch column and the CartPole row need the torch extra)")
-    else:
-        has_torch = True
 
     # (experiment, unit, the post's original code path, its ms, our Keras ms, our PyTorch ms)
     rows = []

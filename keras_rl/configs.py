@@ -9,7 +9,6 @@ set of overrides (``VARIANTS``) that turns the quirks off. See
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import typing
 from dataclasses import dataclass, field
@@ -91,9 +90,6 @@ class ExperimentConfig:
     def to_dict(self) -> dict[str, Any]:
         return {"experiment": self.experiment, "post": self.post, **dataclasses.asdict(self)}
 
-    def to_json(self) -> str:
-        return json.dumps(self.to_dict(), indent=2, sort_keys=False)
-
     # -- validation ---------------------------------------------------------------------
     def validate(self) -> None:
         """Raise ConfigError naming the first field that is out of range."""
@@ -116,9 +112,6 @@ class ExperimentConfig:
                 raise ConfigError(f"{f.name} must be in [0, 1), got {value!r}")
         if self.seed < 0:
             raise ConfigError(f"seed must be zero or more, got {self.seed}")
-        init = getattr(self, "init", "keras")
-        if init not in ("keras", "torch"):
-            raise ConfigError(f"init must be 'keras' or 'torch', got {init!r}")
         if self.framework not in self.FRAMEWORKS:
             raise ConfigError(f"{self.experiment} has no {self.framework!r} version; "
                               f"choose one of {', '.join(self.FRAMEWORKS)}")
@@ -301,6 +294,11 @@ class CartPoleDQNConfig(ExperimentConfig):
     """``plot_durations``: ``durations_t.unfold(0, 100, 1).mean(1)``, zeros before 100 episodes."""
     stop_at_threshold: bool = False
     """The tutorial trains all ``num_episodes``; it never stops early."""
+
+    def validate(self) -> None:
+        super().validate()
+        if self.init not in ("keras", "torch"):
+            raise ConfigError(f"init must be 'keras' or 'torch', got {self.init!r}")
 
 
 @dataclass(frozen=True)

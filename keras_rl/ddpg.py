@@ -14,7 +14,6 @@ the soft update of both targets. It never leaves the graph: no ``get_weights``/
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import keras
@@ -23,7 +22,7 @@ import tensorflow as tf
 
 from keras_rl.buffers import Batch, Layout, ReplayBuffer
 from keras_rl.configs import PendulumDDPGConfig
-from keras_rl.errors import NonFiniteLossError
+from keras_rl.metrics import accumulate_losses
 from keras_rl.networks import Actor, Critic, build
 from keras_rl.noise import OUNoise
 from keras_rl.results import load_weights, save_weights
@@ -58,6 +57,14 @@ class DDPGLearner:
         # Acting and training fused into one call per env step: the post trains at the
         # end of step t and picks step t+1's action with the updated actor; so do we.
         self._train_and_act = compile_step(self._train_rows_and_act, xla, rows, obs)
+
+    @classmethod
+    def with_adam(cls, networks: tuple[keras.Model, keras.Model, keras.Model, keras.Model], actor_lr: float,
+                  critic_lr: float, **kwargs) -> "DDPGLearner":
+        """The posts' set-up: (actor, critic, target actor, target critic), each network with
+        its own Keras Adam (Keras 2's Adam of post 001 has the same epsilon and update rule)."""
+        return cls(*networks, keras.optimizers.Adam(learning_rate=actor_lr),
+                   keras.optimizers.Adam(learning_rate=critic_lr), **kwargs)
 
     def train(self, rows: np.ndarray) -> dict[str, tf.Tensor]:
         """One update on packed transition rows [B, width]; returns the losses."""
@@ -186,11 +193,8 @@ class DDPGAgent:
 
             self.learner = post000_learner(c, obs_dim, action_dim, action_bound)
         else:
-            actor, critic, target_actor, target_critic = post000_networks(c, obs_dim, action_dim, action_bound)
-            self.learner = DDPGLearner(
-                actor, critic, target_actor, target_critic,
-                keras.optimizers.Adam(learning_rate=c.actor_lr),
-                keras.optimizers.Adam(learning_rate=c.critic_lr),
+            self.learner = DDPGLearner.with_adam(
+                post000_networks(c, obs_dim, action_dim, action_bound), c.actor_lr, c.critic_lr,
                 gamma=c.gamma, tau=c.tau, broadcast_target=c.broadcast_target,
                 layout=Layout(obs_dim, action_dim), xla=xla)
         buffer_rng, noise_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(c.seed).spawn(2))
@@ -250,13 +254,7 @@ class DDPGAgent:
 
     def _record(self, losses: dict[str, tf.Tensor]) -> None:
         self.updates += 1
-        for name, value in losses.items():
-            value = float(value)
-            if not math.isfinite(value):
-                raise NonFiniteLossError(
-                    f"{name} became {value} at env step {self.total_steps} (update {self.updates}); "
-                    "the run stops here and keeps the episodes already written")
-            self.episode_losses[name] += value
+        accumulate_losses(self.episode_losses, losses, f"env step {self.total_steps} (update {self.updates})")
 
     def greedy_action(self, obs: np.ndarray) -> np.ndarray:
         """§3 test: ``agent.get_action(state)`` with no noise."""

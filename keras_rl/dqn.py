@@ -12,7 +12,7 @@ import tensorflow as tf
 from keras_rl.buffers import Batch, Layout, ReplayBuffer
 from keras_rl.configs import CartPoleDQNConfig
 from keras_rl.ddpg import compile_step
-from keras_rl.errors import NonFiniteLossError
+from keras_rl.metrics import accumulate_losses
 from keras_rl.networks import QNetwork, build
 from keras_rl.optimizers import TorchAdamW
 from keras_rl.results import load_weights, save_weights
@@ -167,11 +167,7 @@ class DQNAgent:
 
     def _record(self, losses: dict[str, tf.Tensor]) -> None:
         self.updates += 1
-        value = float(losses["loss"])
-        if not math.isfinite(value):
-            raise NonFiniteLossError(f"loss became {value} at update {self.updates} (env step {self.steps_done}); "
-                                     "the run stops here and keeps the episodes already written")
-        self.episode_losses["loss"] += value
+        accumulate_losses(self.episode_losses, losses, f"update {self.updates} (env step {self.steps_done})")
 
     def greedy_action(self, obs: np.ndarray) -> int:
         return self.learner.greedy(np.asarray(obs, dtype=np.float32))

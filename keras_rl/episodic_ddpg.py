@@ -8,18 +8,16 @@ variant) it is an ordinary DDPG agent with OU exploration and a ring buffer.
 
 from __future__ import annotations
 
-import math
 import random
 from pathlib import Path
 
-import keras
 import numpy as np
 import tensorflow as tf
 
 from keras_rl.buffers import Layout, PoppingBuffer, ReplayBuffer
 from keras_rl.configs import MountainCarDDPGConfig
 from keras_rl.ddpg import DDPGLearner
-from keras_rl.errors import NonFiniteLossError
+from keras_rl.metrics import accumulate_losses
 from keras_rl.networks import MountainCarActor, MountainCarCritic, build
 from keras_rl.noise import OUNoise
 from keras_rl.targets import soft_update
@@ -71,11 +69,8 @@ class EpisodicDDPGAgent:
 
             self.learner = post001_learner(c, obs_dim, action_dim)
         else:
-            main_actor, main_critic, target_actor, target_critic = post001_networks(c, obs_dim, action_dim)
-            self.learner = DDPGLearner(
-                main_actor, main_critic, target_actor, target_critic,
-                keras.optimizers.Adam(learning_rate=c.actor_lr),  # Keras 2 Adam: eps 1e-7, same update rule
-                keras.optimizers.Adam(learning_rate=c.critic_lr),
+            self.learner = DDPGLearner.with_adam(
+                post001_networks(c, obs_dim, action_dim), c.actor_lr, c.critic_lr,
                 gamma=c.gamma, tau=c.tau, broadcast_target=False, layout=layout, xla=xla,
                 actor_update=c.actor_gradient, dqda_at_buffer_actions=c.dqda_at_buffer_actions)
         seeds = np.random.SeedSequence(c.seed).spawn(2)
@@ -150,12 +145,7 @@ class EpisodicDDPGAgent:
 
     def _record_losses(self, losses: dict[str, tf.Tensor]) -> None:
         self.updates += 1
-        for name, value in losses.items():
-            value = float(value)
-            if not math.isfinite(value):
-                raise NonFiniteLossError(f"{name} became {value} at update {self.updates} (env step "
-                                         f"{self.total_steps}); the run stops here and keeps the episodes written")
-            self.episode_losses[name] += value
+        accumulate_losses(self.episode_losses, losses, f"update {self.updates} (env step {self.total_steps})")
 
     def greedy_action(self, obs: np.ndarray) -> np.ndarray:
         return self.learner.act(self.normalise(obs)).numpy()

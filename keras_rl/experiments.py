@@ -48,7 +48,8 @@ def _pendulum_agent(config: PendulumDDPGConfig, env: gym.Env):
     return DDPGAgent(config, obs_dim, action_dim, bound)
 
 
-def _cartpole_env(config: CartPoleDQNConfig, render_mode: str | None = None) -> gym.Env:
+def _plain_env(config: ExperimentConfig, render_mode: str | None = None) -> gym.Env:
+    """``gym.make(config.env_id)`` with the env's defaults (posts 001 and 003)."""
     return make_env(config.env_id, render_mode=render_mode)
 
 
@@ -70,10 +71,6 @@ def _cartpole_extras(rows: list[dict[str, Any]], config: CartPoleDQNConfig) -> d
     last = [r["score"] for r in rows[-config.mean_window:]]
     return {"last_100_mean": sum(last) / len(last) if last else None,
             "last_100_share_at_500": sum(s >= 500 for s in last) / len(last) if last else None}
-
-
-def _mountaincar_env(config: MountainCarDDPGConfig, render_mode: str | None = None) -> gym.Env:
-    return make_env(config.env_id, render_mode=render_mode)
 
 
 def _mountaincar_agent(config: MountainCarDDPGConfig, env: gym.Env):
@@ -106,7 +103,7 @@ EXPERIMENTS: dict[str, Experiment] = {
     "cartpole": Experiment(
         name="cartpole",
         config_cls=CartPoleDQNConfig,
-        make_env=_cartpole_env,
+        make_env=_plain_env,
         make_agent=_cartpole_agent,
         make_metric=lambda c: RollingMean(c.mean_window),
         metric_label="100-episode mean duration",
@@ -119,7 +116,7 @@ EXPERIMENTS: dict[str, Experiment] = {
     "mountaincar": Experiment(
         name="mountaincar",
         config_cls=MountainCarDDPGConfig,
-        make_env=_mountaincar_env,
+        make_env=_plain_env,
         make_agent=_mountaincar_agent,
         make_metric=lambda c: (ReturnSpread(c.converge_window) if c.criterion == "converged"
                                else GoalShare(c.goal_window)),

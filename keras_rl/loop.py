@@ -11,7 +11,8 @@ import numpy as np
 
 from keras_rl.errors import NonFiniteLossError, RunFolderError
 from keras_rl.experiments import Experiment, get_experiment, metric_label
-from keras_rl.results import RunRecorder, atomic_write_json, library_versions, plot_curve, sigint_deferred
+from keras_rl.results import (RunRecorder, atomic_write_json, library_versions, plot_curve, sigint_as_flag,
+                              sigint_deferred)
 from keras_rl.seeding import configure_tensorflow, seed_everything
 
 
@@ -39,12 +40,18 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
         bar = tqdm(total=config.episodes, position=position, leave=position == 0, dynamic_ncols=True,
                    desc=f"{experiment.name}/{config.variant}/{config.framework} seed {config.seed}", unit="ep")
 
-    status, message, reached_at = "running", "", None
     start = time.perf_counter()
-    total_steps = 0
     # A summary from the start: a run killed outright (SIGKILL, power loss) still says so,
     # and no stale summary from an earlier run in this folder survives.
-    recorder.write_summary(_summary(experiment, config, metric, recorder, status, message, None, 0, 0.0))
+    recorder.write_summary(_summary(experiment, config, metric, recorder, "running", "", None, 0, 0.0))
+    with sigint_as_flag() as interrupted:  # Ctrl-C is checked between env steps (see sigint_as_flag)
+        return _train(experiment, config, env, agent, recorder, metric, bar, interrupted, start)
+
+
+def _train(experiment: Experiment, config, env, agent, recorder: RunRecorder, metric, bar, interrupted: list,
+           start: float) -> dict[str, Any]:
+    """``run_seed``'s episode loop and its final flush."""
+    status, message, reached_at, total_steps = "running", "", None, 0
     try:
         for episode in range(1, config.episodes + 1):
             obs, _ = env.reset(seed=config.seed if episode == 1 else None)
@@ -56,6 +63,8 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
                 score += float(reward)
                 steps += 1
                 action = agent.step(float(reward), obs, terminated, truncated)
+                if interrupted:
+                    raise KeyboardInterrupt
             total_steps += steps
             value = metric.update(score)
             n_updates = agent.updates - updates_before

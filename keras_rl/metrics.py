@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import math
-
-
 import operator
+from collections import deque
+from typing import Mapping
+
+from keras_rl.errors import NonFiniteLossError
 
 COMPARISONS = {">": operator.gt, ">=": operator.ge, "<=": operator.le, "<": operator.lt}
 
@@ -40,7 +42,20 @@ class PostEMA(Metric):
         return self.value
 
 
-class RollingMean(Metric):
+class _Windowed(Metric):
+    """A metric over the last ``window`` episodes (older ones fall out of a bounded deque)."""
+
+    def __init__(self, window: int):
+        self.window = window
+        self.recent: deque[float] = deque(maxlen=window)
+
+    def _push(self, value: float) -> bool:
+        """Add one episode's value; True once ``window`` episodes exist."""
+        self.recent.append(value)
+        return len(self.recent) == self.window
+
+
+class RollingMean(_Windowed):
     """Post 003's ``plot_durations``: the mean of the last ``window`` durations.
 
     The tutorial plots ``torch.cat((torch.zeros(99), means))``: zero until ``window``
@@ -48,51 +63,47 @@ class RollingMean(Metric):
     """
 
     def __init__(self, window: int = 100):
-        self.window = window
-        self.scores: list[float] = []
+        super().__init__(window)
 
     def update(self, score: float) -> float:
-        self.scores.append(score)
-        if len(self.scores) < self.window:
-            return 0.0
-        return sum(self.scores[-self.window:]) / self.window
+        return sum(self.recent) / self.window if self._push(score) else 0.0
 
 
-class GoalShare(Metric):
+class GoalShare(_Windowed):
     """Post 001 (MountainCarContinuous): the share of the last ``window`` episodes that
     reached the goal. An episode reached it iff its return is positive: the goal pays
     +100 and the action cost is at most 0.1 per step over at most 999 steps."""
 
     def __init__(self, window: int = 50):
-        self.window = window
-        self.hits: list[bool] = []
+        super().__init__(window)
 
     def update(self, score: float) -> float:
-        self.hits.append(score > 0)
-        recent = self.hits[-self.window:]
-        return sum(recent) / self.window
+        self._push(float(score > 0))
+        return sum(self.recent) / self.window
 
 
-
-
-class ReturnSpread(Metric):
+class ReturnSpread(_Windowed):
     """Post 001's "roughly converged": the spread (max - min) of the last ``window`` returns.
 
-    Infinite until ``window`` episodes exist. Success is a spread at or below the threshold.
+    Infinite until ``window`` episodes exist (and inf never passes). Success is a spread at
+    or below the threshold.
     """
 
     comparison = "<="
 
     def __init__(self, window: int = 10):
-        self.window = window
-        self.scores: list[float] = []
+        super().__init__(window)
 
     def update(self, score: float) -> float:
-        self.scores.append(score)
-        if len(self.scores) < self.window:
-            return float("inf")
-        recent = self.scores[-self.window:]
-        return max(recent) - min(recent)
+        return max(self.recent) - min(self.recent) if self._push(score) else float("inf")
 
-    def passes(self, value: float, threshold: float) -> bool:
-        return value <= threshold  # inf (too few episodes) never passes; NaN never passes
+
+def accumulate_losses(totals: dict[str, float], losses: Mapping[str, object], where: str) -> None:
+    """Add one update's losses to the episode's running totals; stop the run on a
+    non-finite loss, naming the loss and ``where`` (the update and env step)."""
+    for name, value in losses.items():
+        value = float(value)
+        if not math.isfinite(value):
+            raise NonFiniteLossError(f"{name} became {value} at {where}; "
+                                     "the run stops here and keeps the episodes already written")
+        totals[name] += value

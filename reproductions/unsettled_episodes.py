@@ -4,7 +4,8 @@ last-10 return spread above 2.0, i.e. episodes where the returns had not settled
     python reproductions/unsettled_episodes.py results/mountaincar/faithful \\
         results/mountaincar/faithful-torch-matched-init results/mountaincar/faithful-torch
 
-Used in results/README.md to show that matched-init PyTorch runs follow their Keras twins.
+Each folder after the first also gets a Mann-Whitney p against the first. Used in
+results/README.md to show that matched-init PyTorch runs follow their Keras twins.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from keras_rl.results import read_episodes  # noqa: E402
+from keras_rl.stats import mann_whitney  # noqa: E402
 
 
 def unsettled(folder: Path, first: int, last: int, threshold: float) -> dict[int, int]:
@@ -34,9 +36,16 @@ def main() -> None:
     parser.add_argument("--last", type=int, default=70)
     parser.add_argument("--threshold", type=float, default=2.0)
     args = parser.parse_args()
+    first = None
     for folder in args.folders:
         counts = unsettled(folder, args.first, args.last, args.threshold)
-        print(f"{folder}: " + " ".join(str(counts[s]) for s in sorted(counts)))
+        values = [counts[s] for s in sorted(counts)]
+        line = f"{folder}: " + " ".join(map(str, values))
+        if first is None:
+            first = values
+        else:  # against the first folder: do the per-seed counts differ in distribution?
+            line += f"   (Mann-Whitney p vs the first folder: {mann_whitney(first, values)[1]:.2f})"
+        print(line)
 
 
 if __name__ == "__main__":

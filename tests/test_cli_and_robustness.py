@@ -136,15 +136,66 @@ def test_nan_in_a_loss_stops_the_run_and_keeps_the_episodes(tmp_path):
     assert json.loads((tmp_path / "summary.json").read_text())["status"] == "non_finite_loss"
 
 
+class SigintAt(gym.Wrapper):
+    """Sends this process a SIGINT during env step ``at``, as a Ctrl-C mid-episode would."""
+
+    def __init__(self, env, at):
+        super().__init__(env)
+        self.at, self.steps = at, 0
+
+    def step(self, action):
+        self.steps += 1
+        if self.steps == self.at:
+            os.kill(os.getpid(), signal.SIGINT)
+        return self.env.step(action)
+
+
+def test_ctrl_c_mid_episode_is_taken_between_env_steps(tmp_path):
+    exp = get_experiment("pendulum")
+    config = PendulumDDPGConfig.for_variant("faithful", episodes=10, train_start=64, batch_size=16)
+    # Python's own Ctrl-C handler, even where the test runner was started with SIGINT ignored
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        summary = run_seed(exp, config, tmp_path, progress=False, env=SigintAt(exp.make_env(config), at=450))
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the run put it back
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert summary["status"] == "interrupted" and summary["episodes_run"] == 2  # episode 3 was cut short
+    assert [r["episode"] for r in read_episodes(tmp_path / "episodes.csv")] == [1, 2]
+    assert (tmp_path / "actor.weights.h5").is_file()
+
+
+def test_sigint_as_flag_records_instead_of_raising_and_respects_an_ignored_sigint():
+    from keras_rl.results import sigint_as_flag
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with sigint_as_flag() as caught:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)  # let the handler run
+        assert caught == [signal.SIGINT]
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        with sigint_as_flag() as caught:
+            assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN  # left as the process was told
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+        assert caught == []
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 @pytest.mark.parametrize("seeds,workers", [("0", 1), ("0-2", 2)])
 def test_ctrl_c_leaves_valid_files_marked_unfinished(tmp_path, seeds, workers):
     out = tmp_path / "run"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     # A new session, so that SIGINT can go to the whole group as a terminal's Ctrl-C does.
+    # SIGINT back to its default in the child: a test run launched in the background (`cmd &`
+    # in a script) inherits SIGINT as ignored, and Python then never raises KeyboardInterrupt.
     proc = subprocess.Popen([*CLI, "reproduce", "pendulum", "--seeds", seeds, "--workers", str(workers),
                              "--no-progress", "--set", "stop_at_threshold=false", "--out", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                            start_new_session=True)
+                            start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     csv = out / "seed_0" / "episodes.csv"
     deadline = time.time() + 300
     while time.time() < deadline:

@@ -21,19 +21,26 @@ def test_faithful_pendulum_reaches_minus_300_in_2_of_3_seeds_within_300_episodes
     at the start of every run), and a learner even twice as slow as measured fails the
     budget. Seeds 0-2 reached the threshold at episodes 95, 137 and 155 here.
     """
+    pendulum_2_of_3(tmp_path, "keras")
+    assert (tmp_path / "runs" / "summary.md").is_file() and (tmp_path / "runs" / "curves.png").is_file()
+
+
+def pendulum_2_of_3(tmp_path, framework: str) -> list[dict]:
+    """Seeds 0-2 of post 000's faithful variant, 300 episodes; at least 2 must pass -300."""
     out = tmp_path / "runs"
     proc = subprocess.run([sys.executable, "-m", "keras_rl", "reproduce", "pendulum", "--variant", "faithful",
-                           "--seeds", "0-2", "--episodes", "300", "--workers", "2", "--no-progress",
-                           "--min-success-rate", "0.66", "--out", str(out)],
+                           "--framework", framework, "--seeds", "0-2", "--episodes", "300", "--workers", "2",
+                           "--no-progress", "--min-success-rate", "0.66", "--out", str(out)],
                           capture_output=True, text=True, timeout=1800)
     summaries = [json.loads((out / f"seed_{s}" / "summary.json").read_text()) for s in range(3)]
     reached = [s["reached_at_episode"] for s in summaries]
     assert sum(r is not None and r <= 300 for r in reached) >= 2, (reached, proc.stderr[-2000:])
     assert proc.returncode == 0, proc.stderr[-2000:]
     for s in summaries:
+        assert s["framework"] == framework
         if s["success"]:
             assert s["final_metric"] > -300 and s["episodes_run"] == s["reached_at_episode"]
-    assert (out / "summary.md").is_file() and (out / "curves.png").is_file()
+    return summaries
 
 
 def reproduce(tmp_path, *args):
@@ -98,13 +105,4 @@ def test_torch_port_of_post_000_reaches_minus_300_in_2_of_3_seeds_within_300_epi
     stays near the random policy's -1200.
     """
     pytest.importorskip("torch", reason="needs the torch extra")
-    out = tmp_path / "runs"
-    proc = subprocess.run([sys.executable, "-m", "keras_rl", "reproduce", "pendulum", "--framework", "torch",
-                           "--seeds", "0-2", "--episodes", "300", "--workers", "2", "--no-progress",
-                           "--min-success-rate", "0.66", "--out", str(out)],
-                          capture_output=True, text=True, timeout=1800)
-    summaries = [json.loads((out / f"seed_{s}" / "summary.json").read_text()) for s in range(3)]
-    reached = [s["reached_at_episode"] for s in summaries]
-    assert sum(r is not None for r in reached) >= 2, (reached, proc.stderr[-2000:])
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert all(s["framework"] == "torch" for s in summaries)
+    pendulum_2_of_3(tmp_path, "torch")

@@ -229,11 +229,10 @@ class TorchDDPGLearner:
         self.broadcast_target = bool(broadcast_target)
         self.layout = layout
         self.actor_update, self.dqda_at_buffer_actions = actor_update, bool(dqda_at_buffer_actions)
-
-    # Keras variables include BatchNormalization's moving statistics; so do these lists.
-    @staticmethod
-    def _variables(module) -> list:
-        return [*module.parameters(), *module.buffers()]
+        self._actor_params = list(actor.parameters())
+        # (target, source) lists for the soft updates, built once, not per update
+        self._soft_pairs = [(_variables(target_actor), _variables(actor)),
+                            (_variables(target_critic), _variables(critic))]
 
     def train(self, rows: np.ndarray) -> dict:
         return self.update(self.layout.split(torch.from_numpy(np.ascontiguousarray(rows, np.float32))))
@@ -266,18 +265,18 @@ class TorchDDPGLearner:
         self.critic_optimizer.step()
 
         grads, actor_loss = self.actor_gradients(states, actions)
-        for p, g in zip(self.actor.parameters(), grads):
+        for p, g in zip(self._actor_params, grads):
             p.grad = g
         self.actor_optimizer.step()
 
         with torch.no_grad():
-            soft_update(self._variables(self.target_actor), self._variables(self.actor), self.tau)
-            soft_update(self._variables(self.target_critic), self._variables(self.critic), self.tau)
+            for target, source in self._soft_pairs:
+                soft_update(target, source, self.tau)
         return {"critic_loss": critic_loss.detach(), "actor_loss": actor_loss.detach()}
 
     def actor_gradients(self, states, actions):
         """The actor's gradients, as in ``DDPGLearner.actor_gradients``, and -mean Q to report."""
-        params = list(self.actor.parameters())
+        params = self._actor_params
         if self.actor_update == "mean_q":
             actor_loss = -torch.mean(self.critic(states, self.actor(states)))
             return torch.autograd.grad(actor_loss, params), actor_loss
@@ -303,9 +302,14 @@ class TorchDDPGLearner:
         load_state(self.actor, Path(run_dir) / "actor.pt")
 
 
+def _variables(module) -> list:
+    """Parameters, then buffers: Keras variables include BatchNormalization's moving statistics."""
+    return [*module.parameters(), *module.buffers()]
+
+
 def _hard_copy(target, source) -> None:
     with torch.no_grad():
-        soft_update(TorchDDPGLearner._variables(target), TorchDDPGLearner._variables(source), 1.0)
+        soft_update(_variables(target), _variables(source), 1.0)
 
 
 def _match(nets: Sequence, keras_nets: Sequence) -> None:

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from keras_rl.configs import CartPoleDQNConfig
-from keras_rl.errors import NonFiniteLossError
+from keras_rl.metrics import accumulate_losses
 from keras_rl.torch import load_state, require_torch, save_state
 
 torch = require_torch()
@@ -146,10 +146,7 @@ class TutorialDQNAgent:
         self.soft_update()
         if loss is not None:
             self.updates += 1
-            value = loss.item()
-            if not math.isfinite(value):
-                raise NonFiniteLossError(f"loss became {value} at update {self.updates}; the run stops here")
-            self.episode_losses["loss"] += value
+            accumulate_losses(self.episode_losses, {"loss": loss.item()}, f"update {self.updates}")
         if terminated or truncated:
             return None
         self._action = self.select_action(self._state)
