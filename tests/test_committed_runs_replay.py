@@ -1,0 +1,72 @@
+"""The safety net of every refactor: committed run folders reproduce bit for bit.
+
+Each case reruns a committed seed in a fresh process and asserts that the new
+``episodes.csv`` equals the committed one in every column except ``wall_seconds`` (the one
+column that is not a function of the seed). A run stopped early (``--episodes N``) must
+equal the committed file's first N rows: the budget changes when a run ends, never what
+an episode computes.
+
+TensorFlow does not promise bit-exactness across CPU models. Runs record the CPU model
+in ``summary.json`` (``provenance.cpu_model``); where the committed run's model is known
+and differs from this machine's, the test says so and compares the first 5 episodes only.
+Runs committed before the model was recorded were all made on this project's machines
+(one kind, see the env notes), so they are compared in full.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import pytest
+
+from keras_rl.runs.provenance import cpu_model
+
+RESULTS = Path(__file__).resolve().parent.parent / "results"
+
+CASES = [
+    # (committed seed folder, experiment, extra CLI args, episodes to rerun or None for the whole run)
+    pytest.param("pendulum/faithful/seed_0", "pendulum", (), None, id="post000-faithful-seed0"),
+    pytest.param("mountaincar/faithful/seed_0", "mountaincar", (), None, id="post001-faithful-seed0"),
+    pytest.param("pendulum/faithful-torch/seed_0", "pendulum", ("--framework", "torch"), 12,
+                 id="post000-torch-seed0-first12"),
+    pytest.param("cartpole/faithful/seed_0", "cartpole", (), 60, id="post003-seed0-first60"),
+]
+
+
+def read_rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as fh:
+        return [{k: v for k, v in row.items() if k != "wall_seconds"} for row in csv.DictReader(fh)]
+
+
+@pytest.mark.parametrize("folder, experiment, extra, episodes", CASES)
+def test_committed_run_reproduces_bit_for_bit(tmp_path, folder, experiment, extra, episodes):
+    committed = RESULTS / folder
+    if "--framework" in extra:
+        pytest.importorskip("torch", reason="needs the torch extra")
+    config = json.loads((committed / "config.json").read_text())
+    summary = json.loads((committed / "summary.json").read_text())
+    expected = read_rows(committed / "episodes.csv")
+    if episodes is not None:
+        expected = expected[:episodes]
+    theirs = summary.get("provenance", {}).get("cpu_model")
+    if theirs is not None and theirs != cpu_model():
+        warnings.warn(f"{folder} was made on {theirs!r}, this is {cpu_model()!r}: TensorFlow does not promise "
+                      "bit-exactness across CPUs, so only the first 5 episodes are compared")
+        expected = expected[:5]
+    budget = len(expected) if episodes is not None or len(expected) < len(read_rows(committed / "episodes.csv")) \
+        else config["episodes"]
+    out = tmp_path / "run"
+    proc = subprocess.run(
+        [sys.executable, "-m", "keras_rl", "reproduce", experiment, "--variant", config["variant"],
+         "--seeds", str(config["seed"]), "--episodes", str(budget), "--no-progress", "--out", str(out), *extra],
+        capture_output=True, text=True, timeout=900)
+    assert proc.returncode in (0, 1), proc.stderr
+    got = read_rows(out / f"seed_{config['seed']}" / "episodes.csv")
+    assert len(got) == len(expected)
+    for want, have in zip(expected, got):
+        assert have == want, f"{folder}: first difference at episode {want['episode']}"
