@@ -1,6 +1,7 @@
-"""``keras-rl``: reproduce a post over seeds, or evaluate a saved run.
+"""``keras-rl``: reproduce a post over seeds, compare frameworks, or evaluate a saved run.
 
     keras-rl reproduce pendulum --variant faithful --seeds 0-9 --workers 2 --out results/pendulum
+    keras-rl compare pendulum --seeds 0-9 --workers 2
     keras-rl evaluate results/pendulum/faithful/seed_0 --episodes 5 --gif pendulum.gif
     keras-rl aggregate results/pendulum/faithful
     keras-rl list
@@ -9,14 +10,11 @@
 from __future__ import annotations
 
 import argparse
-import json
-import multiprocessing
-import os
-import signal
 import sys
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Sequence
 
+from keras_rl import __version__
 from keras_rl.errors import ConfigError, KerasRLError
 
 EXIT_OK, EXIT_CRITERION, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -36,6 +34,8 @@ def parse_seeds(text: str) -> list[int]:
             raise ConfigError(f"cannot read seeds {text!r}: use a list like 0,1,2 or a range like 0-9") from None
         if lo > hi:
             raise ConfigError(f"seed range {part!r} runs backwards; write {hi}-{lo}")
+        if hi >= 2**32:
+            raise ConfigError(f"seeds must be below 2**32 (NumPy's and Gymnasium's limit), got {hi}")
         seeds.update(range(lo, hi + 1))
     if not seeds:
         raise ConfigError(f"no seeds in {text!r}")
@@ -47,11 +47,14 @@ def parse_seeds(text: str) -> list[int]:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="keras-rl", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"keras-rl {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     rep = sub.add_parser("reproduce", help="train one experiment over one or more seeds")
     rep.add_argument("experiment", help="experiment name (see `keras-rl list`)")
-    rep.add_argument("--variant", default="faithful", help="faithful (the post's code as it ran) or fixed")
+    rep.add_argument("--variant", default="faithful",
+                     help="faithful (the post's code as it ran), fixed, or another of the experiment's variants "
+                          "(`keras-rl list`; mountaincar also has faithful-intended)")
     rep.add_argument("--framework", default="keras", help="keras (ours) or torch (where the experiment has one)")
     rep.add_argument("--matched-init", action="store_true",
                      help="torch only: start from the Keras networks' initial weights for the same seed")
@@ -67,24 +70,25 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--no-progress", action="store_true", help="no progress bars")
 
     ev = sub.add_parser("evaluate", help="reload a run's saved policy and play greedy episodes")
-    ev.add_argument("run_dir", type=Path, help="a seed's run folder, e.g. results/pendulum/faithful/seed_0")
-    ev.add_argument("--episodes", type=int, default=5)
+    ev.add_argument("run_dir", type=Path, help="a seed's run folder, e.g. results/pendulum/faithful/seed_0 "
+                                               "(weights are not committed: reproduce the seed first)")
+    ev.add_argument("--episodes", type=int, default=5, help="greedy episodes to play (default 5)")
     ev.add_argument("--seed", type=int, default=None, help="env seed (default: the run's seed + 10000)")
     ev.add_argument("--gif", type=Path, default=None, help="record the first episode to this GIF")
 
     cp = sub.add_parser("compare", help="run or reuse the same seeds in Keras and PyTorch and report the difference")
-    cp.add_argument("experiment")
-    cp.add_argument("--seeds", default="0-9")
-    cp.add_argument("--variant", default="faithful")
+    cp.add_argument("experiment", help="experiment name (see `keras-rl list`)")
+    cp.add_argument("--seeds", default="0-9", help="seed list or range, the same for both frameworks (default 0-9)")
+    cp.add_argument("--variant", default="faithful", help="the variant to compare (default faithful)")
     cp.add_argument("--matched-init", action="store_true",
                     help="torch runs start from the Keras runs' initial weights (report in <out>/<experiment>/matched-init)")
-    cp.add_argument("--workers", type=int, default=1)
+    cp.add_argument("--workers", type=int, default=1, help="processes for the runs still to make (default 1)")
     cp.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
     cp.add_argument("--runs", type=Path, default=Path("results"), help="where run folders are found and made")
     cp.add_argument("--out", type=Path, default=Path("results/compare"), help="report folder root")
     cp.add_argument("--rerun", action="store_true", help="replace existing run folders instead of reusing them")
     cp.add_argument("--reuse-only", action="store_true", help="run nothing; fail if a seed is missing")
-    cp.add_argument("--no-progress", action="store_true")
+    cp.add_argument("--no-progress", action="store_true", help="no progress bars")
 
     ag = sub.add_parser("aggregate", help="rebuild summary.md and curves.png of a multi-seed folder")
     ag.add_argument("parent", type=Path, help="a folder of seed_<n>/ run folders, e.g. results/pendulum/faithful")
@@ -93,125 +97,57 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _run_one(args: tuple[str, dict[str, Any], str, bool, int]) -> dict[str, Any]:
-    """Worker entry point (module level so that spawn can pickle it)."""
-    from keras_rl.experiments import get_experiment
-    from keras_rl.loop import run_seed
-
-    name, config_dict, out_dir, progress, position = args
-    experiment = get_experiment(name)
-    config = experiment.config_cls.from_dict(config_dict)
-    return run_seed(experiment, config, Path(out_dir), progress=progress, position=position)
-
-
-def _worker(job: tuple[str, dict[str, Any], str, bool, int]) -> None:
-    if _run_one(job)["status"] == "interrupted":
-        raise SystemExit(EXIT_INTERRUPTED)
-
-
-def _run_in_processes(jobs: list, workers: int) -> bool:
-    """Run seeds in at most ``workers`` spawned processes; True if Ctrl-C stopped them.
-
-    Each seed writes its own folder, so results are read back from disk. On Ctrl-C no
-    further seed starts; running seeds get SIGINT (a terminal sends it to them as well),
-    write their partial results, and are waited for.
-    """
-    ctx = multiprocessing.get_context("spawn")  # TensorFlow is not fork-safe
-    pending, running, interrupted = list(jobs), [], False
-    try:
-        while pending or running:
-            while pending and len(running) < workers:
-                proc = ctx.Process(target=_worker, args=(pending.pop(0),))
-                proc.start()
-                running.append(proc)
-            running[0].join(timeout=0.5)
-            for proc in [p for p in running if not p.is_alive()]:
-                running.remove(proc)
-                if proc.exitcode == EXIT_INTERRUPTED:
-                    interrupted, pending = True, []
-    except KeyboardInterrupt:
-        interrupted = True
-    if interrupted:
-        # A terminal's Ctrl-C reached the workers too; give them a moment to flush, and
-        # interrupt only those that did not hear it (SIGINT sent to this process alone).
-        try:
-            for proc in running:
-                proc.join(timeout=2.0)
-        except KeyboardInterrupt:
-            pass
-        for proc in running:
-            if proc.is_alive():
-                os.kill(proc.pid, signal.SIGINT)
-        for proc in running:
-            while proc.is_alive():
-                try:
-                    proc.join()
-                except KeyboardInterrupt:  # a second Ctrl-C while the seeds flush: keep waiting
-                    pass
-    return interrupted
+def _check_counts(workers: int, episodes: int | None) -> None:
+    if workers < 1:
+        raise ConfigError(f"--workers must be at least 1, got {workers}")
+    if episodes is not None and episodes <= 0:
+        raise ConfigError(f"--episodes must be positive, got {episodes}")
 
 
 def reproduce(args: argparse.Namespace) -> int:
-    from keras_rl.aggregate import write_aggregate
-    from keras_rl.experiments import get_experiment, metric_label
+    from keras_rl.registry import get_experiment
+    from keras_rl.report.aggregate import write_aggregate
+    from keras_rl.runs.files import run_folder
+    from keras_rl.runs.jobs import SeedJob, backend_for, run_jobs
 
     experiment = get_experiment(args.experiment)
     seeds = parse_seeds(args.seeds)
-    if args.workers < 1:
-        raise ConfigError(f"--workers must be at least 1, got {args.workers}")
+    _check_counts(args.workers, args.episodes)
     if not 0 <= args.min_success_rate <= 1:
         raise ConfigError(f"--min-success-rate must be in [0, 1], got {args.min_success_rate}")
     overrides = {"framework": args.framework, "matched_init": args.matched_init}
     if args.episodes is not None:
         overrides["episodes"] = args.episodes
-    if args.episodes is not None and args.episodes <= 0:
-        raise ConfigError(f"--episodes must be positive, got {args.episodes}")
     base = experiment.config_cls.for_variant(args.variant, **overrides).with_text_overrides(args.overrides)
     if args.framework == "torch":
         from keras_rl.torch import require_torch
 
         require_torch()
-    from keras_rl.compare import run_folder
-
     out = args.out or run_folder(Path("results"), experiment.name, args.variant, args.framework, args.matched_init)
-    jobs = [(experiment.name, base.replace(seed=s).to_dict(), str(out / f"seed_{s}"),
-             not args.no_progress, i % args.workers) for i, s in enumerate(seeds)]
-
-    if args.workers == 1 or len(seeds) == 1:
-        interrupted = False
-        try:
-            for job in jobs:
-                if _run_one(job)["status"] == "interrupted":
-                    interrupted = True
-                    break
-        except KeyboardInterrupt:  # arrived outside a seed's episode loop
-            interrupted = True
-    else:
-        interrupted = _run_in_processes(jobs, args.workers)
-    # Read back what each seed wrote (a worker interrupted mid-run reports only on disk).
-    summaries = [json.loads(p.read_text()) for p in (Path(job[2]) / "summary.json" for job in jobs)
-                 if p.is_file()]
-    failures = [s for s in summaries if s["status"] in ("non_finite_loss", "error")]
+    jobs = [SeedJob.of(base.replace(seed=s), out / f"seed_{s}") for s in seeds]
+    outcome = run_jobs(jobs, backend_for(args.workers, len(jobs)), progress=not args.no_progress)
+    summaries = outcome.summaries
+    failures = [s for s in summaries if s.status in ("non_finite_loss", "error")]
     for s in failures:
-        print(f"error: seed {s['seed']}: {s['message']}", file=sys.stderr)
+        print(f"error: seed {s.seed}: {s.message}", file=sys.stderr)
     if summaries and len(seeds) > 1:
         write_aggregate(out, summaries, base.threshold, f"{experiment.name} ({args.variant}, {args.framework}), "
-                        f"{len(summaries)} seeds", metric_label(experiment, base), experiment.post_reference)
+                        f"{len(summaries)} seeds", experiment.metric_label(base), experiment.post_reference)
     for s in summaries:
-        where = f"episode {s['reached_at_episode']}" if s["success"] else "not reached"
-        print(f"{experiment.name}/{args.variant}/{args.framework} seed {s['seed']}: {s['status']}, threshold {where} "
-              f"({s['episodes_run']} episodes, {s['total_steps']} steps, {s['wall_seconds']:.1f} s) -> {out}")
-    if interrupted:
+        where = f"episode {s.reached_at_episode}" if s.success else "not reached"
+        print(f"{experiment.name}/{args.variant}/{args.framework} seed {s.seed}: {s.status}, threshold {where} "
+              f"({s.episodes_run} episodes, {s.total_steps} steps, {s.wall_seconds:.1f} s) -> {out}")
+    if outcome.interrupted:
         print("interrupted: partial results are on disk, marked unfinished", file=sys.stderr)
         return EXIT_INTERRUPTED
     if failures:
         return EXIT_CRITERION
-    rate = sum(s["success"] for s in summaries) / len(seeds)
+    rate = sum(s.success for s in summaries) / len(seeds)
     return EXIT_OK if rate >= args.min_success_rate else EXIT_CRITERION
 
 
 def evaluate(args: argparse.Namespace) -> int:
-    from keras_rl.loop import evaluate_run
+    from keras_rl.runs.evaluate import evaluate_run
 
     result = evaluate_run(args.run_dir, episodes=args.episodes, gif=args.gif, seed=args.seed, progress=True)
     print(f"mean score over {result['episodes']} greedy episodes: {result['mean']:.2f} "
@@ -219,47 +155,49 @@ def evaluate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def list_experiments() -> int:
-    from keras_rl.experiments import EXPERIMENTS
+def compare(args: argparse.Namespace) -> int:
+    from keras_rl.report.compare import compare as run_compare
+    from keras_rl.runs.provenance import command_line
+
+    _check_counts(args.workers, args.episodes)
+    try:
+        result = run_compare(args.experiment, parse_seeds(args.seeds), args.variant, args.workers, args.runs,
+                             args.out, args.rerun, args.reuse_only, args.episodes, not args.no_progress,
+                             command_line(), args.matched_init)
+    except KeyboardInterrupt:
+        print("interrupted: the runs so far are on disk; run compare again to reuse them", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    print(f"report: {result.out_dir / 'report.md'}")
+    print(result.verdict)
+    return EXIT_OK
+
+
+def aggregate(args: argparse.Namespace) -> int:
+    from keras_rl.report.aggregate import rebuild
+
+    stats = rebuild(args.parent)
+    print(f"{args.parent}/summary.md: {stats['successes']}/{stats['seeds']} seeds succeeded")
+    return EXIT_OK
+
+
+def list_experiments(args: argparse.Namespace) -> int:
+    from keras_rl.learners.table import frameworks
+    from keras_rl.registry import EXPERIMENTS
 
     for name, exp in sorted(EXPERIMENTS.items()):
         print(f"{name:12s} {exp.description}; variants: {', '.join(exp.config_cls.VARIANTS)}; "
-              f"frameworks: {', '.join(exp.config_cls.FRAMEWORKS)}")
+              f"frameworks: {', '.join(frameworks(name))}")
     return EXIT_OK
+
+
+COMMANDS = {"reproduce": reproduce, "evaluate": evaluate, "compare": compare, "aggregate": aggregate,
+            "list": list_experiments}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        if args.command == "reproduce":
-            return reproduce(args)
-        if args.command == "evaluate":
-            return evaluate(args)
-        if args.command == "compare":
-            from keras_rl.compare import compare
-            from keras_rl.results import command_line
-
-            if args.workers < 1:
-                raise ConfigError(f"--workers must be at least 1, got {args.workers}")
-            if args.episodes is not None and args.episodes <= 0:
-                raise ConfigError(f"--episodes must be positive, got {args.episodes}")
-            try:
-                out = compare(args.experiment, parse_seeds(args.seeds), args.variant, args.workers, args.runs, args.out,
-                              args.rerun, args.reuse_only, args.episodes, not args.no_progress, command_line(),
-                              args.matched_init)
-            except KeyboardInterrupt:
-                print("interrupted: the runs so far are on disk; run compare again to reuse them", file=sys.stderr)
-                return EXIT_INTERRUPTED
-            print(f"report: {out / 'report.md'}")
-            print((out / "report.md").read_text().split("**Verdict.** ")[-1].splitlines()[0])
-            return EXIT_OK
-        if args.command == "aggregate":
-            from keras_rl.aggregate import rebuild
-
-            stats = rebuild(args.parent)
-            print(f"{args.parent}/summary.md: {stats['successes']}/{stats['seeds']} seeds succeeded")
-            return EXIT_OK
-        return list_experiments()
+        return COMMANDS[args.command](args)
     except KerasRLError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USAGE

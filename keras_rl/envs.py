@@ -1,10 +1,29 @@
-"""Environment construction with checks that name the problem."""
+"""Environment construction, and what an agent needs to know of an env (``EnvSpec``)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import gymnasium as gym
+import numpy as np
 
 from keras_rl.errors import ConfigError, EnvironmentMismatchError
+
+
+@dataclass(frozen=True)
+class EnvSpec:
+    """The sizes and bounds a learner and an agent are built for."""
+
+    obs_dim: int
+    action_dim: int
+    """Columns an action takes in a stored transition (1 for a discrete action)."""
+    action_bound: float = 1.0
+    """Box actions: the symmetric bound ``high`` (tanh is scaled by it)."""
+    n_actions: int | None = None
+    """Discrete actions: how many."""
+    obs_low: np.ndarray | None = None
+    obs_high: np.ndarray | None = None
+    max_episode_steps: int | None = None
 
 
 def make_env(env_id: str, render_mode: str | None = None, **kwargs) -> gym.Env:
@@ -17,10 +36,14 @@ def make_env(env_id: str, render_mode: str | None = None, **kwargs) -> gym.Env:
         raise ConfigError(f"environment {env_id!r} rejected its arguments {kwargs}: {exc}") from None
 
 
-def require_box_actions(env: gym.Env, algorithm: str) -> tuple[int, int, float]:
-    """(obs_dim, action_dim, action_bound) of a flat Box env, or an error saying why not."""
+def _env_id(env: gym.Env) -> str:
+    return env.spec.id if env.spec else type(env.unwrapped).__name__
+
+
+def box_spec(env: gym.Env, algorithm: str) -> EnvSpec:
+    """The spec of a flat Box env, or an error saying why it does not fit ``algorithm``."""
     space = env.action_space
-    env_id = env.spec.id if env.spec else type(env.unwrapped).__name__
+    env_id = _env_id(env)
     if not isinstance(space, gym.spaces.Box):
         raise EnvironmentMismatchError(
             f"{algorithm} needs a continuous Box action space, but {env_id} has {space}")
@@ -32,16 +55,19 @@ def require_box_actions(env: gym.Env, algorithm: str) -> tuple[int, int, float]:
         raise EnvironmentMismatchError(
             f"{algorithm} scales tanh by one symmetric bound; {env_id}'s action bounds are "
             f"{space.low}..{space.high}")
-    return env.observation_space.shape[0], space.shape[0], float(space.high[0])
+    return EnvSpec(env.observation_space.shape[0], space.shape[0], float(space.high[0]),
+                   obs_low=env.observation_space.low, obs_high=env.observation_space.high,
+                   max_episode_steps=env.spec.max_episode_steps if env.spec else None)
 
 
-def require_discrete_actions(env: gym.Env, algorithm: str) -> tuple[int, int]:
-    """(obs_dim, n_actions) of a flat-observation Discrete env, or an error saying why not."""
-    env_id = env.spec.id if env.spec else type(env.unwrapped).__name__
+def discrete_spec(env: gym.Env, algorithm: str) -> EnvSpec:
+    """The spec of a flat-observation Discrete env, or an error saying why it does not fit."""
+    env_id = _env_id(env)
     if not isinstance(env.action_space, gym.spaces.Discrete):
         raise EnvironmentMismatchError(
             f"{algorithm} needs a Discrete action space, but {env_id} has {env.action_space}")
     if len(env.observation_space.shape) != 1:
         raise EnvironmentMismatchError(f"{algorithm} needs flat observations; {env_id} has "
                                        f"shape {env.observation_space.shape}")
-    return env.observation_space.shape[0], int(env.action_space.n)
+    return EnvSpec(env.observation_space.shape[0], 1, n_actions=int(env.action_space.n),
+                   max_episode_steps=env.spec.max_episode_steps if env.spec else None)

@@ -5,9 +5,6 @@ from __future__ import annotations
 import math
 import operator
 from collections import deque
-from typing import Mapping
-
-from keras_rl.errors import NonFiniteLossError
 
 COMPARISONS = {">": operator.gt, ">=": operator.ge, "<=": operator.le, "<": operator.lt}
 
@@ -96,14 +93,3 @@ class ReturnSpread(_Windowed):
 
     def update(self, score: float) -> float:
         return max(self.recent) - min(self.recent) if self._push(score) else float("inf")
-
-
-def accumulate_losses(totals: dict[str, float], losses: Mapping[str, object], where: str) -> None:
-    """Add one update's losses to the episode's running totals; stop the run on a
-    non-finite loss, naming the loss and ``where`` (the update and env step)."""
-    for name, value in losses.items():
-        value = float(value)
-        if not math.isfinite(value):
-            raise NonFiniteLossError(f"{name} became {value} at {where}; "
-                                     "the run stops here and keeps the episodes already written")
-        totals[name] += value

@@ -6,6 +6,7 @@ import io
 from pathlib import Path
 
 from keras_rl.errors import ConfigError, RunFolderError
+from keras_rl.runs.files import atomic_write_bytes
 
 
 def require_torch():
@@ -31,8 +32,6 @@ def single_threaded():
 
 def save_state(module, path: Path) -> None:
     """``torch.save(module.state_dict())`` written atomically (temporary name, then rename)."""
-    from keras_rl.results import atomic_write_bytes
-
     torch = require_torch()
     buf = io.BytesIO()
     torch.save(module.state_dict(), buf)
@@ -45,7 +44,8 @@ def load_state(module, path: Path) -> None:
     torch = require_torch()
     path = Path(path)
     if not path.is_file():
-        raise RunFolderError(f"{path} is missing; the run did not save it")
+        raise RunFolderError(f"{path} is missing: weights are not committed, so run `keras-rl reproduce` "
+                             "for this seed first (it saves them)")
     try:
         module.load_state_dict(torch.load(path, weights_only=True))
     except Exception as exc:  # pickle, zip and shape errors all mean a damaged file here

@@ -1,7 +1,7 @@
 """PyTorch ports of posts 000 and 001: the same DDPG update as ``keras_rl.ddpg.DDPGLearner``.
 
-Only the learner is ported. The agents (``DDPGAgent``, ``EpisodicDDPGAgent``), buffers,
-noise, configs, quirk switches and result files are the Keras versions' own, so a
+Only the learner is ported. The agent skeleton and its parts (``keras_rl/agents/``,
+``keras_rl/posts/``), buffers, configs, quirk switches and result files are shared, so a
 difference in outcome between ``--framework keras`` and ``--framework torch`` comes from
 the framework: its kernels, its float summation order, and (unless ``matched_init``)
 its default initialisation.
@@ -32,8 +32,8 @@ from typing import Sequence
 import numpy as np
 
 from keras_rl.buffers import Batch, Layout
-from keras_rl.configs import MountainCarDDPGConfig, PendulumDDPGConfig
-from keras_rl.targets import soft_update
+from keras_rl.envs import EnvSpec
+from keras_rl.learners.protocol import ActorUpdate, check_actor_update, four_networks
 from keras_rl.torch import load_state, require_torch, save_state, single_threaded
 
 torch = require_torch()
@@ -160,12 +160,13 @@ class MountainCarCritic(nn.Module):
     """Post 001 ``Critic.__make_model``: BatchNormalization -> Linear 32 selu -> concat the
     action -> Linear 32 selu -> Linear 1."""
 
-    def __init__(self, obs_dim: int, action_dim: int = 1, hidden_units: int = 32, training: bool = False):
+    def __init__(self, obs_dim: int, action_dim: int = 1, hidden_units: Sequence[int] = (32, 32),
+                 training: bool = False):
         super().__init__()
         self.norm = KerasBatchNorm(obs_dim, training)
-        self.fc1 = nn.Linear(obs_dim, hidden_units)
-        self.fc2 = nn.Linear(hidden_units + action_dim, hidden_units)
-        self.out = nn.Linear(hidden_units, 1)
+        self.fc1 = nn.Linear(obs_dim, hidden_units[0])
+        self.fc2 = nn.Linear(hidden_units[0] + action_dim, hidden_units[1])
+        self.out = nn.Linear(hidden_units[1], 1)
 
     def forward(self, state, action):
         x = F.selu(self.fc1(self.norm(state)))
@@ -212,16 +213,25 @@ def max_abs_difference(module, keras_model) -> float:
 
 
 # -- the learner -----------------------------------------------------------------------------
+def soft_update(target: Sequence, source: Sequence, tau: float) -> None:
+    """``theta' <- tau * theta + (1 - tau) * theta'`` on torch tensors in place (call under
+    ``torch.no_grad()``): the same float32 expression as the Keras learners' ``soft_update``,
+    so the two frameworks' targets agree bit for bit given equal inputs."""
+    for t, s in zip(target, source, strict=True):
+        t.copy_(tau * s + (1.0 - tau) * t)
+
+
 class TorchDDPGLearner:
-    """``keras_rl.ddpg.DDPGLearner`` in PyTorch: the same ``train``/``act``/``train_and_act``/
-    ``save``/``load_policy``, the same update order (critic, actor, soft updates) and the same
-    ``actor_update`` modes (``mean_q``, ``dpg_intended``, ``dpg_literal``)."""
+    """``keras_rl.learners.ddpg.DDPGLearner`` in PyTorch: the same ``Learner`` protocol, the
+    same update order (critic, actor, soft updates) and the same ``actor_update`` modes
+    (``mean_q``, ``dpg_intended``, ``dpg_literal``)."""
+
+    loss_names = ("critic_loss", "actor_loss")
 
     def __init__(self, actor, critic, target_actor, target_critic, actor_lr: float, critic_lr: float,
-                 gamma: float, tau: float, broadcast_target: bool, layout: Layout, actor_update: str = "mean_q",
+                 gamma: float, tau: float, broadcast_target: bool, layout: Layout, actor_update: ActorUpdate = "mean_q",
                  dqda_at_buffer_actions: bool = False):
-        if actor_update not in ("mean_q", "dpg_intended", "dpg_literal"):
-            raise ValueError(f"actor_update must be mean_q, dpg_intended or dpg_literal, got {actor_update!r}")
+        check_actor_update(actor_update)
         self.actor, self.critic, self.target_actor, self.target_critic = actor, critic, target_actor, target_critic
         self.actor_optimizer = KerasAdam(actor.parameters(), lr=actor_lr)
         self.critic_optimizer = KerasAdam(critic.parameters(), lr=critic_lr)
@@ -238,15 +248,22 @@ class TorchDDPGLearner:
         return self.update(self.layout.split(torch.from_numpy(np.ascontiguousarray(rows, np.float32))))
 
     @torch.no_grad()
-    def act(self, state: np.ndarray):
-        """The actor's action for one state [obs] -> [act], a tensor (``.numpy()`` gives the array)."""
-        return self.actor(torch.as_tensor(np.asarray(state, np.float32))[None, :])[0]
+    def act(self, state: np.ndarray) -> np.ndarray:
+        """The actor's action for one state [obs] -> [act], as numpy."""
+        return self.actor(torch.as_tensor(np.asarray(state, np.float32))[None, :])[0].numpy()
 
     def train_and_act(self, rows: np.ndarray, state: np.ndarray):
         return self.train(rows), self.act(state)
 
+    def act_without_update(self, state: np.ndarray, want_action: bool):
+        return self.act(state) if want_action else None
+
+    def weights(self) -> dict[str, list[np.ndarray]]:
+        return {name: [t.detach().numpy().copy() for t in _variables(getattr(self, name))]
+                for name in ("actor", "critic", "target_actor", "target_critic")}
+
     @torch.no_grad()
-    def targets(self, rewards, next_states, dones):
+    def td_targets(self, rewards, next_states, dones):
         """The critic's regression targets, [B,B] under P000-BROADCAST, else [B,1]."""
         next_q = self.target_critic(next_states, self.target_actor(next_states))  # [B, 1]
         rewards = rewards[:, None]
@@ -256,7 +273,7 @@ class TorchDDPGLearner:
 
     def update(self, batch: Batch) -> dict:
         states, actions, rewards, next_states, dones = batch
-        targets = self.targets(rewards, next_states, dones)
+        targets = self.td_targets(rewards, next_states, dones)
 
         q_values = self.critic(states, actions)
         critic_loss = torch.mean(torch.square(q_values - targets))
@@ -317,40 +334,35 @@ def _match(nets: Sequence, keras_nets: Sequence) -> None:
         copy_from_keras(net, keras_net)
 
 
-def post000_learner(config: PendulumDDPGConfig, obs_dim: int, action_dim: int, action_bound: float) -> TorchDDPGLearner:
-    """Post 000's learner in PyTorch (see ``keras_rl.ddpg.DDPGAgent``)."""
+def post000_learner(config, spec: EnvSpec) -> TorchDDPGLearner:
+    """Post 000's learner in PyTorch (the agent is ``keras_rl.posts.pendulum.assemble``'s)."""
     c = config
     single_threaded()
     torch.manual_seed(c.seed)
-    actor, target_actor = (Actor(obs_dim, action_dim, action_bound, c.hidden_units) for _ in range(2))
-    critic, target_critic = (Critic(obs_dim, action_dim, c.hidden_units) for _ in range(2))
+    nets = four_networks(lambda: Actor(spec.obs_dim, spec.action_dim, spec.action_bound, c.actor_hidden_units),
+                         lambda: Critic(spec.obs_dim, spec.action_dim, c.critic_hidden_units),
+                         None if c.matched_init or c.target_copy_is_noop else _hard_copy)
     if c.matched_init:
-        from keras_rl.ddpg import post000_networks  # the Keras agent's draws, same seed and order
+        from keras_rl.learners.ddpg import post000_networks  # the Keras learner's draws, same seed and order
 
-        _match((actor, critic, target_actor, target_critic), post000_networks(c, obs_dim, action_dim, action_bound))
-    elif not c.target_copy_is_noop:
-        _hard_copy(target_actor, actor)
-        _hard_copy(target_critic, critic)
-    return TorchDDPGLearner(actor, critic, target_actor, target_critic, c.actor_lr, c.critic_lr, c.gamma, c.tau,
-                            c.broadcast_target, Layout(obs_dim, action_dim))
+        _match(nets, post000_networks(c, spec))
+    return TorchDDPGLearner(*nets, c.actor_lr, c.critic_lr, c.gamma, c.tau, c.broadcast_target,
+                            Layout(spec.obs_dim, spec.action_dim))
 
 
-def post001_learner(config: MountainCarDDPGConfig, obs_dim: int, action_dim: int) -> TorchDDPGLearner:
-    """Post 001's learner in PyTorch (see ``keras_rl.episodic_ddpg.EpisodicDDPGAgent``)."""
+def post001_learner(config, spec: EnvSpec) -> TorchDDPGLearner:
+    """Post 001's learner in PyTorch (the agent is ``keras_rl.posts.mountaincar.assemble``'s)."""
     c = config
     single_threaded()
     torch.manual_seed(c.seed)
-    actor, target_actor = (MountainCarActor(obs_dim, action_dim, c.actor_hidden, c.actor_input_noise,
-                                            c.learning_phase_training) for _ in range(2))
-    critic, target_critic = (MountainCarCritic(obs_dim, action_dim, c.critic_hidden, c.learning_phase_training)
-                             for _ in range(2))
+    nets = four_networks(lambda: MountainCarActor(spec.obs_dim, spec.action_dim, c.actor_hidden_units,
+                                                  c.actor_input_noise, c.learning_phase_training),
+                         lambda: MountainCarCritic(spec.obs_dim, spec.action_dim, c.critic_hidden_units,
+                                                   c.learning_phase_training),
+                         None if c.matched_init else _hard_copy)  # Agent.__init__'s set_weights copy
     if c.matched_init:
-        from keras_rl.episodic_ddpg import post001_networks
+        from keras_rl.learners.ddpg import post001_networks
 
-        _match((actor, critic, target_actor, target_critic), post001_networks(c, obs_dim, action_dim))
-    else:
-        _hard_copy(target_actor, actor)  # Agent.__init__'s set_weights copy
-        _hard_copy(target_critic, critic)
-    return TorchDDPGLearner(actor, critic, target_actor, target_critic, c.actor_lr, c.critic_lr, c.gamma, c.tau,
-                            False, Layout(obs_dim, action_dim), actor_update=c.actor_gradient,
-                            dqda_at_buffer_actions=c.dqda_at_buffer_actions)
+        _match(nets, post001_networks(c, spec))
+    return TorchDDPGLearner(*nets, c.actor_lr, c.critic_lr, c.gamma, c.tau, False, Layout(spec.obs_dim, spec.action_dim),
+                            actor_update=c.actor_gradient, dqda_at_buffer_actions=c.dqda_at_buffer_actions)

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from keras_rl.configs import CartPoleDQNConfig
-from keras_rl.metrics import accumulate_losses
-from keras_rl.torch import load_state, require_torch, save_state
+from keras_rl.agents.skeleton import EpisodeStats, LossTally
+from keras_rl.envs import EnvSpec
+from keras_rl.torch import load_state, require_torch, save_state, single_threaded
 
 torch = require_torch()
 nn = torch.nn
@@ -55,32 +55,34 @@ class DQN(nn.Module):
 
 
 class TutorialDQNAgent:
-    """The tutorial's code path behind ``begin_episode``/``step``; see ``keras_rl.dqn.DQNAgent``."""
+    """The tutorial's code path behind the agent skeleton's verbs (``begin_episode``, ``step``,
+    ``end_episode``); the Keras version is ``keras_rl.posts.cartpole.assemble``'s agent."""
 
     loss_names = ("loss",)
 
-    def __init__(self, config: CartPoleDQNConfig, n_observations: int, n_actions: int, action_space):
+    def __init__(self, config, spec: EnvSpec, action_space):
         self.config = c = config
+        n_observations, n_actions = spec.obs_dim, spec.n_actions
+        single_threaded()
         torch.manual_seed(c.seed)
-        self.policy_net = DQN(n_observations, n_actions, c.hidden_units)
-        self.target_net = DQN(n_observations, n_actions, c.hidden_units)
+        self.policy_net = DQN(n_observations, n_actions, c.q_hidden_units)
+        self.target_net = DQN(n_observations, n_actions, c.q_hidden_units)
         if c.matched_init:  # the Keras agent's first network, same seed (the target copies it)
-            from keras_rl.networks import QNetwork, build
-            from keras_rl.torch.ddpg import dense_pairs, copy_from_keras
+            from keras_rl.learners.networks import QNetwork, build
+            from keras_rl.torch.ddpg import copy_from_keras, dense_pairs
 
-            q_network = build(QNetwork(n_observations, n_actions, c.hidden_units, c.init), n_observations)
+            q_network = build(QNetwork(n_observations, n_actions, c.q_hidden_units, c.init), n_observations)
             net = self.policy_net
             copy_from_keras(net, q_network, dense_pairs([net.layer1, net.layer2, net.layer3], q_network.dense))
         self.target_net.load_state_dict(self.policy_net.state_dict())
-        self.optimizer = torch.optim.AdamW(self.policy_net.parameters(), lr=c.lr, amsgrad=c.amsgrad,
+        self.optimizer = torch.optim.AdamW(self.policy_net.parameters(), lr=c.q_lr, amsgrad=c.amsgrad,
                                            weight_decay=c.weight_decay, eps=c.adam_eps)
         self.criterion = nn.SmoothL1Loss()
         self.random = random.Random(c.seed)
         self.memory = ReplayMemory(c.buffer_size, self.random)
         self.action_space = action_space
         self.steps_done = 0
-        self.updates = 0
-        self.episode_losses: dict[str, float] = {}
+        self.tally = LossTally(self.loss_names)
         self._state = None
         self._action = None
 
@@ -98,7 +100,7 @@ class TutorialDQNAgent:
     def optimize_model(self, transitions=None):
         c = self.config
         if transitions is None:
-            if len(self.memory) < c.batch_size:
+            if len(self.memory) < c.train_start:  # `< BATCH_SIZE` in the tutorial; train_start = BATCH_SIZE
                 return None
             transitions = self.memory.sample(c.batch_size)
         batch = Transition(*zip(*transitions))
@@ -132,7 +134,7 @@ class TutorialDQNAgent:
 
     # -- our agent verbs --------------------------------------------------------------------
     def begin_episode(self, obs) -> int:
-        self.episode_losses = dict.fromkeys(self.loss_names, 0.0)
+        self.tally.reset()
         self._state = torch.tensor(obs, dtype=torch.float32).unsqueeze(0)
         self._action = self.select_action(self._state)
         return self._action.item()
@@ -145,12 +147,18 @@ class TutorialDQNAgent:
         loss = self.optimize_model()
         self.soft_update()
         if loss is not None:
-            self.updates += 1
-            accumulate_losses(self.episode_losses, {"loss": loss.item()}, f"update {self.updates}")
+            self.tally.add({"loss": loss.item()}, f"env step {self.steps_done}")
         if terminated or truncated:
             return None
         self._action = self.select_action(self._state)
         return self._action.item()
+
+    def end_episode(self) -> EpisodeStats:
+        return self.tally.stats()
+
+    @property
+    def updates(self) -> int:
+        return self.tally.total_updates
 
     def greedy_action(self, obs) -> int:
         with torch.no_grad():

@@ -112,12 +112,15 @@ class MountainCarCritic(keras.Model):
     """Post 001 ``Critic.__make_model``: state -> BatchNormalization -> Dense 32 selu ->
     concatenate with the action -> Dense 32 selu -> Dense 1. ``training`` as for the actor."""
 
-    def __init__(self, hidden_units: int = 32, training: bool = False):
+    def __init__(self, hidden_units: Sequence[int] = (32, 32), training: bool = False):
         super().__init__()
+        if len(hidden_units) != 2:
+            raise ValueError(f"post 001's critic has two hidden layers (before and after the action joins), "
+                             f"got widths {tuple(hidden_units)}")
         self.learning_phase = training
         self.norm = keras.layers.BatchNormalization()
-        self.fc1 = keras.layers.Dense(hidden_units, activation="selu")
-        self.fc2 = keras.layers.Dense(hidden_units, activation="selu")
+        self.fc1 = keras.layers.Dense(hidden_units[0], activation="selu")
+        self.fc2 = keras.layers.Dense(hidden_units[1], activation="selu")
         self.out = keras.layers.Dense(1)
 
     def call(self, state: tf.Tensor, action: tf.Tensor) -> tf.Tensor:  # -> [B, 1]

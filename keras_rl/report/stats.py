@@ -76,3 +76,23 @@ def fisher_exact(successes_a: int, n_a: int, successes_b: int, n_b: int) -> floa
             raise ValueError(f"successes must lie in [0, n], got {s} of {n}")
     table = [[successes_a, n_a - successes_a], [successes_b, n_b - successes_b]]
     return float(stats.fisher_exact(table, alternative="two-sided").pvalue)
+
+
+def episodes_to_threshold_stats(reached: list[int | None], success: list[bool] | None = None) -> dict:
+    """Success rate and the distribution of episodes-to-threshold over successful seeds.
+
+    ``success`` defaults to "reached the threshold"; experiments judged at the end of the
+    run (post 001) pass their own. IQR is the 25th to 75th percentile (NumPy's default
+    linear interpolation). The one place these percentiles are computed (``aggregate``
+    and ``compare`` both use it).
+    """
+    success = [r is not None for r in reached] if success is None else list(success)
+    hits = [r for r, ok in zip(reached, success) if ok and r is not None]
+    out: dict = {"seeds": len(reached), "successes": int(sum(success)),
+                 "success_rate": sum(success) / len(reached) if reached else 0.0, "episodes_to_threshold": hits}
+    if hits:
+        q25, q50, q75 = np.percentile(np.asarray(hits, float), [25, 50, 75])
+        out.update(median=float(q50), q25=float(q25), q75=float(q75), min=int(min(hits)), max=int(max(hits)))
+    else:
+        out.update(median=None, q25=None, q75=None, min=None, max=None)
+    return out

@@ -1,0 +1,212 @@
+"""The base of every post's typed config: validation, variants, overrides and renamed fields.
+
+A post's config (``keras_rl/posts/``) holds its hyperparameters *and* its quirk switches,
+each field citing the post. The faithful value of every switch is the field default; a
+post's ``fixed`` variant is a named set of overrides (``VARIANTS``). One concept has one
+name in every post:
+
+- ``actor_hidden_units``/``critic_hidden_units``/``q_hidden_units``: layer widths, as tuples;
+- ``actor_lr``/``critic_lr``/``q_lr``: each network's learning rate;
+- ``train_start``: the warm-up, how many stored transitions training waits for;
+- ``noise_theta``/``noise_mu``/``noise_dt``/``noise_sigma``: the OU exploration noise.
+
+``config.json`` files written before these names were unified still load: ``RENAMED``
+maps each old field to the new ones.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import typing
+from dataclasses import dataclass, field
+from typing import Any, Callable, ClassVar, Literal, Mapping
+
+from keras_rl.errors import ConfigError
+from keras_rl.learners.table import frameworks
+
+Framework = Literal["keras", "torch"]
+
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """Fields every experiment has, plus validation, overrides and (de)serialisation."""
+
+    experiment: ClassVar[str] = ""
+    """Registry name, e.g. ``pendulum``."""
+    post: ClassVar[str] = ""
+    """The seed post this config reproduces."""
+    VARIANTS: ClassVar[dict[str, dict[str, Any]]] = {"faithful": {}}
+    """Named sets of overrides. ``faithful`` is always the empty set: the defaults."""
+    RENAMED: ClassVar[dict[str, Callable[[Any], dict[str, Any]]]] = {}
+    """Old field name -> the new fields its value becomes (for ``config.json`` of older runs)."""
+    RUN_FIELDS: ClassVar[dict[str, str]] = {"variant": "--variant", "seed": "--seeds", "framework": "--framework",
+                                            "matched_init": "--matched-init"}
+    """Fields that have their own command-line flag; ``--set`` refuses them."""
+
+    variant: str = "faithful"
+    """Which named variant produced this config (for the record; set by ``for_variant``)."""
+    seed: int = 0
+    """Seeds Python, NumPy, TensorFlow (or PyTorch) and the env's first ``reset``."""
+    framework: Framework = "keras"
+    """``keras`` (ours) or, where the experiment has one, ``torch`` (``learners/table.py``)."""
+    matched_init: bool = False
+    """``torch`` only (``--matched-init``): build the Keras networks with the same seed and
+    copy their initial weights into the PyTorch ones, so that only the framework differs.
+    False: each framework initialises its networks its own default way."""
+
+    # -- construction -------------------------------------------------------------------
+    @classmethod
+    def for_variant(cls, variant: str, **overrides: Any) -> "ExperimentConfig":
+        """The config of a named variant, with further field overrides on top."""
+        if variant not in cls.VARIANTS:
+            raise ConfigError(
+                f"unknown variant {variant!r} for {cls.experiment}; "
+                f"choose one of {', '.join(cls.VARIANTS)}"
+            )
+        values = {**cls.VARIANTS[variant], **overrides, "variant": variant}
+        return cls.from_dict(values)
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]) -> "ExperimentConfig":
+        """A config from ``to_dict``'s output, including ``config.json`` of older runs."""
+        values = cls.upgrade(values)
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - names - {"experiment", "post"})
+        if unknown:
+            raise ConfigError(f"unknown {cls.experiment} config field(s): {', '.join(unknown)}")
+        kwargs = {k: v for k, v in values.items() if k in names}
+        hints = typing.get_type_hints(cls)
+        for name, value in kwargs.items():
+            if typing.get_origin(hints[name]) is tuple and isinstance(value, list):
+                kwargs[name] = tuple(value)
+        config = cls(**kwargs)
+        config.validate()
+        return config
+
+    @classmethod
+    def upgrade(cls, values: Mapping[str, Any]) -> dict[str, Any]:
+        """Map renamed fields of an older ``config.json`` onto today's names.
+
+        An old field that maps onto a field also given must agree with it, or the file is
+        ambiguous and refused."""
+        values = dict(values)
+        for old, convert in cls.RENAMED.items():
+            if old not in values:
+                continue
+            for new, value in convert(values.pop(old)).items():
+                value = tuple(value) if isinstance(value, list) else value
+                if new in values and (tuple(values[new]) if isinstance(values[new], list) else values[new]) != value:
+                    raise ConfigError(f"old field {old!r} maps to {new}={value!r}, which contradicts "
+                                      f"{new}={values[new]!r} given beside it")
+                values[new] = value
+        return values
+
+    def replace(self, **changes: Any) -> "ExperimentConfig":
+        config = dataclasses.replace(self, **changes)
+        config.validate()
+        return config
+
+    def with_text_overrides(self, assignments: list[str]) -> "ExperimentConfig":
+        """Apply ``name=value`` strings from the command line, parsed by the field's type."""
+        hints = typing.get_type_hints(type(self))
+        changes: dict[str, Any] = {}
+        for item in assignments:
+            name, sep, text = item.partition("=")
+            name = name.strip().replace("-", "_")
+            if not sep:
+                raise ConfigError(f"--set expects name=value, got {item!r}")
+            if name in self.RUN_FIELDS:
+                raise ConfigError(f"--set {name}=... is not a config override; use {self.RUN_FIELDS[name]}")
+            if name in self.RENAMED:
+                new = ", ".join(self.RENAMED[name](0))
+                raise ConfigError(f"{self.experiment} config field {name!r} was renamed; use {new}")
+            if name not in hints or name in ("experiment", "post", "VARIANTS", "RENAMED", "RUN_FIELDS"):
+                raise ConfigError(f"unknown {self.experiment} config field {name!r}")
+            changes[name] = _parse_value(name, hints[name], text.strip())
+        return self.replace(**changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"experiment": self.experiment, "post": self.post, **dataclasses.asdict(self)}
+
+    # -- validation ---------------------------------------------------------------------
+    def validate(self) -> None:
+        """Raise ConfigError naming the first field that is out of range or not a choice."""
+        hints = typing.get_type_hints(type(self))
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if typing.get_origin(hints[f.name]) is Literal and value not in typing.get_args(hints[f.name]):
+                raise ConfigError(f"{f.name} must be one of {', '.join(typing.get_args(hints[f.name]))}, "
+                                  f"got {value!r}")
+            kind = f.metadata.get("check")
+            if kind is None:
+                continue
+            if kind == "widths":
+                if not value or any(isinstance(w, bool) or not isinstance(w, int) or w < 1 for w in value):
+                    raise ConfigError(f"{f.name} must be one or more positive layer widths, got {value!r}")
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ConfigError(f"{f.name} must be a number, got {value!r}")
+            if not math.isfinite(value):
+                raise ConfigError(f"{f.name} must be finite, got {value!r}")
+            if kind == "positive" and not value > 0:
+                raise ConfigError(f"{f.name} must be positive, got {value!r}")
+            if kind == "non_negative" and not value >= 0:
+                raise ConfigError(f"{f.name} must be zero or more, got {value!r}")
+            if kind == "unit" and not 0 < value <= 1:
+                raise ConfigError(f"{f.name} must be in (0, 1], got {value!r}")
+            if kind == "fraction" and not 0 <= value < 1:
+                raise ConfigError(f"{f.name} must be in [0, 1), got {value!r}")
+        if not 0 <= self.seed < 2**32:
+            raise ConfigError(f"seed must be in [0, 2**32), got {self.seed}")
+        if self.framework not in frameworks(self.experiment):
+            raise ConfigError(f"{self.experiment} has no {self.framework!r} version; "
+                              f"choose one of {', '.join(frameworks(self.experiment))}")
+        if self.matched_init and self.framework != "torch":
+            raise ConfigError("matched_init copies Keras' initial weights into the PyTorch networks; "
+                              f"it needs framework 'torch', not {self.framework!r}")
+
+
+def positive(default: Any) -> Any:
+    return field(default=default, metadata={"check": "positive"})
+
+
+def non_negative(default: Any) -> Any:
+    return field(default=default, metadata={"check": "non_negative"})
+
+
+def unit(default: Any) -> Any:
+    return field(default=default, metadata={"check": "unit"})
+
+
+def fraction(default: Any) -> Any:
+    return field(default=default, metadata={"check": "fraction"})
+
+
+def widths(default: tuple[int, ...]) -> Any:
+    return field(default=default, metadata={"check": "widths"})
+
+
+def _parse_value(name: str, hint: Any, text: str) -> Any:
+    try:
+        if hint is bool:
+            lowered = text.lower()
+            if lowered in ("1", "true", "yes", "on"):
+                return True
+            if lowered in ("0", "false", "no", "off"):
+                return False
+            raise ValueError(text)
+        if hint is int:
+            return int(text)
+        if hint is float:
+            return float(text)
+        if typing.get_origin(hint) is tuple:
+            return tuple(int(part) for part in text.split(",") if part.strip())
+        if typing.get_origin(hint) is Literal and text not in typing.get_args(hint):
+            raise ConfigError(f"{name} must be one of {', '.join(typing.get_args(hint))}, got {text!r}")
+        return text
+    except ValueError:
+        kind = getattr(hint, "__name__", None) or ("comma-separated list of ints"
+                                                   if typing.get_origin(hint) is tuple else str(hint))
+        raise ConfigError(f"{name} expects a {kind}, got {text!r}") from None

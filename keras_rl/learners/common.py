@@ -1,0 +1,55 @@
+"""What every Keras learner uses: the compiled step, the soft update, and weight files."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, Sequence
+
+import tensorflow as tf
+
+from keras_rl.errors import RunFolderError
+
+
+def compile_step(fn, xla: bool, *specs: tf.TensorSpec):
+    """``tf.function`` (XLA-compiled when ``xla``) traced once for ``specs``.
+
+    A concrete function: calling it skips tf.function's per-call signature dispatch,
+    which costs as much as the update itself at these network sizes (benchmarks/)."""
+    return tf.function(fn, jit_compile=xla, input_signature=list(specs)).get_concrete_function()
+
+
+def soft_update(target: Sequence[Any], source: Sequence[Any], tau: float) -> None:
+    """Polyak-average Keras variables: ``theta' <- tau * theta + (1 - tau) * theta'``; ``tau=1``
+    is a hard copy. Assigned in place, eagerly or inside ``tf.function`` (no host round-trip,
+    unlike the posts' ``get_weights``/``set_weights``). Lists must pair up one to one."""
+    for t, s in zip(target, source, strict=True):
+        t.assign(tau * s + (1.0 - tau) * t)
+
+
+def save_weights(model, path: Path) -> None:
+    """``model.save_weights`` to a temporary ``.weights.h5`` name, then rename."""
+    path = Path(path)
+    tmp = path.with_name(f".tmp-{os.getpid()}-{path.name}")
+    try:
+        model.save_weights(str(tmp))
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def load_weights(model, path: Path) -> None:
+    """``model.load_weights`` with a RunFolderError that names a missing or damaged file."""
+    path = Path(path)
+    if not path.is_file():
+        raise RunFolderError(f"{path} is missing: weights are not committed, so run `keras-rl reproduce` "
+                             "for this seed first (it saves them)")
+    try:
+        model.load_weights(str(path))
+    except Exception as exc:  # h5py/keras raise many kinds for a damaged file
+        raise RunFolderError(f"{path} could not be loaded ({type(exc).__name__}: {exc})") from None
+
+
+def numpy_weights(model) -> list:
+    """A Keras model's variables (trainable or not) as numpy arrays."""
+    return [v.numpy() for v in model.variables]

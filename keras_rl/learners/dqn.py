@@ -1,0 +1,110 @@
+"""DQN as the PyTorch tutorial (post 003) runs it, in Keras with one compiled step per env step."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import keras
+import numpy as np
+import tensorflow as tf
+
+from keras_rl.buffers import Batch, Layout
+from keras_rl.envs import EnvSpec
+from keras_rl.learners.common import compile_step, load_weights, numpy_weights, save_weights, soft_update
+from keras_rl.learners.networks import QNetwork, build
+from keras_rl.learners.optimizers import TorchAdamW
+
+
+def huber(x: tf.Tensor) -> tf.Tensor:
+    """``nn.SmoothL1Loss()`` (beta=1, mean) = Huber with delta 1, averaged."""
+    abs_x = tf.abs(x)
+    quadratic = tf.minimum(abs_x, 1.0)
+    return tf.reduce_mean(0.5 * tf.square(quadratic) + (abs_x - quadratic))
+
+
+class DQNLearner:
+    """The policy and target networks and the compiled ``optimize_model`` + soft update."""
+
+    loss_names = ("loss",)
+
+    def __init__(self, q_network: keras.Model, target_network: keras.Model, optimizer: keras.optimizers.Optimizer,
+                 gamma: float, tau: float, grad_clip_value: float, layout: Layout, xla: bool = True):
+        self.q_network, self.target_network, self.optimizer = q_network, target_network, optimizer
+        self.gamma, self.tau, self.grad_clip_value = float(gamma), float(tau), float(grad_clip_value)
+        self.layout = layout
+        optimizer.build(q_network.trainable_variables)
+        rows = tf.TensorSpec([None, layout.width], tf.float32)
+        obs = tf.TensorSpec([layout.obs_dim], tf.float32)
+        self._train = compile_step(self._train_rows, xla, rows)
+        self._act = compile_step(self._greedy, xla, obs)
+        self._train_and_act = compile_step(lambda r, s: (self._train_rows(r), self._greedy(s)), xla, rows, obs)
+        self._sync_and_act = compile_step(lambda s: (self._soft_update(), self._greedy(s))[1], xla, obs)
+
+    # -- the Learner protocol --------------------------------------------------------------
+    def train(self, rows: np.ndarray) -> dict[str, tf.Tensor]:
+        """``optimize_model()`` then the soft update, on packed rows [B, width]."""
+        return self._train(tf.constant(rows))
+
+    def act(self, state: np.ndarray) -> int:
+        """``policy_net(state).max(1)[1]``: the argmax action for one state."""
+        return int(self._act(tf.constant(state, tf.float32)))
+
+    def train_and_act(self, rows: np.ndarray, state: np.ndarray) -> tuple[dict[str, tf.Tensor], int]:
+        losses, action = self._train_and_act(tf.constant(rows), tf.constant(state, tf.float32))
+        return losses, int(action)
+
+    def act_without_update(self, state: np.ndarray, want_action: bool) -> int | None:
+        """Before the first batch: the tutorial's soft update still runs every step."""
+        action = int(self._sync_and_act(tf.constant(state, tf.float32)))
+        return action if want_action else None
+
+    def save(self, run_dir: Path) -> None:
+        save_weights(self.q_network, Path(run_dir) / "q_network.weights.h5")
+
+    def load_policy(self, run_dir: Path) -> None:
+        load_weights(self.q_network, Path(run_dir) / "q_network.weights.h5")
+
+    def weights(self) -> dict[str, list[np.ndarray]]:
+        return {"q_network": numpy_weights(self.q_network), "target_network": numpy_weights(self.target_network)}
+
+    # -- traced ----------------------------------------------------------------------------
+    def update(self, batch: Batch) -> dict[str, tf.Tensor]:
+        """In [None] ``optimize_model``: Q(s,a), V(s') from the target net, Huber, clip, AdamW."""
+        states, actions, rewards, next_states, dones = batch
+        actions = tf.cast(actions[:, 0], tf.int32)  # [B]
+        # next_state_values[non_final_mask] = target_net(non_final_next_states).max(1)[0]
+        next_values = tf.reduce_max(self.target_network(next_states), axis=1) * (1.0 - dones)  # [B]
+        expected = next_values * self.gamma + rewards  # [B]
+        with tf.GradientTape() as tape:
+            q_values = self.q_network(states)  # [B, A]
+            state_action_values = tf.gather(q_values, actions[:, None], batch_dims=1)[:, 0]  # [B]
+            loss = huber(state_action_values - expected)
+        grads = tape.gradient(loss, self.q_network.trainable_variables)
+        # torch.nn.utils.clip_grad_value_(policy_net.parameters(), 100), before optimizer.step()
+        grads = [tf.clip_by_value(g, -self.grad_clip_value, self.grad_clip_value) for g in grads]
+        self.optimizer.apply_gradients(zip(grads, self.q_network.trainable_variables))
+        self._soft_update()
+        return {"loss": loss}
+
+    def _soft_update(self):
+        soft_update(self.target_network.variables, self.q_network.variables, self.tau)
+        return tf.constant(0)
+
+    def _train_rows(self, rows):
+        # rows arrive as float32; the networks may compute in float64 (the parity tests do)
+        return self.update(self.layout.split(tf.cast(rows, self.q_network.compute_dtype)))
+
+    def _greedy(self, state):
+        state = tf.cast(state, self.q_network.compute_dtype)
+        return tf.argmax(self.q_network(state[None, :])[0], output_type=tf.int32)
+
+
+def post003_learner(config, spec: EnvSpec, xla: bool = True, dtype: str | None = None) -> DQNLearner:
+    """The tutorial's ``policy_net``, ``target_net`` (``load_state_dict`` copy) and AdamW."""
+    c = config
+    q_network = build(QNetwork(spec.obs_dim, spec.n_actions, c.q_hidden_units, c.init, dtype), spec.obs_dim)
+    target_network = build(QNetwork(spec.obs_dim, spec.n_actions, c.q_hidden_units, c.init, dtype), spec.obs_dim)
+    soft_update(target_network.variables, q_network.variables, 1.0)  # target_net.load_state_dict(...)
+    optimizer = TorchAdamW(learning_rate=c.q_lr, epsilon=c.adam_eps, weight_decay=c.weight_decay, amsgrad=c.amsgrad)
+    return DQNLearner(q_network, target_network, optimizer, c.gamma, c.tau, c.grad_clip_value,
+                      Layout(spec.obs_dim, 1), xla=xla)

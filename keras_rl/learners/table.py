@@ -1,0 +1,54 @@
+"""Where a learner is chosen: one table, (experiment, framework) -> factory.
+
+Entries are import paths, so reading the table imports neither TensorFlow nor torch; the
+factory's module is imported only when a run asks for it. A learner factory is called as
+``factory(config, spec)`` and returns a ``Learner`` (``protocol.py``), which the post's
+agent skeleton drives. The one ``whole_agent`` entry is post 003's PyTorch tutorial, whose
+verbatim code *is* the original and so brings its own agent behind the same verbs; it is
+called as ``factory(config, spec, action_space)``.
+
+Adding a framework, or a seed-batched learner, is one module plus one line here.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from typing import Any, Callable
+
+
+@dataclass(frozen=True)
+class Implementation:
+    path: str
+    """``module:callable``."""
+    whole_agent: bool = False
+    """True: the factory builds the whole agent (its own buffer and exploration), not a learner."""
+
+    def load(self) -> Callable[..., Any]:
+        module, _, name = self.path.partition(":")
+        return getattr(importlib.import_module(module), name)
+
+
+IMPLEMENTATIONS: dict[tuple[str, str], Implementation] = {
+    ("pendulum", "keras"): Implementation("keras_rl.learners.ddpg:post000_learner"),
+    ("pendulum", "torch"): Implementation("keras_rl.torch.ddpg:post000_learner"),
+    ("mountaincar", "keras"): Implementation("keras_rl.learners.ddpg:post001_learner"),
+    ("mountaincar", "torch"): Implementation("keras_rl.torch.ddpg:post001_learner"),
+    ("cartpole", "keras"): Implementation("keras_rl.learners.dqn:post003_learner"),
+    ("cartpole", "torch"): Implementation("keras_rl.torch.dqn_tutorial:TutorialDQNAgent", whole_agent=True),
+}
+
+
+def frameworks(experiment: str) -> tuple[str, ...]:
+    """The frameworks an experiment is implemented in, in table order."""
+    return tuple(fw for (name, fw) in IMPLEMENTATIONS if name == experiment)
+
+
+def implementation(experiment: str, framework: str) -> Implementation:
+    from keras_rl.errors import ConfigError
+
+    try:
+        return IMPLEMENTATIONS[(experiment, framework)]
+    except KeyError:
+        raise ConfigError(f"{experiment} has no {framework!r} version; choose one of "
+                          f"{', '.join(frameworks(experiment))}") from None

@@ -1,0 +1,104 @@
+"""Several seeds of one experiment: ``summary.md`` and a plot of all curves."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from keras_rl.errors import RunFolderError
+from keras_rl.registry import get_experiment
+from keras_rl.report.plots import plot_seed_curve, plt, save_figure
+from keras_rl.report.stats import episodes_to_threshold_stats
+from keras_rl.runs.files import atomic_write_text, read_episodes
+from keras_rl.runs.summary import RunSummary
+
+
+def _fmt(value: Any) -> str:
+    return "n/a" if value is None else (f"{value:g}" if isinstance(value, float) else str(value))
+
+
+def write_aggregate(out_dir: Path, summaries: list[RunSummary], threshold: float, title: str,
+                    metric_label: str, post_reference: str = "") -> dict[str, Any]:
+    """Write ``summary.md`` and ``curves.png`` for the seeds in ``summaries``."""
+    out_dir = Path(out_dir)
+    summaries = sorted(summaries, key=lambda s: s.seed)
+    stats = episodes_to_threshold_stats([s.reached_at_episode for s in summaries], [s.success for s in summaries])
+    walls = [s.wall_seconds for s in summaries]
+    lines = [
+        f"# {title}",
+        "",
+        f"Criterion: {summaries[0].criterion}." if summaries else "",
+        "",
+        "| seeds | success rate | episodes to threshold: median | IQR (25th-75th) | min | max | wall s (median) |",
+        "|---|---|---|---|---|---|---|",
+        f"| {stats['seeds']} | {stats['successes']}/{stats['seeds']} ({stats['success_rate']:.0%}) "
+        f"| {_fmt(stats['median'])} | {_fmt(stats['q25'])}-{_fmt(stats['q75'])} | {_fmt(stats['min'])} "
+        f"| {_fmt(stats['max'])} | {np.median(walls):.1f} |",
+        "",
+    ]
+    if post_reference:
+        lines += [post_reference, ""]
+    lines += ["| seed | status | reached at episode | episodes run | env steps | final metric | wall s |",
+              "|---|---|---|---|---|---|---|"]
+    for s in summaries:
+        final = None if s.final_metric is None else round(s.final_metric, 1)
+        lines.append(f"| {s.seed} | {s.status} | {_fmt(s.reached_at_episode)} | {s.episodes_run} "
+                     f"| {s.total_steps} | {_fmt(final)} | {s.wall_seconds:.1f} |")
+    if summaries:
+        lines += ["", f"Command: `{summaries[0].command}`", ""]
+    atomic_write_text(out_dir / "summary.md", "\n".join(lines))
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for s in summaries:
+        csv_path = out_dir / f"seed_{s.seed}" / "episodes.csv"
+        if not csv_path.is_file():
+            continue
+        rows = read_episodes(csv_path)
+        metric = [r["metric"] if r["metric"] is not None and np.isfinite(r["metric"]) else np.nan for r in rows]
+        ax.plot([r["episode"] for r in rows], metric, lw=1.2, label=f"seed {s.seed}")
+    ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
+    ax.set_xlabel("episode")
+    ax.set_ylabel(metric_label)
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2, loc="lower right")
+    save_figure(fig, out_dir / "curves.png")
+    return stats
+
+
+def rebuild(parent: Path) -> dict[str, Any]:
+    """Rewrite ``summary.md``, ``curves.png`` and each seed's ``curve.png`` of a multi-seed
+    folder from its seeds' files."""
+    parent = Path(parent)
+    seed_dirs = sorted(p.parent for p in parent.glob("seed_*/config.json"))
+    if not seed_dirs:
+        raise RunFolderError(f"{parent} holds no seed_*/ run folders")
+    summaries, configs = [], []
+    for seed_dir in seed_dirs:
+        summaries.append(RunSummary.read(seed_dir))
+        try:
+            configs.append(json.loads((seed_dir / "config.json").read_text()))
+        except (OSError, ValueError) as exc:
+            raise RunFolderError(f"{seed_dir / 'config.json'} is corrupt ({exc})") from None
+    keys = {(c["experiment"], c["variant"], c.get("framework", "keras")) for c in configs}
+    if len(keys) != 1:
+        raise RunFolderError(f"{parent} mixes runs of different experiments/variants/frameworks: {sorted(keys)}")
+    (name, variant, framework), = keys
+    experiment = get_experiment(name)
+    loaded = [experiment.config_cls.from_dict(c) for c in configs]
+    first = {k: v for k, v in loaded[0].to_dict().items() if k != "seed"}
+    for seed_dir, config in zip(seed_dirs[1:], loaded[1:]):
+        other = config.to_dict()
+        differing = sorted(k for k in first if other[k] != first[k])
+        if differing:
+            k = differing[0]
+            raise RunFolderError(f"{seed_dir} was made with a different config than {seed_dirs[0]} "
+                                 f"({k}={other[k]!r} there, {first[k]!r} here); refusing to aggregate mixed runs")
+    for seed_dir, config in zip(seed_dirs, loaded):
+        plot_seed_curve(seed_dir, experiment, config)
+    return write_aggregate(parent, summaries, loaded[0].threshold,
+                           f"{name} ({variant}, {framework}), {len(summaries)} seeds",
+                           experiment.metric_label(loaded[0]), experiment.post_reference)

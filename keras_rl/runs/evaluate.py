@@ -1,0 +1,71 @@
+"""Reload a run folder's config and saved policy, and play greedy episodes with it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from keras_rl.errors import ConfigError, RunFolderError
+from keras_rl.registry import build_agent, get_experiment
+from keras_rl.runs.files import atomic_write_json
+from keras_rl.seeding import configure_tensorflow, seed_everything
+
+
+def load_run_config(run_dir: Path):
+    """The experiment and config a run folder was made with, or a RunFolderError."""
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise RunFolderError(f"run folder {str(run_dir)!r} does not exist")
+    path = run_dir / "config.json"
+    if not path.is_file():
+        raise RunFolderError(f"{run_dir} has no config.json; is it a run folder (one seed)?")
+    try:
+        values = json.loads(path.read_text())
+        experiment = get_experiment(values["experiment"])
+        return experiment, experiment.config_cls.from_dict(values)
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+        raise RunFolderError(f"{path} is corrupt: {exc}") from None
+
+
+def evaluate_run(run_dir: Path, episodes: int = 5, gif: Path | None = None, seed: int | None = None,
+                 progress: bool = False) -> dict[str, Any]:
+    """Reload the saved policy and play greedy episodes, like post 000 §3's test section."""
+    if episodes <= 0:
+        raise ConfigError(f"--episodes must be positive, got {episodes}")
+    experiment, config = load_run_config(run_dir)
+    configure_tensorflow(1)
+    seed = config.seed + 10_000 if seed is None else seed
+    seed_everything(seed)
+    env = experiment.make_env(config, render_mode="rgb_array" if gif else None)
+    agent = build_agent(experiment, config, env)
+    agent.load_policy(run_dir)
+
+    scores, frames = [], []
+    for episode in range(episodes):
+        obs, _ = env.reset(seed=seed if episode == 0 else None)
+        score, done = 0.0, False
+        while not done:
+            if gif and episode == 0:
+                frames.append(env.render())
+            obs, reward, terminated, truncated, _ = env.step(agent.greedy_action(obs))
+            score += float(reward)
+            done = terminated or truncated
+        scores.append(score)
+        if progress:
+            print(f"episode: {episode:3d} | score: {score:.3f}")
+    env.close()
+    result = {"run_dir": str(run_dir), "episodes": episodes, "seed": seed, "scores": scores,
+              "mean": float(np.mean(scores)), "std": float(np.std(scores))}
+    if gif:
+        from PIL import Image
+
+        gif = Path(gif)
+        gif.parent.mkdir(parents=True, exist_ok=True)
+        images = [Image.fromarray(f) for f in frames]
+        images[0].save(gif, save_all=True, append_images=images[1:], duration=int(1000 / 30), loop=0)
+        result["gif"] = str(gif)
+    atomic_write_json(Path(run_dir) / "evaluation.json", result)
+    return result

@@ -1,0 +1,141 @@
+"""Run folders on disk: atomic writes, ``episodes.csv`` and the recorder that writes a seed's folder.
+
+A run folder holds ``config.json``, ``episodes.csv``, ``summary.json``, ``curve.png``
+and the learner's weight files. ``episodes.csv`` is rewritten (atomically) after every
+episode, so Ctrl-C, a NaN or a crash leaves a valid file with every finished episode.
+No plotting here: ``keras_rl/report/plots.py`` draws the curves.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable
+
+from keras_rl.runs.signals import sigint_deferred
+
+
+def run_folder(runs_root: Path, experiment: str, variant: str, framework: str, matched_init: bool = False) -> Path:
+    """``results/<experiment>/<variant>[-torch[-matched-init]]``: where ``reproduce`` and
+    ``compare`` put a variant's seed folders by default."""
+    suffix = "" if framework == "keras" else f"-{framework}" + ("-matched-init" if matched_init else "")
+    return Path(runs_root) / experiment / f"{variant}{suffix}"
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+_FILE_MODE = 0o666 & ~_umask()
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write to a temporary file beside ``path``, fsync, then rename over it. The file gets
+    the usual permissions (``0666`` less the umask), like any other file the user writes."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, _FILE_MODE)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def finite_or_none(value: Any) -> Any:
+    """JSON has no NaN or Infinity: non-finite floats become null, everywhere in ``value``."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_or_none(v) for v in value]
+    return value
+
+
+def atomic_write_json(path: Path, obj: Any) -> None:
+    """Valid JSON only: non-finite floats are written as null."""
+    atomic_write_text(path, json.dumps(finite_or_none(obj), indent=2, allow_nan=False) + "\n")
+
+
+def episode_columns(loss_names: tuple[str, ...]) -> tuple[str, ...]:
+    """``episode`` counts from 1; ``steps`` is that episode's length; ``metric`` is the post's
+    progress metric (post 000: the EMA; post 003: the 100-episode mean); each loss is the
+    mean over the episode's updates (empty before training starts); ``wall_seconds`` is the
+    time since the run started."""
+    return ("episode", "steps", "total_steps", "score", "metric", *loss_names, "wall_seconds")
+
+
+def format_row(row: dict[str, Any], columns: tuple[str, ...]) -> dict[str, str]:
+    out = {}
+    for key in columns:
+        value = row.get(key)
+        if value is None:
+            out[key] = ""
+        elif isinstance(value, float):
+            out[key] = f"{value:.6f}" if key == "wall_seconds" else repr(value)
+        else:
+            out[key] = str(value)
+    return out
+
+
+def episodes_csv_text(rows: Iterable[dict[str, Any]], columns: tuple[str, ...]) -> str:
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow(format_row(row, columns))
+    return buf.getvalue()
+
+
+INTEGER_COLUMNS = ("episode", "steps", "total_steps")
+
+
+def read_episodes(path: Path) -> list[dict[str, Any]]:
+    """Parse an ``episodes.csv`` back into typed rows."""
+    with open(path, newline="") as fh:
+        reader = csv.DictReader(fh)
+        if reader.fieldnames is None or "score" not in reader.fieldnames:
+            raise ValueError(f"{path} is not an episodes.csv (no header with 'score')")
+        return [{k: (None if v in ("", None) else int(v) if k in INTEGER_COLUMNS else float(v))
+                 for k, v in raw.items()} for raw in reader]
+
+
+@dataclass
+class RunRecorder:
+    """Writes one seed's run folder as the run goes."""
+
+    out_dir: Path
+    loss_names: tuple[str, ...] = ()
+    rows: list[dict[str, Any]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.out_dir = Path(self.out_dir)
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+
+    def write_config(self, config_dict: dict[str, Any]) -> None:
+        atomic_write_json(self.out_dir / "config.json", config_dict)
+
+    def add_episode(self, row: dict[str, Any]) -> None:
+        # The file and the in-memory rows change together: Ctrl-C waits for both.
+        with sigint_deferred():
+            atomic_write_text(self.out_dir / "episodes.csv",
+                              episodes_csv_text([*self.rows, row], episode_columns(self.loss_names)))
+            self.rows.append(row)
