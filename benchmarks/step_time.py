@@ -29,15 +29,15 @@ from keras_rl.seeding import configure_tensorflow, seed_everything  # noqa: E402
 
 
 def time_agent(experiment: str, steps: int, warmup: int, **overrides) -> float:
-    """ms per env step of one of our agents (the same loop body as ``keras_rl.loop.run_seed``)."""
-    from keras_rl.experiments import get_experiment
+    """ms per env step of one of our agents (the same loop body as ``keras_rl.runs.loop.run_seed``)."""
+    from keras_rl.registry import build_agent, get_experiment
 
     exp = get_experiment(experiment)
     config = exp.config_cls.for_variant("faithful", **overrides)
     env = exp.make_env(config)
     env.action_space.seed(0)
-    agent = exp.make_agent(config, env)
-    train_start = getattr(config, "train_start", getattr(config, "batch_size", 0))
+    agent = build_agent(exp, config, env)
+    train_start = config.train_start  # the warm-up has one name in every post
 
     def play(n: int) -> float:
         done_steps, start = 0, time.perf_counter()
@@ -61,7 +61,7 @@ def time_agent(experiment: str, steps: int, warmup: int, **overrides) -> float:
 def time_post000_eager(steps: int, warmup: int) -> float:
     import gymnasium as gym
 
-    from keras_rl.networks import Critic, build
+    from keras_rl.learners.networks import Critic, build
     from keras_rl.reference.post000_eager import PostActor, PostAgent, run_steps
 
     env = gym.make("Pendulum-v1", g=10)
@@ -82,8 +82,9 @@ def time_post001_updates(batches_wanted: int, with_torch: bool) -> tuple[float, 
     import random
 
     from keras_rl.buffers import PoppingBuffer
-    from keras_rl.configs import MountainCarDDPGConfig
-    from keras_rl.episodic_ddpg import EpisodicDDPGAgent
+    from keras_rl.envs import EnvSpec
+    from keras_rl.posts.mountaincar import MountainCarDDPGConfig
+    from keras_rl.registry import agent_for
     from keras_rl.reference.post001_eager import PostAgent, fill, functional_models
 
     rng = np.random.default_rng(0)
@@ -101,9 +102,10 @@ def time_post001_updates(batches_wanted: int, with_torch: bool) -> tuple[float, 
     rows = rng.normal(size=(n, 2 * 2 + 1 + 2)).astype(np.float32)  # [state 2 | action | reward | next 2 | done]
 
     def ours(framework: str) -> float:
-        agent = EpisodicDDPGAgent(MountainCarDDPGConfig(framework=framework), np.array([-1.2, -0.07]),
-                                  np.array([0.6, 0.07]), 1, 999)
-        buffer = PoppingBuffer(n + 1, agent.layout, random.Random(0))
+        spec = EnvSpec(2, 1, 1.0, obs_low=np.array([-1.2, -0.07]), obs_high=np.array([0.6, 0.07]),
+                       max_episode_steps=999)
+        agent = agent_for(MountainCarDDPGConfig(framework=framework), spec)
+        buffer = PoppingBuffer(n + 1, agent.buffer.layout, random.Random(0))
         buffer.add_rows(rows)
         agent.learner.train(buffer.sample_rows(32))  # trace and compile / warm up
         buffer.add_rows(rows[:32])
@@ -166,7 +168,7 @@ def main() -> None:
     print(f"peak RSS of this process: {peak_mb:.0f} MB")
     result["peak_rss_mb"] = peak_mb
     if args.json:
-        from keras_rl.results import atomic_write_json
+        from keras_rl.runs.files import atomic_write_json
 
         atomic_write_json(args.json, result)
 

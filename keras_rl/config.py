@@ -25,9 +25,6 @@ from typing import Any, Callable, ClassVar, Literal, Mapping
 from keras_rl.errors import ConfigError
 from keras_rl.learners.table import frameworks
 
-Framework = Literal["keras", "torch"]
-
-
 
 @dataclass(frozen=True)
 class ExperimentConfig:
@@ -49,8 +46,9 @@ class ExperimentConfig:
     """Which named variant produced this config (for the record; set by ``for_variant``)."""
     seed: int = 0
     """Seeds Python, NumPy, TensorFlow (or PyTorch) and the env's first ``reset``."""
-    framework: Framework = "keras"
-    """``keras`` (ours) or, where the experiment has one, ``torch`` (``learners/table.py``)."""
+    framework: str = "keras"
+    """``keras`` (ours) or, where the experiment has one, ``torch``: the frameworks are the
+    ones ``learners/table.py`` lists for the experiment (so not a fixed Literal)."""
     matched_init: bool = False
     """``torch`` only (``--matched-init``): build the Keras networks with the same seed and
     copy their initial weights into the PyTorch ones, so that only the framework differs.

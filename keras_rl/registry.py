@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from keras_rl.envs import EnvSpec
 from keras_rl.errors import ConfigError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import implementation
@@ -22,11 +23,17 @@ def get_experiment(name: str) -> Experiment:
 
 
 def build_agent(experiment: Experiment, config, env, **learner_options: Any):
-    """The agent for ``config`` on ``env``: the table's learner inside the post's parts (or,
-    for a ``whole_agent`` entry, the agent the table's factory builds)."""
-    spec = experiment.env_spec(env)
+    """The agent for ``config`` on ``env`` (see ``agent_for``)."""
+    return agent_for(config, experiment.env_spec(env), env.action_space, **learner_options)
+
+
+def agent_for(config, spec: EnvSpec, action_space=None, **learner_options: Any):
+    """The table's learner (``learners/table.py``) inside the post's parts (``assemble``), or,
+    for a ``whole_agent`` entry, the agent the table's factory builds. ``learner_options``
+    go to a learner factory (the Keras ones take ``xla``)."""
+    experiment = get_experiment(config.experiment)
     impl = implementation(experiment.name, config.framework)
     factory = impl.load()
     if impl.whole_agent:
-        return factory(config, spec, env.action_space)
-    return experiment.assemble(config, spec, factory(config, spec, **learner_options), env.action_space)
+        return factory(config, spec, action_space)
+    return experiment.assemble(config, spec, factory(config, spec, **learner_options), action_space)

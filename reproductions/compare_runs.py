@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 from scipy.stats import fisher_exact, mannwhitneyu  # noqa: E402
 
-from keras_rl.aggregate import episodes_to_threshold_stats  # noqa: E402
+from keras_rl.report.stats import episodes_to_threshold_stats  # noqa: E402
 
 
 def load(folder: Path) -> list[dict]:

@@ -56,7 +56,7 @@ def row_numbers(folder: Path) -> dict | None:
 
 
 def table() -> str:
-    from keras_rl.compare import run_folder
+    from keras_rl.runs.files import run_folder
 
     lines = ["| post | variant | framework | success | criterion | episodes to threshold: median (IQR) | the post | ms/step | command |",
              "|---|---|---|---|---|---|---|---|---|"]
@@ -111,7 +111,7 @@ def main() -> None:
     if not args.write:
         print(text, compared, sep="\n\n")
         return
-    from keras_rl.results import atomic_write_text
+    from keras_rl.runs.files import atomic_write_text
 
     readme = ROOT / "results" / "README.md"
     content = _replace(readme.read_text(), BEGIN, END, text)

@@ -11,10 +11,10 @@ import gymnasium as gym
 import pytest
 
 from keras_rl.cli import main, parse_seeds
-from keras_rl.configs import PendulumDDPGConfig
-from keras_rl.experiments import get_experiment
-from keras_rl.loop import run_seed
-from keras_rl.results import read_episodes
+from keras_rl.posts.pendulum import PendulumDDPGConfig
+from keras_rl.registry import get_experiment
+from keras_rl.runs.loop import run_seed
+from keras_rl.runs.files import read_episodes
 
 CLI = [sys.executable, "-m", "keras_rl"]
 
@@ -129,8 +129,8 @@ def test_nan_in_a_loss_stops_the_run_and_keeps_the_episodes(tmp_path):
     config = PendulumDDPGConfig.for_variant("faithful", episodes=10, train_start=64, batch_size=16)
     env = NaNRewardAfter(exp.make_env(config), after_steps=450)
     summary = run_seed(exp, config, tmp_path, progress=False, env=env)
-    assert summary["status"] == "non_finite_loss" and not summary["finished"]
-    assert "critic_loss became nan" in summary["message"]
+    assert summary.status == "non_finite_loss" and not summary.finished
+    assert "critic_loss became nan" in summary.message
     rows = read_episodes(tmp_path / "episodes.csv")
     assert [r["episode"] for r in rows] == [1, 2]  # the episode that hit NaN is not recorded
     assert json.loads((tmp_path / "summary.json").read_text())["status"] == "non_finite_loss"
@@ -160,13 +160,13 @@ def test_ctrl_c_mid_episode_is_taken_between_env_steps(tmp_path):
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the run put it back
     finally:
         signal.signal(signal.SIGINT, previous)
-    assert summary["status"] == "interrupted" and summary["episodes_run"] == 2  # episode 3 was cut short
+    assert summary.status == "interrupted" and summary.episodes_run == 2  # episode 3 was cut short
     assert [r["episode"] for r in read_episodes(tmp_path / "episodes.csv")] == [1, 2]
     assert (tmp_path / "actor.weights.h5").is_file()
 
 
 def test_sigint_as_flag_records_instead_of_raising_and_respects_an_ignored_sigint():
-    from keras_rl.results import sigint_as_flag
+    from keras_rl.runs.signals import sigint_as_flag
 
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:

@@ -10,8 +10,8 @@ import pytest
 from scipy import stats
 
 from keras_rl.cli import main
-from keras_rl.results import read_episodes
-from keras_rl.stats import fisher_exact, iqm, iqm_ci, mann_whitney, median_difference_ci
+from keras_rl.runs.files import read_episodes
+from keras_rl.report.stats import fisher_exact, iqm, iqm_ci, mann_whitney, median_difference_ci
 
 
 def test_mann_whitney_against_a_hand_computed_u():

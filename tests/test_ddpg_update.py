@@ -3,9 +3,11 @@
 import numpy as np
 import pytest
 
-from keras_rl.configs import PendulumDDPGConfig
-from keras_rl.ddpg import DDPGAgent
-from keras_rl.networks import Critic, build
+from keras_rl.buffers import Batch
+from keras_rl.envs import EnvSpec
+from keras_rl.posts.pendulum import PendulumDDPGConfig
+from keras_rl.registry import agent_for
+from keras_rl.learners.networks import Critic, build
 from keras_rl.reference.post000_eager import PostActor, PostAgent
 from keras_rl.seeding import seed_everything
 
@@ -15,7 +17,13 @@ B = 4
 def make_agent(variant="faithful", xla=True, seed=0):
     seed_everything(seed)
     config = PendulumDDPGConfig.for_variant(variant, batch_size=B, seed=seed)
-    return DDPGAgent(config, obs_dim=3, action_dim=1, action_bound=2.0, xla=xla)
+    return agent_for(config, EnvSpec(3, 1, 2.0), xla=xla)
+
+
+def train_batch(agent, batch):
+    """One update on a given batch; the losses as floats."""
+    rows = agent.learner.layout.pack(Batch(*batch))
+    return {k: float(v) for k, v in agent.learner.train(rows).items()}
 
 
 def make_batch(rng, dones):
@@ -70,25 +78,25 @@ def test_target_and_loss_match_the_hand_built_target(variant, broadcast):
     states, actions, rewards, next_states, dones = make_batch(np.random.default_rng(1), [0, 1, 0, 0])
     expected = hand_target(agent, rewards, next_states, dones, broadcast)
     assert expected.shape == ((B, B) if broadcast else (B, 1))
-    got = agent.learner.targets(rewards.astype(np.float32), next_states, dones.astype(np.float32)).numpy()
+    got = agent.learner.td_targets(rewards.astype(np.float32), next_states, dones.astype(np.float32)).numpy()
     np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-5)
 
     q = mlp(np.concatenate([states, actions], 1), agent.learner.critic.get_weights(), lambda z: z)  # [B,1]
     expected_loss = np.mean((q - expected) ** 2)  # over B*B entries when broadcasting
-    losses = agent.train_batch((states, actions, rewards, next_states, dones))
+    losses = train_batch(agent, (states, actions, rewards, next_states, dones))
     assert losses["critic_loss"] == pytest.approx(expected_loss, rel=1e-5)
 
 
 def test_broadcast_mixes_every_done_into_every_row():
     agent = make_agent("faithful")
     _, _, rewards, next_states, dones = make_batch(np.random.default_rng(2), [0, 1, 0, 0])
-    t = agent.learner.targets(rewards.astype(np.float32), next_states, dones.astype(np.float32)).numpy()
+    t = agent.learner.td_targets(rewards.astype(np.float32), next_states, dones.astype(np.float32)).numpy()
     # column 1 (the done sample) loses the bootstrap for *every* row; other columns keep it
     np.testing.assert_allclose(t[:, 1], rewards, rtol=1e-6)
     assert not np.allclose(t[:, 0], rewards)
     # with no done in the batch the broadcast target is B identical columns = the fixed target
     zero = np.zeros(B, np.float32)
-    t0 = agent.learner.targets(rewards.astype(np.float32), next_states, zero).numpy()
+    t0 = agent.learner.td_targets(rewards.astype(np.float32), next_states, zero).numpy()
     np.testing.assert_allclose(t0, np.repeat(t0[:, :1], B, axis=1))
 
 
@@ -98,7 +106,7 @@ def test_one_update_matches_the_posts_eager_code(variant, broadcast, xla):
     agent = make_agent(variant, xla=xla)
     post = post_mirror(agent, broadcast)
     batch = make_batch(np.random.default_rng(3), [0, 0, 1, 0])
-    ours = agent.train_batch(batch)
+    ours = train_batch(agent, batch)
     theirs = post.train_model(post_minibatch(*batch))
     assert theirs["targets"].shape == ((B, B) if broadcast else (B, 1))
     assert ours["critic_loss"] == pytest.approx(theirs["critic_loss"], rel=1e-5)
@@ -120,6 +128,6 @@ def test_faithful_and_fixed_updates_differ_only_when_a_done_is_sampled():
             # same initial targets in both variants, so only the target formula differs
             agent.learner.target_actor.set_weights(agent.learner.actor.get_weights())
             agent.learner.target_critic.set_weights(agent.learner.critic.get_weights())
-            results[variant, name] = agent.train_batch(batch)["critic_loss"]
+            results[variant, name] = train_batch(agent, batch)["critic_loss"]
     assert results["faithful", "none"] == pytest.approx(results["fixed", "none"], rel=1e-6)
     assert results["faithful", "done"] != pytest.approx(results["fixed", "done"], rel=1e-3)

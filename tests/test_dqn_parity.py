@@ -6,8 +6,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from keras_rl.configs import CartPoleDQNConfig
-from keras_rl.dqn import DQNAgent, epsilon
+from keras_rl.envs import EnvSpec
+from keras_rl.posts.cartpole import CartPoleDQNConfig, epsilon
+from keras_rl.registry import agent_for
 from keras_rl.seeding import seed_everything
 
 torch = pytest.importorskip("torch", reason="parity tests need the torch extra: pip install -e '.[torch]'")
@@ -15,13 +16,14 @@ torch = pytest.importorskip("torch", reason="parity tests need the torch extra: 
 from keras_rl.torch.dqn_tutorial import TutorialDQNAgent, Transition  # noqa: E402
 
 OBS, ACTIONS, B = 4, 2, 128
+SPEC = EnvSpec(OBS, 1, n_actions=ACTIONS)
 
 
 def make_pair(xla=True, seed=0, float64=False):
     seed_everything(seed)
     config = CartPoleDQNConfig(seed=seed)
-    ours = DQNAgent(config, OBS, ACTIONS, gym.spaces.Discrete(2), xla=xla, dtype="float64" if float64 else None)
-    theirs = TutorialDQNAgent(config.replace(framework="torch"), OBS, ACTIONS, gym.spaces.Discrete(2))
+    ours = agent_for(config, SPEC, gym.spaces.Discrete(2), xla=xla, dtype="float64" if float64 else None)
+    theirs = TutorialDQNAgent(config.replace(framework="torch"), SPEC, gym.spaces.Discrete(2))
     if float64:
         theirs.policy_net.double()
         theirs.target_net.double()
@@ -75,14 +77,14 @@ def update_both(ours, theirs, batch):
 
 def test_initial_weights_follow_nn_linear_init():
     seed_everything(0)
-    weights = DQNAgent(CartPoleDQNConfig(), OBS, ACTIONS, gym.spaces.Discrete(2)).learner.q_network.get_weights()
+    weights = agent_for(CartPoleDQNConfig(), SPEC, gym.spaces.Discrete(2)).learner.q_network.get_weights()
     for kernel, bias in zip(weights[::2], weights[1::2]):
         bound = 1 / math.sqrt(kernel.shape[0])  # fan_in
         for w in (kernel, bias):  # nn.Linear draws biases from the same U(-bound, bound)
             assert np.abs(w).max() <= bound
             if w.size >= 100:
                 assert np.abs(w).max() > 0.9 * bound and w.std() == pytest.approx(bound / math.sqrt(3), rel=0.2)
-    glorot = DQNAgent(CartPoleDQNConfig(init="keras"), OBS, ACTIONS, gym.spaces.Discrete(2))
+    glorot = agent_for(CartPoleDQNConfig(init="keras"), SPEC, gym.spaces.Discrete(2))
     assert not glorot.learner.q_network.get_weights()[1].any()  # Keras: zero biases
 
 
@@ -147,16 +149,16 @@ def test_action_selection_agrees_for_the_same_random_draws():
     rng = np.random.default_rng(2)
     draws = rng.random(400)
     space_seed = 123
-    ours.action_space.seed(space_seed)
+    ours.explorer.action_space.seed(space_seed)
     theirs.action_space.seed(space_seed)
-    ours.explore_rng = iter_rng(draws)
+    ours.explorer.rng = iter_rng(draws)
     for i in range(400):
         state = rng.normal(size=OBS).astype(np.float32)
-        mine = ours.select_action(ours.greedy_action(state))
+        mine = ours.explorer(ours.greedy_action(state))
         reference = theirs.select_action(torch.tensor(state).unsqueeze(0), sample=draws[i]).item()
         assert mine == reference, i
-    assert ours.steps_done == theirs.steps_done == 400
-    assert epsilon(ours.config, 0) == pytest.approx(0.9) and epsilon(ours.config, 10**9) == pytest.approx(0.05)
+    assert ours.explorer.steps_done == theirs.steps_done == 400
+    assert epsilon(CartPoleDQNConfig(), 0) == pytest.approx(0.9) and epsilon(CartPoleDQNConfig(), 10**9) == pytest.approx(0.05)
 
 
 class iter_rng:
@@ -173,6 +175,6 @@ def test_soft_update_every_step_before_training_matches_state_dict_arithmetic():
     ours, theirs = make_pair()
     state = np.zeros(OBS, np.float32)
     for _ in range(5):
-        ours.learner.sync_and_act(state)
+        ours.learner.act_without_update(state, want_action=True)
         theirs.soft_update()
     assert_same_weights(ours, theirs, atol=1e-7)

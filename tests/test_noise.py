@@ -1,6 +1,6 @@
 import numpy as np
 
-from keras_rl.noise import OUNoise
+from keras_rl.agents.explorers import OUNoise
 
 SIGMA_STEP = 0.2 * np.sqrt(0.1)
 

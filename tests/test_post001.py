@@ -9,18 +9,20 @@ import pytest
 import tensorflow as tf
 
 from keras_rl.buffers import Layout, PoppingBuffer
-from keras_rl.configs import MountainCarDDPGConfig
-from keras_rl.ddpg import DDPGLearner
-from keras_rl.episodic_ddpg import EpisodicDDPGAgent, standardised_discounted_returns
-from keras_rl.networks import MountainCarActor, build
+from keras_rl.envs import EnvSpec
+from keras_rl.learners.ddpg import DDPGLearner
+from keras_rl.posts.mountaincar import MountainCarDDPGConfig, standardised_discounted_returns
+from keras_rl.registry import agent_for
+from keras_rl.learners.networks import MountainCarActor, build
 from keras_rl.seeding import seed_everything
 
 LOW, HIGH = np.array([-1.2, -0.07], np.float32), np.array([0.6, 0.07], np.float32)
+SPEC = EnvSpec(2, 1, 1.0, obs_low=LOW, obs_high=HIGH, max_episode_steps=999)
 
 
 def make_agent(variant="faithful", **overrides):
     seed_everything(0)
-    return EpisodicDDPGAgent(MountainCarDDPGConfig.for_variant(variant, **overrides), LOW, HIGH, 1, 999)
+    return agent_for(MountainCarDDPGConfig.for_variant(variant, **overrides), SPEC)
 
 
 # -- P001-PHASE: the learning phase is never fed --------------------------------------------
@@ -41,7 +43,7 @@ def test_P001_PHASE_learning_phase_0_noise_off_and_bn_on_initial_moving_stats():
 def test_P001_PHASE_updates_train_gamma_beta_but_never_move_the_moving_stats():
     agent = make_agent()
     rng = np.random.default_rng(1)
-    rows = agent.layout.pack((rng.random((32, 2)), rng.uniform(-1, 1, (32, 1)), rng.normal(size=32),
+    rows = agent.buffer.layout.pack((rng.random((32, 2)), rng.uniform(-1, 1, (32, 1)), rng.normal(size=32),
                               rng.normal(size=(32, 2)), np.zeros(32)))
     actor_bn, critic_bn = agent.learner.actor.norm, agent.learner.critic.norm
     before = [v.numpy().copy() for v in (actor_bn.gamma, critic_bn.gamma, critic_bn.beta)]
@@ -124,7 +126,7 @@ def test_discounted_return_normalisation_against_a_hand_computed_example():
 
 @pytest.mark.parametrize("variant", ["faithful", "fixed"])
 def test_P001_RETURNS_NEXTSTATE_DONE_what_reaches_the_buffer(variant):
-    agent = make_agent(variant, train_above=10_000 if variant == "faithful" else 1000, train_start=10_000)
+    agent = make_agent(variant, train_start=10_000)
     frames = [np.array([-0.5 + 0.01 * t, 0.001 * t], np.float32) for t in range(6)]
     agent.begin_episode(frames[0])
     rewards = [-0.1, -0.2, -0.3, -0.4, -0.5]
@@ -133,14 +135,14 @@ def test_P001_RETURNS_NEXTSTATE_DONE_what_reaches_the_buffer(variant):
         if variant == "faithful" and t < 4:
             assert len(agent.buffer) == 0  # stored only at episode end
     rows = agent.buffer.data[agent.buffer.order] if variant == "faithful" else agent.buffer.ordered()
-    batch = agent.layout.split(np.asarray(rows) if variant == "faithful" else agent.layout.pack(rows))
-    np.testing.assert_allclose(batch.states, [agent.normalise(f) for f in frames[:5]], rtol=1e-6)
+    batch = agent.buffer.layout.split(np.asarray(rows) if variant == "faithful" else agent.buffer.layout.pack(rows))
+    np.testing.assert_allclose(batch.states, [agent.transitions.observe(f) for f in frames[:5]], rtol=1e-6)
     if variant == "faithful":
         np.testing.assert_allclose(batch.next_states, frames[1:], rtol=1e-6)  # raw frames
         np.testing.assert_allclose(batch.rewards, standardised_discounted_returns(rewards, 0.999), rtol=1e-5)
         np.testing.assert_array_equal(batch.dones, [0, 0, 0, 0, 1])  # the time limit is done
     else:
-        np.testing.assert_allclose(batch.next_states, [agent.normalise(f) for f in frames[1:]], rtol=1e-6)
+        np.testing.assert_allclose(batch.next_states, [agent.transitions.observe(f) for f in frames[1:]], rtol=1e-6)
         np.testing.assert_allclose(batch.rewards, rewards, rtol=1e-6)
         np.testing.assert_array_equal(batch.dones, [0, 0, 0, 0, 0])  # truncation bootstraps
 

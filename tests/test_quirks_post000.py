@@ -4,9 +4,10 @@ import keras
 import numpy as np
 import pytest
 
-from keras_rl.configs import PendulumDDPGConfig
-from keras_rl.ddpg import DDPGAgent
-from keras_rl.networks import Actor
+from keras_rl.envs import EnvSpec
+from keras_rl.posts.pendulum import PendulumDDPGConfig
+from keras_rl.registry import agent_for
+from keras_rl.learners.networks import Actor
 from keras_rl.seeding import seed_everything
 
 OBS = np.array([1.0, 0.0, 0.5], np.float32)
@@ -14,12 +15,12 @@ OBS = np.array([1.0, 0.0, 0.5], np.float32)
 
 def make_agent(variant="faithful", **overrides):
     seed_everything(0)
-    return DDPGAgent(PendulumDDPGConfig.for_variant(variant, **overrides), 3, 1, 2.0)
+    return agent_for(PendulumDDPGConfig.for_variant(variant, **overrides), EnvSpec(3, 1, 2.0))
 
 
 def noise_sequence(agent, n=2000):
     agent.begin_episode(OBS)
-    return np.array([agent.noise()[0] for _ in range(n)])
+    return np.array([agent.explorer.noise()[0] for _ in range(n)])
 
 
 def test_P000_NOISE_faithful_noise_restarts_from_zero_every_step():
@@ -32,10 +33,10 @@ def test_P000_NOISE_faithful_noise_restarts_from_zero_every_step():
 def test_P000_NOISE_fixed_noise_resets_each_episode():
     agent = make_agent("fixed")
     noise_sequence(agent, 100)
-    assert np.any(agent.noise.state != 0)
+    assert np.any(agent.explorer.noise.state != 0)
     agent.begin_episode(OBS)  # §2.4 resets pre_noise at every episode start; so does OUNoise.reset
     # after begin_episode one draw has been taken from a zero state
-    assert abs(agent.noise.state[0]) < 5 * 0.2 * np.sqrt(0.1)
+    assert abs(agent.explorer.noise.state[0]) < 5 * 0.2 * np.sqrt(0.1)
 
 
 @pytest.mark.parametrize("variant,on_truncation,on_termination", [("faithful", 1.0, 0.0), ("fixed", 0.0, 1.0)])
@@ -58,7 +59,7 @@ def test_P000_TARGETINIT_unbuilt_subclassed_models_have_no_weights():
 def test_P000_TARGETINIT_faithful_targets_start_independent_fixed_start_equal():
     faithful, fixed = make_agent("faithful"), make_agent("fixed")
     for agent, same in ((faithful, False), (fixed, True)):
-        for online, target in ((agent.actor, agent.learner.target_actor), (agent.critic, agent.learner.target_critic)):
+        for online, target in ((agent.learner.actor, agent.learner.target_actor), (agent.learner.critic, agent.learner.target_critic)):
             equal = all(np.array_equal(a, b) for a, b in zip(online.get_weights(), target.get_weights()))
             assert equal is same
 
@@ -84,16 +85,16 @@ def test_training_runs_every_step_from_train_start():
 
 
 def test_stop_at_threshold_ends_the_run_at_the_first_crossing(tmp_path):
-    from keras_rl.experiments import get_experiment
-    from keras_rl.loop import run_seed
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs.loop import run_seed
 
     exp = get_experiment("pendulum")
     config = PendulumDDPGConfig.for_variant("faithful", threshold=-1e9, episodes=5, train_start=10_000)
     summary = run_seed(exp, config, tmp_path / "stop", progress=False)
-    assert summary["reached_at_episode"] == 1 and summary["episodes_run"] == 1
+    assert summary.reached_at_episode == 1 and summary.episodes_run == 1
     config = config.replace(stop_at_threshold=False, episodes=3)
     summary = run_seed(exp, config, tmp_path / "go-on", progress=False)
-    assert summary["reached_at_episode"] == 1 and summary["episodes_run"] == 3
+    assert summary.reached_at_episode == 1 and summary.episodes_run == 3
 
 
 def test_tensorflow_backend_is_pinned():

@@ -6,8 +6,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from keras_rl.configs import CartPoleDQNConfig
-from keras_rl.dqn import DQNAgent, epsilon, huber
+from keras_rl.envs import EnvSpec
+from keras_rl.learners.dqn import huber
+from keras_rl.posts.cartpole import CartPoleDQNConfig, epsilon
+from keras_rl.registry import agent_for
 from keras_rl.metrics import RollingMean
 from keras_rl.seeding import seed_everything
 
@@ -18,7 +20,7 @@ def make_agent(**overrides):
     seed_everything(0)
     space = gym.spaces.Discrete(2)
     space.seed(0)
-    return DQNAgent(CartPoleDQNConfig(**overrides), 4, 2, space)
+    return agent_for(CartPoleDQNConfig(**overrides), EnvSpec(4, 1, n_actions=2), space)
 
 
 def test_P003_EPS_decays_per_env_step_across_episodes():
@@ -28,15 +30,15 @@ def test_P003_EPS_decays_per_env_step_across_episodes():
         agent.step(1.0, OBS, False, False)
     agent.step(1.0, OBS, True, False)  # episode over: no selection for the next state
     agent.begin_episode(OBS)
-    assert agent.steps_done == 11  # one select_action per env step, counting across episodes
-    assert epsilon(agent.config, 0) == pytest.approx(0.9)
-    assert epsilon(agent.config, 1000) == pytest.approx(0.05 + 0.85 * math.exp(-1))
+    assert agent.explorer.steps_done == 11  # one select_action per env step, counting across episodes
+    assert epsilon(CartPoleDQNConfig(), 0) == pytest.approx(0.9)
+    assert epsilon(CartPoleDQNConfig(), 1000) == pytest.approx(0.05 + 0.85 * math.exp(-1))
     # by 3000 steps (about 100 short early episodes) exploration is nearly over
-    assert epsilon(agent.config, 3000) < 0.1
+    assert epsilon(CartPoleDQNConfig(), 3000) < 0.1
 
 
 def test_P003_WARMUP_first_update_at_batch_size_transitions():
-    agent = make_agent(batch_size=16)
+    agent = make_agent(batch_size=16, train_start=16)  # the tutorial's warm-up is one batch
     agent.begin_episode(OBS)
     for step in range(1, 30):
         agent.step(1.0, OBS, False, False)

@@ -9,9 +9,11 @@ torch = pytest.importorskip("torch", reason="parity tests need the torch extra")
 import keras  # noqa: E402
 import tensorflow as tf  # noqa: E402
 
-from keras_rl.configs import CartPoleDQNConfig, MountainCarDDPGConfig, PendulumDDPGConfig  # noqa: E402
-from keras_rl.ddpg import DDPGAgent  # noqa: E402
-from keras_rl.episodic_ddpg import EpisodicDDPGAgent  # noqa: E402
+from keras_rl.envs import EnvSpec  # noqa: E402
+from keras_rl.posts.cartpole import CartPoleDQNConfig  # noqa: E402
+from keras_rl.posts.mountaincar import MountainCarDDPGConfig  # noqa: E402
+from keras_rl.posts.pendulum import PendulumDDPGConfig  # noqa: E402
+from keras_rl.registry import agent_for  # noqa: E402
 from keras_rl.errors import ConfigError, RunFolderError  # noqa: E402
 from keras_rl.seeding import seed_everything  # noqa: E402
 from keras_rl.torch.ddpg import KerasAdam, KerasBatchNorm, max_abs_difference  # noqa: E402
@@ -21,11 +23,11 @@ LOW, HIGH = np.array([-1.2, -0.07]), np.array([0.6, 0.07])
 
 
 def pendulum(config):
-    return DDPGAgent(config, 3, 1, 2.0)
+    return agent_for(config, EnvSpec(3, 1, 2.0))
 
 
 def mountaincar(config):
-    return EpisodicDDPGAgent(config, LOW, HIGH, 1, 999)
+    return agent_for(config, EnvSpec(2, 1, 1.0, obs_low=LOW, obs_high=HIGH, max_episode_steps=999))
 
 
 def twins(make, config):
@@ -84,8 +86,8 @@ def test_the_broadcast_target_is_the_same_64_by_64_matrix_in_both():
     rows = random_rows(64, 3, seed=1)
     k_batch = keras_learner.layout.split(tf.constant(rows))
     t_batch = torch_learner.layout.split(torch.from_numpy(rows))
-    k_targets = keras_learner.targets(*k_batch[2:]).numpy()
-    t_targets = torch_learner.targets(*t_batch[2:]).numpy()
+    k_targets = keras_learner.td_targets(*k_batch[2:]).numpy()
+    t_targets = torch_learner.td_targets(*t_batch[2:]).numpy()
     assert k_targets.shape == t_targets.shape == (64, 64)
     np.testing.assert_allclose(t_targets, k_targets, atol=1e-6)  # the networks' float rounding only
     # With Q' made exactly representable in both (a constant critic), the (B,B) arithmetic
@@ -96,8 +98,8 @@ def test_the_broadcast_target_is_the_same_64_by_64_matrix_in_both():
         for p in torch_learner.target_critic.parameters():
             p.zero_()
         torch_learner.target_critic.out.bias.fill_(0.5)
-    k_targets = keras_learner.targets(*k_batch[2:]).numpy()
-    t_targets = torch_learner.targets(*t_batch[2:]).numpy()
+    k_targets = keras_learner.td_targets(*k_batch[2:]).numpy()
+    t_targets = torch_learner.td_targets(*t_batch[2:]).numpy()
     np.testing.assert_array_equal(t_targets, k_targets)
     r, d = rows[:, 4], rows[:, -1]
     np.testing.assert_array_equal(t_targets, (r[:, None] + np.float32(0.99) * np.float32(0.5) * (1 - d[None, :])))
@@ -139,7 +141,7 @@ def test_learning_phase_zero_means_no_input_noise_in_torch_too():
     config = MountainCarDDPGConfig(framework="torch", seed=0)
     learner = mountaincar(config).learner
     state = np.array([0.3, 0.5], np.float32)
-    assert np.array_equal(learner.act(state).numpy(), learner.act(state).numpy())  # GaussianNoise(1.0) is off
+    assert np.array_equal(learner.act(state), learner.act(state))  # GaussianNoise(1.0) is off
     noisy = mountaincar(config.replace(learning_phase_training=True)).learner
     assert not np.array_equal(noisy.actor(torch.ones(8, 2)).detach().numpy(),
                               noisy.actor(torch.ones(8, 2)).detach().numpy())
@@ -167,14 +169,13 @@ def test_default_init_is_each_frameworks_own():
 
 
 def test_cartpole_matched_init_copies_the_keras_q_network():
-    from keras_rl.dqn import DQNAgent
     from keras_rl.torch.dqn_tutorial import TutorialDQNAgent
 
     space = __import__("gymnasium").spaces.Discrete(2)
     seed_everything(4)
-    k = DQNAgent(CartPoleDQNConfig(seed=4), 4, 2, space).learner.q_network
+    k = agent_for(CartPoleDQNConfig(seed=4), EnvSpec(4, 1, n_actions=2), space).learner.q_network
     seed_everything(4)
-    t = TutorialDQNAgent(CartPoleDQNConfig(seed=4, framework="torch", matched_init=True), 4, 2, space)
+    t = TutorialDQNAgent(CartPoleDQNConfig(seed=4, framework="torch", matched_init=True), EnvSpec(4, 1, n_actions=2), space)
     np.testing.assert_array_equal(t.policy_net.layer1.weight.detach().numpy(), k.dense[0].kernel.numpy().T)
     np.testing.assert_array_equal(t.target_net.layer3.bias.detach().numpy(), k.dense[2].bias.numpy())
 
@@ -190,7 +191,7 @@ def test_torch_checkpoints_round_trip_and_a_corrupt_one_is_named(tmp_path):
     other = pendulum(PendulumDDPGConfig(framework="torch", seed=2)).learner
     other.load_policy(tmp_path)
     state = np.array([0.1, -0.2, 0.3], np.float32)
-    assert np.array_equal(other.act(state).numpy(), learner.act(state).numpy())
+    assert np.array_equal(other.act(state), learner.act(state))
     (tmp_path / "actor.pt").write_bytes(b"not a checkpoint")
     with pytest.raises(RunFolderError, match="actor.pt could not be loaded"):
         other.load_policy(tmp_path)

@@ -1,0 +1,149 @@
+"""The package's shape, checked: no import cycles (lazy imports included), torch only under
+``keras_rl/torch/``, no plotting reachable from training code, one learner table, and
+``config.json`` files of every committed run still loading under today's field names."""
+
+from __future__ import annotations
+
+import ast
+import json
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "keras_rl"
+RESULTS = PACKAGE.parent / "results"
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {module_name(p): p for p in PACKAGE.rglob("*.py")}
+
+
+def imports_of(path: Path) -> set[str]:
+    """Every module named by an import anywhere in the file (function bodies included)."""
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            found.add(node.module)
+            found.update(f"{node.module}.{alias.name}" for alias in node.names)
+    return found
+
+
+def internal_edges(name: str) -> set[str]:
+    """The keras_rl modules ``name`` imports (each imported module's parent packages too:
+    importing a submodule runs its package's ``__init__``)."""
+    edges = set()
+    for target in imports_of(MODULES[name]):
+        parts = target.split(".")
+        for i in range(1, len(parts) + 1):
+            candidate = ".".join(parts[:i])
+            if candidate in MODULES and candidate != name:
+                edges.add(candidate)
+    return edges
+
+
+GRAPH = {name: internal_edges(name) for name in MODULES}
+
+
+def reachable(start: str) -> set[str]:
+    seen, todo = set(), [start]
+    while todo:
+        for nxt in GRAPH[todo.pop()]:
+            if nxt not in seen:
+                seen.add(nxt)
+                todo.append(nxt)
+    return seen
+
+
+def test_the_walk_sees_lazy_imports():
+    # cli imports the registry inside functions only; the graph must still hold the edge
+    assert "keras_rl.registry" in GRAPH["keras_rl.cli"]
+
+
+def test_no_import_cycles_among_keras_rl_modules():
+    cycles = []
+    for name in GRAPH:
+        if name in reachable(name):
+            path = [name]  # name one cycle through it, for the message
+            while True:
+                nxt = next(n for n in GRAPH[path[-1]] if name in reachable(n) or n == name)
+                path.append(nxt)
+                if nxt == name:
+                    break
+            cycles.append(" -> ".join(path))
+    assert not cycles, "import cycles:\n" + "\n".join(cycles)
+
+
+def test_only_the_torch_folder_imports_torch():
+    offenders = sorted(name for name, path in MODULES.items() if not name.startswith("keras_rl.torch")
+                       and any(t == "torch" or t.startswith("torch.") for t in imports_of(path)))
+    assert offenders == []
+
+
+def test_keras_learners_never_import_the_torch_side():
+    learners = [n for n in MODULES if n.startswith("keras_rl.learners")]
+    assert learners and not [n for n in learners if any(m.startswith("keras_rl.torch") for m in reachable(n))]
+
+
+@pytest.mark.parametrize("prefix", ["keras_rl.learners", "keras_rl.agents", "keras_rl.posts", "keras_rl.torch",
+                                    "keras_rl.runs.loop", "keras_rl.registry"])
+def test_training_code_never_reaches_plotting_or_reports(prefix):
+    for name in (n for n in MODULES if n.startswith(prefix)):
+        bad = sorted(m for m in reachable(name) | {name} if m.startswith("keras_rl.report"))
+        bad += sorted(t for m in reachable(name) | {name} for t in imports_of(MODULES[m]) if t.startswith("matplotlib"))
+        assert not bad, f"{name} reaches {bad}"
+
+
+def test_one_learner_table_covers_every_experiment_and_imports_nothing_heavy():
+    from keras_rl.learners.table import IMPLEMENTATIONS, frameworks
+    from keras_rl.registry import EXPERIMENTS
+
+    assert set(EXPERIMENTS) == {name for name, _ in IMPLEMENTATIONS}
+    for name in EXPERIMENTS:
+        assert frameworks(name) == ("keras", "torch")
+    table_imports = imports_of(MODULES["keras_rl.learners.table"])
+    assert {t.split(".")[0] for t in table_imports} <= {"__future__", "importlib", "dataclasses", "typing", "keras_rl"}
+    assert {t for t in table_imports if t.startswith("keras_rl")} <= {"keras_rl.errors", "keras_rl.errors.ConfigError"}
+
+
+COMMITTED_CONFIGS = sorted(RESULTS.rglob("config.json"))
+
+
+def test_there_are_committed_configs_to_check():
+    assert len(COMMITTED_CONFIGS) > 100
+
+
+@pytest.mark.parametrize("path", COMMITTED_CONFIGS, ids=lambda p: str(p.relative_to(RESULTS)))
+def test_committed_config_json_loads_under_todays_field_names(path):
+    from keras_rl.registry import get_experiment
+
+    values = json.loads(path.read_text())
+    config = get_experiment(values["experiment"]).config_cls.from_dict(values)
+    new = config.to_dict()
+    for old, new_names in {"hidden_units": ("actor_hidden_units", "critic_hidden_units", "q_hidden_units"),
+                           "actor_hidden": ("actor_hidden_units",), "train_above": ("train_start",),
+                           "ou_sigma": ("noise_sigma",), "ou_theta": ("noise_theta",), "ou_dt": ("noise_dt",),
+                           "lr": ("q_lr",)}.items():
+        if old in values:
+            assert [tuple(new[n]) if isinstance(new[n], tuple) else new[n] for n in new_names if n in new] \
+                   and all((tuple(new[n]) if isinstance(new[n], tuple) else new[n]) ==
+                           (tuple(values[old]) if isinstance(values[old], list) else values[old])
+                           for n in new_names if n in new)
+    if "critic_hidden" in values:
+        assert new["critic_hidden_units"] == (values["critic_hidden"],) * 2
+    # every value that kept its name is unchanged, and today's dict round-trips
+    assert all(new[k] == (tuple(v) if isinstance(v, list) else v) for k, v in values.items() if k in new)
+    assert type(config).from_dict(json.loads(json.dumps(new))) == config
+
+
+def test_a_contradictory_old_and_new_field_is_refused():
+    from keras_rl.errors import ConfigError
+    from keras_rl.posts.mountaincar import MountainCarDDPGConfig
+
+    with pytest.raises(ConfigError, match="train_above.*contradicts train_start"):
+        MountainCarDDPGConfig.from_dict({"train_above": 500, "train_start": 1000})
