@@ -132,7 +132,7 @@ class PoppingBuffer:
     def add_rows(self, rows: np.ndarray) -> None:
         if len(rows) > len(self._free):
             raise ValueError(f"PoppingBuffer capacity {self.capacity} exceeded: {len(self.order)} held, "
-                             f"{len(rows)} more; size it for train_above + the longest episode")
+                             f"{len(rows)} more; size it for train_start + the longest episode")
         for row in rows:
             i = self._free.pop()
             self.data[i] = row

@@ -37,10 +37,6 @@ from keras_rl.learners.protocol import ActorUpdate
 from keras_rl.metrics import GoalShare, ReturnSpread
 
 
-def _train_above(value: Any) -> dict[str, Any]:
-    return {"train_start": value}
-
-
 @dataclass(frozen=True)
 class MountainCarDDPGConfig(ExperimentConfig):
     """Post 001's hyperparameters and quirk switches."""
@@ -65,7 +61,7 @@ class MountainCarDDPGConfig(ExperimentConfig):
     RENAMED: ClassVar = {
         "critic_hidden": lambda v: {"critic_hidden_units": (int(v), int(v))},
         "actor_hidden": lambda v: {"actor_hidden_units": v},
-        "train_above": _train_above,
+        "train_above": lambda v: {"train_start": v},
         "ou_sigma": lambda v: {"noise_sigma": v},
         "ou_theta": lambda v: {"noise_theta": v},
         "ou_dt": lambda v: {"noise_dt": v},

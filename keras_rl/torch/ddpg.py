@@ -1,4 +1,4 @@
-"""PyTorch ports of posts 000 and 001: the same DDPG update as ``keras_rl.ddpg.DDPGLearner``.
+"""PyTorch ports of posts 000 and 001: the same DDPG update as ``keras_rl.learners.ddpg.DDPGLearner``.
 
 Only the learner is ported. The agent skeleton and its parts (``keras_rl/agents/``,
 ``keras_rl/posts/``), buffers, configs, quirk switches and result files are shared, so a
