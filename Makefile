@@ -18,7 +18,7 @@ install-test: $(BIN)/python
 
 ## The main reproduction: post 000's faithful DDPG on Pendulum-v1 to EMA > -300.
 reproduce: install
-	$(BIN)/keras-rl reproduce pendulum --variant faithful --seeds $(SEED) --out results/make-reproduce
+	$(BIN)/keras-rl reproduce pendulum --variant faithful --seeds $(SEED) --out results/make-reproduce --overwrite
 
 ## The whole suite, slow threshold tests included.
 test: install-test

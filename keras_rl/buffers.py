@@ -12,6 +12,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from keras_rl.rngs import rng_state, set_rng_state
+
 
 class Batch(NamedTuple):
     states: Any  # [B, obs]
@@ -96,6 +98,15 @@ class ReplayBuffer:
             idx = self.rng.choice(self._size, size=batch_size, replace=False)
         return self.data[idx]
 
+    def state_dict(self) -> dict[str, Any]:
+        return {"data": self.data[:self._size].copy() if self._size < self.capacity else self.data.copy(),
+                "next": self._next, "size": self._size, "rng": rng_state(self.rng)}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.data[:len(state["data"])] = state["data"]
+        self._next, self._size = int(state["next"]), int(state["size"])
+        set_rng_state(self.rng, state["rng"])
+
     def sample(self, batch_size: int, replace: bool = False) -> Batch:
         return self.layout.split(self.sample_rows(batch_size, replace))
 
@@ -137,6 +148,15 @@ class PoppingBuffer:
             i = self._free.pop()
             self.data[i] = row
             self.order.append(i)
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"data": self.data.copy(), "order": list(self.order), "free": list(self._free),
+                "rng": rng_state(self.rng)}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.data[:] = state["data"]
+        self.order, self._free = list(state["order"]), list(state["free"])
+        set_rng_state(self.rng, state["rng"])
 
     def sample_rows(self, batch_size: int) -> np.ndarray:
         if batch_size > len(self.order):

@@ -10,7 +10,9 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import tempfile
 from pathlib import Path
 from typing import Sequence
 
@@ -18,6 +20,8 @@ from keras_rl import __version__
 from keras_rl.errors import ConfigError, KerasRLError
 
 EXIT_OK, EXIT_CRITERION, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+MAX_SEEDS = 10_000
+"""More seeds than this in one command is taken for a typo (``0-100000``) and refused."""
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -37,11 +41,20 @@ def parse_seeds(text: str) -> list[int]:
         if hi >= 2**32:
             raise ConfigError(f"seeds must be below 2**32 (NumPy's and Gymnasium's limit), got {hi}")
         seeds.update(range(lo, hi + 1))
+        if len(seeds) > MAX_SEEDS:
+            raise ConfigError(f"{text!r} names more than {MAX_SEEDS} seeds; split the run into smaller commands")
     if not seeds:
         raise ConfigError(f"no seeds in {text!r}")
     if min(seeds) < 0:
         raise ConfigError(f"seeds must be zero or more, got {min(seeds)}")
     return sorted(seeds)
+
+
+def _path_arg(text: str) -> Path:
+    """A path option; an empty one is an error (``Path("")`` would silently mean the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("is empty; name a path")
+    return Path(text)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -60,13 +73,21 @@ def build_parser() -> argparse.ArgumentParser:
                      help="torch only: start from the Keras networks' initial weights for the same seed")
     rep.add_argument("--seeds", default="0", help="seed list or range: 13, 0-9, 0,3,5 (default 0)")
     rep.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
-    rep.add_argument("--out", type=Path, default=None,
+    rep.add_argument("--out", type=_path_arg, default=None,
                      help="output folder (default results/<experiment>/<variant>); one seed_<n>/ per seed")
     rep.add_argument("--workers", type=int, default=1, help="processes for several seeds (default 1)")
     rep.add_argument("--set", dest="overrides", action="append", default=[], metavar="FIELD=VALUE",
                      help="override a config field, e.g. --set tau=0.005 (repeatable)")
     rep.add_argument("--min-success-rate", type=float, default=1.0,
                      help="exit 0 only if at least this share of seeds succeed (default 1.0: all)")
+    rep.add_argument("--overwrite", action="store_true",
+                     help="replace seed folders that already hold a run (each is cleared whole first)")
+    rep.add_argument("--resume", action="store_true",
+                     help="continue interrupted or killed runs from their checkpoint.pkl (same options as before)")
+    rep.add_argument("--checkpoint-every", type=int, default=10, metavar="N",
+                     help="write checkpoint.pkl every N episodes, and when stopped (default 10; 0: only when stopped)")
+    rep.add_argument("--tensorboard", type=_path_arg, default=None, metavar="DIR",
+                     help="also log per-episode score, metric and losses as TensorBoard scalars under DIR")
     rep.add_argument("--no-progress", action="store_true", help="no progress bars")
 
     ev = sub.add_parser("evaluate", help="reload a run's saved policy and play greedy episodes")
@@ -74,7 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                "(weights are not committed: reproduce the seed first)")
     ev.add_argument("--episodes", type=int, default=5, help="greedy episodes to play (default 5)")
     ev.add_argument("--seed", type=int, default=None, help="env seed (default: the run's seed + 10000)")
-    ev.add_argument("--gif", type=Path, default=None, help="record the first episode to this GIF")
+    ev.add_argument("--gif", type=_path_arg, default=None, help="record the first episode to this GIF")
 
     cp = sub.add_parser("compare", help="run or reuse the same seeds in Keras and PyTorch and report the difference")
     cp.add_argument("experiment", help="experiment name (see `keras-rl list`)")
@@ -97,22 +118,101 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _check_counts(workers: int, episodes: int | None) -> None:
+def _check_counts(workers: int, episodes: int | None) -> int:
+    """The worker count to use (clamped to the cores, with a warning), or a ConfigError."""
     if workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {workers}")
     if episodes is not None and episodes <= 0:
         raise ConfigError(f"--episodes must be positive, got {episodes}")
+    cores = os.cpu_count() or 1
+    if workers > cores:
+        print(f"warning: --workers {workers} is more than this machine's {cores} cores; using {cores}",
+              file=sys.stderr)
+        return cores
+    return workers
+
+
+def _check_writable_dir(path: Path, flag: str) -> None:
+    """A folder that exists and is writable, or can be made: else a ConfigError naming it."""
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{flag} {path} is a file, not a folder")
+    probe = path
+    while not probe.exists():
+        probe = probe.parent
+    try:  # really write (root passes os.access everywhere, /proc included)
+        if not probe.is_dir():
+            raise OSError("not a folder")
+        fd, name = tempfile.mkstemp(dir=probe, prefix=".keras-rl-probe-")
+        os.close(fd)
+        os.unlink(name)
+    except OSError:
+        raise ConfigError(f"{flag} {path}: {probe} is not a writable folder") from None
+
+
+def _check_writable_file(path: Path, flag: str) -> None:
+    if path.is_dir():
+        raise ConfigError(f"{flag} {path} is a folder; name a file")
+    _check_writable_dir(path.parent if str(path.parent) else Path("."), f"{flag}'s folder")
+
+
+def _seed_folder_state(seed_dir: Path) -> str | None:
+    """None for a folder that does not exist or is empty; else what it holds, for messages."""
+    if not seed_dir.is_dir() or not any(seed_dir.iterdir()):
+        return None
+    from keras_rl.errors import RunFolderError
+    from keras_rl.runs.summary import RunSummary
+
+    try:
+        s = RunSummary.read(seed_dir)
+        return f"a {s.status} run, {s.episodes_run} episodes"
+    except RunFolderError:
+        return "files of an earlier run"
+
+
+def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool) -> list[str]:
+    """How each seed folder starts (new, overwrite, resume), or a ConfigError before anything runs."""
+    if overwrite and resume:
+        raise ConfigError("--overwrite and --resume contradict each other; pick one")
+    from keras_rl.runs.checkpoint import CHECKPOINT
+
+    modes, occupied = [], []
+    for seed_dir in seed_dirs:
+        held = _seed_folder_state(seed_dir)
+        if resume:
+            if (seed_dir / CHECKPOINT).is_file():
+                modes.append("resume")
+            elif held is None:
+                modes.append("new")  # nothing to resume: start it
+            else:
+                raise ConfigError(f"--resume: {seed_dir} holds {held} but no {CHECKPOINT}; "
+                                  "a completed run has nothing to resume (use --overwrite to run it again)")
+        elif held is not None and not overwrite:
+            occupied.append(f"{seed_dir} ({held})")
+        else:
+            modes.append("overwrite" if held is not None else "new")
+    if occupied:
+        raise ConfigError("these seed folders already hold a run and are left untouched: " + "; ".join(occupied[:5])
+                          + (f" and {len(occupied) - 5} more" if len(occupied) > 5 else "")
+                          + ". Pass --overwrite to replace them, --resume to continue unfinished ones, "
+                          "or --out for another folder")
+    return modes
+
+
+def _set_suffix(assignments: list[str]) -> str:
+    """``-set-tau=0.005,broadcast_target=false`` for a default folder of a modified config."""
+    return "-set-" + ",".join(sorted(a.strip().replace("-", "_").replace("/", "_") for a in assignments))
 
 
 def reproduce(args: argparse.Namespace) -> int:
+    # Every check that can fail on the user's input runs before TensorFlow is imported.
     from keras_rl.registry import get_experiment
-    from keras_rl.report.aggregate import write_aggregate
     from keras_rl.runs.files import run_folder
-    from keras_rl.runs.jobs import SeedJob, backend_for, run_jobs
 
     experiment = get_experiment(args.experiment)
     seeds = parse_seeds(args.seeds)
-    _check_counts(args.workers, args.episodes)
+    workers = _check_counts(args.workers, args.episodes)
+    if args.checkpoint_every < 0:
+        raise ConfigError(f"--checkpoint-every must be zero or more, got {args.checkpoint_every}")
     if not 0 <= args.min_success_rate <= 1:
         raise ConfigError(f"--min-success-rate must be in [0, 1], got {args.min_success_rate}")
     overrides = {"framework": args.framework, "matched_init": args.matched_init}
@@ -123,9 +223,23 @@ def reproduce(args: argparse.Namespace) -> int:
         from keras_rl.torch import require_torch
 
         require_torch()
-    out = args.out or run_folder(Path("results"), experiment.name, args.variant, args.framework, args.matched_init)
-    jobs = [SeedJob.of(base.replace(seed=s), out / f"seed_{s}") for s in seeds]
-    outcome = run_jobs(jobs, backend_for(args.workers, len(jobs)), progress=not args.no_progress)
+    out = args.out
+    if out is None:
+        out = run_folder(Path("results"), experiment.name, args.variant, args.framework, args.matched_init)
+        if args.overrides:  # a modified config never lands in the variant's own folder
+            out = out.with_name(out.name + _set_suffix(args.overrides))
+    _check_writable_dir(out, "--out")
+    if args.tensorboard is not None:
+        _check_writable_dir(args.tensorboard, "--tensorboard")
+    seed_dirs = [out / f"seed_{s}" for s in seeds]
+    modes = _start_modes(seed_dirs, args.overwrite, args.resume)
+
+    from keras_rl.report.aggregate import write_aggregate
+    from keras_rl.runs.jobs import SeedJob, backend_for, run_jobs
+
+    jobs = [SeedJob.of(base.replace(seed=s), d, start=m, checkpoint_every=args.checkpoint_every,
+                       tensorboard=args.tensorboard) for s, d, m in zip(seeds, seed_dirs, modes)]
+    outcome = run_jobs(jobs, backend_for(workers, len(jobs)), progress=not args.no_progress)
     summaries = outcome.summaries
     failures = [s for s in summaries if s.status in ("non_finite_loss", "error")]
     for s in failures:
@@ -134,34 +248,56 @@ def reproduce(args: argparse.Namespace) -> int:
         write_aggregate(out, summaries, base.threshold, f"{experiment.name} ({args.variant}, {args.framework}), "
                         f"{len(summaries)} seeds", experiment.metric_label(base), experiment.post_reference)
     for s in summaries:
-        where = f"episode {s.reached_at_episode}" if s.success else "not reached"
-        print(f"{experiment.name}/{args.variant}/{args.framework} seed {s.seed}: {s.status}, threshold {where} "
-              f"({s.episodes_run} episodes, {s.total_steps} steps, {s.wall_seconds:.1f} s) -> {out}")
+        verdict = "PASS" if s.success else "FAIL"
+        where = f"reached at episode {s.reached_at_episode}" if s.reached_at_episode else "not reached"
+        seed_dir = out / f"seed_{s.seed}"
+        files = ", ".join(sorted(p.name for p in seed_dir.iterdir() if not p.name.startswith(".")))
+        print(f"{experiment.name}/{args.variant}/{args.framework} seed {s.seed}: {s.status}, {verdict} "
+              f"({s.criterion}: {where}; {s.episodes_run} episodes, {s.total_steps} steps, {s.wall_seconds:.1f} s)"
+              f"\n  {seed_dir}/: {files}")
+    if experiment.post_reference:
+        print(experiment.post_reference)
     if outcome.interrupted:
-        print("interrupted: partial results are on disk, marked unfinished", file=sys.stderr)
+        print("interrupted: partial results are on disk, marked unfinished; --resume continues them", file=sys.stderr)
         return EXIT_INTERRUPTED
     if failures:
+        print(f"exit 1: {len(failures)} of {len(seeds)} seeds stopped with an error", file=sys.stderr)
         return EXIT_CRITERION
-    rate = sum(s.success for s in summaries) / len(seeds)
-    return EXIT_OK if rate >= args.min_success_rate else EXIT_CRITERION
+    successes = sum(s.success for s in summaries)
+    if successes / len(seeds) >= args.min_success_rate:
+        return EXIT_OK
+    print(f"exit 1: criterion not met: {successes}/{len(seeds)} seeds succeeded, need "
+          f"{args.min_success_rate:.0%} (--min-success-rate {args.min_success_rate:g})", file=sys.stderr)
+    return EXIT_CRITERION
 
 
 def evaluate(args: argparse.Namespace) -> int:
+    if args.seed is not None and not 0 <= args.seed < 2**32:
+        raise ConfigError(f"--seed must be in [0, 2**32), got {args.seed}")
+    if args.episodes <= 0:
+        raise ConfigError(f"--episodes must be positive, got {args.episodes}")
+    if args.gif is not None:
+        _check_writable_file(args.gif, "--gif")
     from keras_rl.runs.evaluate import evaluate_run
 
     result = evaluate_run(args.run_dir, episodes=args.episodes, gif=args.gif, seed=args.seed, progress=True)
+    if result.get("interrupted"):
+        print(f"interrupted: {len(result['scores'])} episodes kept in {args.run_dir / 'evaluation.json'}",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
     print(f"mean score over {result['episodes']} greedy episodes: {result['mean']:.2f} "
           f"(std {result['std']:.2f})" + (f"; GIF: {result['gif']}" if "gif" in result else ""))
     return EXIT_OK
 
 
 def compare(args: argparse.Namespace) -> int:
+    workers = _check_counts(args.workers, args.episodes)
+    seeds = parse_seeds(args.seeds)
     from keras_rl.report.compare import compare as run_compare
     from keras_rl.runs.provenance import command_line
 
-    _check_counts(args.workers, args.episodes)
     try:
-        result = run_compare(args.experiment, parse_seeds(args.seeds), args.variant, args.workers, args.runs,
+        result = run_compare(args.experiment, seeds, args.variant, workers, args.runs,
                              args.out, args.rerun, args.reuse_only, args.episodes, not args.no_progress,
                              command_line(), args.matched_init)
     except KeyboardInterrupt:
@@ -201,6 +337,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KerasRLError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except OSError as exc:  # a full disk or a vanished folder mid-run: say so, no traceback
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_CRITERION
 
 
 if __name__ == "__main__":

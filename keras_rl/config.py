@@ -161,9 +161,25 @@ class ExperimentConfig:
         if self.framework not in frameworks(self.experiment):
             raise ConfigError(f"{self.experiment} has no {self.framework!r} version; "
                               f"choose one of {', '.join(frameworks(self.experiment))}")
+        if self.uses_ring_buffer():
+            self._check_warmup()
         if self.matched_init and self.framework != "torch":
             raise ConfigError("matched_init copies Keras' initial weights into the PyTorch networks; "
                               f"it needs framework 'torch', not {self.framework!r}")
+
+
+    def uses_ring_buffer(self) -> bool:
+        """Whether training samples a ring buffer of ``buffer_size`` from ``train_start`` on."""
+        return all(hasattr(self, f) for f in ("buffer_size", "train_start", "batch_size"))
+
+    def _check_warmup(self) -> None:
+        """Catch a run that would never train, or fail at its first update, before it starts."""
+        if self.buffer_size < self.train_start:
+            raise ConfigError(f"buffer_size {self.buffer_size} is below train_start {self.train_start}: the buffer "
+                              "never holds enough transitions, so the run would never train")
+        if self.batch_size > self.train_start:
+            raise ConfigError(f"batch_size {self.batch_size} is larger than train_start {self.train_start}: the "
+                              "first update samples without replacement from train_start transitions")
 
 
 def positive(default: Any) -> Any:

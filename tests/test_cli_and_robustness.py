@@ -165,17 +165,17 @@ def test_ctrl_c_mid_episode_is_taken_between_env_steps(tmp_path):
     assert (tmp_path / "actor.weights.h5").is_file()
 
 
-def test_sigint_as_flag_records_instead_of_raising_and_respects_an_ignored_sigint():
-    from keras_rl.runs.signals import sigint_as_flag
+def test_stop_signals_as_flag_records_instead_of_raising_and_respects_an_ignored_sigint():
+    from keras_rl.runs.signals import stop_signals_as_flag
 
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        with sigint_as_flag() as caught:
+        with stop_signals_as_flag() as caught:
             os.kill(os.getpid(), signal.SIGINT)
             time.sleep(0.05)  # let the handler run
         assert caught == [signal.SIGINT]
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-        with sigint_as_flag() as caught:
+        with stop_signals_as_flag() as caught:
             assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN  # left as the process was told
             os.kill(os.getpid(), signal.SIGINT)
             time.sleep(0.05)

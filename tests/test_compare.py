@@ -111,10 +111,15 @@ def test_compare_reuses_matching_runs_and_refuses_mismatched_ones(compared, caps
     # another code version
     summary_path = runs / "cartpole" / "faithful-torch" / "seed_1" / "summary.json"
     summary = json.loads(summary_path.read_text())
-    summary["versions"]["keras_rl"] = "0.0.1"
+    summary["provenance"]["commit"] = "0" * 40  # made at another commit
     summary_path.write_text(json.dumps(summary))
     assert main(args) == 2
-    assert re.search(r"made by keras_rl 0.0.1, this is [\d.]+; refusing to mix code versions", capsys.readouterr().err)
+    assert re.search(r"made by code version 0{40}\S*, this is \S+; refusing to mix code versions",
+                     capsys.readouterr().err)
+    del summary["provenance"]  # a run from before commits were recorded
+    summary_path.write_text(json.dumps(summary))
+    assert main(args) == 2
+    assert "(no commit recorded), this is" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("experiment", ["cartpole", "pendulum", "mountaincar"])

@@ -19,21 +19,24 @@ def run(out, experiment, seed, episodes, *extra):
     return [{k: v for k, v in row.items() if k != "wall_seconds"} for row in rows]
 
 
-def test_pendulum_same_seed_gives_an_identical_episodes_csv(tmp_path):
-    first, second = run(tmp_path / "a", "pendulum", 5, 30), run(tmp_path / "b", "pendulum", 5, 30)
-    assert first == second
-    assert any(row["critic_loss"] for row in first)  # 25 of the 30 episodes trained
-    other = run(tmp_path / "c", "pendulum", 6, 30)
-    assert [r["score"] for r in other] != [r["score"] for r in first]
+CASES = [  # experiment, framework, seed, episodes, loss column, least episodes with training
+    ("pendulum", "keras", 5, 30, "critic_loss", 25),
+    ("pendulum", "torch", 5, 12, "critic_loss", 7),
+    ("cartpole", "keras", 3, 60, "loss", 41),
+    ("cartpole", "torch", 3, 60, "loss", 41),
+    ("mountaincar", "keras", 3, 4, "critic_loss", 2),  # bursts after episodes 2 and up
+    ("mountaincar", "torch", 3, 4, "critic_loss", 2),
+]
 
 
-@pytest.mark.parametrize("framework", ["keras", "torch"])
-def test_cartpole_same_seed_gives_an_identical_episodes_csv(tmp_path, framework):
+@pytest.mark.parametrize("experiment, framework, seed, episodes, loss, trained", CASES,
+                         ids=[f"{c[0]}-{c[1]}" for c in CASES])
+def test_same_seed_gives_an_identical_episodes_csv(tmp_path, experiment, framework, seed, episodes, loss, trained):
     if framework == "torch":
         pytest.importorskip("torch", reason="needs the torch extra")
     args = ("--framework", framework)
-    first, second = run(tmp_path / "a", "cartpole", 3, 60, *args), run(tmp_path / "b", "cartpole", 3, 60, *args)
-    assert first == second
-    assert sum(1 for row in first if row["loss"]) > 40  # trained from the first 128 transitions on
-    other = run(tmp_path / "c", "cartpole", 4, 60, *args)
+    first = run(tmp_path / "a", experiment, seed, episodes, *args)
+    assert first == run(tmp_path / "b", experiment, seed, episodes, *args)
+    assert sum(1 for row in first if row[loss]) >= trained  # the runs trained, so the update is covered
+    other = run(tmp_path / "c", experiment, seed + 1, episodes, *args)
     assert [r["score"] for r in other] != [r["score"] for r in first]

@@ -1,6 +1,7 @@
 """Post 003 (the PyTorch DQN tutorial): its behaviours, each shown by a test."""
 
 import math
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -78,3 +79,14 @@ def test_P003_METRIC_100_episode_mean_is_zero_until_100_episodes():
     assert values[98] == 0.0  # the tutorial pads the first 99 with zeros
     assert values[99] == pytest.approx(np.mean(range(1, 101)))
     assert values[149] == pytest.approx(np.mean(range(51, 151)))
+
+
+def test_P003_BUDGET_the_gpu_branch_of_the_tutorials_rule():
+    from keras_rl.posts.cartpole import tutorial_num_episodes
+
+    assert tutorial_num_episodes(cuda_available=True) == 600 and tutorial_num_episodes(cuda_available=False) == 50
+    # the notebook printed `cuda`: its budget is the GPU branch, whatever machine reruns it
+    assert CartPoleDQNConfig().episodes == tutorial_num_episodes(cuda_available=True)
+    post = (Path(__file__).resolve().parents[2] / "shared" / "seeds" / "003_57d1feb4b7fdd940.txt")
+    if post.is_file():
+        assert "cuda" in post.read_text()

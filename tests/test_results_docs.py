@@ -27,3 +27,15 @@ def test_the_findings_and_compare_tables_are_up_to_date():
     assert "not run" not in gen.table()  # every row of the single table has its runs committed
     for experiment in ("pendulum", "cartpole", "mountaincar"):
         assert (ROOT / "results" / "compare" / experiment / "report.md").is_file(), experiment
+
+
+def test_the_cartpole_seeds_said_to_fail_are_the_ones_that_failed():
+    import json
+    import re
+
+    readme = (ROOT / "results" / "README.md").read_text()
+    named = re.search(r"seeds? ([\d, and]+?) never got there", readme).group(1)
+    said = {int(s) for s in re.findall(r"\d+", named)}
+    failed = {s for s in range(10) if not json.loads(
+        (ROOT / "results" / "cartpole" / "faithful" / f"seed_{s}" / "summary.json").read_text())["success"]}
+    assert said == failed

@@ -12,6 +12,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from keras_rl.rngs import rng_state, set_rng_state
+
 
 class OUNoise:
     """Ornstein-Uhlenbeck noise, discretised as in post 000 §2.3.2::
@@ -38,6 +40,13 @@ class OUNoise:
     def reset(self) -> None:
         self.state = np.zeros(self.dim)
 
+    def state_dict(self) -> dict[str, Any]:
+        return {"state": self.state.copy(), "rng": rng_state(self.rng)}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.state = np.array(state["state"])
+        set_rng_state(self.rng, state["rng"])
+
     def __call__(self) -> np.ndarray:
         x = self.state
         out = x + self.theta * (self.mu - x) * self.dt + self.sigma * np.sqrt(self.dt) * self.rng.normal(size=self.dim)
@@ -55,6 +64,12 @@ class NoExploration:
     def __call__(self, action: Any) -> Any:
         return action
 
+    def state_dict(self) -> dict[str, Any]:
+        return {}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        pass
+
 
 class AdditiveNoise:
     """``np.clip(action + noise, -bound, bound)``: the posts add float64 noise to a float32
@@ -65,6 +80,12 @@ class AdditiveNoise:
 
     def reset(self) -> None:
         self.noise.reset()
+
+    def state_dict(self) -> dict[str, Any]:
+        return self.noise.state_dict()
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.noise.load_state_dict(state)
 
     def __call__(self, action: np.ndarray) -> np.ndarray:
         return np.clip(action + self.noise().astype(np.float32), -self.bound, self.bound)
@@ -89,6 +110,14 @@ class EpsilonGreedy:
 
     def reset(self) -> None:
         pass  # steps_done runs over the whole training run
+
+    def state_dict(self) -> dict[str, Any]:
+        # action_space.sample()'s generator is the env's: the run's checkpoint saves it
+        return {"steps_done": self.steps_done, "rng": rng_state(self.rng)}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.steps_done = int(state["steps_done"])
+        set_rng_state(self.rng, state["rng"])
 
     def __call__(self, greedy_action: int) -> int:
         sample = self.rng.random()

@@ -98,6 +98,19 @@ class Agent:
     def end_episode(self) -> EpisodeStats:
         return self.tally.stats()
 
+    def state_dict(self) -> dict[str, Any]:
+        """Everything the agent carries from one episode to the next (for ``--resume``)."""
+        return {"learner": self.learner.state_dict(), "buffer": self.buffer.state_dict(),
+                "transitions": self.transitions.state_dict(), "explorer": self.explorer.state_dict(),
+                "total_steps": self.total_steps, "total_updates": self.tally.total_updates}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.learner.load_state_dict(state["learner"])
+        self.buffer.load_state_dict(state["buffer"])
+        self.transitions.load_state_dict(state["transitions"])
+        self.explorer.load_state_dict(state["explorer"])
+        self.total_steps, self.tally.total_updates = int(state["total_steps"]), int(state["total_updates"])
+
     @property
     def updates(self) -> int:
         """Updates over the whole run."""

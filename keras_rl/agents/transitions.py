@@ -39,6 +39,12 @@ class TransitionRule:
     def begin_episode(self) -> None:
         self._held = []
 
+    def state_dict(self) -> dict:
+        return {"held": [row.copy() for row in self._held]}
+
+    def load_state_dict(self, state: dict) -> None:
+        self._held = [np.array(row) for row in state["held"]]
+
     def observe(self, obs) -> np.ndarray:
         """The state the policy sees: float32, normalised where the post normalises."""
         state = np.asarray(obs, dtype=np.float32)

@@ -34,6 +34,8 @@ def save_weights(model, path: Path) -> None:
     try:
         model.save_weights(str(tmp))
         os.replace(tmp, path)
+    except OSError as exc:
+        raise OSError(f"could not write {path}: {exc}") from exc
     finally:
         tmp.unlink(missing_ok=True)
 
@@ -48,6 +50,18 @@ def load_weights(model, path: Path) -> None:
         model.load_weights(str(path))
     except Exception as exc:  # h5py/keras raise many kinds for a damaged file
         raise RunFolderError(f"{path} could not be loaded ({type(exc).__name__}: {exc})") from None
+
+
+def variables_state(variables) -> list:
+    return [v.numpy().copy() for v in variables]
+
+
+def load_variables_state(variables, values) -> None:
+    variables = list(variables)
+    if len(variables) != len(values):
+        raise ValueError(f"checkpoint holds {len(values)} values for {len(variables)} variables")
+    for variable, value in zip(variables, values):
+        variable.assign(value)
 
 
 def numpy_weights(model) -> list:

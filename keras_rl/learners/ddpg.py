@@ -22,7 +22,8 @@ import tensorflow as tf
 
 from keras_rl.buffers import Batch, Layout
 from keras_rl.envs import EnvSpec
-from keras_rl.learners.common import compile_step, load_weights, numpy_weights, save_weights, soft_update
+from keras_rl.learners.common import (compile_step, load_variables_state, load_weights, numpy_weights, save_weights,
+                                      soft_update, variables_state)
 from keras_rl.learners.networks import Actor, Critic, MountainCarActor, MountainCarCritic, build
 from keras_rl.learners.protocol import ActorUpdate, check_actor_update, four_networks
 
@@ -91,6 +92,16 @@ class DDPGLearner:
     def weights(self) -> dict[str, list[np.ndarray]]:
         return {name: numpy_weights(getattr(self, name))
                 for name in ("actor", "critic", "target_actor", "target_critic")}
+
+    def _stateful(self) -> list:
+        return [*(v for m in (self.actor, self.critic, self.target_actor, self.target_critic) for v in m.variables),
+                *self.actor_optimizer.variables, *self.critic_optimizer.variables]
+
+    def state_dict(self) -> dict:
+        return {"variables": variables_state(self._stateful())}
+
+    def load_state_dict(self, state: dict) -> None:
+        load_variables_state(self._stateful(), state["variables"])
 
     # -- traced -----------------------------------------------------------------------------
     def td_targets(self, rewards: tf.Tensor, next_states: tf.Tensor, dones: tf.Tensor) -> tf.Tensor:

@@ -10,7 +10,8 @@ import tensorflow as tf
 
 from keras_rl.buffers import Batch, Layout
 from keras_rl.envs import EnvSpec
-from keras_rl.learners.common import compile_step, load_weights, numpy_weights, save_weights, soft_update
+from keras_rl.learners.common import (compile_step, load_variables_state, load_weights, numpy_weights, save_weights,
+                                      soft_update, variables_state)
 from keras_rl.learners.networks import QNetwork, build
 from keras_rl.learners.optimizers import TorchAdamW
 
@@ -66,6 +67,15 @@ class DQNLearner:
 
     def weights(self) -> dict[str, list[np.ndarray]]:
         return {"q_network": numpy_weights(self.q_network), "target_network": numpy_weights(self.target_network)}
+
+    def _stateful(self) -> list:
+        return [*self.q_network.variables, *self.target_network.variables, *self.optimizer.variables]
+
+    def state_dict(self) -> dict:
+        return {"variables": variables_state(self._stateful())}
+
+    def load_state_dict(self, state: dict) -> None:
+        load_variables_state(self._stateful(), state["variables"])
 
     # -- traced ----------------------------------------------------------------------------
     def update(self, batch: Batch) -> dict[str, tf.Tensor]:

@@ -46,6 +46,12 @@ class Learner(Protocol):
     def weights(self) -> dict[str, list[np.ndarray]]:
         """Every network's weights as numpy arrays, by network name (for tests)."""
 
+    def state_dict(self) -> dict[str, Any]:
+        """Weights, optimizer state and any RNG the learner owns, as plain data (checkpoints)."""
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore ``state_dict()``'s output exactly."""
+
 
 ActorUpdate = Literal["mean_q", "dpg_intended", "dpg_literal"]
 """How a DDPG learner forms the actor's gradient (``keras_rl/learners/ddpg.py`` explains each)."""

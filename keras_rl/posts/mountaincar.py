@@ -144,12 +144,19 @@ class MountainCarDDPGConfig(ExperimentConfig):
     exploration: Literal["none", "ou"] = "none"
     """P001-NOEXPLORE: the actor acts with no added noise (``none``); ``ou`` adds OU noise."""
 
+    def uses_ring_buffer(self) -> bool:
+        return not self.popping_buffer
+
     def validate(self) -> None:
         super().validate()
         if self.actor_gradient == "mean_q":
             raise ConfigError("post 001's actor_gradient is dpg_literal or dpg_intended, not mean_q")
         if self.train_down_to >= self.train_start:
             raise ConfigError("train_down_to must be below train_start")
+        if self.popping_buffer and self.batch_size > self.train_down_to + 1:
+            raise ConfigError(f"batch_size {self.batch_size} is larger than train_down_to + 1 = "
+                              f"{self.train_down_to + 1}: a burst pops batches while more than train_down_to "
+                              "transitions remain, so the last pop would come up short")
         if len(self.critic_hidden_units) != 2:
             raise ConfigError("critic_hidden_units takes two widths (before and after the action joins), "
                               f"got {self.critic_hidden_units}")

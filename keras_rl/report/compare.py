@@ -14,7 +14,6 @@ from typing import Any
 
 import numpy as np
 
-from keras_rl import __version__
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import frameworks
@@ -23,6 +22,7 @@ from keras_rl.report.plots import plt, save_figure
 from keras_rl.report.stats import episodes_to_threshold_stats, fisher_exact, iqm_ci, mann_whitney, median_difference_ci
 from keras_rl.runs.files import atomic_write_json, atomic_write_text, finite_or_none, read_episodes, run_folder
 from keras_rl.runs.jobs import SeedJob, backend_for, run_jobs
+from keras_rl.runs.provenance import code_version, code_version_of
 from keras_rl.runs.summary import RunSummary
 
 FRAMEWORKS = ("keras", "torch")
@@ -54,9 +54,9 @@ def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
         raise RunFolderError(
             f"{seed_dir} was made with a different config ({', '.join(f'{k}={made.get(k)!r} here, {wanted[k]!r} wanted' for k in differing[:3])}); "
             "refusing to mix runs: pass --rerun to replace it, or --runs to use another folder")
-    theirs = summary.versions.get("keras_rl")
+    theirs = code_version_of(summary.provenance, summary.versions.get("keras_rl"))
     if theirs != code_version:
-        raise RunFolderError(f"{seed_dir} was made by keras_rl {theirs}, this is {code_version}; "
+        raise RunFolderError(f"{seed_dir} was made by code version {theirs}, this is {code_version}; "
                              "refusing to mix code versions: pass --rerun to replace it")
     if summary.status != "completed":
         return f"unfinished ({summary.status})"
@@ -74,8 +74,8 @@ def gather(experiment: Experiment, variant: str, seeds: list[int], runs_root: Pa
         for seed in seeds:
             config = base.replace(seed=seed)
             seed_dir = folder / f"seed_{seed}"
-            if rerun or check_reusable(seed_dir, config, __version__) is not None:
-                jobs.append(SeedJob.of(config, seed_dir))
+            if rerun or check_reusable(seed_dir, config, code_version()) is not None:
+                jobs.append(SeedJob.of(config, seed_dir, start="overwrite"))
                 missing.setdefault(framework, []).append(seed)
     if reuse_only and missing:
         have = {fw: sorted(set(seeds) - set(missing.get(fw, []))) for fw in FRAMEWORKS}

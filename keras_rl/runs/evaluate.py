@@ -10,7 +10,8 @@ import numpy as np
 
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.registry import build_agent, get_experiment
-from keras_rl.runs.files import atomic_write_json
+from keras_rl.runs.files import atomic_write_bytes, atomic_write_json
+from keras_rl.runs.signals import sigterm_as_interrupt
 from keras_rl.seeding import configure_tensorflow, seed_everything
 
 
@@ -43,29 +44,36 @@ def evaluate_run(run_dir: Path, episodes: int = 5, gif: Path | None = None, seed
     agent = build_agent(experiment, config, env)
     agent.load_policy(run_dir)
 
-    scores, frames = [], []
-    for episode in range(episodes):
-        obs, _ = env.reset(seed=seed if episode == 0 else None)
-        score, done = 0.0, False
-        while not done:
-            if gif and episode == 0:
-                frames.append(env.render())
-            obs, reward, terminated, truncated, _ = env.step(agent.greedy_action(obs))
-            score += float(reward)
-            done = terminated or truncated
-        scores.append(score)
-        if progress:
-            print(f"episode: {episode:3d} | score: {score:.3f}")
+    scores, frames, interrupted = [], [], False
+    try:
+        with sigterm_as_interrupt():
+            for episode in range(episodes):
+                obs, _ = env.reset(seed=seed if episode == 0 else None)
+                score, done = 0.0, False
+                while not done:
+                    if gif and episode == 0:
+                        frames.append(env.render())
+                    obs, reward, terminated, truncated, _ = env.step(agent.greedy_action(obs))
+                    score += float(reward)
+                    done = terminated or truncated
+                scores.append(score)
+                if progress:
+                    print(f"episode: {episode:3d} | score: {score:.3f}")
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: keep the episodes played so far
+        interrupted = True
     env.close()
-    result = {"run_dir": str(run_dir), "episodes": episodes, "seed": seed, "scores": scores,
-              "mean": float(np.mean(scores)), "std": float(np.std(scores))}
-    if gif:
+    result = {"run_dir": str(run_dir), "episodes": len(scores), "episodes_asked": episodes, "seed": seed,
+              "scores": scores, "mean": float(np.mean(scores)) if scores else None,
+              "std": float(np.std(scores)) if scores else None, "interrupted": interrupted}
+    if gif and frames and (scores or interrupted):
         from PIL import Image
 
-        gif = Path(gif)
-        gif.parent.mkdir(parents=True, exist_ok=True)
+        import io
+
+        buf = io.BytesIO()
         images = [Image.fromarray(f) for f in frames]
-        images[0].save(gif, save_all=True, append_images=images[1:], duration=int(1000 / 30), loop=0)
+        images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 / 30), loop=0)
+        atomic_write_bytes(Path(gif), buf.getvalue())
         result["gif"] = str(gif)
     atomic_write_json(Path(run_dir) / "evaluation.json", result)
     return result

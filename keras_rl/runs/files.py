@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
 
-from keras_rl.runs.signals import sigint_deferred
+from keras_rl.runs.signals import stop_signals_deferred
 
 
 def run_folder(runs_root: Path, experiment: str, variant: str, framework: str, matched_init: bool = False) -> Path:
@@ -135,7 +135,7 @@ class RunRecorder:
 
     def add_episode(self, row: dict[str, Any]) -> None:
         # The file and the in-memory rows change together: Ctrl-C waits for both.
-        with sigint_deferred():
+        with stop_signals_deferred():
             atomic_write_text(self.out_dir / "episodes.csv",
                               episodes_csv_text([*self.rows, row], episode_columns(self.loss_names)))
             self.rows.append(row)

@@ -12,15 +12,18 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import shutil
 import signal
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, Literal, Protocol
 
 from keras_rl.errors import RunFolderError
 from keras_rl.registry import get_experiment
 from keras_rl.report.plots import plot_seed_curve
 from keras_rl.runs.loop import run_seed
+from keras_rl.runs.signals import sigterm_as_interrupt
 from keras_rl.runs.summary import RunSummary
 
 EXIT_INTERRUPTED = 130
@@ -33,10 +36,15 @@ class SeedJob:
     experiment: str
     config: dict[str, Any]
     out_dir: Path
+    start: Literal["new", "overwrite", "resume"] = "new"
+    """``overwrite``: the folder is cleared whole first; ``resume``: continue from its checkpoint."""
+    checkpoint_every: int = 10
+    tensorboard: Path | None = None
+    """Write TensorBoard scalars under this folder (one run per seed)."""
 
     @classmethod
-    def of(cls, config, out_dir: Path) -> "SeedJob":
-        return cls(config.experiment, config.to_dict(), Path(out_dir))
+    def of(cls, config, out_dir: Path, **options: Any) -> "SeedJob":
+        return cls(config.experiment, config.to_dict(), Path(out_dir), **options)
 
 
 @dataclass
@@ -50,10 +58,17 @@ def execute(job: SeedJob, progress: bool = True, position: int = 0) -> RunSummar
     """Run one job here and draw its ``curve.png`` (whatever the run's end)."""
     experiment = get_experiment(job.experiment)
     config = experiment.config_cls.from_dict(job.config)
+    if job.start == "overwrite" and Path(job.out_dir).exists():
+        shutil.rmtree(job.out_dir)  # whole: no weights or evaluation.json of the old run survive
     try:
-        return run_seed(experiment, config, job.out_dir, progress=progress, position=position)
+        return run_seed(experiment, config, job.out_dir, progress=progress, position=position,
+                        resume=job.start == "resume", checkpoint_every=job.checkpoint_every,
+                        tensorboard=job.tensorboard)
     finally:
-        plot_seed_curve(job.out_dir, experiment, config)
+        try:
+            plot_seed_curve(job.out_dir, experiment, config)
+        except OSError as exc:  # a full disk: the run's own files and summary are what count
+            print(f"warning: could not draw {Path(job.out_dir) / 'curve.png'}: {exc}", file=sys.stderr)
 
 
 class Backend(Protocol):
@@ -64,9 +79,10 @@ class Backend(Protocol):
 class InProcess:
     def run(self, jobs: list[SeedJob], progress: bool) -> bool:
         try:
-            for job in jobs:
-                if execute(job, progress).status == "interrupted":
-                    return True
+            with sigterm_as_interrupt():  # between seeds too, SIGTERM stops like Ctrl-C
+                for job in jobs:
+                    if execute(job, progress).status == "interrupted":
+                        return True
         except KeyboardInterrupt:  # arrived outside a seed's episode loop
             return True
         return False
@@ -88,24 +104,24 @@ class ProcessPool:
 
     def run(self, jobs: list[SeedJob], progress: bool) -> bool:
         ctx = multiprocessing.get_context("spawn")
-        pending, running, interrupted = list(enumerate(jobs)), [], False
+        pending, running = list(enumerate(jobs)), []
         try:
-            while pending or running:
-                while pending and len(running) < self.workers:
-                    i, job = pending.pop(0)
-                    proc = ctx.Process(target=_worker, args=(job, progress, i % self.workers))
-                    proc.start()
-                    running.append(proc)
-                running[0].join(timeout=0.5)
-                for proc in [p for p in running if not p.is_alive()]:
-                    running.remove(proc)
-                    if proc.exitcode == EXIT_INTERRUPTED:
-                        interrupted, pending = True, []
+            with sigterm_as_interrupt():  # SIGTERM to the dispatcher stops the seeds like Ctrl-C
+                while pending or running:
+                    while pending and len(running) < self.workers:
+                        i, job = pending.pop(0)
+                        proc = ctx.Process(target=_worker, args=(job, progress, i % self.workers))
+                        proc.start()
+                        running.append(proc)
+                    running[0].join(timeout=0.5)
+                    for proc in [p for p in running if not p.is_alive()]:
+                        running.remove(proc)
+                        if proc.exitcode == EXIT_INTERRUPTED:  # a seed was stopped: start no other
+                            raise KeyboardInterrupt
         except KeyboardInterrupt:
-            interrupted = True
-        if interrupted:
             _stop(running)
-        return interrupted
+            return True
+        return False
 
 
 def _stop(running: list) -> None:

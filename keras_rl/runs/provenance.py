@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import hashlib
 import os
 import platform
 import subprocess
@@ -24,19 +25,38 @@ def cpu_model() -> str:
 
 @functools.lru_cache(maxsize=1)
 def git_state() -> dict[str, object]:
-    """``{"commit": sha, "dirty": bool}`` of the checkout this package runs from, or nulls
-    when it is not run from a git checkout (an installed wheel)."""
-    root = Path(__file__).resolve().parents[2]
+    """``{"commit": sha, "dirty": bool, "diff_sha256": hash of the uncommitted diff or None}``
+    of the checkout this package runs from; nulls when it is not a git checkout (a wheel)."""
+    root = Path(__file__).resolve().parents[1]
+    unknown = {"commit": None, "dirty": None, "diff_sha256": None}
+    if not (root.parent / ".git").exists():
+        return unknown
     try:
-        commit = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
-                                timeout=10)
+        git = ["git", "-C", str(root.parent)]
+        commit = subprocess.run([*git, "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10)
         if commit.returncode != 0:
-            return {"commit": None, "dirty": None}
-        status = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
-                                capture_output=True, text=True, timeout=10)
-        return {"commit": commit.stdout.strip(), "dirty": bool(status.stdout.strip())}
+            return unknown
+        diff = subprocess.run([*git, "diff", "HEAD", "--", "keras_rl"], capture_output=True, timeout=30).stdout
+        return {"commit": commit.stdout.strip(), "dirty": bool(diff.strip()),
+                "diff_sha256": hashlib.sha256(diff).hexdigest() if diff.strip() else None}
     except (OSError, subprocess.SubprocessError):
-        return {"commit": None, "dirty": None}
+        return unknown
+
+
+def code_version() -> str:
+    """What "the same code" means when runs are reused: the git commit, plus a hash of any
+    uncommitted change to ``keras_rl/``; the package version where there is no checkout."""
+    return code_version_of(git_state(), None)
+
+
+def code_version_of(provenance: dict, package_version: str | None) -> str:
+    """The code version a run recorded (``summary.json``'s provenance)."""
+    commit = provenance.get("commit")
+    if commit is None:
+        from keras_rl import __version__
+
+        return f"keras_rl {package_version or __version__} (no commit recorded)"
+    return commit + (f"+dirty.{provenance['diff_sha256'][:12]}" if provenance.get("dirty") else "")
 
 
 def library_versions(framework: str = "keras") -> dict[str, str]:

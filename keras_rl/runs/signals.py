@@ -1,4 +1,5 @@
-"""Ctrl-C handling for the training loop: taken between env steps, never inside TF or torch."""
+"""Stop signals for the training loop: Ctrl-C (SIGINT) and SIGTERM (what ``timeout``, Slurm,
+Kubernetes and ``docker stop`` send) are taken between env steps, never inside TF or torch."""
 
 from __future__ import annotations
 
@@ -6,37 +7,65 @@ import contextlib
 import signal
 import threading
 
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
 
 @contextlib.contextmanager
-def sigint_as_flag():
-    """Inside the block, Ctrl-C appends to the yielded list instead of raising.
+def stop_signals_as_flag():
+    """Inside the block, SIGINT and SIGTERM append their number to the yielded list instead
+    of raising or killing the process.
 
     The training loop checks the list between env steps. A KeyboardInterrupt raised
     asynchronously can land inside TensorFlow's C++ code (e.g. ``tf.constant`` converting
     a numpy array), which turns it into a SystemError: the run would end as an "error"
     instead of "interrupted". Outside the main thread signals cannot be handled, and a
-    SIGINT the process was started with ignored (``cmd &`` in a script) stays ignored.
+    signal the process was started with ignored (``cmd &`` in a script) stays ignored.
     """
     caught: list[int] = []
-    if (threading.current_thread() is not threading.main_thread()
-            or signal.getsignal(signal.SIGINT) is signal.SIG_IGN):
+    if threading.current_thread() is not threading.main_thread():
         yield caught
         return
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    previous = {}
+    for sig in STOP_SIGNALS:
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            previous[sig] = signal.signal(sig, lambda signum, frame: caught.append(signum))
     try:
         yield caught
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 @contextlib.contextmanager
-def sigint_deferred(reraise: bool = True):
-    """Hold Ctrl-C back until the block is done, so a write and its bookkeeping stay together.
-
-    A SIGINT that arrives inside the block is remembered and raised as KeyboardInterrupt
-    when the block ends (``reraise=False``: dropped, for a flush that is the run's last act).
-    """
-    with sigint_as_flag() as caught:
+def stop_signals_deferred(reraise: bool = True):
+    """Hold SIGINT/SIGTERM back until the block is done, so a write and its bookkeeping stay
+    together. A signal that arrives inside the block is remembered and raised as
+    KeyboardInterrupt when the block ends (``reraise=False``: dropped, for a flush that is
+    the run's last act)."""
+    with stop_signals_as_flag() as caught:
         yield
     if caught and reraise:
         raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt():
+    """SIGTERM raises KeyboardInterrupt, as Ctrl-C does (for code outside the episode loop:
+    a dispatcher between seeds, ``evaluate``)."""
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGTERM) is signal.SIG_IGN:
+        yield
+        return
+
+    def _raise(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, _raise)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def signal_name(caught: list[int]) -> str:
+    return signal.Signals(caught[0]).name if caught else "SIGINT"

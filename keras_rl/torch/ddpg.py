@@ -25,6 +25,7 @@ moving statistics with Keras' epsilon 1e-3) and the literal second-order actor s
 
 from __future__ import annotations
 
+import copy
 import math
 from pathlib import Path
 from typing import Sequence
@@ -261,6 +262,22 @@ class TorchDDPGLearner:
     def weights(self) -> dict[str, list[np.ndarray]]:
         return {name: [t.detach().numpy().copy() for t in _variables(getattr(self, name))]
                 for name in ("actor", "critic", "target_actor", "target_critic")}
+
+    def state_dict(self) -> dict:
+        nets = ("actor", "critic", "target_actor", "target_critic")
+        return {"nets": {n: {k: v.clone() for k, v in getattr(self, n).state_dict().items()} for n in nets},
+                "optimizers": {n: copy.deepcopy(getattr(self, n).state_dict())
+                               for n in ("actor_optimizer", "critic_optimizer")},
+                "iterations": {n: getattr(self, n).iterations for n in ("actor_optimizer", "critic_optimizer")},
+                "torch_rng": torch.get_rng_state()}
+
+    def load_state_dict(self, state: dict) -> None:
+        for name, values in state["nets"].items():
+            getattr(self, name).load_state_dict(values)
+        for name, values in state["optimizers"].items():
+            getattr(self, name).load_state_dict(values)
+            getattr(self, name).iterations = int(state["iterations"][name])
+        torch.set_rng_state(state["torch_rng"])
 
     @torch.no_grad()
     def td_targets(self, rewards, next_states, dones):

@@ -8,6 +8,7 @@ device is the CPU. The arithmetic and its order are the tutorial's.
 
 from __future__ import annotations
 
+import copy
 import math
 import random
 from collections import deque, namedtuple
@@ -155,6 +156,23 @@ class TutorialDQNAgent:
 
     def end_episode(self) -> EpisodeStats:
         return self.tally.stats()
+
+    def state_dict(self) -> dict:
+        return {"policy_net": {k: v.clone() for k, v in self.policy_net.state_dict().items()},
+                "target_net": {k: v.clone() for k, v in self.target_net.state_dict().items()},
+                "optimizer": copy.deepcopy(self.optimizer.state_dict()), "random": self.random.getstate(),
+                "memory": list(self.memory.memory), "steps_done": self.steps_done,
+                "total_updates": self.tally.total_updates, "torch_rng": torch.get_rng_state()}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.policy_net.load_state_dict(state["policy_net"])
+        self.target_net.load_state_dict(state["target_net"])
+        self.optimizer.load_state_dict(state["optimizer"])
+        self.random.setstate(state["random"])
+        self.memory.memory.clear()
+        self.memory.memory.extend(state["memory"])
+        self.steps_done, self.tally.total_updates = int(state["steps_done"]), int(state["total_updates"])
+        torch.set_rng_state(state["torch_rng"])
 
     @property
     def updates(self) -> int:

@@ -1,0 +1,116 @@
+"""``--resume``: a run killed with SIGKILL and resumed gives the same ``episodes.csv`` as an
+uninterrupted run, bit for bit, for each post in both frameworks; a corrupt checkpoint is
+refused and nothing in the folder is touched."""
+
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+CLI = [sys.executable, "-m", "keras_rl", "reproduce"]
+CASES = [  # experiment, framework, episodes, kill after this many episodes are on disk
+    ("pendulum", "keras", 30, 15),
+    ("pendulum", "torch", 30, 15),
+    ("cartpole", "keras", 60, 35),
+    ("cartpole", "torch", 60, 35),
+    ("mountaincar", "keras", 8, 5),
+    ("mountaincar", "torch", 8, 5),
+]
+
+
+def rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as fh:
+        return [{k: v for k, v in r.items() if k != "wall_seconds"} for r in csv.DictReader(fh)]
+
+
+def args(experiment, framework, episodes, out, seed=2):
+    return [*CLI, experiment, "--framework", framework, "--seeds", str(seed), "--episodes", str(episodes),
+            "--no-progress", "--checkpoint-every", "3", "--out", str(out)]
+
+
+def env_for_child():
+    # the child must die of SIGKILL, and take SIGINT/SIGTERM itself, whatever this runner ignores
+    return {**os.environ, "PYTHONUNBUFFERED": "1"}
+
+
+@pytest.mark.parametrize("experiment, framework, episodes, kill_after", CASES,
+                         ids=[f"{c[0]}-{c[1]}" for c in CASES])
+def test_killed_and_resumed_run_equals_an_uninterrupted_one(tmp_path, experiment, framework, episodes, kill_after):
+    if framework == "torch":
+        pytest.importorskip("torch", reason="needs the torch extra")
+    straight = subprocess.run(args(experiment, framework, episodes, tmp_path / "straight"), capture_output=True,
+                              text=True, timeout=600)
+    assert straight.returncode in (0, 1), straight.stderr
+    csv_path = tmp_path / "killed" / "seed_2" / "episodes.csv"
+    proc = subprocess.Popen(args(experiment, framework, episodes, tmp_path / "killed"), stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, env=env_for_child(), preexec_fn=_default_signals)
+    deadline = time.monotonic() + 600
+    try:
+        while time.monotonic() < deadline and proc.poll() is None:
+            if csv_path.is_file() and len(rows(csv_path)) >= kill_after:
+                break
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.wait(timeout=60)
+    kept = len(rows(csv_path))
+    assert proc.returncode == -signal.SIGKILL and kept < episodes, "the run finished before it could be killed"
+    assert (tmp_path / "killed" / "seed_2" / "checkpoint.pkl").is_file()
+    resumed = subprocess.run([*args(experiment, framework, episodes, tmp_path / "killed"), "--resume"],
+                             capture_output=True, text=True, timeout=600)
+    assert resumed.returncode in (0, 1), resumed.stderr
+    expected = rows(tmp_path / "straight" / "seed_2" / "episodes.csv")
+    assert len(expected) == episodes
+    assert rows(csv_path) == expected, f"resumed after {kept} episodes on disk"
+    assert not (tmp_path / "killed" / "seed_2" / "checkpoint.pkl").exists()  # a completed run keeps none
+
+
+def _default_signals():
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def test_a_corrupt_checkpoint_is_refused_and_the_folder_left_alone(tmp_path):
+    out = tmp_path / "run"
+    proc = subprocess.run(args("cartpole", "keras", 7, out), capture_output=True, text=True, timeout=300)
+    assert proc.returncode in (0, 1), proc.stderr
+    seed_dir = out / "seed_2"
+    # make it look interrupted at episode 6, then damage the checkpoint
+    from keras_rl.runs.checkpoint import write_checkpoint
+
+    write_checkpoint(seed_dir, {"anything": 1})
+    ckpt = seed_dir / "checkpoint.pkl"
+    ckpt.write_bytes(ckpt.read_bytes()[:-3])
+    before = {p.name: p.read_bytes() for p in seed_dir.iterdir()}
+    proc = subprocess.run([*args("cartpole", "keras", 7, out), "--resume"], capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 2
+    assert "checkpoint.pkl is corrupt (checksum mismatch" in proc.stderr
+    assert {p.name: p.read_bytes() for p in seed_dir.iterdir()} == before
+    ckpt.write_bytes(b"not a checkpoint at all")
+    proc = subprocess.run([*args("cartpole", "keras", 7, out), "--resume"], capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 2 and "is not a keras-rl checkpoint" in proc.stderr
+
+
+def test_resume_with_other_options_is_refused(tmp_path):
+    out = tmp_path / "run"
+    proc = subprocess.Popen(args("pendulum", "keras", 30, out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            preexec_fn=_default_signals)
+    csv_path = out / "seed_2" / "episodes.csv"
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None and not (csv_path.is_file() and len(rows(csv_path)) >= 4):
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGTERM)  # handled like Ctrl-C: the checkpoint is written on the way out
+    assert proc.wait(timeout=120) == 130
+    assert (out / "seed_2" / "checkpoint.pkl").is_file()
+    other = subprocess.run([*args("pendulum", "keras", 30, out)[:-2], "--out", str(out), "--resume", "--set",
+                            "tau=0.01"], capture_output=True, text=True, timeout=300)
+    assert other.returncode == 2 and "was made with tau=0.001" in other.stderr
