@@ -2,6 +2,7 @@
 
     keras-rl reproduce pendulum --variant faithful --seeds 0-9 --workers 2 --out results/pendulum
     keras-rl compare pendulum --seeds 0-9 --workers 2
+    keras-rl sweep pendulum --grid tau=0.001,0.005 --seeds 0-3 --workers 2 --out runs/s
     keras-rl evaluate results/pendulum/faithful/seed_0 --episodes 5 --gif pendulum.gif
     keras-rl aggregate results/pendulum/faithful
     keras-rl list
@@ -75,7 +76,10 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
     rep.add_argument("--out", type=_path_arg, default=None,
                      help="output folder (default results/<experiment>/<variant>); one seed_<n>/ per seed")
-    rep.add_argument("--workers", type=int, default=1, help="processes for several seeds (default 1)")
+    rep.add_argument("--workers", type=int, default=1,
+                     help="seeds at once on a local Ray instance (default 1: in this process, no Ray)")
+    rep.add_argument("--address", default=None,
+                     help="run the seeds on the Ray cluster at HOST:PORT (default: $RAY_ADDRESS if set)")
     rep.add_argument("--set", dest="overrides", action="append", default=[], metavar="FIELD=VALUE",
                      help="override a config field, e.g. --set tau=0.005 (repeatable)")
     rep.add_argument("--min-success-rate", type=float, default=1.0,
@@ -103,13 +107,37 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--variant", default="faithful", help="the variant to compare (default faithful)")
     cp.add_argument("--matched-init", action="store_true",
                     help="torch runs start from the Keras runs' initial weights (report in <out>/<experiment>/matched-init)")
-    cp.add_argument("--workers", type=int, default=1, help="processes for the runs still to make (default 1)")
+    cp.add_argument("--workers", type=int, default=1,
+                    help="seeds at once on a local Ray instance for the runs still to make (default 1: in-process)")
+    cp.add_argument("--address", default=None, help="run on the Ray cluster at HOST:PORT (default: $RAY_ADDRESS)")
     cp.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
     cp.add_argument("--runs", type=Path, default=Path("results"), help="where run folders are found and made")
     cp.add_argument("--out", type=Path, default=Path("results/compare"), help="report folder root")
     cp.add_argument("--rerun", action="store_true", help="replace existing run folders instead of reusing them")
     cp.add_argument("--reuse-only", action="store_true", help="run nothing; fail if a seed is missing")
     cp.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+    sw = sub.add_parser("sweep", help="a grid of config values x seeds, resumable, with a report per grid point")
+    sw.add_argument("experiment", help="experiment name (see `keras-rl list`)")
+    sw.add_argument("--seeds", default="0-9", help="seed list or range for every grid point (default 0-9)")
+    sw.add_argument("--grid", action="append", default=[], metavar="FIELD=V1,V2",
+                    help="values of a config field to sweep (repeatable: the cross product); layer widths "
+                         "separate their values with ';'")
+    sw.add_argument("--ablate", action="store_true",
+                    help="one grid point per quirk switch of the variant (that switch off, the rest at their "
+                         "defaults), plus the unmodified variant")
+    sw.add_argument("--baseline", default=None, help="the grid point the others are compared with (default: the first)")
+    sw.add_argument("--variant", default="faithful", help="the variant the grid modifies (default faithful)")
+    sw.add_argument("--framework", default="keras", help="keras (ours) or torch")
+    sw.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
+    sw.add_argument("--set", dest="overrides", action="append", default=[], metavar="FIELD=VALUE",
+                    help="override a config field for every grid point (repeatable)")
+    sw.add_argument("--workers", type=int, default=1,
+                    help="seeds at once on a local Ray instance (default 1: in this process, no Ray)")
+    sw.add_argument("--address", default=None, help="run on the Ray cluster at HOST:PORT (default: $RAY_ADDRESS)")
+    sw.add_argument("--out", type=_path_arg, required=True, help="the sweep's folder: <grid point>/seed_<n>/, sweep.md")
+    sw.add_argument("--yes", action="store_true", help="allow a sweep of more than 10,000 jobs")
+    sw.add_argument("--no-progress", action="store_true", help="no progress bars")
 
     ag = sub.add_parser("aggregate", help="rebuild summary.md and curves.png of a multi-seed folder")
     ag.add_argument("parent", type=Path, help="a folder of seed_<n>/ run folders, e.g. results/pendulum/faithful")
@@ -235,11 +263,12 @@ def reproduce(args: argparse.Namespace) -> int:
     modes = _start_modes(seed_dirs, args.overwrite, args.resume)
 
     from keras_rl.report.aggregate import write_aggregate
-    from keras_rl.runs.jobs import SeedJob, backend_for, run_jobs
+    from keras_rl.runs.backends import backend_for
+    from keras_rl.runs.jobs import SeedJob, run_jobs
 
     jobs = [SeedJob.of(base.replace(seed=s), d, start=m, checkpoint_every=args.checkpoint_every,
                        tensorboard=args.tensorboard) for s, d, m in zip(seeds, seed_dirs, modes)]
-    outcome = run_jobs(jobs, backend_for(workers, len(jobs)), progress=not args.no_progress)
+    outcome = run_jobs(jobs, backend_for(workers, len(jobs), _address(args)), progress=not args.no_progress)
     summaries = outcome.summaries
     failures = [s for s in summaries if s.status in ("non_finite_loss", "error")]
     for s in failures:
@@ -299,13 +328,76 @@ def compare(args: argparse.Namespace) -> int:
     try:
         result = run_compare(args.experiment, seeds, args.variant, workers, args.runs,
                              args.out, args.rerun, args.reuse_only, args.episodes, not args.no_progress,
-                             command_line(), args.matched_init)
+                             command_line(), args.matched_init, address=_address(args))
     except KeyboardInterrupt:
         print("interrupted: the runs so far are on disk; run compare again to reuse them", file=sys.stderr)
         return EXIT_INTERRUPTED
     print(f"report: {result.out_dir / 'report.md'}")
     print(result.verdict)
     return EXIT_OK
+
+
+def _address(args: argparse.Namespace) -> str | None:
+    """``--address``, else ``$RAY_ADDRESS``; checked for reachability before anything runs."""
+    address = args.address or os.environ.get("RAY_ADDRESS") or None
+    if address:
+        from keras_rl.runs.ray_backend import check_reachable
+
+        check_reachable(address)
+    return address
+
+
+def sweep(args: argparse.Namespace) -> int:
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs.sweep import ablation_grid, parse_grid, record_grid, sweep_jobs
+
+    experiment = get_experiment(args.experiment)
+    seeds = parse_seeds(args.seeds)
+    workers = _check_counts(args.workers, args.episodes)
+    overrides = {"framework": args.framework}
+    if args.episodes is not None:
+        overrides["episodes"] = args.episodes
+    base = experiment.config_cls.for_variant(args.variant, **overrides).with_text_overrides(args.overrides)
+    if args.ablate and args.grid:
+        raise ConfigError("--ablate makes its own grid; drop --grid, or sweep without --ablate")
+    if not args.ablate and not args.grid:
+        raise ConfigError("a sweep needs --grid FIELD=V1,V2 (repeatable) or --ablate")
+    points = ablation_grid(experiment.config_cls, base) if args.ablate else parse_grid(experiment.config_cls, args.grid)
+    for point in points:  # every point must be a valid config before anything runs
+        base.replace(**point.overrides)
+    baseline = args.baseline or points[0].name
+    if baseline not in [p.name for p in points]:
+        raise ConfigError(f"--baseline {baseline!r} is not a grid point; the points are "
+                          f"{', '.join(p.name for p in points)}")
+    _check_writable_dir(args.out, "--out")
+    address = _address(args)
+    every, todo, configs = sweep_jobs(base, points, seeds, args.out, args.yes)
+    if args.framework == "torch":
+        from keras_rl.torch import require_torch
+
+        require_torch()
+    print(f"sweep: {len(points)} grid points x {len(seeds)} seeds = {len(every)} jobs; "
+          f"{len(every) - len(todo)} already done, {len(todo)} to run", file=sys.stderr)
+    from keras_rl.report.sweep import write_sweep_report
+    from keras_rl.runs.backends import backend_for
+    from keras_rl.runs.jobs import run_jobs
+    from keras_rl.runs.provenance import command_line
+    from keras_rl.runs.summary import RunSummary
+
+    record_grid(args.out, points)
+    outcome = run_jobs(todo, backend_for(workers, len(todo), address), progress=not args.no_progress)
+    summaries = {p.name: [RunSummary.read(j.out_dir) for j in every
+                          if Path(j.out_dir).parent.name == p.name and (Path(j.out_dir) / "summary.json").is_file()]
+                 for p in points}
+    result = write_sweep_report(args.out, experiment, base, summaries, baseline, command_line())
+    print(f"report: {args.out / 'sweep.md'}")
+    for row in result["points"]:
+        print(f"  {row['point']}: {row['successes']}/{row['seeds']} succeeded, median episodes {row['median']}")
+    if outcome.interrupted:
+        print("interrupted: finished jobs are kept; run the same sweep again to resume it", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    failed = [s for ss in summaries.values() for s in ss if s.status in ("non_finite_loss", "error")]
+    return EXIT_CRITERION if failed else EXIT_OK
 
 
 def aggregate(args: argparse.Namespace) -> int:
@@ -326,7 +418,7 @@ def list_experiments(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-COMMANDS = {"reproduce": reproduce, "evaluate": evaluate, "compare": compare, "aggregate": aggregate,
+COMMANDS = {"reproduce": reproduce, "evaluate": evaluate, "compare": compare, "sweep": sweep, "aggregate": aggregate,
             "list": list_experiments}
 
 

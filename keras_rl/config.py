@@ -38,6 +38,8 @@ class ExperimentConfig:
     """Named sets of overrides. ``faithful`` is always the empty set: the defaults."""
     RENAMED: ClassVar[dict[str, Callable[[Any], dict[str, Any]]]] = {}
     """Old field name -> the new fields its value becomes (for ``config.json`` of older runs)."""
+    QUIRKS: ClassVar[dict[str, tuple[str, Any]]] = {}
+    """Quirk switch -> (ledger ID, the value that turns it off): what ``sweep --ablate`` flips."""
     RUN_FIELDS: ClassVar[dict[str, str]] = {"variant": "--variant", "seed": "--seeds", "framework": "--framework",
                                             "matched_init": "--matched-init"}
     """Fields that have their own command-line flag; ``--set`` refuses them."""
@@ -120,10 +122,20 @@ class ExperimentConfig:
             if name in self.RENAMED:
                 new = ", ".join(self.RENAMED[name](0))
                 raise ConfigError(f"{self.experiment} config field {name!r} was renamed; use {new}")
-            if name not in hints or name in ("experiment", "post", "VARIANTS", "RENAMED", "RUN_FIELDS"):
+            if name not in hints or name in ("experiment", "post", "VARIANTS", "RENAMED", "RUN_FIELDS", "QUIRKS"):
                 raise ConfigError(f"unknown {self.experiment} config field {name!r}")
-            changes[name] = _parse_value(name, hints[name], text.strip())
+            changes[name] = self.parse_field(name, text)
         return self.replace(**changes)
+
+    @classmethod
+    def parse_field(cls, name: str, text: str) -> Any:
+        """A command-line value for field ``name``, parsed by the field's type (ConfigError if not)."""
+        hints = typing.get_type_hints(cls)
+        if name not in hints or name in ("experiment", "post", "VARIANTS", "RENAMED", "RUN_FIELDS", "QUIRKS"):
+            raise ConfigError(f"unknown {cls.experiment} config field {name!r}")
+        if not text.strip():
+            raise ConfigError(f"{name} has an empty value")
+        return _parse_value(name, hints[name], text.strip())
 
     def to_dict(self) -> dict[str, Any]:
         return {"experiment": self.experiment, "post": self.post, **dataclasses.asdict(self)}

@@ -30,6 +30,7 @@ class CartPoleDQNConfig(ExperimentConfig):
 
     experiment: ClassVar[str] = "cartpole"
     post: ClassVar[str] = "003_57d1feb4b7fdd940"
+    QUIRKS: ClassVar = {"weight_decay": ("P003-WD", 0.0), "init": ("P003-INIT", "keras")}
     RENAMED: ClassVar = {"hidden_units": lambda v: {"q_hidden_units": v}, "lr": lambda v: {"q_lr": v}}
 
     env_id: str = "CartPole-v1"

@@ -58,6 +58,11 @@ class MountainCarDDPGConfig(ExperimentConfig):
             "threshold": 0.5,
         },
     }
+    QUIRKS: ClassVar = {"learning_phase_training": ("P001-PHASE", True), "actor_gradient": ("P001-ACTORGRAD", "dpg_intended"),
+                         "dqda_at_buffer_actions": ("P001-DQDA", False), "store_raw_next_state": ("P001-NEXTSTATE", False),
+                         "episode_returns_as_rewards": ("P001-RETURNS", False),
+                         "done_includes_truncation": ("P001-DONE", False), "popping_buffer": ("P001-POP", False),
+                         "exploration": ("P001-NOEXPLORE", "ou")}
     RENAMED: ClassVar = {
         "critic_hidden": lambda v: {"critic_hidden_units": (int(v), int(v))},
         "actor_hidden": lambda v: {"actor_hidden_units": v},

@@ -40,6 +40,9 @@ class PendulumDDPGConfig(ExperimentConfig):
             "target_copy_is_noop": False,
         },
     }
+    QUIRKS: ClassVar = {"noise_restarts_from_zero": ("P000-NOISE", False), "done_from_truncated": ("P000-DONE", False),
+                         "broadcast_target": ("P000-BROADCAST", False),
+                         "target_copy_is_noop": ("P000-TARGETINIT", False)}
     RENAMED: ClassVar = {"hidden_units": lambda v: {"actor_hidden_units": v, "critic_hidden_units": v}}
 
     # -- environment (§2.4 Main) --------------------------------------------------------

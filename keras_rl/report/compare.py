@@ -7,7 +7,6 @@ and says which field differs (``--rerun`` replaces such folders).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,46 +20,17 @@ from keras_rl.registry import get_experiment
 from keras_rl.report.plots import plt, save_figure
 from keras_rl.report.stats import episodes_to_threshold_stats, fisher_exact, iqm_ci, mann_whitney, median_difference_ci
 from keras_rl.runs.files import atomic_write_json, atomic_write_text, finite_or_none, read_episodes, run_folder
-from keras_rl.runs.jobs import SeedJob, backend_for, run_jobs
-from keras_rl.runs.provenance import code_version, code_version_of
+from keras_rl.runs.backends import backend_for
+from keras_rl.runs.jobs import SeedJob, run_jobs
+from keras_rl.runs.provenance import code_version
+from keras_rl.runs.reuse import check_reusable
 from keras_rl.runs.summary import RunSummary
 
 FRAMEWORKS = ("keras", "torch")
-IGNORED_FIELDS = {"seed", "framework"}
 
 
 def framework_overrides(framework: str, matched_init: bool) -> dict[str, Any]:
     return {"framework": framework, "matched_init": matched_init and framework == "torch"}
-
-
-def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
-    """None if ``seed_dir`` holds a finished run of config ``expected``; else why it cannot be reused.
-
-    Raises RunFolderError for a run of a *different* config or code version. A folder made
-    before a field existed (or under an older field name) is read through the config's
-    ``from_dict``, which fills today's defaults and maps renamed fields: it matches only
-    if the default is wanted.
-    """
-    if not (seed_dir / "summary.json").is_file():
-        return "missing"
-    summary = RunSummary.read(seed_dir)
-    try:
-        made = type(expected).from_dict(json.loads((seed_dir / "config.json").read_text())).to_dict()
-    except (OSError, ValueError) as exc:
-        raise RunFolderError(f"{seed_dir} is corrupt ({exc}); delete it or pass --rerun") from None
-    wanted = expected.to_dict()
-    differing = sorted(k for k in wanted if k not in IGNORED_FIELDS and made.get(k) != wanted[k])
-    if differing:
-        raise RunFolderError(
-            f"{seed_dir} was made with a different config ({', '.join(f'{k}={made.get(k)!r} here, {wanted[k]!r} wanted' for k in differing[:3])}); "
-            "refusing to mix runs: pass --rerun to replace it, or --runs to use another folder")
-    theirs = code_version_of(summary.provenance, summary.versions.get("keras_rl"))
-    if theirs != code_version:
-        raise RunFolderError(f"{seed_dir} was made by code version {theirs}, this is {code_version}; "
-                             "refusing to mix code versions: pass --rerun to replace it")
-    if summary.status != "completed":
-        return f"unfinished ({summary.status})"
-    return None
 
 
 def gather(experiment: Experiment, variant: str, seeds: list[int], runs_root: Path, rerun: bool,
@@ -244,7 +214,7 @@ class CompareResult:
 def compare(name: str, seeds: list[int], variant: str = "faithful", workers: int = 1, runs_root: Path = Path("results"),
             out_root: Path = Path("results/compare"), rerun: bool = False, reuse_only: bool = False,
             episodes: int | None = None, progress: bool = True, command: str = "",
-            matched_init: bool = False) -> CompareResult:
+            matched_init: bool = False, address: str | None = None) -> CompareResult:
     """Write ``<out_root>/<name>/report.md`` (``<out_root>/<name>/matched-init/`` with
     ``matched_init``: the torch runs start from the Keras runs' initial weights).
 
@@ -258,7 +228,7 @@ def compare(name: str, seeds: list[int], variant: str = "faithful", workers: int
     require_torch()
     overrides = {} if episodes is None else {"episodes": episodes}
     jobs = gather(experiment, variant, seeds, runs_root, rerun, reuse_only, overrides, matched_init)
-    if run_jobs(jobs, backend_for(workers, len(jobs)), progress).interrupted:
+    if run_jobs(jobs, backend_for(workers, len(jobs), address), progress).interrupted:
         raise KeyboardInterrupt
     runs = {fw: load_runs(run_folder(runs_root, name, variant, fw, matched_init), seeds) for fw in FRAMEWORKS}
     for fw, rs in runs.items():

@@ -2,7 +2,9 @@
 and ``compare`` both call, with the execution backend as a parameter.
 
 - ``InProcess``: one seed after another in this process (one worker: no start-up cost).
-- ``ProcessPool``: at most ``workers`` spawned processes, one seed each.
+- ``RayBackend`` (``ray_backend.py``): seeds as Ray tasks on a local instance or a cluster.
+
+``backends.py`` picks one from ``--workers`` and ``--address``.
 
 A backend only decides where ``execute`` runs; each seed writes its own folder, and the
 outcome is read back from disk, so an interrupted worker still reports what it kept.
@@ -10,10 +12,7 @@ outcome is read back from disk, so an interrupted worker still reports what it k
 
 from __future__ import annotations
 
-import multiprocessing
-import os
 import shutil
-import signal
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,9 +24,6 @@ from keras_rl.report.plots import plot_seed_curve
 from keras_rl.runs.loop import run_seed
 from keras_rl.runs.signals import sigterm_as_interrupt
 from keras_rl.runs.summary import RunSummary
-
-EXIT_INTERRUPTED = 130
-
 
 @dataclass(frozen=True)
 class SeedJob:
@@ -54,7 +50,7 @@ class JobsOutcome:
     interrupted: bool = False
 
 
-def execute(job: SeedJob, progress: bool = True, position: int = 0) -> RunSummary:
+def execute(job: SeedJob, progress: bool = True, position: int = 0, should_stop=None) -> RunSummary:
     """Run one job here and draw its ``curve.png`` (whatever the run's end)."""
     experiment = get_experiment(job.experiment)
     config = experiment.config_cls.from_dict(job.config)
@@ -63,7 +59,7 @@ def execute(job: SeedJob, progress: bool = True, position: int = 0) -> RunSummar
     try:
         return run_seed(experiment, config, job.out_dir, progress=progress, position=position,
                         resume=job.start == "resume", checkpoint_every=job.checkpoint_every,
-                        tensorboard=job.tensorboard)
+                        tensorboard=job.tensorboard, should_stop=should_stop)
     finally:
         try:
             plot_seed_curve(job.out_dir, experiment, config)
@@ -86,66 +82,6 @@ class InProcess:
         except KeyboardInterrupt:  # arrived outside a seed's episode loop
             return True
         return False
-
-
-def _worker(job: SeedJob, progress: bool, position: int) -> None:
-    if execute(job, progress, position).status == "interrupted":
-        raise SystemExit(EXIT_INTERRUPTED)
-
-
-@dataclass
-class ProcessPool:
-    """Seeds in at most ``workers`` spawned processes (TensorFlow is not fork-safe).
-
-    On Ctrl-C no further seed starts; running seeds get SIGINT (a terminal sends it to them
-    as well), write their partial results, and are waited for."""
-
-    workers: int
-
-    def run(self, jobs: list[SeedJob], progress: bool) -> bool:
-        ctx = multiprocessing.get_context("spawn")
-        pending, running = list(enumerate(jobs)), []
-        try:
-            with sigterm_as_interrupt():  # SIGTERM to the dispatcher stops the seeds like Ctrl-C
-                while pending or running:
-                    while pending and len(running) < self.workers:
-                        i, job = pending.pop(0)
-                        proc = ctx.Process(target=_worker, args=(job, progress, i % self.workers))
-                        proc.start()
-                        running.append(proc)
-                    running[0].join(timeout=0.5)
-                    for proc in [p for p in running if not p.is_alive()]:
-                        running.remove(proc)
-                        if proc.exitcode == EXIT_INTERRUPTED:  # a seed was stopped: start no other
-                            raise KeyboardInterrupt
-        except KeyboardInterrupt:
-            _stop(running)
-            return True
-        return False
-
-
-def _stop(running: list) -> None:
-    """A terminal's Ctrl-C reached the workers too; give them a moment to flush, and
-    interrupt only those that did not hear it (SIGINT sent to this process alone)."""
-    try:
-        for proc in running:
-            proc.join(timeout=2.0)
-    except KeyboardInterrupt:
-        pass
-    for proc in running:
-        if proc.is_alive():
-            os.kill(proc.pid, signal.SIGINT)
-    for proc in running:
-        while proc.is_alive():
-            try:
-                proc.join()
-            except KeyboardInterrupt:  # a second Ctrl-C while the seeds flush: keep waiting
-                pass
-
-
-def backend_for(workers: int, jobs: int) -> Backend:
-    """In-process for one worker or one job (no start-up cost); a process pool otherwise."""
-    return InProcess() if workers <= 1 or jobs <= 1 else ProcessPool(workers)
 
 
 def run_jobs(jobs: list[SeedJob], backend: Backend, progress: bool = True) -> JobsOutcome:

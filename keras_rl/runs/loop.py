@@ -8,7 +8,7 @@ import json
 import math
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from keras_rl.errors import ConfigError, NonFiniteLossError
 from keras_rl.experiment import Experiment
@@ -24,7 +24,8 @@ from keras_rl.seeding import configure_tensorflow, seed_everything
 
 def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = True,
              position: int = 0, threads: int | None = 1, env=None, resume: bool = False,
-             checkpoint_every: int = 10, tensorboard: Path | None = None) -> RunSummary:
+             checkpoint_every: int = 10, tensorboard: Path | None = None,
+             should_stop: Callable[[], bool] | None = None) -> RunSummary:
     """Train one seed to the threshold or the budget; write and return its summary.
 
     Ctrl-C, SIGTERM, a non-finite loss or any other error still leaves ``episodes.csv``
@@ -33,6 +34,8 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
     counts the episodes on disk. Every ``checkpoint_every`` episodes, and when a signal
     stops the run, the state at the last episode boundary goes to ``checkpoint.pkl``;
     ``resume=True`` continues from it. ``env`` may be passed in (tests wrap envs).
+    ``should_stop`` is asked after every episode; True stops the run as a signal would (a
+    distributed backend's stop flag).
     """
     configure_tensorflow(threads)
     seed_everything(config.seed)
@@ -59,7 +62,7 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
     # A summary from the start: no stale summary from an earlier run in this folder survives.
     run.summary("running").write(recorder.out_dir)
     with stop_signals_as_flag() as interrupted:  # checked between env steps (see stop_signals_as_flag)
-        return _train(run, env, agent, bar, interrupted, checkpoint_every, writer)
+        return _train(run, env, agent, bar, interrupted, checkpoint_every, writer, should_stop)
 
 
 class _Run:
@@ -155,7 +158,8 @@ class _TensorBoard:
         self.writer.close()
 
 
-def _train(run: _Run, env, agent, bar, interrupted: list, checkpoint_every: int, writer) -> RunSummary:
+def _train(run: _Run, env, agent, bar, interrupted: list, checkpoint_every: int, writer,
+           should_stop: Callable[[], bool] | None = None) -> RunSummary:
     """``run_seed``'s episode loop and its final flush."""
     config, metric, recorder = run.config, run.metric, run.recorder
     status, message = "running", ""
@@ -188,14 +192,15 @@ def _train(run: _Run, env, agent, bar, interrupted: list, checkpoint_every: int,
             if bar is not None:
                 bar.update(1)
                 bar.set_postfix(score=f"{score:.1f}", metric=f"{value:.1f}", steps=run.total_steps, refresh=False)
-            if interrupted:
+            if interrupted or (should_stop is not None and should_stop()):
                 raise KeyboardInterrupt
             if run.reached_at is not None and config.stop_at_threshold:
                 break
         status = "completed"
     except KeyboardInterrupt:
         status = "interrupted"
-        message = f"stopped by {signal_name(interrupted)}; the episodes so far are kept (--resume continues)"
+        by = signal_name(interrupted) if interrupted else "the dispatcher's stop request (Ctrl-C or SIGTERM)"
+        message = f"stopped by {by}; the episodes so far are kept (--resume continues)"
     except NonFiniteLossError as exc:
         status, message = "non_finite_loss", str(exc)
     except Exception as exc:  # keep what was written, record why, re-raise below

@@ -1,0 +1,212 @@
+"""The Ray backend of the job runner: seeds as Ray tasks, on this machine or on a cluster.
+
+- ``RayBackend(workers=K)`` starts a local Ray instance for the command (``address="local"``,
+  so a stale cluster file in Ray's temp folder is never joined) and shuts it down after.
+  Every server it starts listens on loopback only: ``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0``
+  is set before ``ray.init`` (``tests/test_ray.py`` checks the listening sockets).
+- ``RayBackend(address="HOST:PORT")`` (or ``RAY_ADDRESS``) runs the same jobs on an existing
+  cluster. Ray 2.60 clusters use token authentication: the driver needs the cluster's token
+  (``RAY_AUTH_TOKEN``, or the file ``RAY_AUTH_TOKEN_PATH`` names; ``ray start --head``
+  writes ``~/.ray/auth_token``). See the README.
+
+Each task runs one seed in a temporary folder of the node it lands on, with one
+TensorFlow/torch thread, and returns the folder's files; the driver writes them atomically
+under the job's ``out_dir``, so results land where the command ran whether or not the
+cluster shares a filesystem (a resumed job ships its folder to the task first). A worker
+that dies is retried by Ray (``max_retries``); the seed reruns from scratch and writes the
+same ``episodes.csv``. On Ctrl-C or SIGTERM the driver starts no queued seed, tells the
+running ones to stop at their next episode end (a stop flag they poll), and writes what
+they return: their summaries say ``interrupted``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import socket
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from keras_rl.errors import ConfigError
+from keras_rl.runs.files import atomic_write_bytes
+from keras_rl.runs.jobs import execute
+from keras_rl.runs.signals import sigterm_as_interrupt
+
+MAX_RETRIES = 3
+"""How often Ray reruns a seed whose worker died."""
+
+
+def _pack(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in Path(folder).iterdir() if p.is_file() and not p.name.startswith(".")}
+
+
+def _seed_task(job, files_in: dict[str, bytes] | None, stop_flag) -> dict[str, bytes] | None:
+    """One seed on a Ray worker. ``files_in`` None: this node shares the driver's disk (a
+    local instance), so the seed writes its folder in place, visible as it runs. Otherwise
+    the folder is made in a temporary directory (with the files of a run to resume) and
+    returned whole. A rerun after a dead worker starts the folder afresh (or resumes)."""
+    import ray
+
+    def should_stop() -> bool:
+        return ray.get(stop_flag.is_set.remote())
+
+    fresh = "resume" if job.start == "resume" else "overwrite"
+    if files_in is None:
+        execute(dataclasses.replace(job, start=fresh), progress=False, should_stop=should_stop)
+        _record_node(Path(job.out_dir), ray.get_runtime_context().get_node_id())
+        return None
+    with tempfile.TemporaryDirectory(prefix="keras-rl-seed-") as tmp:
+        run_dir = Path(tmp) / "seed"
+        run_dir.mkdir()
+        for name, data in files_in.items():
+            (run_dir / name).write_bytes(data)
+        execute(dataclasses.replace(job, out_dir=run_dir, start=fresh if job.start == "resume" else "new"),
+                progress=False, should_stop=should_stop)
+        _record_node(run_dir, ray.get_runtime_context().get_node_id())
+        return _pack(run_dir)
+
+
+def _record_node(run_dir: Path, node_id: str) -> None:
+    """The Ray node a seed ran on, in its summary's provenance."""
+    import json
+
+    from keras_rl.runs.files import atomic_write_json
+
+    path = run_dir / "summary.json"
+    if path.is_file():
+        summary = json.loads(path.read_text())
+        summary.setdefault("provenance", {})["ray_node_id"] = node_id
+        atomic_write_json(path, summary)
+
+
+class _StopFlag:
+    def __init__(self):
+        self.value = False
+
+    def set(self) -> None:
+        self.value = True
+
+    def is_set(self) -> bool:
+        return self.value
+
+
+def check_reachable(address: str, timeout: float = 5.0) -> None:
+    """A ConfigError within ``timeout`` seconds if nothing listens at ``HOST:PORT``, instead of
+    Ray's own long retries."""
+    if address in ("auto", "local") or address.startswith("ray://"):
+        return
+    host, _, port = address.rpartition(":")
+    if not host or not port.isdigit():
+        raise ConfigError(f"--address {address!r} is not HOST:PORT (for example 127.0.0.1:6379)")
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise ConfigError(f"no Ray cluster answers at {address} ({exc}); start one with `ray start --head` "
+                          "or check the address") from None
+
+
+@dataclass
+class RayBackend:
+    """Seeds as Ray tasks. ``workers``: CPUs of the local instance (and seeds at once);
+    ``address``: join that cluster instead (seeds at once = its CPUs)."""
+
+    workers: int = 1
+    address: str | None = None
+    object_store_mb: int = 128
+
+    def _init(self):
+        if self.address:
+            import ray
+
+            check_reachable(self.address)
+            ray.init(address=self.address, log_to_driver=False, ignore_reinit_error=True)
+            return ray, max(1, int(ray.cluster_resources().get("CPU", 1)))
+        # Every server on loopback only: the variable, read when Ray's modules are imported (here
+        # and in every process the instance starts), makes Ray take 127.0.0.1 as this node's
+        # address. Set after Ray was imported it is too late, and Ray then listens on every
+        # interface (measured), so that case is refused.
+        os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
+        import ray
+        from ray._private import ray_constants
+
+        if ray_constants.ENABLE_RAY_CLUSTER:  # Ray was imported before the variable was set
+            raise ConfigError("Ray was imported in this process before RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0 was set, "
+                              "so a local instance would listen on every interface; set the variable in the "
+                              "environment before Python starts (tests/conftest.py does)")
+        ray.init(address="local", num_cpus=self.workers, include_dashboard=False, log_to_driver=False,
+                 object_store_memory=self.object_store_mb * 1024 * 1024, _node_ip_address="127.0.0.1")
+        return ray, self.workers
+
+    def run(self, jobs: list, progress: bool) -> bool:
+        ray, slots = self._init()
+        try:
+            with sigterm_as_interrupt():  # ray.init replaces the driver's SIGTERM handler: take it back
+                return self._run(ray, slots, jobs, progress)
+        finally:
+            ray.shutdown()
+
+    def _run(self, ray, slots: int, jobs: list, progress: bool) -> bool:
+        task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(_seed_task)
+        stop = ray.remote(num_cpus=0)(_StopFlag).remote()
+        ship = self.address is not None  # a cluster's nodes may not share this disk
+        pending = list(jobs)
+        running: dict[Any, Any] = {}
+        bar = _bar(len(jobs)) if progress else None
+        interrupted = False
+
+        def collect(refs) -> None:
+            for ref in refs:
+                job = running.pop(ref)
+                files = ray.get(ref)
+                if ship:
+                    _land(job, files)
+                if bar is not None:
+                    bar.update(1)
+
+        try:
+            while pending or running:
+                while pending and len(running) < slots:
+                    job = pending.pop(0)
+                    files = (_pack(job.out_dir) if job.start == "resume" else {}) if ship else None
+                    running[task.remote(job, files, stop)] = job
+                collect(ray.wait(list(running), num_returns=1, timeout=0.5)[0])
+        except KeyboardInterrupt:
+            interrupted = True
+            stop.set.remote()  # running seeds stop at their next episode end; queued ones never start
+            deadline = time.monotonic() + 300
+            while running and time.monotonic() < deadline:
+                try:
+                    collect(ray.wait(list(running), num_returns=1, timeout=1.0)[0])
+                except KeyboardInterrupt:  # a second Ctrl-C while the seeds flush: keep waiting
+                    continue
+            if running:
+                print(f"warning: {len(running)} seeds did not stop within 300 s; their folders are not written",
+                      file=sys.stderr)
+        finally:
+            if bar is not None:
+                bar.close()
+        return interrupted
+
+
+def _land(job, files: dict[str, bytes]) -> None:
+    """Write a task's folder under the driver's ``out_dir``, each file atomically."""
+    import shutil
+
+    out = Path(job.out_dir)
+    if job.start == "overwrite" and out.exists():
+        shutil.rmtree(out)
+    for name, data in files.items():
+        atomic_write_bytes(out / name, data)
+    if "checkpoint.pkl" not in files:
+        (out / "checkpoint.pkl").unlink(missing_ok=True)
+
+
+def _bar(total: int):
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, unit="seed", desc="seeds", dynamic_ncols=True)

@@ -1,0 +1,43 @@
+"""When a run folder can be reused instead of run again (``compare``, ``sweep``)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from keras_rl.errors import RunFolderError
+from keras_rl.runs.provenance import code_version_of
+from keras_rl.runs.summary import RunSummary
+
+IGNORED_FIELDS = {"seed"}
+"""The seed is in the folder's name; every other field must match."""
+
+
+def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
+    """None if ``seed_dir`` holds a finished run of config ``expected``; else why it cannot be reused.
+
+    Raises RunFolderError for a run of a *different* config or code version. A folder made
+    before a field existed (or under an older field name) is read through the config's
+    ``from_dict``, which fills today's defaults and maps renamed fields: it matches only
+    if the default is wanted.
+    """
+    if not (seed_dir / "summary.json").is_file():
+        return "missing"
+    summary = RunSummary.read(seed_dir)
+    try:
+        made = type(expected).from_dict(json.loads((seed_dir / "config.json").read_text())).to_dict()
+    except (OSError, ValueError) as exc:
+        raise RunFolderError(f"{seed_dir} is corrupt ({exc}); delete it or pass --rerun") from None
+    wanted = expected.to_dict()
+    differing = sorted(k for k in wanted if k not in IGNORED_FIELDS and made.get(k) != wanted[k])
+    if differing:
+        raise RunFolderError(
+            f"{seed_dir} was made with a different config ({', '.join(f'{k}={made.get(k)!r} here, {wanted[k]!r} wanted' for k in differing[:3])}); "
+            "refusing to mix runs: pass --rerun to replace it, or --runs to use another folder")
+    theirs = code_version_of(summary.provenance, summary.versions.get("keras_rl"))
+    if theirs != code_version:
+        raise RunFolderError(f"{seed_dir} was made by code version {theirs}, this is {code_version}; "
+                             "refusing to mix code versions: pass --rerun to replace it")
+    if summary.status != "completed":
+        return f"unfinished ({summary.status})"
+    return None

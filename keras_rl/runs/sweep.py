@@ -1,0 +1,114 @@
+"""``keras-rl sweep``: the cross product of a grid of config values and seeds, as jobs.
+
+A grid point is a set of field overrides on top of the variant (and ``--set``); its folder
+name is made from them (``tau=0.005``, ``broadcast_target=false,tau=0.005``; ``base`` for
+the unmodified variant), with one ``seed_<n>/`` per seed inside. A seed folder that already
+holds a completed run of the same config and code version is skipped, so running the same
+sweep again finishes in seconds and an interrupted sweep resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from keras_rl.errors import ConfigError, RunFolderError
+from keras_rl.runs.jobs import SeedJob
+from keras_rl.runs.provenance import code_version
+from keras_rl.runs.reuse import check_reusable
+
+MAX_JOBS_WITHOUT_YES = 10_000
+BASE = "base"
+
+
+@dataclass(frozen=True)
+class GridPoint:
+    name: str
+    overrides: dict[str, Any]
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, tuple):
+        return ",".join(str(v) for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def point_name(overrides: dict[str, Any]) -> str:
+    return ",".join(f"{k}={_text(v)}" for k, v in sorted(overrides.items())) or BASE
+
+
+def parse_grid(config_cls, items: list[str]) -> list[GridPoint]:
+    """``["tau=0.001,0.005", "gamma=0.9,0.99"]`` -> the cross product, each value parsed by
+    its field's type (a ConfigError names a bad field, value or an empty one)."""
+    axes: list[tuple[str, list[Any]]] = []
+    for item in items:
+        name, sep, values = item.partition("=")
+        name = name.strip().replace("-", "_")
+        if not sep or not name:
+            raise ConfigError(f"--grid expects FIELD=V1,V2,..., got {item!r}")
+        if name in config_cls.RUN_FIELDS:
+            raise ConfigError(f"--grid {name}=... is not a config field; use {config_cls.RUN_FIELDS[name]}")
+        if name in (a for a, _ in axes):
+            raise ConfigError(f"--grid names {name} twice")
+        texts = values.split(",")
+        if any(not t.strip() for t in texts):
+            raise ConfigError(f"--grid {item!r} has an empty value")
+        if "hidden_units" in name:  # widths are themselves comma lists: separate grid values with ';'
+            texts = values.split(";")
+        axes.append((name, [config_cls.parse_field(name, t) for t in texts]))
+    points = [dict(zip((a for a, _ in axes), combo)) for combo in itertools.product(*(v for _, v in axes))]
+    return [GridPoint(point_name(p), p) for p in points]
+
+
+def ablation_grid(config_cls, base) -> list[GridPoint]:
+    """The unmodified variant, then each quirk switch turned off alone (``QUIRKS``)."""
+    points = [GridPoint(BASE, {})]
+    for field_name, (_ledger_id, off) in config_cls.QUIRKS.items():
+        if getattr(base, field_name) != off:
+            points.append(GridPoint(point_name({field_name: off}), {field_name: off}))
+    if len(points) == 1:
+        raise ConfigError(f"the {base.variant} variant of {config_cls.experiment} has no quirk switch left on to ablate")
+    return points
+
+
+def sweep_jobs(base, points: list[GridPoint], seeds: list[int], out: Path, yes: bool = False,
+               **job_options: Any) -> tuple[list[SeedJob], list[SeedJob], dict[str, Any]]:
+    """(every job of the sweep, the ones still to run, each point's config) for the grid
+    points on top of ``base``; refuses a folder made by another config or code version."""
+    total = len(points) * len(seeds)
+    if total > MAX_JOBS_WITHOUT_YES and not yes:
+        raise ConfigError(f"this sweep has {total} jobs ({len(points)} grid points x {len(seeds)} seeds), more than "
+                          f"{MAX_JOBS_WITHOUT_YES}; pass --yes if you mean it")
+    version = code_version()
+    every, todo, configs = [], [], {}
+    for point in points:
+        config = base.replace(**point.overrides)
+        configs[point.name] = config
+        for seed in seeds:
+            seed_dir = Path(out) / point.name / f"seed_{seed}"
+            job = SeedJob.of(config.replace(seed=seed), seed_dir, start="overwrite", **job_options)
+            every.append(job)
+            try:
+                reason = check_reusable(seed_dir, config.replace(seed=seed), version)
+            except RunFolderError as exc:
+                raise RunFolderError(f"{exc} (this sweep's folder {out} holds runs of another sweep or code "
+                                     "version: use another --out)") from None
+            if reason is not None:
+                todo.append(job)
+    return every, todo, configs
+
+
+def record_grid(out: Path, points: list[GridPoint]) -> None:
+    """``grid.json``: the points in order (the first is the baseline unless one is named)."""
+    from keras_rl.runs.files import atomic_write_json
+
+    atomic_write_json(Path(out) / "grid.json", [{"name": p.name, "overrides": p.overrides} for p in points])
+
+
+def read_grid(out: Path) -> list[GridPoint]:
+    return [GridPoint(p["name"], p["overrides"]) for p in json.loads((Path(out) / "grid.json").read_text())]
