@@ -84,6 +84,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="override a config field, e.g. --set tau=0.005 (repeatable)")
     rep.add_argument("--min-success-rate", type=float, default=1.0,
                      help="exit 0 only if at least this share of seeds succeed (default 1.0: all)")
+    rep.add_argument("--seed-batch", type=int, default=1, metavar="S",
+                     help="train S seeds together in one compiled step per env step (pendulum, keras; default 1)")
     rep.add_argument("--overwrite", action="store_true",
                      help="replace seed folders that already hold a run (each is cleared whole first)")
     rep.add_argument("--resume", action="store_true",
@@ -261,6 +263,14 @@ def reproduce(args: argparse.Namespace) -> int:
         _check_writable_dir(args.tensorboard, "--tensorboard")
     seed_dirs = [out / f"seed_{s}" for s in seeds]
     modes = _start_modes(seed_dirs, args.overwrite, args.resume)
+    if args.seed_batch < 1:
+        raise ConfigError(f"--seed-batch must be at least 1, got {args.seed_batch}")
+    if args.seed_batch > 1:
+        from keras_rl.learners.table import stacked_implementation
+
+        stacked_implementation(experiment.name, args.framework)  # a clear error if there is none
+        if args.resume or args.tensorboard or _address(args):
+            raise ConfigError("--seed-batch does not yet combine with --resume, --tensorboard or --address")
 
     from keras_rl.report.aggregate import write_aggregate
     from keras_rl.runs.backends import backend_for
@@ -268,6 +278,9 @@ def reproduce(args: argparse.Namespace) -> int:
 
     jobs = [SeedJob.of(base.replace(seed=s), d, start=m, checkpoint_every=args.checkpoint_every,
                        tensorboard=args.tensorboard) for s, d, m in zip(seeds, seed_dirs, modes)]
+    from keras_rl.runs.jobs import batched
+
+    jobs = batched(jobs, args.seed_batch)
     outcome = run_jobs(jobs, backend_for(workers, len(jobs), _address(args)), progress=not args.no_progress)
     summaries = outcome.summaries
     failures = [s for s in summaries if s.status in ("non_finite_loss", "error")]

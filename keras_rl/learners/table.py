@@ -39,6 +39,22 @@ IMPLEMENTATIONS: dict[tuple[str, str], Implementation] = {
 }
 
 
+STACKED: dict[tuple[str, str], Implementation] = {
+    ("pendulum", "keras"): Implementation("keras_rl.learners.stacked:stack_post000"),
+}
+"""Seed-batched learners (``--seed-batch``): ``factory(configs, spec)`` for S seeds at once."""
+
+
+def stacked_implementation(experiment: str, framework: str) -> Implementation:
+    from keras_rl.errors import ConfigError
+
+    try:
+        return STACKED[(experiment, framework)]
+    except KeyError:
+        have = ", ".join(f"{e} ({f})" for e, f in STACKED)
+        raise ConfigError(f"--seed-batch has no {framework} learner for {experiment} yet; it has: {have}") from None
+
+
 def frameworks(experiment: str) -> tuple[str, ...]:
     """The frameworks an experiment is implemented in, in table order."""
     return tuple(fw for (name, fw) in IMPLEMENTATIONS if name == experiment)

@@ -43,6 +43,36 @@ class SeedJob:
         return cls(config.experiment, config.to_dict(), Path(out_dir), **options)
 
 
+@dataclass(frozen=True)
+class SeedBatchJob:
+    """Several seeds of one config trained together (``--seed-batch``): ``runs/batched.py``."""
+
+    jobs: tuple[SeedJob, ...]
+
+    @property
+    def start(self) -> str:
+        return "overwrite"
+
+    def members(self) -> tuple[SeedJob, ...]:
+        return self.jobs
+
+
+def members(job) -> tuple[SeedJob, ...]:
+    """The seed jobs a job stands for: itself, or a batch's seeds."""
+    return job.members() if isinstance(job, SeedBatchJob) else (job,)
+
+
+def batched(jobs: list[SeedJob], seed_batch: int) -> list:
+    """``jobs`` packed into batches of ``seed_batch`` seeds (one seed: the job itself)."""
+    if seed_batch <= 1:
+        return list(jobs)
+    out = []
+    for i in range(0, len(jobs), seed_batch):
+        group = tuple(jobs[i:i + seed_batch])
+        out.append(group[0] if len(group) == 1 else SeedBatchJob(group))
+    return out
+
+
 @dataclass
 class JobsOutcome:
     summaries: list[RunSummary] = field(default_factory=list)
@@ -50,8 +80,11 @@ class JobsOutcome:
     interrupted: bool = False
 
 
-def execute(job: SeedJob, progress: bool = True, position: int = 0, should_stop=None) -> RunSummary:
-    """Run one job here and draw its ``curve.png`` (whatever the run's end)."""
+def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> RunSummary:
+    """Run one job here and draw its ``curve.png`` (whatever the run's end); a batch returns
+    the summary of its first interrupted seed, else of its last."""
+    if isinstance(job, SeedBatchJob):
+        return _execute_batch(job, progress)
     experiment = get_experiment(job.experiment)
     config = experiment.config_cls.from_dict(job.config)
     if job.start == "overwrite" and Path(job.out_dir).exists():
@@ -65,6 +98,25 @@ def execute(job: SeedJob, progress: bool = True, position: int = 0, should_stop=
             plot_seed_curve(job.out_dir, experiment, config)
         except OSError as exc:  # a full disk: the run's own files and summary are what count
             print(f"warning: could not draw {Path(job.out_dir) / 'curve.png'}: {exc}", file=sys.stderr)
+
+
+def _execute_batch(job: SeedBatchJob, progress: bool) -> RunSummary:
+    from keras_rl.runs.batched import run_seed_batch
+
+    experiment = get_experiment(job.jobs[0].experiment)
+    configs = [experiment.config_cls.from_dict(j.config) for j in job.jobs]
+    for j in job.jobs:
+        if Path(j.out_dir).exists():
+            shutil.rmtree(j.out_dir)
+    try:
+        summaries = run_seed_batch(experiment, configs, [j.out_dir for j in job.jobs], progress=progress)
+    finally:
+        for j, config in zip(job.jobs, configs):
+            try:
+                plot_seed_curve(j.out_dir, experiment, config)
+            except OSError as exc:
+                print(f"warning: could not draw {Path(j.out_dir) / 'curve.png'}: {exc}", file=sys.stderr)
+    return next((s for s in summaries if s.status == "interrupted"), summaries[-1])
 
 
 class Backend(Protocol):
@@ -88,7 +140,7 @@ def run_jobs(jobs: list[SeedJob], backend: Backend, progress: bool = True) -> Jo
     """Run ``jobs`` on ``backend`` and read back what each folder holds."""
     interrupted = backend.run(jobs, progress) if jobs else False
     summaries = []
-    for job in jobs:
+    for job in (m for j in jobs for m in members(j)):
         try:
             summaries.append(RunSummary.read(job.out_dir))
         except RunFolderError:

@@ -44,7 +44,7 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
     agent = build_agent(experiment, config, env)
     recorder = RunRecorder(Path(out_dir), agent.loss_names)
     metric = experiment.make_metric(config)
-    run = _Run(experiment, config, recorder, metric)
+    run = SeedRun(experiment, config, recorder, metric)
     if resume:
         run.restore(read_checkpoint(recorder.out_dir), agent, env)
     else:
@@ -65,7 +65,7 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
         return _train(run, env, agent, bar, interrupted, checkpoint_every, writer, should_stop)
 
 
-class _Run:
+class SeedRun:
     """One seed's bookkeeping: its rows, its metric, its counters and the summary they make."""
 
     def __init__(self, experiment: Experiment, config, recorder: RunRecorder, metric):
@@ -158,7 +158,7 @@ class _TensorBoard:
         self.writer.close()
 
 
-def _train(run: _Run, env, agent, bar, interrupted: list, checkpoint_every: int, writer,
+def _train(run: SeedRun, env, agent, bar, interrupted: list, checkpoint_every: int, writer,
            should_stop: Callable[[], bool] | None = None) -> RunSummary:
     """``run_seed``'s episode loop and its final flush."""
     config, metric, recorder = run.config, run.metric, run.recorder
@@ -220,7 +220,7 @@ def _train(run: _Run, env, agent, bar, interrupted: list, checkpoint_every: int,
     return summary
 
 
-def _flush(run: _Run, agent, status: str, message: str) -> tuple[str, str]:
+def _flush(run: SeedRun, agent, status: str, message: str) -> tuple[str, str]:
     """Weights and checkpoint at the end of a run; a failed write makes the run an error
     that names the file, so no summary claims success for a run whose files are missing."""
     out = run.recorder.out_dir

@@ -55,6 +55,9 @@ def _seed_task(job, files_in: dict[str, bytes] | None, stop_flag) -> dict[str, b
         return ray.get(stop_flag.is_set.remote())
 
     fresh = "resume" if job.start == "resume" else "overwrite"
+    if files_in is None and not hasattr(job, "out_dir"):  # a seed batch, in place
+        execute(job, progress=False)
+        return None
     if files_in is None:
         execute(dataclasses.replace(job, start=fresh), progress=False, should_stop=should_stop)
         _record_node(Path(job.out_dir), ray.get_runtime_context().get_node_id())

@@ -1,0 +1,197 @@
+"""The seed-batched episode loop: S seeds of one experiment stepped together, one compiled
+update per vector step for all of them (``--seed-batch S``).
+
+Each seed keeps everything of its own: its env (seeded as its solo run seeds it), replay
+buffer, noise, transition rule, metric, counters, run folder and summary; only the
+networks are stacked (``learners/stacked.py``), so seed k's env steps line up one to one
+with its solo run's. A seed that finishes (threshold, budget, or a non-finite loss of its
+own) is masked: its slice keeps stepping, so the others stay in lockstep, but nothing of
+it is recorded any more, and nothing of it reaches the other slices (the loss is a sum of
+per-seed losses; Adam and the soft update are elementwise). Ctrl-C and SIGTERM stop every
+seed still running, each with ``"status": "interrupted"``.
+
+Exactness: one seed through this loop (S=1) writes the same ``episodes.csv`` as its solo
+run. With S>1 each update agrees with the solo update to about 1e-7 (XLA's batched matmul
+rounds differently), so long runs drift apart the way chaotic runs do; the test and
+``results/pendulum/seed-batch/`` compare the distributions.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from keras_rl.errors import ConfigError, NonFiniteLossError
+from keras_rl.experiment import Experiment
+from keras_rl.learners.table import stacked_implementation
+from keras_rl.runs.files import RunRecorder
+from keras_rl.runs.loop import SeedRun
+from keras_rl.runs.signals import signal_name, stop_signals_as_flag
+from keras_rl.runs.summary import RunSummary
+from keras_rl.seeding import configure_tensorflow
+
+
+class _NoLearner:
+    """What ``assemble`` needs of a learner to build a seed's parts: the loss names."""
+
+    def __init__(self, loss_names):
+        self.loss_names = loss_names
+
+
+class _Seed:
+    """One seed's own part of a batch: env, parts (buffer, rule, schedule, explorer), records."""
+
+    def __init__(self, experiment: Experiment, config, env, parts, out_dir: Path):
+        self.config, self.env, self.parts = config, env, parts
+        self.recorder = RunRecorder(Path(out_dir), parts.loss_names)
+        self.recorder.write_config(config.to_dict())
+        self.run = SeedRun(experiment, config, self.recorder, experiment.make_metric(config))
+        self.status, self.message = "running", ""
+        self.score, self.steps, self.state, self.action = 0.0, 0, None, None
+        self.saved = False
+
+    @property
+    def active(self) -> bool:
+        return self.status == "running"
+
+    def finish(self, status: str, message: str = "") -> None:
+        self.status, self.message = status, message
+
+
+def run_seed_batch(experiment: Experiment, configs: list, out_dirs: list[Path], progress: bool = True,
+                   threads: int | None = 1) -> list[RunSummary]:
+    """Train the seeds of ``configs`` (equal but for the seed) together; write each one's folder."""
+    if len({c.episodes for c in configs}) != 1:
+        raise ConfigError("seed-batched runs share one budget")
+    configure_tensorflow(threads)
+    envs = []
+    for config in configs:
+        env = experiment.make_env(config)
+        env.action_space.seed(config.seed)
+        envs.append(env)
+    spec = experiment.env_spec(envs[0])
+    learner = stacked_implementation(experiment.name, configs[0].framework).load()(configs, spec)
+    seeds = [_Seed(experiment, c, env, experiment.assemble(c, spec, _NoLearner(learner.loss_names), env.action_space),
+                   d) for c, env, d in zip(configs, envs, out_dirs)]
+    for s in seeds:
+        s.run.summary("running").write(s.recorder.out_dir)
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(seeds) * configs[0].episodes, unit="ep", dynamic_ncols=True,
+                   desc=f"{experiment.name} seeds {configs[0].seed}..{configs[-1].seed} (batch of {len(seeds)})")
+    try:
+        with stop_signals_as_flag() as interrupted:
+            _loop(seeds, learner, interrupted, bar)
+    finally:
+        if bar is not None:
+            bar.close()
+        for k, s in enumerate(seeds):
+            if s.active:  # an error outside any one seed: every seed still running says so
+                s.finish("error", "the batch stopped on an error")
+            _flush(s, learner, k)
+            s.env.close()
+    return [s.run.summary(s.status, s.message) for s in seeds]
+
+
+def _loop(seeds: list[_Seed], learner, interrupted: list, bar) -> None:
+    budget = seeds[0].config.episodes
+    for episode in range(1, budget + 1):
+        for s in seeds:
+            obs, _ = s.env.reset(seed=s.config.seed if episode == 1 else None)
+            s.parts.explorer.reset()
+            s.parts.tally.reset()
+            s.parts.transitions.begin_episode()
+            s.state, s.score, s.steps = s.parts.transitions.observe(obs), 0.0, 0
+        raw = learner.act(np.stack([s.state for s in seeds]))
+        for k, s in enumerate(seeds):
+            s.action = s.parts.explorer(raw[k])
+        over = False
+        while not over:
+            next_states, overs = [], []
+            for s in seeds:
+                obs, reward, terminated, truncated, _ = s.env.step(s.action)
+                s.score += float(reward)
+                s.steps += 1
+                s.parts.total_steps += 1
+                s.parts.buffer.add_rows(s.parts.transitions.rows(s.state, s.action, float(reward), obs, terminated,
+                                                                 truncated))
+                next_states.append(s.parts.transitions.observe(obs))
+                overs.append(terminated or truncated)
+            if len(set(overs)) != 1:
+                raise ConfigError("seed-batched runs need episodes of equal length (post 000's 200 steps)")
+            over = overs[0]
+            raw = _train_step(seeds, learner, np.stack(next_states), over)
+            if interrupted:
+                for s in seeds:
+                    if s.active:
+                        s.finish("interrupted", f"stopped by {signal_name(interrupted)}; the episodes so far are kept")
+                return
+            if not over:
+                if raw is None:
+                    raw = learner.act(np.stack(next_states))
+                for k, s in enumerate(seeds):
+                    s.state, s.action = next_states[k], s.parts.explorer(raw[k])
+        for k, s in enumerate(seeds):
+            if s.active:
+                _end_episode(s, episode)
+                if s.status == "completed":
+                    _save(s, learner, k)
+                if bar is not None:
+                    bar.update(1)
+        if not any(s.active for s in seeds):
+            return
+
+
+def _train_step(seeds: list[_Seed], learner, next_states: np.ndarray, over: bool):
+    """Every seed's update of this env step, in one call; the next actions where fused."""
+    schedule = seeds[0].parts.schedule
+    due = [len(s.parts.buffer) >= schedule.train_start and s.parts.total_steps % schedule.every == 0 for s in seeds]
+    if len(set(due)) != 1:
+        raise ConfigError("seed-batched runs need the seeds to train on the same env steps")
+    if not due[0]:
+        return None
+    rows = np.stack([s.parts.buffer.sample_rows(schedule.batch_size) for s in seeds])  # [S, B, width]
+    if over:
+        losses, raw = learner.train(rows), None
+    else:
+        losses, raw = learner.train_and_act(rows, next_states)
+    values = {name: np.asarray(v) for name, v in losses.items()}  # [S] each
+    for k, s in enumerate(seeds):
+        if s.active:
+            try:
+                s.parts.tally.add({name: v[k] for name, v in values.items()}, f"env step {s.parts.total_steps}")
+            except NonFiniteLossError as exc:
+                s.finish("non_finite_loss", str(exc))
+    return raw
+
+
+def _end_episode(s: _Seed, episode: int) -> None:
+    stats = s.parts.tally.stats()
+    s.run.total_steps += s.steps
+    value = s.run.metric.update(s.score)
+    s.recorder.add_episode({"episode": episode, "steps": s.steps, "total_steps": s.run.total_steps, "score": s.score,
+                            "metric": value, **stats.mean_losses, "wall_seconds": time.perf_counter() - s.run.start})
+    if s.run.reached_at is None and s.run.metric.passes(value, s.config.threshold):
+        s.run.reached_at = episode
+    s.run.summary("running").write(s.recorder.out_dir)
+    if (s.run.reached_at is not None and s.config.stop_at_threshold) or episode == s.config.episodes:
+        s.finish("completed")
+
+
+def _save(s: _Seed, learner, k: int) -> None:
+    """Seed k's weights as they are now: at its finish, before its masked slice moves on."""
+    try:
+        learner.save_slice(k, s.recorder.out_dir)
+        s.saved = True
+    except Exception as exc:  # disk full, permissions: no summary may claim success
+        s.finish("error", f"could not write the run's files in {s.recorder.out_dir}: {type(exc).__name__}: {exc}")
+
+
+def _flush(s: _Seed, learner, k: int) -> None:
+    if s.status in ("completed", "interrupted") and not s.saved:
+        _save(s, learner, k)
+    s.run.summary(s.status, s.message).write(s.recorder.out_dir)

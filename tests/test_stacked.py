@@ -1,0 +1,152 @@
+"""Seed-batched learner (issue #11): seed k inside a stack computes what seed k computes alone."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from keras_rl.buffers import Layout
+from keras_rl.envs import EnvSpec
+from keras_rl.learners.ddpg import post000_learner
+from keras_rl.learners.stacked import stack_post000
+from keras_rl.posts.pendulum import PendulumDDPGConfig
+from keras_rl.seeding import seed_everything
+
+SPEC = EnvSpec(3, 1, 2.0)
+LAYOUT = Layout(3, 1)
+B = 64
+
+
+def rows_for(seed: int, dones_share: float = 0.05) -> np.ndarray:
+    """A plausible Pendulum batch [B, width] of seed ``seed``'s own."""
+    rng = np.random.default_rng(1000 + seed)
+    theta = rng.uniform(-np.pi, np.pi, B)
+    states = np.stack([np.cos(theta), np.sin(theta), rng.uniform(-8, 8, B)], 1)
+    next_states = np.stack([np.cos(theta + 0.05), np.sin(theta + 0.05), rng.uniform(-8, 8, B)], 1)
+    return LAYOUT.pack((states, rng.uniform(-2, 2, (B, 1)), -rng.uniform(0, 16, B), next_states,
+                        rng.uniform(size=B) < dones_share))
+
+
+def solo(seed: int, variant: str = "faithful"):
+    config = PendulumDDPGConfig.for_variant(variant, seed=seed)
+    seed_everything(seed)  # as run_seed does before the agent is built
+    return post000_learner(config, SPEC)
+
+
+def stacked(seeds, variant: str = "faithful"):
+    return stack_post000([PendulumDDPGConfig.for_variant(variant, seed=s) for s in seeds], SPEC)
+
+
+def max_gap(a: dict, b: dict) -> float:
+    return max(float(np.max(np.abs(x - y))) for name in a for x, y in zip(a[name], b[name]))
+
+
+def solo_weights(learner) -> dict:
+    """A solo learner's networks as (kernel, bias) per layer, like ``slice_weights``."""
+    return {name: [v.numpy() for layer in [*getattr(learner, name).hidden, getattr(learner, name).out]
+                   for v in (layer.kernel, layer.bias)]
+            for name in ("actor", "critic", "target_actor", "target_critic")}
+
+
+def test_each_slice_starts_from_its_solo_runs_initial_weights_and_seeds_differ():
+    stack = stacked(range(4))
+    for k in range(4):
+        assert max_gap(stack.slice_weights(k), solo_weights(solo(k))) == 0.0
+    assert max_gap(stack.slice_weights(0), stack.slice_weights(1)) > 0.1  # not one RNG stream for all
+
+
+@pytest.mark.parametrize("variant", ["faithful", "fixed"])
+def test_one_stacked_update_equals_each_seeds_solo_update(variant):
+    seeds = list(range(8))
+    stack = stacked(seeds, variant)
+    rows = np.stack([rows_for(s) for s in seeds])  # [S, B, width]
+    losses = stack.train(rows)
+    worst = 0.0
+    for k, seed in enumerate(seeds):
+        alone = solo(seed, variant)
+        solo_losses = alone.train(rows[k])
+        moved = max_gap(solo_weights(alone), solo_weights(solo(seed, variant)))
+        gap = max_gap(stack.slice_weights(k), solo_weights(alone))
+        worst = max(worst, gap)
+        assert gap <= 1e-6 and gap < 0.05 * moved, (seed, gap, moved)
+        for name in ("critic_loss", "actor_loss"):
+            assert float(losses[name][k]) == pytest.approx(float(solo_losses[name]), rel=1e-6, abs=1e-6)
+    print(f"max |stacked - solo| after one update, 8 seeds, {variant}: {worst:.3g}")
+
+
+def test_a_seeds_result_does_not_depend_on_which_seeds_share_its_batch():
+    first, second = stacked(range(0, 8)), stacked(range(3, 11))
+    first.train(np.stack([rows_for(s) for s in range(0, 8)]))
+    second.train(np.stack([rows_for(s) for s in range(3, 11)]))
+    assert max_gap(first.slice_weights(3), second.slice_weights(0)) <= 1e-6
+
+
+def test_acting_gives_each_seed_its_own_action():
+    seeds = list(range(4))
+    stack = stacked(seeds)
+    states = np.random.default_rng(0).normal(size=(4, 3)).astype(np.float32)
+    actions = stack.act(states)
+    for k, seed in enumerate(seeds):
+        np.testing.assert_allclose(actions[k], solo(seed).act(states[k]), atol=1e-6)
+
+
+def test_one_seed_through_the_stacked_learner_is_bit_identical_to_the_solo_learner():
+    alone, stack = solo(0), stacked([0])
+    rows = rows_for(0)
+    for _ in range(3):
+        alone_losses, stacked_losses = alone.train(rows), stack.train(rows[None])
+        assert float(stacked_losses["critic_loss"][0]) == float(alone_losses["critic_loss"])
+    assert max_gap(stack.slice_weights(0), solo_weights(alone)) == 0.0
+
+
+# -- the seed-batched episode loop ------------------------------------------------------------------
+def _csv(path):
+    import csv
+
+    with open(path, newline="") as fh:
+        return [{k: v for k, v in r.items() if k != "wall_seconds"} for r in csv.DictReader(fh)]
+
+
+def _batch(tmp_path, name, seeds, **overrides):
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs.batched import run_seed_batch
+
+    exp = get_experiment("pendulum")
+    configs = [exp.config_cls.for_variant("faithful", seed=s, **overrides) for s in seeds]
+    return run_seed_batch(exp, configs, [tmp_path / name / f"seed_{s}" for s in seeds], progress=False)
+
+
+def test_one_seed_through_the_batched_loop_writes_the_solo_runs_episodes_csv(tmp_path):
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "keras_rl", "reproduce", "pendulum", "--seeds", "3", "--episodes",
+                           "12", "--no-progress", "--out", str(tmp_path / "solo")], capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 1, proc.stderr
+    summaries = _batch(tmp_path, "batch", [3], episodes=12)
+    assert summaries[0].status == "completed"
+    assert _csv(tmp_path / "batch" / "seed_3" / "episodes.csv") == _csv(tmp_path / "solo" / "seed_3" / "episodes.csv")
+
+
+def test_batched_seeds_are_independent_of_their_neighbours_and_of_each_other(tmp_path):
+    first = _batch(tmp_path, "a", [0, 1, 2, 3], episodes=7)
+    second = _batch(tmp_path, "b", [3, 4, 5, 6], episodes=7)
+    assert all(s.status == "completed" for s in first + second)
+    seed3_a, seed3_b = _csv(tmp_path / "a" / "seed_3" / "episodes.csv"), _csv(tmp_path / "b" / "seed_3" / "episodes.csv")
+    assert seed3_a == seed3_b  # the same seed in another batch of the same size: the same run
+    scores = {s: [r["score"] for r in _csv(tmp_path / "a" / f"seed_{s}" / "episodes.csv")] for s in range(4)}
+    assert len({tuple(v) for v in scores.values()}) == 4  # every seed its own env, noise and weights
+    for name in ("config.json", "summary.json", "actor.weights.h5", "critic.weights.h5"):
+        assert (tmp_path / "a" / "seed_0" / name).is_file()
+
+
+def test_a_seed_that_reaches_the_threshold_stops_while_the_others_go_on(tmp_path):
+    summaries = _batch(tmp_path, "t", [0, 1, 2, 3], episodes=6, threshold=-1450.0)
+    by_seed = {s.seed: s for s in summaries}
+    stopped = [s for s in summaries if s.reached_at_episode is not None and s.reached_at_episode < 6]
+    assert stopped and len(stopped) < 4, {s.seed: s.reached_at_episode for s in summaries}
+    for s in stopped:
+        rows = _csv(tmp_path / "t" / f"seed_{s.seed}" / "episodes.csv")
+        assert len(rows) == s.reached_at_episode == s.episodes_run and s.success and s.status == "completed"
+    assert max(s.episodes_run for s in by_seed.values()) == 6 or all(s.reached_at_episode for s in summaries)
