@@ -111,7 +111,7 @@ def test_compare_reuses_matching_runs_and_refuses_mismatched_ones(compared, caps
     # another code version
     summary_path = runs / "cartpole" / "faithful-torch" / "seed_1" / "summary.json"
     summary = json.loads(summary_path.read_text())
-    summary["provenance"]["commit"] = "0" * 40  # made at another commit
+    summary["provenance"]["code_tree"] = "0" * 40  # made from other package files
     summary_path.write_text(json.dumps(summary))
     assert main(args) == 2
     assert re.search(r"made by code version 0{40}\S*, this is \S+; refusing to mix code versions",

@@ -25,10 +25,11 @@ def cpu_model() -> str:
 
 @functools.lru_cache(maxsize=1)
 def git_state() -> dict[str, object]:
-    """``{"commit": sha, "dirty": bool, "diff_sha256": hash of the uncommitted diff or None}``
-    of the checkout this package runs from; nulls when it is not a git checkout (a wheel)."""
+    """``{"commit": sha, "code_tree": git's hash of keras_rl/ at that commit, "dirty": bool,
+    "diff_sha256": hash of the uncommitted diff of keras_rl/ or None}`` of the checkout this
+    package runs from; nulls when it is not a git checkout (a wheel)."""
     root = Path(__file__).resolve().parents[1]
-    unknown = {"commit": None, "dirty": None, "diff_sha256": None}
+    unknown = {"commit": None, "code_tree": None, "dirty": None, "diff_sha256": None}
     if not (root.parent / ".git").exists():
         return unknown
     try:
@@ -36,22 +37,25 @@ def git_state() -> dict[str, object]:
         commit = subprocess.run([*git, "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10)
         if commit.returncode != 0:
             return unknown
+        tree = subprocess.run([*git, "rev-parse", "HEAD:keras_rl"], capture_output=True, text=True, timeout=10)
         diff = subprocess.run([*git, "diff", "HEAD", "--", "keras_rl"], capture_output=True, timeout=30).stdout
-        return {"commit": commit.stdout.strip(), "dirty": bool(diff.strip()),
+        return {"commit": commit.stdout.strip(), "code_tree": tree.stdout.strip() or None, "dirty": bool(diff.strip()),
                 "diff_sha256": hashlib.sha256(diff).hexdigest() if diff.strip() else None}
     except (OSError, subprocess.SubprocessError):
         return unknown
 
 
 def code_version() -> str:
-    """What "the same code" means when runs are reused: the git commit, plus a hash of any
-    uncommitted change to ``keras_rl/``; the package version where there is no checkout."""
+    """What "the same code" means when runs are reused: the package's own files at the run's
+    commit (git's hash of ``keras_rl/``, so a commit that changes only docs or results does
+    not invalidate runs), plus a hash of any uncommitted change to them; the package version
+    where there is no checkout."""
     return code_version_of(git_state(), None)
 
 
 def code_version_of(provenance: dict, package_version: str | None) -> str:
     """The code version a run recorded (``summary.json``'s provenance)."""
-    commit = provenance.get("commit")
+    commit = provenance.get("code_tree") or (f"commit {provenance['commit']}" if provenance.get("commit") else None)
     if commit is None:
         from keras_rl import __version__
 

@@ -1,0 +1,72 @@
+"""Seed-batched runs against the same seeds run alone: where they part, and whether it matters.
+
+    python reproductions/seed_batch_compare.py results/pendulum/seed-batch/solo \
+        results/pendulum/seed-batch/batch10 --write results/pendulum/seed-batch/report.md
+
+For each seed: the first episode whose row differs (every column but ``wall_seconds``), and
+episodes to threshold both ways. Over the seeds: success counts with Fisher's exact test,
+the difference of median episodes-to-threshold with a 95% percentile-bootstrap CI, and the
+Mann-Whitney U p (``keras_rl/report/stats.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from keras_rl.report.stats import fisher_exact, mann_whitney, median_difference_ci  # noqa: E402
+from keras_rl.runs.files import atomic_write_text  # noqa: E402
+from keras_rl.runs.summary import RunSummary  # noqa: E402
+
+
+def rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as fh:
+        return [{k: v for k, v in r.items() if k != "wall_seconds"} for r in csv.DictReader(fh)]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("solo", type=Path)
+    parser.add_argument("batched", type=Path)
+    parser.add_argument("--write", type=Path, default=None, help="also write the report here (markdown)")
+    args = parser.parse_args()
+    seeds = sorted(int(p.name.split("_")[1]) for p in args.solo.glob("seed_*"))
+    lines = [f"# Seed-batched vs solo: `{args.batched}` against `{args.solo}`", "",
+             f"Command: `python reproductions/seed_batch_compare.py {args.solo} {args.batched}"
+             + (f" --write {args.write}`" if args.write else "`"), "",
+             "| seed | first differing episode | solo: reached at | batched: reached at |", "|---|---|---|---|"]
+    solo_s, batch_s = [], []
+    for seed in seeds:
+        a, b = RunSummary.read(args.solo / f"seed_{seed}"), RunSummary.read(args.batched / f"seed_{seed}")
+        solo_s.append(a)
+        batch_s.append(b)
+        ra, rb = rows(args.solo / f"seed_{seed}" / "episodes.csv"), rows(args.batched / f"seed_{seed}" / "episodes.csv")
+        first = next((i + 1 for i, (x, y) in enumerate(zip(ra, rb)) if x != y),
+                     None if len(ra) == len(rb) else min(len(ra), len(rb)) + 1)
+        lines.append(f"| {seed} | {first if first else 'none (identical)'} | {a.reached_at_episode} "
+                     f"| {b.reached_at_episode} |")
+    hits_a = [s.reached_at_episode for s in solo_s if s.success]
+    hits_b = [s.reached_at_episode for s in batch_s if s.success]
+    n = len(seeds)
+    diff = median_difference_ci(hits_b, hits_a, np.random.default_rng(0)) if hits_a and hits_b else None
+    _, p = mann_whitney(hits_b, hits_a)
+    fisher = fisher_exact(len(hits_b), n, len(hits_a), n)
+    lines += ["", f"- Success: batched {len(hits_b)}/{n}, solo {len(hits_a)}/{n} (Fisher p = {fisher:.3g}).",
+              f"- Median episodes to threshold: batched {np.median(hits_b) if hits_b else 'n/a'}, solo "
+              f"{np.median(hits_a) if hits_a else 'n/a'}; batched minus solo {diff} (95% percentile bootstrap, "
+              f"10000 resamples).",
+              f"- Mann-Whitney U (two-sided) p = {p:.3g}.", ""]
+    text = "\n".join(lines)
+    print(text)
+    if args.write:
+        atomic_write_text(args.write, text)
+
+
+if __name__ == "__main__":
+    main()
