@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -10,6 +11,7 @@ from keras_rl.envs import EnvSpec
 from keras_rl.learners.ddpg import post000_learner
 from keras_rl.learners.stacked import stack_post000
 from keras_rl.posts.pendulum import PendulumDDPGConfig
+from keras_rl.runs.files import read_episodes
 from keras_rl.seeding import seed_everything
 
 SPEC = EnvSpec(3, 1, 2.0)
@@ -150,3 +152,73 @@ def test_a_seed_that_reaches_the_threshold_stops_while_the_others_go_on(tmp_path
         rows = _csv(tmp_path / "t" / f"seed_{s.seed}" / "episodes.csv")
         assert len(rows) == s.reached_at_episode == s.episodes_run and s.success and s.status == "completed"
     assert max(s.episodes_run for s in by_seed.values()) == 6 or all(s.reached_at_episode for s in summaries)
+
+
+class _NaNRewardAfter(gym.Wrapper):
+    """Rewards turn NaN after ``after`` steps (for one seed of a batch)."""
+
+    def __init__(self, env, after):
+        super().__init__(env)
+        self.after, self.steps = after, 0
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self.steps += 1
+        return obs, (float("nan") if self.steps > self.after else reward), terminated, truncated, info
+
+
+def _envs(seeds, wrap=None):
+    from keras_rl.registry import get_experiment
+
+    exp = get_experiment("pendulum")
+    envs = [exp.make_env(exp.config_cls()) for _ in seeds]
+    return [wrap(e) if wrap is not None and i == 1 else e for i, e in enumerate(envs)]
+
+
+def test_a_nan_in_one_seed_stops_that_seed_only(tmp_path):
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs.batched import run_seed_batch
+
+    exp = get_experiment("pendulum")
+    seeds = [0, 1, 2]
+    configs = [exp.config_cls.for_variant("faithful", seed=s, episodes=5, train_start=64, batch_size=16) for s in seeds]
+    envs = _envs(seeds, wrap=lambda e: _NaNRewardAfter(e, after=450))
+    summaries = run_seed_batch(exp, configs, [tmp_path / f"seed_{s}" for s in seeds], progress=False, envs=envs)
+    by_seed = {s.seed: s for s in summaries}
+    assert by_seed[1].status == "non_finite_loss" and "critic_loss became nan" in by_seed[1].message
+    assert by_seed[1].episodes_run == 2  # the episode that hit NaN is not recorded
+    assert by_seed[0].status == by_seed[2].status == "completed"
+    assert by_seed[0].episodes_run == by_seed[2].episodes_run == 5
+
+
+def test_ctrl_c_stops_every_seed_of_a_batch_and_keeps_their_episodes(tmp_path):
+    import os
+    import signal
+
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs.batched import run_seed_batch
+
+    class SigintAt(gym.Wrapper):
+        def __init__(self, env, at):
+            super().__init__(env)
+            self.at, self.steps = at, 0
+
+        def step(self, action):
+            self.steps += 1
+            if self.steps == self.at:
+                os.kill(os.getpid(), signal.SIGINT)
+            return self.env.step(action)
+
+    exp = get_experiment("pendulum")
+    seeds = [0, 1]
+    configs = [exp.config_cls.for_variant("faithful", seed=s, episodes=10, train_start=64) for s in seeds]
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        summaries = run_seed_batch(exp, configs, [tmp_path / f"seed_{s}" for s in seeds], progress=False,
+                                   envs=_envs(seeds, wrap=lambda e: SigintAt(e, at=450)))
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    for s in summaries:
+        assert s.status == "interrupted" and s.episodes_run == 2  # episode 3 was cut short
+        assert len(read_episodes(tmp_path / f"seed_{s.seed}" / "episodes.csv")) == 2
+        assert (tmp_path / f"seed_{s.seed}" / "actor.weights.h5").is_file()

@@ -61,16 +61,15 @@ class _Seed:
 
 
 def run_seed_batch(experiment: Experiment, configs: list, out_dirs: list[Path], progress: bool = True,
-                   threads: int | None = 1) -> list[RunSummary]:
-    """Train the seeds of ``configs`` (equal but for the seed) together; write each one's folder."""
+                   threads: int | None = 1, envs: list | None = None) -> list[RunSummary]:
+    """Train the seeds of ``configs`` (equal but for the seed) together; write each one's folder.
+    ``envs`` may be passed in, one per seed (tests wrap envs); by default the experiment makes them."""
     if len({c.episodes for c in configs}) != 1:
         raise ConfigError("seed-batched runs share one budget")
     configure_tensorflow(threads)
-    envs = []
-    for config in configs:
-        env = experiment.make_env(config)
+    envs = list(envs) if envs is not None else [experiment.make_env(c) for c in configs]
+    for config, env in zip(configs, envs):
         env.action_space.seed(config.seed)
-        envs.append(env)
     spec = experiment.env_spec(envs[0])
     learner = stacked_implementation(experiment.name, configs[0].framework).load()(configs, spec)
     seeds = [_Seed(experiment, c, env, experiment.assemble(c, spec, _NoLearner(learner.loss_names), env.action_space),
