@@ -7,7 +7,6 @@ import subprocess
 import sys
 import time
 
-import gymnasium as gym
 import pytest
 
 from keras_rl.cli import main, parse_seeds
@@ -15,6 +14,7 @@ from keras_rl.posts.pendulum import PendulumDDPGConfig
 from keras_rl.registry import get_experiment
 from keras_rl.runs.loop import run_seed
 from keras_rl.runs.files import read_episodes
+from wrappers import NaNRewardAfter, SigintAt
 
 CLI = [sys.executable, "-m", "keras_rl"]
 
@@ -113,17 +113,6 @@ def test_evaluate_plays_greedy_episodes_and_writes_a_gif(short_run, tmp_path):
         assert img.n_frames == 200
 
 
-class NaNRewardAfter(gym.Wrapper):
-    def __init__(self, env, after_steps):
-        super().__init__(env)
-        self.after, self.steps = after_steps, 0
-
-    def step(self, action):
-        obs, reward, terminated, truncated, info = self.env.step(action)
-        self.steps += 1
-        return obs, (float("nan") if self.steps > self.after else reward), terminated, truncated, info
-
-
 def test_nan_in_a_loss_stops_the_run_and_keeps_the_episodes(tmp_path):
     exp = get_experiment("pendulum")
     config = PendulumDDPGConfig.for_variant("faithful", episodes=10, train_start=64, batch_size=16)
@@ -134,20 +123,6 @@ def test_nan_in_a_loss_stops_the_run_and_keeps_the_episodes(tmp_path):
     rows = read_episodes(tmp_path / "episodes.csv")
     assert [r["episode"] for r in rows] == [1, 2]  # the episode that hit NaN is not recorded
     assert json.loads((tmp_path / "summary.json").read_text())["status"] == "non_finite_loss"
-
-
-class SigintAt(gym.Wrapper):
-    """Sends this process a SIGINT during env step ``at``, as a Ctrl-C mid-episode would."""
-
-    def __init__(self, env, at):
-        super().__init__(env)
-        self.at, self.steps = at, 0
-
-    def step(self, action):
-        self.steps += 1
-        if self.steps == self.at:
-            os.kill(os.getpid(), signal.SIGINT)
-        return self.env.step(action)
 
 
 def test_ctrl_c_mid_episode_is_taken_between_env_steps(tmp_path):

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import gymnasium as gym
 import numpy as np
 import pytest
+from wrappers import NaNRewardAfter, SigintAt
 
 from keras_rl.buffers import Layout
 from keras_rl.envs import EnvSpec
@@ -154,19 +154,6 @@ def test_a_seed_that_reaches_the_threshold_stops_while_the_others_go_on(tmp_path
     assert max(s.episodes_run for s in by_seed.values()) == 6 or all(s.reached_at_episode for s in summaries)
 
 
-class _NaNRewardAfter(gym.Wrapper):
-    """Rewards turn NaN after ``after`` steps (for one seed of a batch)."""
-
-    def __init__(self, env, after):
-        super().__init__(env)
-        self.after, self.steps = after, 0
-
-    def step(self, action):
-        obs, reward, terminated, truncated, info = self.env.step(action)
-        self.steps += 1
-        return obs, (float("nan") if self.steps > self.after else reward), terminated, truncated, info
-
-
 def _envs(seeds, wrap=None):
     from keras_rl.registry import get_experiment
 
@@ -182,7 +169,7 @@ def test_a_nan_in_one_seed_stops_that_seed_only(tmp_path):
     exp = get_experiment("pendulum")
     seeds = [0, 1, 2]
     configs = [exp.config_cls.for_variant("faithful", seed=s, episodes=5, train_start=64, batch_size=16) for s in seeds]
-    envs = _envs(seeds, wrap=lambda e: _NaNRewardAfter(e, after=450))
+    envs = _envs(seeds, wrap=lambda e: NaNRewardAfter(e, after_steps=450))
     summaries = run_seed_batch(exp, configs, [tmp_path / f"seed_{s}" for s in seeds], progress=False, envs=envs)
     by_seed = {s.seed: s for s in summaries}
     assert by_seed[1].status == "non_finite_loss" and "critic_loss became nan" in by_seed[1].message
@@ -192,22 +179,10 @@ def test_a_nan_in_one_seed_stops_that_seed_only(tmp_path):
 
 
 def test_ctrl_c_stops_every_seed_of_a_batch_and_keeps_their_episodes(tmp_path):
-    import os
     import signal
 
     from keras_rl.registry import get_experiment
     from keras_rl.runs.batched import run_seed_batch
-
-    class SigintAt(gym.Wrapper):
-        def __init__(self, env, at):
-            super().__init__(env)
-            self.at, self.steps = at, 0
-
-        def step(self, action):
-            self.steps += 1
-            if self.steps == self.at:
-                os.kill(os.getpid(), signal.SIGINT)
-            return self.env.step(action)
 
     exp = get_experiment("pendulum")
     seeds = [0, 1]
