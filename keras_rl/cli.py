@@ -263,25 +263,24 @@ def reproduce(args: argparse.Namespace) -> int:
         _check_writable_dir(args.tensorboard, "--tensorboard")
     seed_dirs = [out / f"seed_{s}" for s in seeds]
     modes = _start_modes(seed_dirs, args.overwrite, args.resume)
+    address = _address(args)
     if args.seed_batch < 1:
         raise ConfigError(f"--seed-batch must be at least 1, got {args.seed_batch}")
     if args.seed_batch > 1:
         from keras_rl.learners.table import stacked_implementation
 
         stacked_implementation(experiment.name, args.framework)  # a clear error if there is none
-        if args.resume or args.tensorboard or _address(args):
+        if args.resume or args.tensorboard or address:
             raise ConfigError("--seed-batch does not yet combine with --resume, --tensorboard or --address")
 
     from keras_rl.report.aggregate import write_aggregate
     from keras_rl.runs.backends import backend_for
-    from keras_rl.runs.jobs import SeedJob, run_jobs
+    from keras_rl.runs.jobs import SeedJob, batched, run_jobs
 
-    jobs = [SeedJob.of(base.replace(seed=s), d, start=m, checkpoint_every=args.checkpoint_every,
-                       tensorboard=args.tensorboard) for s, d, m in zip(seeds, seed_dirs, modes)]
-    from keras_rl.runs.jobs import batched
-
-    jobs = batched(jobs, args.seed_batch)
-    outcome = run_jobs(jobs, backend_for(workers, len(jobs), _address(args)), progress=not args.no_progress)
+    jobs = batched([SeedJob.of(base.replace(seed=s), d, start=m, checkpoint_every=args.checkpoint_every,
+                               tensorboard=args.tensorboard) for s, d, m in zip(seeds, seed_dirs, modes)],
+                   args.seed_batch)
+    outcome = run_jobs(jobs, backend_for(workers, len(jobs), address), progress=not args.no_progress)
     summaries = outcome.summaries
     failures = [s for s in summaries if s.status in ("non_finite_loss", "error")]
     for s in failures:

@@ -1,6 +1,6 @@
 """Seed-batched runs against the same seeds run alone: where they part, and whether it matters.
 
-    python reproductions/seed_batch_compare.py results/pendulum/seed-batch/solo \
+    python reproductions/seed_batch_compare.py results/pendulum/seed-batch/solo --batch-size 10 \
         results/pendulum/seed-batch/batch10 --write results/pendulum/seed-batch/report.md
 
 For each seed: the first episode whose row differs (every column but ``wall_seconds``), and
@@ -30,15 +30,26 @@ def rows(path: Path) -> list[dict[str, str]]:
         return [{k: v for k, v in r.items() if k != "wall_seconds"} for r in csv.DictReader(fh)]
 
 
+def _batch_walls(summaries: list[RunSummary], size: int) -> str:
+    """Each batch lasts until its last seed stops: the longest ``wall_seconds`` among its
+    seeds, the batches being ``size`` consecutive seeds."""
+    ordered = sorted(summaries, key=lambda s: s.seed)
+    walls = [max(s.wall_seconds for s in ordered[i:i + size]) for i in range(0, len(ordered), size)]
+    return (f"the {len(walls)} batches of {size} took " + ", ".join(f"{w:.0f} s" for w in walls)
+            + " (each as long as its slowest seed)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("solo", type=Path)
     parser.add_argument("batched", type=Path)
+    parser.add_argument("--batch-size", type=int, required=True, help="the --seed-batch the batched runs used")
     parser.add_argument("--write", type=Path, default=None, help="also write the report here (markdown)")
     args = parser.parse_args()
     seeds = sorted(int(p.name.split("_")[1]) for p in args.solo.glob("seed_*"))
     lines = [f"# Seed-batched vs solo: `{args.batched}` against `{args.solo}`", "",
-             f"Command: `python reproductions/seed_batch_compare.py {args.solo} {args.batched}"
+             f"Command: `python reproductions/seed_batch_compare.py {args.solo} {args.batched} "
+             f"--batch-size {args.batch_size}"
              + (f" --write {args.write}`" if args.write else "`"), "",
              "| seed | first differing episode | solo: reached at | batched: reached at |", "|---|---|---|---|"]
     solo_s, batch_s = [], []
@@ -61,7 +72,9 @@ def main() -> None:
               f"- Median episodes to threshold: batched {np.median(hits_b) if hits_b else 'n/a'}, solo "
               f"{np.median(hits_a) if hits_a else 'n/a'}; batched minus solo {diff} (95% percentile bootstrap, "
               f"10000 resamples).",
-              f"- Mann-Whitney U (two-sided) p = {p:.3g}.", ""]
+              f"- Mann-Whitney U (two-sided) p = {p:.3g}.",
+              f"- Wall time: the solo seeds took {sum(s.wall_seconds for s in solo_s):.0f} s of seed time in all; "
+              + _batch_walls(batch_s, args.batch_size) + ".", ""]
     text = "\n".join(lines)
     print(text)
     if args.write:

@@ -97,6 +97,7 @@ def test_seeds_run_through_ray_equal_the_same_seeds_run_in_process(sweep_dir, tm
             rows(sweep_dir / "noise_sigma=0.6" / f"seed_{seed}" / "episodes.csv")
     summary = json.loads((sweep_dir / "noise_sigma=0.6" / "seed_0" / "summary.json").read_text())
     assert summary["provenance"]["ray_node_id"]
+    assert summary["command"].startswith("keras-rl sweep pendulum --grid")  # the driver's, not the worker's argv
 
 
 def test_ray_servers_listen_on_loopback_only():

@@ -9,7 +9,7 @@ from wrappers import NaNRewardAfter, SigintAt
 from keras_rl.buffers import Layout
 from keras_rl.envs import EnvSpec
 from keras_rl.learners.ddpg import post000_learner
-from keras_rl.learners.stacked import stack_post000
+from keras_rl.learners.stacked import NETWORKS, layer_weights, stack_post000
 from keras_rl.posts.pendulum import PendulumDDPGConfig
 from keras_rl.runs.files import read_episodes
 from keras_rl.seeding import seed_everything
@@ -45,9 +45,7 @@ def max_gap(a: dict, b: dict) -> float:
 
 def solo_weights(learner) -> dict:
     """A solo learner's networks as (kernel, bias) per layer, like ``slice_weights``."""
-    return {name: [v.numpy() for layer in [*getattr(learner, name).hidden, getattr(learner, name).out]
-                   for v in (layer.kernel, layer.bias)]
-            for name in ("actor", "critic", "target_actor", "target_critic")}
+    return {name: layer_weights(getattr(learner, name)) for name in NETWORKS}
 
 
 def test_each_slice_starts_from_its_solo_runs_initial_weights_and_seeds_differ():

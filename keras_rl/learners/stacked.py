@@ -17,6 +17,7 @@ seed-batched episode loop and ``--seed-batch`` are not built yet (issue #11).
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Sequence
 
 import keras
@@ -25,9 +26,17 @@ import tensorflow as tf
 
 from keras_rl.buffers import Layout
 from keras_rl.envs import EnvSpec
-from keras_rl.learners.common import compile_step, soft_update
+from keras_rl.learners.common import compile_step, save_weights, soft_update
 from keras_rl.learners.ddpg import post000_networks
 from keras_rl.seeding import seed_everything
+
+
+NETWORKS = ("actor", "critic", "target_actor", "target_critic")
+
+
+def layer_weights(model) -> list[np.ndarray]:
+    """(kernel, bias) of each layer of a post-000 network, solo or stacked, in layer order."""
+    return [v.numpy() for layer in [*model.hidden, model.out] for v in (layer.kernel, layer.bias)]
 
 
 class StackedDense(keras.layers.Layer):
@@ -120,19 +129,11 @@ class StackedDDPGLearner:
         return losses, actions.numpy()
 
     def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
-        """Seed k's weights, laid out as a solo learner's ``weights()`` (kernel, bias per layer)."""
-        out = {}
-        for name in ("actor", "critic", "target_actor", "target_critic"):
-            out[name] = [v.numpy()[k] for layer in [*getattr(self, name).hidden, getattr(self, name).out]
-                         for v in (layer.kernel, layer.bias)]
-        return out
+        """Seed k's weights: (kernel, bias) per layer of each network, as a solo model holds them."""
+        return {name: [w[k] for w in layer_weights(getattr(self, name))] for name in NETWORKS}
 
     def save_slice(self, k: int, run_dir) -> None:
         """Seed k's actor and critic as a solo run saves them (``actor.weights.h5``, ``critic.weights.h5``)."""
-        from pathlib import Path
-
-        from keras_rl.learners.common import save_weights
-
         weights = self.slice_weights(k)
         actor, critic = self.solo_policies[k]
         actor.set_weights(weights["actor"])
@@ -189,9 +190,7 @@ class SoloAsStack:
         return {k: np.asarray(v)[None] for k, v in losses.items()}, action[None]
 
     def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
-        return {name: [v.numpy() for layer in [*getattr(self.learner, name).hidden, getattr(self.learner, name).out]
-                       for v in (layer.kernel, layer.bias)]
-                for name in ("actor", "critic", "target_actor", "target_critic")}
+        return {name: layer_weights(getattr(self.learner, name)) for name in NETWORKS}
 
     def save_slice(self, k: int, run_dir) -> None:
         self.learner.save(run_dir)

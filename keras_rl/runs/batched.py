@@ -18,7 +18,6 @@ rounds differently), so long runs drift apart the way chaotic runs do; the test 
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -43,11 +42,11 @@ class _NoLearner:
 class _Seed:
     """One seed's own part of a batch: env, parts (buffer, rule, schedule, explorer), records."""
 
-    def __init__(self, experiment: Experiment, config, env, parts, out_dir: Path):
+    def __init__(self, experiment: Experiment, config, env, parts, out_dir: Path, command: str | None):
         self.config, self.env, self.parts = config, env, parts
         self.recorder = RunRecorder(Path(out_dir), parts.loss_names)
         self.recorder.write_config(config.to_dict())
-        self.run = SeedRun(experiment, config, self.recorder, experiment.make_metric(config))
+        self.run = SeedRun(experiment, config, self.recorder, experiment.make_metric(config), command)
         self.status, self.message = "running", ""
         self.score, self.steps, self.state, self.action = 0.0, 0, None, None
         self.saved = False
@@ -61,7 +60,7 @@ class _Seed:
 
 
 def run_seed_batch(experiment: Experiment, configs: list, out_dirs: list[Path], progress: bool = True,
-                   threads: int | None = 1, envs: list | None = None) -> list[RunSummary]:
+                   threads: int | None = 1, envs: list | None = None, command: str | None = None) -> list[RunSummary]:
     """Train the seeds of ``configs`` (equal but for the seed) together; write each one's folder.
     ``envs`` may be passed in, one per seed (tests wrap envs); by default the experiment makes them."""
     if len({c.episodes for c in configs}) != 1:
@@ -73,7 +72,7 @@ def run_seed_batch(experiment: Experiment, configs: list, out_dirs: list[Path], 
     spec = experiment.env_spec(envs[0])
     learner = stacked_implementation(experiment.name, configs[0].framework).load()(configs, spec)
     seeds = [_Seed(experiment, c, env, experiment.assemble(c, spec, _NoLearner(learner.loss_names), env.action_space),
-                   d) for c, env, d in zip(configs, envs, out_dirs)]
+                   d, command) for c, env, d in zip(configs, envs, out_dirs)]
     for s in seeds:
         s.run.summary("running").write(s.recorder.out_dir)
     bar = None
@@ -169,14 +168,7 @@ def _train_step(seeds: list[_Seed], learner, next_states: np.ndarray, over: bool
 
 
 def _end_episode(s: _Seed, episode: int) -> None:
-    stats = s.parts.tally.stats()
-    s.run.total_steps += s.steps
-    value = s.run.metric.update(s.score)
-    s.recorder.add_episode({"episode": episode, "steps": s.steps, "total_steps": s.run.total_steps, "score": s.score,
-                            "metric": value, **stats.mean_losses, "wall_seconds": time.perf_counter() - s.run.start})
-    if s.run.reached_at is None and s.run.metric.passes(value, s.config.threshold):
-        s.run.reached_at = episode
-    s.run.summary("running").write(s.recorder.out_dir)
+    s.run.record_episode(episode, s.score, s.steps, s.parts.end_episode())
     if (s.run.reached_at is not None and s.config.stop_at_threshold) or episode == s.config.episodes:
         s.finish("completed")
 

@@ -22,6 +22,7 @@ from keras_rl.errors import RunFolderError
 from keras_rl.registry import get_experiment
 from keras_rl.report.plots import plot_seed_curve
 from keras_rl.runs.loop import run_seed
+from keras_rl.runs.provenance import command_line
 from keras_rl.runs.signals import sigterm_as_interrupt
 from keras_rl.runs.summary import RunSummary
 
@@ -37,9 +38,13 @@ class SeedJob:
     checkpoint_every: int = 10
     tensorboard: Path | None = None
     """Write TensorBoard scalars under this folder (one run per seed)."""
+    command: str = ""
+    """The command line that asked for the job, recorded in its summary (a Ray worker's own
+    argv is not it)."""
 
     @classmethod
     def of(cls, config, out_dir: Path, **options: Any) -> "SeedJob":
+        options.setdefault("command", command_line())
         return cls(config.experiment, config.to_dict(), Path(out_dir), **options)
 
 
@@ -49,17 +54,10 @@ class SeedBatchJob:
 
     jobs: tuple[SeedJob, ...]
 
-    @property
-    def start(self) -> str:
-        return "overwrite"
-
-    def members(self) -> tuple[SeedJob, ...]:
-        return self.jobs
-
 
 def members(job) -> tuple[SeedJob, ...]:
     """The seed jobs a job stands for: itself, or a batch's seeds."""
-    return job.members() if isinstance(job, SeedBatchJob) else (job,)
+    return job.jobs if isinstance(job, SeedBatchJob) else (job,)
 
 
 def batched(jobs: list[SeedJob], seed_batch: int) -> list:
@@ -92,12 +90,16 @@ def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> 
     try:
         return run_seed(experiment, config, job.out_dir, progress=progress, position=position,
                         resume=job.start == "resume", checkpoint_every=job.checkpoint_every,
-                        tensorboard=job.tensorboard, should_stop=should_stop)
+                        tensorboard=job.tensorboard, should_stop=should_stop, command=job.command)
     finally:
-        try:
-            plot_seed_curve(job.out_dir, experiment, config)
-        except OSError as exc:  # a full disk: the run's own files and summary are what count
-            print(f"warning: could not draw {Path(job.out_dir) / 'curve.png'}: {exc}", file=sys.stderr)
+        _draw_curve(job.out_dir, experiment, config)
+
+
+def _draw_curve(out_dir: Path, experiment, config) -> None:
+    try:
+        plot_seed_curve(out_dir, experiment, config)
+    except OSError as exc:  # a full disk: the run's own files and summary are what count
+        print(f"warning: could not draw {Path(out_dir) / 'curve.png'}: {exc}", file=sys.stderr)
 
 
 def _execute_batch(job: SeedBatchJob, progress: bool) -> RunSummary:
@@ -109,13 +111,11 @@ def _execute_batch(job: SeedBatchJob, progress: bool) -> RunSummary:
         if Path(j.out_dir).exists():
             shutil.rmtree(j.out_dir)
     try:
-        summaries = run_seed_batch(experiment, configs, [j.out_dir for j in job.jobs], progress=progress)
+        summaries = run_seed_batch(experiment, configs, [j.out_dir for j in job.jobs], progress=progress,
+                                   command=job.jobs[0].command)
     finally:
         for j, config in zip(job.jobs, configs):
-            try:
-                plot_seed_curve(j.out_dir, experiment, config)
-            except OSError as exc:
-                print(f"warning: could not draw {Path(j.out_dir) / 'curve.png'}: {exc}", file=sys.stderr)
+            _draw_curve(j.out_dir, experiment, config)
     return next((s for s in summaries if s.status == "interrupted"), summaries[-1])
 
 

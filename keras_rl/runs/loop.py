@@ -25,7 +25,7 @@ from keras_rl.seeding import configure_tensorflow, seed_everything
 def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = True,
              position: int = 0, threads: int | None = 1, env=None, resume: bool = False,
              checkpoint_every: int = 10, tensorboard: Path | None = None,
-             should_stop: Callable[[], bool] | None = None) -> RunSummary:
+             should_stop: Callable[[], bool] | None = None, command: str | None = None) -> RunSummary:
     """Train one seed to the threshold or the budget; write and return its summary.
 
     Ctrl-C, SIGTERM, a non-finite loss or any other error still leaves ``episodes.csv``
@@ -35,7 +35,8 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
     stops the run, the state at the last episode boundary goes to ``checkpoint.pkl``;
     ``resume=True`` continues from it. ``env`` may be passed in (tests wrap envs).
     ``should_stop`` is asked after every episode; True stops the run as a signal would (a
-    distributed backend's stop flag).
+    distributed backend's stop flag). ``command`` is the command line to record (a job run
+    elsewhere carries its driver's; by default this process's).
     """
     configure_tensorflow(threads)
     seed_everything(config.seed)
@@ -44,7 +45,7 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
     agent = build_agent(experiment, config, env)
     recorder = RunRecorder(Path(out_dir), agent.loss_names)
     metric = experiment.make_metric(config)
-    run = SeedRun(experiment, config, recorder, metric)
+    run = SeedRun(experiment, config, recorder, metric, command)
     if resume:
         run.restore(read_checkpoint(recorder.out_dir), agent, env)
     else:
@@ -68,8 +69,9 @@ def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = Tru
 class SeedRun:
     """One seed's bookkeeping: its rows, its metric, its counters and the summary they make."""
 
-    def __init__(self, experiment: Experiment, config, recorder: RunRecorder, metric):
+    def __init__(self, experiment: Experiment, config, recorder: RunRecorder, metric, command: str | None = None):
         self.experiment, self.config, self.recorder, self.metric = experiment, config, recorder, metric
+        self.command = command or command_line()
         self.start = time.perf_counter()
         self.provenance = {**provenance(), "started_at": datetime.datetime.now(datetime.timezone.utc).isoformat(
             timespec="seconds")}
@@ -116,7 +118,20 @@ class SeedRun:
                           episodes_csv_text(self.recorder.rows, episode_columns(self.recorder.loss_names)))
         self.snapshot = state
 
-    # -- the summary ------------------------------------------------------------------------
+    # -- episodes and the summary ------------------------------------------------------------
+    def record_episode(self, episode: int, score: float, steps: int, stats) -> dict[str, Any]:
+        """An episode's row into ``episodes.csv``, the threshold check, and a current
+        ``summary.json``; returns the row."""
+        self.total_steps += steps
+        value = self.metric.update(score)
+        row = {"episode": episode, "steps": steps, "total_steps": self.total_steps, "score": score, "metric": value,
+               **stats.mean_losses, "wall_seconds": time.perf_counter() - self.start}
+        self.recorder.add_episode(row)
+        if self.reached_at is None and self.metric.passes(value, self.config.threshold):
+            self.reached_at = episode
+        self.summary("running").write(self.recorder.out_dir)
+        return row
+
     def summary(self, status: str, message: str = "") -> RunSummary:
         c, rows, metric = self.config, self.recorder.rows, self.metric
         at_end = self.experiment.success_at_end
@@ -133,7 +148,7 @@ class SeedRun:
             steps_to_threshold=rows[self.reached_at - 1]["total_steps"] if self.reached_at else None,
             final_metric=rows[-1]["metric"] if rows else None, best_metric=best,
             wall_seconds=round(time.perf_counter() - self.start, 3), framework=c.framework,
-            command=command_line(), versions=self.versions, provenance=self.provenance,
+            command=self.command, versions=self.versions, provenance=self.provenance,
             extras=self.experiment.summary_extras(rows, c))
 
 
@@ -161,7 +176,7 @@ class _TensorBoard:
 def _train(run: SeedRun, env, agent, bar, interrupted: list, checkpoint_every: int, writer,
            should_stop: Callable[[], bool] | None = None) -> RunSummary:
     """``run_seed``'s episode loop and its final flush."""
-    config, metric, recorder = run.config, run.metric, run.recorder
+    config, recorder = run.config, run.recorder
     status, message = "running", ""
     try:
         for episode in range(len(recorder.rows) + 1, config.episodes + 1):
@@ -175,15 +190,7 @@ def _train(run: SeedRun, env, agent, bar, interrupted: list, checkpoint_every: i
                 action = agent.step(float(reward), obs, terminated, truncated)
                 if interrupted:
                     raise KeyboardInterrupt
-            stats = agent.end_episode()
-            run.total_steps += steps
-            value = metric.update(score)
-            row = {"episode": episode, "steps": steps, "total_steps": run.total_steps, "score": score, "metric": value,
-                   **stats.mean_losses, "wall_seconds": time.perf_counter() - run.start}
-            recorder.add_episode(row)
-            if run.reached_at is None and metric.passes(value, config.threshold):
-                run.reached_at = episode
-            run.summary("running").write(recorder.out_dir)
+            row = run.record_episode(episode, score, steps, agent.end_episode())
             if writer is not None:
                 writer.episode(row)
             run.capture(agent, env)
@@ -191,7 +198,8 @@ def _train(run: SeedRun, env, agent, bar, interrupted: list, checkpoint_every: i
                 run.save()
             if bar is not None:
                 bar.update(1)
-                bar.set_postfix(score=f"{score:.1f}", metric=f"{value:.1f}", steps=run.total_steps, refresh=False)
+                bar.set_postfix(score=f"{score:.1f}", metric=f"{row['metric']:.1f}", steps=run.total_steps,
+                                refresh=False)
             if interrupted or (should_stop is not None and should_stop()):
                 raise KeyboardInterrupt
             if run.reached_at is not None and config.stop_at_threshold:

@@ -33,7 +33,7 @@ from typing import Any
 
 from keras_rl.errors import ConfigError
 from keras_rl.runs.files import atomic_write_bytes
-from keras_rl.runs.jobs import execute
+from keras_rl.runs.jobs import SeedBatchJob, execute
 from keras_rl.runs.signals import sigterm_as_interrupt
 
 MAX_RETRIES = 3
@@ -54,12 +54,13 @@ def _seed_task(job, files_in: dict[str, bytes] | None, stop_flag) -> dict[str, b
     def should_stop() -> bool:
         return ray.get(stop_flag.is_set.remote())
 
-    fresh = "resume" if job.start == "resume" else "overwrite"
-    if files_in is None and not hasattr(job, "out_dir"):  # a seed batch, in place
+    if isinstance(job, SeedBatchJob):  # in place (batches run on a local instance only)
         execute(job, progress=False)
         return None
+    resume = job.start == "resume"
     if files_in is None:
-        execute(dataclasses.replace(job, start=fresh), progress=False, should_stop=should_stop)
+        execute(dataclasses.replace(job, start="resume" if resume else "overwrite"), progress=False,
+                should_stop=should_stop)
         _record_node(Path(job.out_dir), ray.get_runtime_context().get_node_id())
         return None
     with tempfile.TemporaryDirectory(prefix="keras-rl-seed-") as tmp:
@@ -67,7 +68,7 @@ def _seed_task(job, files_in: dict[str, bytes] | None, stop_flag) -> dict[str, b
         run_dir.mkdir()
         for name, data in files_in.items():
             (run_dir / name).write_bytes(data)
-        execute(dataclasses.replace(job, out_dir=run_dir, start=fresh if job.start == "resume" else "new"),
+        execute(dataclasses.replace(job, out_dir=run_dir, start="resume" if resume else "new"),
                 progress=False, should_stop=should_stop)
         _record_node(run_dir, ray.get_runtime_context().get_node_id())
         return _pack(run_dir)
