@@ -1,14 +1,18 @@
 """Seed-batched training against one seed at a time: wall time for the same env steps.
 
-    python benchmarks/seed_batch.py                  # post 000, 8 episodes per seed
-    python benchmarks/seed_batch.py --episodes 20 --study-episodes 20
+    python benchmarks/seed_batch.py                          # post 000, 8 episodes per seed
+    python benchmarks/seed_batch.py --experiment cartpole    # post 003, 40 episodes per seed
 
 Part 1 (one process, one TensorFlow thread): one solo seed, then S = 2, 4, 8, 10 and 16
-seeds in one ``--seed-batch`` run, each seed playing the same episodes (``train_start=200``
-so that 7 of every 8 env steps train). It prints the wall time and its ratio to one solo
-seed. Part 2 (the 10-seed study as users run it): ``keras-rl reproduce ... --seeds 0-9``
-with ``--workers 2`` (Ray, one seed per task) and with ``--workers 2 --seed-batch 5``, as
-subprocesses, start-up included.
+seeds in one ``--seed-batch`` run, every seed playing its own episodes. The ratio is the
+batch's wall time to one solo seed's wall time for the same env steps per seed: post 000's
+episodes are all 200 steps (``train_start=200``, so 7 of every 8 env steps train); post
+003's vary, so the solo seed's time per env step is scaled to the batch's vector steps (its
+longest seed). Part 2 (mask or shrink): the compiled learner call alone, per vector step,
+at S = 1 .. 16, for what a finished seed costs while it is masked. Part 3 (the 10-seed
+study as users run it): ``keras-rl reproduce ... --seeds 0-9`` with ``--workers 2`` (Ray,
+one seed per task) and with ``--workers 2 --seed-batch 5``, as subprocesses, start-up
+included.
 
 Only ratios within one run mean much on a shared machine.
 """
@@ -16,6 +20,7 @@ Only ratios within one run mean much on a shared machine.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -28,41 +33,74 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import keras_rl  # noqa: E402,F401
 
-OVERRIDES = {"train_start": 200, "stop_at_threshold": False}
+OVERRIDES = {"pendulum": {"train_start": 200, "stop_at_threshold": False}, "cartpole": {}}
+DEFAULT_EPISODES = {"pendulum": 8, "cartpole": 40}
 
 
-def solo_seconds(episodes: int) -> float:
+def _configs(experiment: str, seeds, episodes: int):
     from keras_rl.registry import get_experiment
+
+    exp = get_experiment(experiment)
+    return exp, [exp.config_cls.for_variant("faithful", seed=s, episodes=episodes, **OVERRIDES[experiment])
+                 for s in seeds]
+
+
+def solo_seconds(experiment: str, episodes: int) -> tuple[float, int]:
+    """One solo seed's wall time and env steps (seed 0)."""
     from keras_rl.runs.loop import run_seed
 
-    exp = get_experiment("pendulum")
-    config = exp.config_cls.for_variant("faithful", seed=0, episodes=1, **OVERRIDES)
+    exp, (config,) = _configs(experiment, [0], episodes)
     with tempfile.TemporaryDirectory() as tmp:
-        run_seed(exp, config, Path(tmp) / "warm", progress=False)  # import and trace once, untimed
+        run_seed(exp, config.replace(episodes=1), Path(tmp) / "warm", progress=False)  # import, trace: untimed
         start = time.perf_counter()
-        run_seed(exp, config.replace(episodes=episodes), Path(tmp) / "solo", progress=False)
-        return time.perf_counter() - start
+        summary = run_seed(exp, config, Path(tmp) / "solo", progress=False)
+        return time.perf_counter() - start, summary.total_steps
 
 
-def batch_seconds(seeds: int, episodes: int) -> float:
-    from keras_rl.registry import get_experiment
+def batch_seconds(experiment: str, seeds: int, episodes: int) -> tuple[float, int]:
+    """A batch's wall time and vector steps (its longest seed's env steps)."""
     from keras_rl.runs.batched import run_seed_batch
 
-    exp = get_experiment("pendulum")
-    configs = [exp.config_cls.for_variant("faithful", seed=s, episodes=episodes, **OVERRIDES) for s in range(seeds)]
+    exp, configs = _configs(experiment, range(seeds), episodes)
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
-        run_seed_batch(exp, configs, [Path(tmp) / f"seed_{s}" for s in range(seeds)], progress=False)
-        return time.perf_counter() - start
+        summaries = run_seed_batch(exp, configs, [Path(tmp) / f"seed_{s}" for s in range(seeds)], progress=False)
+        return time.perf_counter() - start, max(s.total_steps for s in summaries)
 
 
-def study_seconds(episodes: int, *extra: str) -> float:
+def learner_call_ms(experiment: str, seeds: int, calls: int = 300) -> float:
+    """The compiled train-and-act call alone, per vector step, in ms (post-warm-up)."""
+    import numpy as np
+
+    from keras_rl.learners.table import stacked_implementation
+    from keras_rl.registry import get_experiment
+
+    exp, configs = _configs(experiment, range(seeds), 1)
+    env = get_experiment(experiment).make_env(configs[0])
+    spec = exp.env_spec(env)
+    env.close()
+    learner = stacked_implementation(experiment, "keras").load()(configs, spec)
+    layout = learner.layout if hasattr(learner, "layout") else learner.learner.layout
+    batch = configs[0].batch_size
+    rows = np.random.default_rng(0).uniform(0, 1, (seeds, batch, layout.width)).astype(np.float32)
+    if experiment == "cartpole":
+        rows[..., layout.obs_dim] = rows[..., layout.obs_dim] > 0.5  # valid actions
+    states = rows[:, 0, :layout.obs_dim]
+    for _ in range(5):
+        learner.train_and_act(rows, states)
+    start = time.perf_counter()
+    for _ in range(calls):
+        learner.train_and_act(rows, states)
+    return (time.perf_counter() - start) / calls * 1000
+
+
+def study_seconds(experiment: str, episodes: int, *extra: str) -> float:
+    sets = [a for k, v in OVERRIDES[experiment].items() for a in ("--set", f"{k}={json.dumps(v)}")]
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
-        proc = subprocess.run([sys.executable, "-m", "keras_rl", "reproduce", "pendulum", "--seeds", "0-9",
-                               "--episodes", str(episodes), "--no-progress", "--set", "train_start=200",
-                               "--set", "stop_at_threshold=false", "--out", tmp, "--min-success-rate", "0", *extra],
-                              capture_output=True, text=True)
+        proc = subprocess.run([sys.executable, "-m", "keras_rl", "reproduce", experiment, "--seeds", "0-9",
+                               "--episodes", str(episodes), "--no-progress", *sets, "--out", tmp,
+                               "--min-success-rate", "0", *extra], capture_output=True, text=True)
         if proc.returncode != 0:
             raise SystemExit(proc.stderr[-2000:])
         return time.perf_counter() - start
@@ -70,28 +108,42 @@ def study_seconds(episodes: int, *extra: str) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--episodes", type=int, default=8, help="episodes per seed in part 1 (default 8)")
-    parser.add_argument("--study-episodes", type=int, default=8, help="episodes per seed in part 2 (default 8)")
-    parser.add_argument("--skip-study", action="store_true", help="part 1 only")
+    parser.add_argument("--experiment", choices=sorted(OVERRIDES), default="pendulum")
+    parser.add_argument("--episodes", type=int, default=None, help="episodes per seed in part 1 (default 8 for "
+                                                                   "pendulum, 40 for cartpole)")
+    parser.add_argument("--study-episodes", type=int, default=None, help="episodes per seed in part 3 "
+                                                                         "(default: as --episodes)")
+    parser.add_argument("--skip-study", action="store_true", help="parts 1 and 2 only")
     args = parser.parse_args()
+    name = args.experiment
+    episodes = args.episodes or DEFAULT_EPISODES[name]
 
     from keras_rl.seeding import configure_tensorflow
 
     configure_tensorflow(1)
-    steps = args.episodes * 200
-    solo = solo_seconds(args.episodes)
-    print(f"post 000, {args.episodes} episodes ({steps} env steps, {steps - 200} updates) per seed, 1 thread")
-    print("| seeds | how | wall s | per seed | wall / one solo seed |")
+    solo, solo_steps = solo_seconds(name, episodes)
+    per_step = solo / solo_steps
+    print(f"{name} (post {'000' if name == 'pendulum' else '003'}), {episodes} episodes per seed, 1 thread; "
+          f"one solo seed: {solo:.2f} s for {solo_steps} env steps ({per_step * 1000:.2f} ms per step)")
+    print("| seeds | how | wall s | vector steps | wall / one solo seed over as many steps |")
     print("|---|---|---|---|---|")
-    print(f"| 1 | solo | {solo:.2f} | {solo:.2f} | 1.00x |")
+    print(f"| 1 | solo | {solo:.2f} | {solo_steps} | 1.00x |")
     for seeds in (2, 4, 8, 10, 16):
-        wall = batch_seconds(seeds, args.episodes)
-        print(f"| {seeds} | --seed-batch {seeds} | {wall:.2f} | {wall / seeds:.2f} | {wall / solo:.2f}x |")
+        wall, steps = batch_seconds(name, seeds, episodes)
+        print(f"| {seeds} | --seed-batch {seeds} | {wall:.2f} | {steps} | {wall / (per_step * steps):.2f}x |")
+
+    print("\nMask or shrink: the compiled train-and-act call alone, per vector step")
+    print("| seeds in the call | ms per call | ms per seed |")
+    print("|---|---|---|")
+    for seeds in (1, 2, 4, 5, 8, 10, 16):
+        ms = learner_call_ms(name, seeds)
+        print(f"| {seeds} | {ms:.3f} | {ms / seeds:.3f} |")
     if args.skip_study:
         return
-    today = study_seconds(args.study_episodes, "--workers", "2")
-    batched = study_seconds(args.study_episodes, "--workers", "2", "--seed-batch", "5")
-    print(f"\n10-seed study, {args.study_episodes} episodes per seed, as commands (start-up included):")
+    study = args.study_episodes or episodes
+    today = study_seconds(name, study, "--workers", "2")
+    batched = study_seconds(name, study, "--workers", "2", "--seed-batch", "5")
+    print(f"\n10-seed study, {study} episodes per seed, as commands (start-up included):")
     print(f"| --workers 2 | {today:.1f} s | 1.00x |")
     print(f"| --workers 2 --seed-batch 5 | {batched:.1f} s | {today / batched:.2f}x faster |")
 

@@ -34,10 +34,11 @@ class Layout(NamedTuple):
         return 2 * self.obs_dim + self.action_dim + 2
 
     def split(self, rows) -> Batch:
-        """Views of a packed [B, width] matrix (numpy or tf) as a Batch."""
+        """Views of a packed [..., width] array (numpy or tf: [B, width], or [S, B, width]
+        for seed-batched learners) as a Batch."""
         o, a = self.obs_dim, self.action_dim
-        return Batch(rows[:, :o], rows[:, o:o + a], rows[:, o + a],
-                     rows[:, o + a + 1:2 * o + a + 1], rows[:, 2 * o + a + 1])
+        return Batch(rows[..., :o], rows[..., o:o + a], rows[..., o + a],
+                     rows[..., o + a + 1:2 * o + a + 1], rows[..., 2 * o + a + 1])
 
     def pack(self, batch) -> np.ndarray:
         """The inverse of ``split`` for numpy batches (any 5-tuple in Batch order)."""

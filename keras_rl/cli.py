@@ -85,7 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--min-success-rate", type=float, default=1.0,
                      help="exit 0 only if at least this share of seeds succeed (default 1.0: all)")
     rep.add_argument("--seed-batch", type=int, default=1, metavar="S",
-                     help="train S seeds together in one compiled step per env step (pendulum, keras; default 1)")
+                     help="train S seeds together in one compiled step per env step (pendulum and cartpole, keras; "
+                          "default 1)")
     rep.add_argument("--overwrite", action="store_true",
                      help="replace seed folders that already hold a run (each is cleared whole first)")
     rep.add_argument("--resume", action="store_true",
@@ -117,6 +118,9 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--out", type=Path, default=Path("results/compare"), help="report folder root")
     cp.add_argument("--rerun", action="store_true", help="replace existing run folders instead of reusing them")
     cp.add_argument("--reuse-only", action="store_true", help="run nothing; fail if a seed is missing")
+    cp.add_argument("--seed-batch", type=int, default=1, metavar="S",
+                    help="Keras runs still to make: train S seeds together in one compiled step per env step "
+                         "(pendulum and cartpole; default 1)")
     cp.add_argument("--no-progress", action="store_true", help="no progress bars")
 
     sw = sub.add_parser("sweep", help="a grid of config values x seeds, resumable, with a report per grid point")
@@ -137,6 +141,9 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--workers", type=int, default=1,
                     help="seeds at once on a local Ray instance (default 1: in this process, no Ray)")
     sw.add_argument("--address", default=None, help="run on the Ray cluster at HOST:PORT (default: $RAY_ADDRESS)")
+    sw.add_argument("--seed-batch", type=int, default=1, metavar="S",
+                    help="train S seeds of a grid point together in one compiled step per env step "
+                         "(pendulum and cartpole in Keras; default 1)")
     sw.add_argument("--out", type=_path_arg, required=True, help="the sweep's folder: <grid point>/seed_<n>/, sweep.md")
     sw.add_argument("--yes", action="store_true", help="allow a sweep of more than 10,000 jobs")
     sw.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -264,14 +271,8 @@ def reproduce(args: argparse.Namespace) -> int:
     seed_dirs = [out / f"seed_{s}" for s in seeds]
     modes = _start_modes(seed_dirs, args.overwrite, args.resume)
     address = _address(args)
-    if args.seed_batch < 1:
-        raise ConfigError(f"--seed-batch must be at least 1, got {args.seed_batch}")
-    if args.seed_batch > 1:
-        from keras_rl.learners.table import stacked_implementation
-
-        stacked_implementation(experiment.name, args.framework)  # a clear error if there is none
-        if args.resume or args.tensorboard or address:
-            raise ConfigError("--seed-batch does not yet combine with --resume, --tensorboard or --address")
+    _check_seed_batch(args.seed_batch, experiment.name, args.framework, address,
+                      resume=args.resume, tensorboard=args.tensorboard)
 
     from keras_rl.report.aggregate import write_aggregate
     from keras_rl.runs.backends import backend_for
@@ -334,19 +335,34 @@ def evaluate(args: argparse.Namespace) -> int:
 def compare(args: argparse.Namespace) -> int:
     workers = _check_counts(args.workers, args.episodes)
     seeds = parse_seeds(args.seeds)
+    address = _address(args)
+    _check_seed_batch(args.seed_batch, args.experiment, "keras", address)
     from keras_rl.report.compare import compare as run_compare
     from keras_rl.runs.provenance import command_line
 
     try:
         result = run_compare(args.experiment, seeds, args.variant, workers, args.runs,
                              args.out, args.rerun, args.reuse_only, args.episodes, not args.no_progress,
-                             command_line(), args.matched_init, address=_address(args))
+                             command_line(), args.matched_init, address=address, seed_batch=args.seed_batch)
     except KeyboardInterrupt:
         print("interrupted: the runs so far are on disk; run compare again to reuse them", file=sys.stderr)
         return EXIT_INTERRUPTED
     print(f"report: {result.out_dir / 'report.md'}")
     print(result.verdict)
     return EXIT_OK
+
+
+def _check_seed_batch(seed_batch: int, experiment: str, framework: str, address: str | None,
+                      resume: bool = False, tensorboard=None) -> None:
+    """``--seed-batch S``: a clear error before anything runs when it cannot apply."""
+    if seed_batch < 1:
+        raise ConfigError(f"--seed-batch must be at least 1, got {seed_batch}")
+    if seed_batch > 1:
+        from keras_rl.learners.table import stacked_implementation
+
+        stacked_implementation(experiment, framework)  # a clear error if there is none
+        if resume or tensorboard or address:
+            raise ConfigError("--seed-batch does not yet combine with --resume, --tensorboard or --address")
 
 
 def _address(args: argparse.Namespace) -> str | None:
@@ -383,6 +399,7 @@ def sweep(args: argparse.Namespace) -> int:
                           f"{', '.join(p.name for p in points)}")
     _check_writable_dir(args.out, "--out")
     address = _address(args)
+    _check_seed_batch(args.seed_batch, experiment.name, args.framework, address)
     every, todo, configs = sweep_jobs(base, points, seeds, args.out, args.yes)
     if args.framework == "torch":
         from keras_rl.torch import require_torch
@@ -392,11 +409,12 @@ def sweep(args: argparse.Namespace) -> int:
           f"{len(every) - len(todo)} already done, {len(todo)} to run", file=sys.stderr)
     from keras_rl.report.sweep import write_sweep_report
     from keras_rl.runs.backends import backend_for
-    from keras_rl.runs.jobs import run_jobs
+    from keras_rl.runs.jobs import batched, run_jobs
     from keras_rl.runs.provenance import command_line
     from keras_rl.runs.summary import RunSummary
 
     record_grid(args.out, points)
+    todo = batched(todo, args.seed_batch)
     outcome = run_jobs(todo, backend_for(workers, len(todo), address), progress=not args.no_progress)
     summaries = {p.name: [RunSummary.read(j.out_dir) for j in every
                           if Path(j.out_dir).parent.name == p.name and (Path(j.out_dir) / "summary.json").is_file()]

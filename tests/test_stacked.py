@@ -195,3 +195,159 @@ def test_ctrl_c_stops_every_seed_of_a_batch_and_keeps_their_episodes(tmp_path):
         assert s.status == "interrupted" and s.episodes_run == 2  # episode 3 was cut short
         assert len(read_episodes(tmp_path / f"seed_{s.seed}" / "episodes.csv")) == 2
         assert (tmp_path / f"seed_{s.seed}" / "actor.weights.h5").is_file()
+
+
+# -- post 003: the stacked DQN and episodes of any length -----------------------------------------
+def _cartpole_spec():
+    from keras_rl.registry import get_experiment
+
+    exp = get_experiment("cartpole")
+    env = exp.make_env(exp.config_cls())
+    try:
+        return exp.env_spec(env)
+    finally:
+        env.close()
+
+
+def _dqn_solo(seed: int, spec):
+    from keras_rl.learners.dqn import post003_learner
+    from keras_rl.posts.cartpole import CartPoleDQNConfig
+
+    seed_everything(seed)  # as run_seed does before the agent is built
+    return post003_learner(CartPoleDQNConfig(seed=seed), spec)
+
+
+def _dqn_stack(seeds, spec):
+    from keras_rl.learners.stacked import stack_post003
+    from keras_rl.posts.cartpole import CartPoleDQNConfig
+
+    return stack_post003([CartPoleDQNConfig(seed=s) for s in seeds], spec)
+
+
+def _dqn_weights(learner) -> dict:
+    from keras_rl.learners.stacked import DQN_NETWORKS
+
+    return {name: layer_weights(getattr(learner, name)) for name in DQN_NETWORKS}
+
+
+def _cartpole_rows(seed: int) -> np.ndarray:
+    """A plausible CartPole batch [128, width] of seed ``seed``'s own (actions 0/1, some terminal)."""
+    rng = np.random.default_rng(2000 + seed)
+    n = 128
+    states = rng.normal(0, [1.0, 1.0, 0.1, 1.0], (n, 4))
+    return Layout(4, 1).pack((states, rng.integers(0, 2, (n, 1)), np.ones(n), states + rng.normal(0, 0.05, (n, 4)),
+                              rng.uniform(size=n) < 0.1))
+
+
+def test_dqn_slices_start_from_their_solo_runs_weights_and_seeds_differ():
+    spec = _cartpole_spec()
+    stack = _dqn_stack(range(3), spec)
+    for k in range(3):
+        assert max_gap(stack.slice_weights(k), _dqn_weights(_dqn_solo(k, spec))) == 0.0
+    assert max_gap(stack.slice_weights(0), stack.slice_weights(1)) > 0.05  # not one RNG stream for all
+
+
+def test_one_stacked_dqn_update_equals_each_seeds_solo_update_and_ignores_its_batch_mates():
+    spec = _cartpole_spec()
+    seeds = list(range(8))
+    stack = _dqn_stack(seeds, spec)
+    rows = np.stack([_cartpole_rows(s) for s in seeds])
+    states = rows[:, 0, :4]
+    for _ in range(3):  # three steps, so that AdamW's moments and amsgrad's max are exercised
+        losses, actions = stack.train_and_act(rows, states)
+    worst = 0.0
+    for k, seed in enumerate(seeds):
+        alone = _dqn_solo(seed, spec)
+        for _ in range(3):
+            solo_losses, solo_action = alone.train_and_act(rows[k], states[k])
+        moved = max_gap(_dqn_weights(alone), _dqn_weights(_dqn_solo(seed, spec)))
+        gap = max_gap(stack.slice_weights(k), _dqn_weights(alone))
+        worst = max(worst, gap)
+        assert gap <= 1e-6 and gap < 0.05 * moved, (seed, gap, moved)
+        assert float(losses["loss"][k]) == pytest.approx(float(solo_losses["loss"]), rel=1e-6)
+        assert actions[k] == solo_action
+    print(f"max |stacked - solo| after three DQN updates, 8 seeds: {worst:.3g}")
+    other = _dqn_stack(range(3, 11), spec)  # seed 3 in {3..10} as in {0..7}
+    for _ in range(3):
+        other.train(np.stack([_cartpole_rows(s) for s in range(3, 11)]))
+    assert max_gap(other.slice_weights(0), stack.slice_weights(3)) <= 1e-6
+
+
+def _cartpole_runs(tmp_path, name, seeds, episodes, batch: bool):
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs.batched import run_seed_batch
+    from keras_rl.runs.loop import run_seed
+
+    exp = get_experiment("cartpole")
+    configs = [exp.config_cls.for_variant("faithful", seed=s, episodes=episodes) for s in seeds]
+    dirs = [tmp_path / name / f"seed_{s}" for s in seeds]
+    if batch:
+        return run_seed_batch(exp, configs, dirs, progress=False)
+    return [run_seed(exp, c, d, progress=False) for c, d in zip(configs, dirs)]
+
+
+def test_cartpole_seeds_batched_play_their_solo_episodes(tmp_path):
+    """S=1 writes the solo episodes.csv bit for bit; in a batch of 4 (episodes of different
+    lengths, seeds finishing at different env steps) every seed plays the same episodes as
+    alone, and its losses agree to 1e-6."""
+    seeds, episodes = [0, 1, 2, 3], 20
+    _cartpole_runs(tmp_path, "solo", seeds, episodes, batch=False)
+    _cartpole_runs(tmp_path, "one", [2], episodes, batch=True)
+    assert _csv(tmp_path / "one" / "seed_2" / "episodes.csv") == _csv(tmp_path / "solo" / "seed_2" / "episodes.csv")
+    summaries = _cartpole_runs(tmp_path, "four", seeds, episodes, batch=True)
+    assert all(s.status == "completed" and s.episodes_run == episodes for s in summaries)
+    assert len({s.total_steps for s in summaries}) > 1  # the seeds really finished at different env steps
+    for s in seeds:
+        batched = _csv(tmp_path / "four" / f"seed_{s}" / "episodes.csv")
+        alone = _csv(tmp_path / "solo" / f"seed_{s}" / "episodes.csv")
+        assert [(r["steps"], r["score"], r["total_steps"]) for r in batched] == \
+               [(r["steps"], r["score"], r["total_steps"]) for r in alone]
+        for b, a in zip(batched, alone):
+            if a["loss"]:
+                assert float(b["loss"]) == pytest.approx(float(a["loss"]), rel=1e-6)
+        assert (tmp_path / "four" / f"seed_{s}" / "q_network.weights.h5").is_file()
+    neighbours = _cartpole_runs(tmp_path, "other", [3, 4, 5, 6], episodes, batch=True)
+    assert neighbours[0].status == "completed"
+    assert _csv(tmp_path / "other" / "seed_3" / "episodes.csv") == _csv(tmp_path / "four" / "seed_3" / "episodes.csv")
+
+
+# -- --seed-batch on reproduce, compare and sweep -----------------------------------------------------
+def test_only_jobs_that_differ_in_the_seed_share_a_batch(tmp_path):
+    from keras_rl.posts.cartpole import CartPoleDQNConfig
+    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched
+
+    def job(seed, framework="keras", gamma=0.99, start="new"):
+        config = CartPoleDQNConfig(seed=seed, framework=framework, gamma=gamma)
+        return SeedJob.of(config, tmp_path / f"{framework}-{gamma}" / f"seed_{seed}", start=start, command="x")
+
+    jobs = [job(s, gamma=g) for g in (0.99, 0.9) for s in range(3)] + [job(0, "torch"), job(7, start="resume")]
+    packed = batched(jobs, 2)
+    batches = [[j.config["seed"] for j in b.jobs] for b in packed if isinstance(b, SeedBatchJob)]
+    assert batches == [[0, 1], [0, 1]]  # one per grid point; seed 2 of each point alone
+    alone = [(j.config["framework"], j.config["gamma"], j.config["seed"]) for j in packed
+             if not isinstance(j, SeedBatchJob)]
+    assert sorted(alone) == [("keras", 0.9, 2), ("keras", 0.99, 2), ("keras", 0.99, 7), ("torch", 0.99, 0)]
+    assert batched(jobs, 1) == jobs
+
+
+def test_seed_batch_on_sweep_runs_each_grid_point_as_a_batch_and_refuses_what_it_cannot_do(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    def cli(*args):
+        return subprocess.run([sys.executable, "-m", "keras_rl", *args], capture_output=True, text=True, timeout=600)
+
+    bad = cli("compare", "mountaincar", "--seeds", "0-1", "--seed-batch", "2", "--reuse-only")
+    assert bad.returncode == 2 and "--seed-batch has no keras learner for mountaincar" in bad.stderr, bad.stderr
+    out = tmp_path / "sweep"
+    proc = cli("sweep", "cartpole", "--grid", "gamma=0.99,0.9", "--seeds", "0-1", "--episodes", "3",
+               "--seed-batch", "2", "--no-progress", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    for point in ("gamma=0.99", "gamma=0.9"):
+        for seed in (0, 1):
+            summary = json.loads((out / point / f"seed_{seed}" / "summary.json").read_text())
+            assert summary["status"] == "completed" and summary["episodes_run"] == 3
+    again = cli("sweep", "cartpole", "--grid", "gamma=0.99,0.9", "--seeds", "0-1", "--episodes", "3",
+                "--seed-batch", "2", "--no-progress", "--out", str(out))
+    assert again.returncode == 0 and "4 already done, 0 to run" in again.stderr, again.stderr[-2000:]

@@ -16,11 +16,12 @@ from keras_rl.learners.networks import QNetwork, build
 from keras_rl.learners.optimizers import TorchAdamW
 
 
-def huber(x: tf.Tensor) -> tf.Tensor:
-    """``nn.SmoothL1Loss()`` (beta=1, mean) = Huber with delta 1, averaged."""
+def huber(x: tf.Tensor, axis=None) -> tf.Tensor:
+    """``nn.SmoothL1Loss()`` (beta=1, mean) = Huber with delta 1, averaged (over ``axis``:
+    the seed-batched learner averages each seed's batch on its own)."""
     abs_x = tf.abs(x)
     quadratic = tf.minimum(abs_x, 1.0)
-    return tf.reduce_mean(0.5 * tf.square(quadratic) + (abs_x - quadratic))
+    return tf.reduce_mean(0.5 * tf.square(quadratic) + (abs_x - quadratic), axis=axis)
 
 
 class DQNLearner:
@@ -109,12 +110,23 @@ class DQNLearner:
         return tf.argmax(self.q_network(state[None, :])[0], output_type=tf.int32)
 
 
-def post003_learner(config, spec: EnvSpec, xla: bool = True, dtype: str | None = None) -> DQNLearner:
-    """The tutorial's ``policy_net``, ``target_net`` (``load_state_dict`` copy) and AdamW."""
+def post003_networks(config, spec: EnvSpec, dtype: str | None = None) -> tuple[keras.Model, keras.Model]:
+    """In [28]: ``policy_net``, then ``target_net`` with ``target_net.load_state_dict(policy_net.state_dict())``."""
     c = config
     q_network = build(QNetwork(spec.obs_dim, spec.n_actions, c.q_hidden_units, c.init, dtype), spec.obs_dim)
     target_network = build(QNetwork(spec.obs_dim, spec.n_actions, c.q_hidden_units, c.init, dtype), spec.obs_dim)
     soft_update(target_network.variables, q_network.variables, 1.0)  # target_net.load_state_dict(...)
-    optimizer = TorchAdamW(learning_rate=c.q_lr, epsilon=c.adam_eps, weight_decay=c.weight_decay, amsgrad=c.amsgrad)
-    return DQNLearner(q_network, target_network, optimizer, c.gamma, c.tau, c.grad_clip_value,
+    return q_network, target_network
+
+
+def post003_optimizer(config) -> TorchAdamW:
+    """In [28]: ``optim.AdamW(policy_net.parameters(), lr=LR, amsgrad=True)``, torch's defaults otherwise."""
+    c = config
+    return TorchAdamW(learning_rate=c.q_lr, epsilon=c.adam_eps, weight_decay=c.weight_decay, amsgrad=c.amsgrad)
+
+
+def post003_learner(config, spec: EnvSpec, xla: bool = True, dtype: str | None = None) -> DQNLearner:
+    """The tutorial's ``policy_net``, ``target_net`` and AdamW."""
+    c = config
+    return DQNLearner(*post003_networks(c, spec, dtype), post003_optimizer(c), c.gamma, c.tau, c.grad_clip_value,
                       Layout(spec.obs_dim, 1), xla=xla)

@@ -3,16 +3,19 @@
 Each layer holds a kernel ``[S, in, out]`` and a bias ``[S, out]`` and is applied with a
 batched matmul (``einsum("sbi,sio->sbo")``), so seed k's slice sees only seed k's data.
 The loss is the *sum* over seeds of each seed's own loss: the gradient of seed k's slice is
-then exactly its solo gradient, and Adam and the soft update are elementwise, so each slice
-steps as its solo run would (the step counter is shared, which is exact while the seeds
-train in lockstep, as post 000's fixed 200-step episodes make them). Nothing global (a norm,
-a mean across seeds) enters the step.
+then exactly its solo gradient, and Adam, torch's AdamW, clip-by-value and the soft update
+are elementwise, so each slice steps as its solo run would. The optimizer's step counter is
+shared, which is exact because every seed of a batch trains on the same env steps (the
+seed-batched loop checks it: post 000's episodes are all 200 steps, and post 003's seeds
+reset on their own but train on every env step once their buffers hold one batch). Nothing
+global (a norm, a mean across seeds) enters the step.
 
-Seed k's slice starts from the very weights seed k's solo run draws: ``stack_post000`` seeds
-Keras as a solo run does, builds the solo networks, and stacks them.
+Seed k's slice starts from the very weights seed k's solo run draws: ``stack_post000`` and
+``stack_post003`` seed Keras as a solo run does, build the solo networks, and stack them.
+A stack of one seed is the solo learner itself (``SoloAsStack``).
 
-This module has the learner and its equivalence tests (``tests/test_stacked.py``); the
-seed-batched episode loop and ``--seed-batch`` are not built yet (issue #11).
+The seed-batched episode loop is ``runs/batched.py``; the equivalence tests are
+``tests/test_stacked.py``.
 """
 
 from __future__ import annotations
@@ -28,15 +31,31 @@ from keras_rl.buffers import Layout
 from keras_rl.envs import EnvSpec
 from keras_rl.learners.common import compile_step, save_weights, soft_update
 from keras_rl.learners.ddpg import post000_networks
+from keras_rl.learners.dqn import huber, post003_networks, post003_optimizer
 from keras_rl.seeding import seed_everything
 
 
 NETWORKS = ("actor", "critic", "target_actor", "target_critic")
+"""Post 000's networks, as ``slice_weights`` names them."""
+DQN_NETWORKS = ("q_network", "target_network")
+"""Post 003's networks."""
+
+
+def layers_of(model) -> list:
+    """A network's Dense (or StackedDense) layers in order: post 000's ``hidden`` + ``out``,
+    post 003's ``dense``."""
+    return list(model.dense) if hasattr(model, "dense") else [*model.hidden, model.out]
 
 
 def layer_weights(model) -> list[np.ndarray]:
-    """(kernel, bias) of each layer of a post-000 network, solo or stacked, in layer order."""
-    return [v.numpy() for layer in [*model.hidden, model.out] for v in (layer.kernel, layer.bias)]
+    """(kernel, bias) of each layer of a network, solo or stacked, in layer order."""
+    return [v.numpy() for layer in layers_of(model) for v in (layer.kernel, layer.bias)]
+
+
+def _check_equal_but_seed(configs: Sequence) -> None:
+    first = {k: v for k, v in configs[0].to_dict().items() if k != "seed"}
+    if any({k: v for k, v in c.to_dict().items() if k != "seed"} != first for c in configs):
+        raise ValueError("seed-batched configs must be equal but for the seed")
 
 
 class StackedDense(keras.layers.Layer):
@@ -124,9 +143,18 @@ class StackedDDPGLearner:
         """Each seed's action for its state: ``[S, obs] -> [S, act]``."""
         return self._act(tf.constant(states, tf.float32)).numpy()
 
-    def train_and_act(self, rows: np.ndarray, states: np.ndarray):
+    def train_and_act(self, rows: np.ndarray, states: np.ndarray, after_episode_end: bool = False):
+        """One update of every seed, then each seed's action for ``states``. After an
+        episode end the solo run trains, then acts on the new episode's first state in a
+        call of its own; so does this (XLA may round a fused call differently)."""
+        if after_episode_end:
+            return self.train(rows), self.act(states)
         losses, actions = self._train_and_act(tf.constant(rows), tf.constant(states, tf.float32))
         return losses, actions.numpy()
+
+    def act_without_update(self, states: np.ndarray, after_episode_end: bool = False) -> np.ndarray:
+        """Before the warm-up ends post 000 only acts."""
+        return self.act(states)
 
     def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
         """Seed k's weights: (kernel, bias) per layer of each network, as a solo model holds them."""
@@ -142,9 +170,8 @@ class StackedDDPGLearner:
         save_weights(critic, Path(run_dir) / "critic.weights.h5")
 
     def _train_rows(self, rows):
-        o, a = self.layout.obs_dim, self.layout.action_dim
-        states, actions = rows[:, :, :o], rows[:, :, o:o + a]  # [S, B, obs], [S, B, act]
-        rewards, next_states, dones = rows[:, :, o + a], rows[:, :, o + a + 1:2 * o + a + 1], rows[:, :, 2 * o + a + 1]
+        # [S, B, obs], [S, B, act], [S, B], [S, B, obs], [S, B]
+        states, actions, rewards, next_states, dones = self.layout.split(rows)
         next_q = self.target_critic(next_states, self.target_actor(next_states))  # [S, B, 1]
         if self.broadcast_target:  # P000-BROADCAST per seed: [S, B, B]
             targets = rewards[:, :, None] + self.gamma * next_q * (1.0 - dones[:, None, :])
@@ -169,28 +196,128 @@ class StackedDDPGLearner:
         return self.actor(states[:, None, :])[:, 0]  # [S, act]
 
 
+class StackedQNetwork(keras.Model):
+    """Post 003 In [16]'s ``DQN`` for S seeds: Linear 128, relu, Linear 128, relu, Linear n_actions."""
+
+    def __init__(self, solos: Sequence[keras.Model]):
+        super().__init__()
+        s, n = len(solos), len(solos[0].dense)
+        self.dense = [StackedDense(s, d.kernel.shape[0], d.units, "relu" if i < n - 1 else None)
+                      for i, d in enumerate(solos[0].dense)]
+        for i, layer in enumerate(self.dense):
+            layer.set_from([m.dense[i] for m in solos])
+
+    def call(self, state):  # [S, B, obs] -> [S, B, n_actions]
+        x = state
+        for layer in self.dense:
+            x = layer(x)
+        return x
+
+
+class StackedDQNLearner:
+    """Post 003's ``optimize_model`` (Huber, clip-by-value 100, torch's AdamW with amsgrad)
+    and its every-step soft update, for S seeds in one call."""
+
+    loss_names = ("loss",)
+
+    def __init__(self, q_network, target_network, optimizer, gamma: float, tau: float, grad_clip_value: float,
+                 layout: Layout, seeds: int, xla: bool = True):
+        self.q_network, self.target_network, self.optimizer = q_network, target_network, optimizer
+        self.solo_networks: list[keras.Model] = []  # seed k's solo policy net, for saving
+        self.gamma, self.tau, self.grad_clip_value, self.layout = float(gamma), float(tau), float(grad_clip_value), layout
+        optimizer.build(q_network.trainable_variables)
+        rows = tf.TensorSpec([seeds, None, layout.width], tf.float32)
+        obs = tf.TensorSpec([seeds, layout.obs_dim], tf.float32)
+        self._train = compile_step(self._train_rows, xla, rows)
+        self._act = compile_step(self._greedy, xla, obs)
+        self._train_and_act = compile_step(lambda r, s: (self._train_rows(r), self._greedy(s)), xla, rows, obs)
+        self._sync_and_act = compile_step(lambda s: (self._soft_update(), self._greedy(s))[1], xla, obs)
+
+    def train(self, rows: np.ndarray) -> dict[str, tf.Tensor]:
+        """One update of every seed on its own rows ``[S, B, width]``; losses ``[S]``."""
+        return self._train(tf.constant(rows))
+
+    def act(self, states: np.ndarray) -> np.ndarray:
+        """Each seed's greedy action ``[S]`` for its state ``[S, obs]``."""
+        return self._act(tf.constant(states, tf.float32)).numpy()
+
+    def train_and_act(self, rows: np.ndarray, states: np.ndarray, after_episode_end: bool = False):
+        """The update, then the greedy actions for ``states`` (a seed whose episode just
+        ended passes its next episode's first state): one call either way, since the
+        solo run's separate ``act`` reads the same updated weights."""
+        losses, actions = self._train_and_act(tf.constant(rows), tf.constant(states, tf.float32))
+        return losses, actions.numpy()
+
+    def act_without_update(self, states: np.ndarray, after_episode_end: bool = False) -> np.ndarray:
+        """Before the first batch the tutorial's soft update still runs every step."""
+        return self._sync_and_act(tf.constant(states, tf.float32)).numpy()
+
+    def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
+        return {name: [w[k] for w in layer_weights(getattr(self, name))] for name in DQN_NETWORKS}
+
+    def save_slice(self, k: int, run_dir) -> None:
+        """Seed k's policy net as a solo run saves it (``q_network.weights.h5``)."""
+        network = self.solo_networks[k]
+        network.set_weights(self.slice_weights(k)["q_network"])
+        save_weights(network, Path(run_dir) / "q_network.weights.h5")
+
+    def _train_rows(self, rows):
+        states, actions, rewards, next_states, dones = self.layout.split(rows)  # [S, B, ...]
+        actions = tf.cast(actions[..., 0], tf.int32)  # [S, B]
+        next_values = tf.reduce_max(self.target_network(next_states), axis=-1) * (1.0 - dones)  # [S, B]
+        expected = next_values * self.gamma + rewards
+        with tf.GradientTape() as tape:
+            q_values = self.q_network(states)  # [S, B, A]
+            chosen = tf.gather(q_values, actions[..., None], batch_dims=2)[..., 0]  # [S, B]
+            losses = huber(chosen - expected, axis=1)  # [S]: each seed's own mean
+            loss = tf.reduce_sum(losses)  # the sum: each slice gets its solo gradient
+        grads = tape.gradient(loss, self.q_network.trainable_variables)
+        grads = [tf.clip_by_value(g, -self.grad_clip_value, self.grad_clip_value) for g in grads]
+        self.optimizer.apply_gradients(zip(grads, self.q_network.trainable_variables))
+        self._soft_update()
+        return {"loss": losses}
+
+    def _soft_update(self):
+        soft_update(self.target_network.variables, self.q_network.variables, self.tau)
+        return tf.constant(0)
+
+    def _greedy(self, states):
+        return tf.argmax(self.q_network(states[:, None, :])[:, 0], axis=-1, output_type=tf.int32)  # [S]
+
+
 class SoloAsStack:
     """A stack of one seed is the solo learner itself, behind the stacked interface: XLA
     rounds a one-row batched matmul differently from Dense's matmul (about 1e-7, measured),
-    so S=1 through the stacked layers would not be bit-identical to the solo run; this is."""
+    so S=1 through the stacked layers would not be bit-identical to the solo run; this is,
+    call for call (after an episode end: the update, then a separate act, as the solo
+    agent does)."""
 
-    loss_names = ("critic_loss", "actor_loss")
+    def __init__(self, learner, networks: Sequence[str]):
+        self.learner, self.networks = learner, tuple(networks)
+        self.loss_names = tuple(learner.loss_names)
 
-    def __init__(self, learner):
-        self.learner = learner
+    @staticmethod
+    def _one(losses) -> dict[str, np.ndarray]:
+        return {k: np.asarray(v)[None] for k, v in losses.items()}
 
     def train(self, rows: np.ndarray) -> dict[str, np.ndarray]:
-        return {k: np.asarray(v)[None] for k, v in self.learner.train(rows[0]).items()}
+        return self._one(self.learner.train(rows[0]))
 
     def act(self, states: np.ndarray) -> np.ndarray:
-        return self.learner.act(states[0])[None]
+        return np.asarray(self.learner.act(states[0]))[None]
 
-    def train_and_act(self, rows: np.ndarray, states: np.ndarray):
+    def train_and_act(self, rows: np.ndarray, states: np.ndarray, after_episode_end: bool = False):
+        if after_episode_end:
+            return self.train(rows), self.act(states)
         losses, action = self.learner.train_and_act(rows[0], states[0])
-        return {k: np.asarray(v)[None] for k, v in losses.items()}, action[None]
+        return self._one(losses), np.asarray(action)[None]
+
+    def act_without_update(self, states: np.ndarray, after_episode_end: bool = False) -> np.ndarray:
+        action = self.learner.act_without_update(states[0], want_action=not after_episode_end)
+        return self.act(states) if after_episode_end else np.asarray(action)[None]
 
     def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
-        return {name: layer_weights(getattr(self.learner, name)) for name in NETWORKS}
+        return {name: layer_weights(getattr(self.learner, name)) for name in self.networks}
 
     def save_slice(self, k: int, run_dir) -> None:
         self.learner.save(run_dir)
@@ -205,10 +332,8 @@ def stack_post000(configs: Sequence, spec: EnvSpec, xla: bool = True):
         from keras_rl.learners.ddpg import post000_learner
 
         seed_everything(c.seed)
-        return SoloAsStack(post000_learner(c, spec, xla=xla))
-    if any({k: v for k, v in x.to_dict().items() if k != "seed"} != {k: v for k, v in c.to_dict().items()
-                                                                     if k != "seed"} for x in configs):
-        raise ValueError("seed-batched configs must be equal but for the seed")
+        return SoloAsStack(post000_learner(c, spec, xla=xla), NETWORKS)
+    _check_equal_but_seed(configs)
     solos = []
     for config in configs:
         seed_everything(config.seed)
@@ -219,4 +344,24 @@ def stack_post000(configs: Sequence, spec: EnvSpec, xla: bool = True):
     learner = StackedDDPGLearner(*nets, c.actor_lr, c.critic_lr, c.gamma, c.tau, c.broadcast_target,
                                  Layout(obs_dim, act_dim), seeds=len(configs), xla=xla)
     learner.solo_policies = [(s[0], s[1]) for s in solos]
+    return learner
+
+
+def stack_post003(configs: Sequence, spec: EnvSpec, xla: bool = True):
+    """Post 003's learner for the seeds of ``configs``, each slice from its solo run's weights."""
+    c = configs[0]
+    if len(configs) == 1:
+        from keras_rl.learners.dqn import post003_learner
+
+        seed_everything(c.seed)
+        return SoloAsStack(post003_learner(c, spec, xla=xla), DQN_NETWORKS)
+    _check_equal_but_seed(configs)
+    solos = []
+    for config in configs:
+        seed_everything(config.seed)
+        solos.append(post003_networks(config, spec))
+    learner = StackedDQNLearner(StackedQNetwork([q for q, _ in solos]), StackedQNetwork([t for _, t in solos]),
+                                post003_optimizer(c), c.gamma, c.tau, c.grad_clip_value, Layout(spec.obs_dim, 1),
+                                seeds=len(configs), xla=xla)
+    learner.solo_networks = [q for q, _ in solos]
     return learner

@@ -48,7 +48,7 @@ class _Seed:
         self.recorder.write_config(config.to_dict())
         self.run = SeedRun(experiment, config, self.recorder, experiment.make_metric(config), command)
         self.status, self.message = "running", ""
-        self.score, self.steps, self.state, self.action = 0.0, 0, None, None
+        self.score, self.steps, self.episode, self.state, self.action = 0.0, 0, 0, None, None
         self.saved = False
 
     @property
@@ -96,67 +96,84 @@ def run_seed_batch(experiment: Experiment, configs: list, out_dirs: list[Path], 
 
 
 def _loop(seeds: list[_Seed], learner, interrupted: list, bar) -> None:
-    budget = seeds[0].config.episodes
-    for episode in range(1, budget + 1):
-        for s in seeds:
-            obs, _ = s.env.reset(seed=s.config.seed if episode == 1 else None)
-            s.parts.explorer.reset()
-            s.parts.tally.reset()
-            s.parts.transitions.begin_episode()
-            s.state, s.score, s.steps = s.parts.transitions.observe(obs), 0.0, 0
-        raw = learner.act(np.stack([s.state for s in seeds]))
+    """Vector step after vector step until no seed is running. A seed whose episode ends
+    begins its next one at once (its own env reset), so episodes of any length line up;
+    the one learner call of the step trains every seed and picks every next action, and
+    the ended episode is recorded after it, as the solo agent records it after the step's
+    update."""
+    for s in seeds:
+        _begin_episode(s, s.env.reset(seed=s.config.seed)[0])
+    raw = learner.act(np.stack([s.state for s in seeds]))
+    for k, s in enumerate(seeds):
+        s.action = s.parts.explorer(raw[k])
+    while any(s.active for s in seeds):
+        ended = []
         for k, s in enumerate(seeds):
-            s.action = s.parts.explorer(raw[k])
-        over = False
-        while not over:
-            next_states, overs = [], []
+            if not s.active:
+                continue
+            obs, reward, terminated, truncated, _ = s.env.step(s.action)
+            s.score += float(reward)
+            s.steps += 1
+            s.parts.total_steps += 1
+            s.parts.buffer.add_rows(s.parts.transitions.rows(s.state, s.action, float(reward), obs, terminated,
+                                                             truncated))
+            s.state = s.parts.transitions.observe(obs)
+            if terminated or truncated:
+                ended.append(k)
+        records = {k: (seeds[k].score, seeds[k].steps) for k in ended}
+        for k in ended:  # the next episode's first state, so that one call acts for every seed
+            s = seeds[k]
+            if s.episode < s.config.episodes:
+                s.parts.transitions.begin_episode()
+                s.state = s.parts.transitions.observe(s.env.reset()[0])
+        raw = _learner_step(seeds, learner, after_episode_end=bool(ended))
+        if interrupted:
             for s in seeds:
-                obs, reward, terminated, truncated, _ = s.env.step(s.action)
-                s.score += float(reward)
-                s.steps += 1
-                s.parts.total_steps += 1
-                s.parts.buffer.add_rows(s.parts.transitions.rows(s.state, s.action, float(reward), obs, terminated,
-                                                                 truncated))
-                next_states.append(s.parts.transitions.observe(obs))
-                overs.append(terminated or truncated)
-            if len(set(overs)) != 1:
-                raise ConfigError("seed-batched runs need episodes of equal length (post 000's 200 steps)")
-            over = overs[0]
-            raw = _train_step(seeds, learner, np.stack(next_states), over)
-            if interrupted:
-                for s in seeds:
-                    if s.active:
-                        s.finish("interrupted", f"stopped by {signal_name(interrupted)}; the episodes so far are kept")
-                return
-            if not over:
-                if raw is None:
-                    raw = learner.act(np.stack(next_states))
-                for k, s in enumerate(seeds):
-                    s.state, s.action = next_states[k], s.parts.explorer(raw[k])
-        for k, s in enumerate(seeds):
+                if s.active:
+                    s.finish("interrupted", f"stopped by {signal_name(interrupted)}; the episodes so far are kept")
+            return
+        for k in ended:
+            s = seeds[k]
             if s.active:
-                _end_episode(s, episode)
+                _end_episode(s, *records[k])
                 if s.status == "completed":
                     _save(s, learner, k)
+                else:
+                    s.episode += 1
+                    s.parts.explorer.reset()
+                    s.parts.tally.reset()
+                    s.score, s.steps = 0.0, 0
                 if bar is not None:
                     bar.update(1)
-        if not any(s.active for s in seeds):
-            return
+        for k, s in enumerate(seeds):
+            if s.active:
+                s.action = s.parts.explorer(raw[k])
 
 
-def _train_step(seeds: list[_Seed], learner, next_states: np.ndarray, over: bool):
-    """Every seed's update of this env step, in one call; the next actions where fused."""
-    schedule = seeds[0].parts.schedule
-    due = [len(s.parts.buffer) >= schedule.train_start and s.parts.total_steps % schedule.every == 0 for s in seeds]
-    if len(set(due)) != 1:
+def _begin_episode(s: _Seed, obs) -> None:
+    """The agent's ``begin_episode`` for seed s, but for its action (one call acts for all)."""
+    s.parts.explorer.reset()
+    s.parts.tally.reset()
+    s.parts.transitions.begin_episode()
+    s.state, s.score, s.steps, s.episode = s.parts.transitions.observe(obs), 0.0, 0, 1
+
+
+def _learner_step(seeds: list[_Seed], learner, after_episode_end: bool) -> np.ndarray:
+    """Every seed's update of this env step and every seed's next greedy action, in one call
+    where the solo run makes one. A seed no longer running contributes rows of zeros and
+    its last state: its slice moves, but nothing of it is read any more."""
+    active = [s for s in seeds if s.active]
+    schedule = active[0].parts.schedule
+    due = {len(s.parts.buffer) >= schedule.train_start and s.parts.total_steps % schedule.every == 0 for s in active}
+    if len(due) != 1:
         raise ConfigError("seed-batched runs need the seeds to train on the same env steps")
-    if not due[0]:
-        return None
-    rows = np.stack([s.parts.buffer.sample_rows(schedule.batch_size) for s in seeds])  # [S, B, width]
-    if over:
-        losses, raw = learner.train(rows), None
-    else:
-        losses, raw = learner.train_and_act(rows, next_states)
+    states = np.stack([s.state for s in seeds])
+    if not due.pop():
+        return learner.act_without_update(states, after_episode_end)
+    width = active[0].parts.buffer.layout.width
+    rows = np.stack([s.parts.buffer.sample_rows(schedule.batch_size) if s.active
+                     else np.zeros((schedule.batch_size, width), np.float32) for s in seeds])  # [S, B, width]
+    losses, raw = learner.train_and_act(rows, states, after_episode_end)
     values = {name: np.asarray(v) for name, v in losses.items()}  # [S] each
     for k, s in enumerate(seeds):
         if s.active:
@@ -167,9 +184,9 @@ def _train_step(seeds: list[_Seed], learner, next_states: np.ndarray, over: bool
     return raw
 
 
-def _end_episode(s: _Seed, episode: int) -> None:
-    s.run.record_episode(episode, s.score, s.steps, s.parts.end_episode())
-    if (s.run.reached_at is not None and s.config.stop_at_threshold) or episode == s.config.episodes:
+def _end_episode(s: _Seed, score: float, steps: int) -> None:
+    s.run.record_episode(s.episode, score, steps, s.parts.end_episode())
+    if (s.run.reached_at is not None and s.config.stop_at_threshold) or s.episode == s.config.episodes:
         s.finish("completed")
 
 

@@ -12,6 +12,8 @@ outcome is read back from disk, so an interrupted worker still reports what it k
 
 from __future__ import annotations
 
+import json
+
 import shutil
 import sys
 from dataclasses import dataclass, field
@@ -61,14 +63,30 @@ def members(job) -> tuple[SeedJob, ...]:
 
 
 def batched(jobs: list[SeedJob], seed_batch: int) -> list:
-    """``jobs`` packed into batches of ``seed_batch`` seeds (one seed: the job itself)."""
+    """``jobs`` packed into batches of up to ``seed_batch`` seeds. Only jobs that differ in
+    nothing but the seed share a batch (a sweep's grid points never do), and only fresh
+    jobs of an experiment and framework with a seed-batched learner (``learners/table.py``)
+    are packed: the others (PyTorch runs in ``compare``, resumed runs, TensorBoard runs)
+    run alone, as before. A group of one is the job itself."""
     if seed_batch <= 1:
         return list(jobs)
+    from keras_rl.learners.table import STACKED
+
+    groups: dict[tuple, list[SeedJob]] = {}
+    alone = []
+    for job in jobs:
+        if (job.experiment, job.config.get("framework")) not in STACKED or job.start == "resume" or job.tensorboard:
+            alone.append(job)
+            continue
+        key = (job.experiment, json.dumps({k: v for k, v in job.config.items() if k != "seed"}, sort_keys=True),
+               job.command)
+        groups.setdefault(key, []).append(job)
     out = []
-    for i in range(0, len(jobs), seed_batch):
-        group = tuple(jobs[i:i + seed_batch])
-        out.append(group[0] if len(group) == 1 else SeedBatchJob(group))
-    return out
+    for group in groups.values():
+        for i in range(0, len(group), seed_batch):
+            chunk = tuple(group[i:i + seed_batch])
+            out.append(chunk[0] if len(chunk) == 1 else SeedBatchJob(chunk))
+    return out + alone
 
 
 @dataclass
