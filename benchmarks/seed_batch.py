@@ -1,7 +1,7 @@
 """Seed-batched training against one seed at a time: wall time for the same env steps.
 
     python benchmarks/seed_batch.py                          # post 000, 8 episodes per seed
-    python benchmarks/seed_batch.py --experiment cartpole    # post 003, 40 episodes per seed
+    python benchmarks/seed_batch.py --experiment cartpole    # post 003, 250 episodes per seed
 
 Part 1 (one process, one TensorFlow thread): one solo seed, then S = 2, 4, 8, 10 and 16
 seeds in one ``--seed-batch`` run, every seed playing its own episodes. The ratio is the
@@ -34,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import keras_rl  # noqa: E402,F401
 
 OVERRIDES = {"pendulum": {"train_start": 200, "stop_at_threshold": False}, "cartpole": {}}
-DEFAULT_EPISODES = {"pendulum": 8, "cartpole": 40}
+DEFAULT_EPISODES = {"pendulum": 8, "cartpole": 250}
 
 
 def _configs(experiment: str, seeds, episodes: int):
@@ -110,7 +110,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--experiment", choices=sorted(OVERRIDES), default="pendulum")
     parser.add_argument("--episodes", type=int, default=None, help="episodes per seed in part 1 (default 8 for "
-                                                                   "pendulum, 40 for cartpole)")
+                                                                   "pendulum, 250 for cartpole)")
     parser.add_argument("--study-episodes", type=int, default=None, help="episodes per seed in part 3 "
                                                                          "(default: as --episodes)")
     parser.add_argument("--skip-study", action="store_true", help="parts 1 and 2 only")

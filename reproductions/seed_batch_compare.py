@@ -3,8 +3,9 @@
     python reproductions/seed_batch_compare.py results/pendulum/seed-batch/solo --batch-size 10 \
         results/pendulum/seed-batch/batch10 --write results/pendulum/seed-batch/report.md
 
-For each seed: the first episode whose row differs (every column but ``wall_seconds``), and
-episodes to threshold both ways. Over the seeds: success counts with Fisher's exact test,
+For each seed: the first episode whose row differs (every column but ``wall_seconds``: a
+loss rounded differently in the 8th digit counts), the first episode whose score differs (the
+seed played a different episode), and episodes to threshold both ways. Over the seeds: success counts with Fisher's exact test,
 the difference of median episodes-to-threshold with a 95% percentile-bootstrap CI, and the
 Mann-Whitney U p (``keras_rl/report/stats.py``).
 """
@@ -30,6 +31,13 @@ def rows(path: Path) -> list[dict[str, str]]:
         return [{k: v for k, v in r.items() if k != "wall_seconds"} for r in csv.DictReader(fh)]
 
 
+def _first_difference(ra: list[dict], rb: list[dict], key) -> int | None:
+    """The first episode (1-based) where ``key`` of the two runs' rows differs, or where one
+    run stopped and the other went on; None if none."""
+    first = next((i + 1 for i, (x, y) in enumerate(zip(ra, rb)) if key(x) != key(y)), None)
+    return first if first or len(ra) == len(rb) else min(len(ra), len(rb)) + 1
+
+
 def _batch_walls(summaries: list[RunSummary], size: int) -> str:
     """Each batch lasts until its last seed stops: the longest ``wall_seconds`` among its
     seeds, the batches being ``size`` consecutive seeds."""
@@ -51,16 +59,17 @@ def main() -> None:
              f"Command: `python reproductions/seed_batch_compare.py {args.solo} {args.batched} "
              f"--batch-size {args.batch_size}"
              + (f" --write {args.write}`" if args.write else "`"), "",
-             "| seed | first differing episode | solo: reached at | batched: reached at |", "|---|---|---|---|"]
+             "| seed | first differing row | first differing score | solo: reached at | batched: reached at |",
+             "|---|---|---|---|---|"]
     solo_s, batch_s = [], []
     for seed in seeds:
         a, b = RunSummary.read(args.solo / f"seed_{seed}"), RunSummary.read(args.batched / f"seed_{seed}")
         solo_s.append(a)
         batch_s.append(b)
         ra, rb = rows(args.solo / f"seed_{seed}" / "episodes.csv"), rows(args.batched / f"seed_{seed}" / "episodes.csv")
-        first = next((i + 1 for i, (x, y) in enumerate(zip(ra, rb)) if x != y),
-                     None if len(ra) == len(rb) else min(len(ra), len(rb)) + 1)
-        lines.append(f"| {seed} | {first if first else 'none (identical)'} | {a.reached_at_episode} "
+        first = _first_difference(ra, rb, lambda r: r)
+        first_score = _first_difference(ra, rb, lambda r: (r["steps"], r["score"]))
+        lines.append(f"| {seed} | {first or 'none (identical)'} | {first_score or 'none'} | {a.reached_at_episode} "
                      f"| {b.reached_at_episode} |")
     hits_a = [s.reached_at_episode for s in solo_s if s.success]
     hits_b = [s.reached_at_episode for s in batch_s if s.success]
