@@ -5,6 +5,7 @@
     keras-rl sweep pendulum --grid tau=0.001,0.005 --seeds 0-3 --workers 2 --out runs/s
     keras-rl evaluate results/pendulum/faithful/seed_0 --episodes 5 --gif pendulum.gif
     keras-rl aggregate results/pendulum/faithful
+    keras-rl check pendulum cartpole mountaincar --tier smoke
     keras-rl list
 """
 
@@ -150,6 +151,25 @@ def build_parser() -> argparse.ArgumentParser:
 
     ag = sub.add_parser("aggregate", help="rebuild summary.md and curves.png of a multi-seed folder")
     ag.add_argument("parent", type=Path, help="a folder of seed_<n>/ run folders, e.g. results/pendulum/faithful")
+
+    ck = sub.add_parser("check", help="regression-test the reproductions: fresh seeds against the committed "
+                                      "baseline, by each post's pre-registered rule (exit 0 consistent, 1 changed)")
+    ck.add_argument("experiments", nargs="*", default=None,
+                    help="experiments to check (default: pendulum cartpole mountaincar)")
+    ck.add_argument("--tier", default="smoke", help="smoke (minutes, in `make test`) or full (default smoke)")
+    ck.add_argument("--against", type=Path, default=None,
+                    help="the folder holding <experiment>/baseline/seed_<n> (default results/checks of this "
+                         "checkout; copy it outside the tree for `git bisect run`)")
+    ck.add_argument("--seeds", default=None, help="fresh seeds instead of the rule's (never the baseline's); "
+                                                  "the rule's error rates are for its own number of seeds")
+    ck.add_argument("--set", dest="overrides", action="append", default=[], metavar="FIELD=VALUE",
+                    help="override a config field of the new runs, to ask whether a change alters the result")
+    ck.add_argument("--workers", type=int, default=2, help="seeds (or batches) at once on a local Ray instance "
+                                                           "(default 2; 1: in this process)")
+    ck.add_argument("--out", type=_path_arg, default=Path("check-runs"),
+                    help="where the fresh runs, check.md, check.json and the plots go (default check-runs; "
+                         "an earlier check's output there is replaced, anything else is refused)")
+    ck.add_argument("--no-progress", action="store_true", help="no progress bars")
 
     sub.add_parser("list", help="list the experiments and their variants")
     return parser
@@ -448,7 +468,33 @@ def list_experiments(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-COMMANDS = {"reproduce": reproduce, "evaluate": evaluate, "compare": compare, "sweep": sweep, "aggregate": aggregate,
+def check(args: argparse.Namespace) -> int:
+    from keras_rl.check.rules import RULES, TIERS
+
+    names = args.experiments or sorted({e for e, _ in RULES}, key=["pendulum", "cartpole", "mountaincar"].index)
+    if args.tier not in TIERS:
+        raise ConfigError(f"unknown tier {args.tier!r}; choose one of {', '.join(TIERS)}")
+    if len(set(names)) != len(names):
+        raise ConfigError(f"an experiment is named twice: {' '.join(names)}")
+    workers = _check_counts(args.workers, None)
+    seeds = parse_seeds(args.seeds) if args.seeds is not None else None
+    from keras_rl.check.command import CALIBRATION, run_check
+
+    against = args.against if args.against is not None else CALIBRATION.parent
+    try:
+        results = run_check(names, args.tier, against, args.out, seeds, args.overrides, workers,
+                            not args.no_progress)
+    except KeyboardInterrupt:
+        print("interrupted: no verdict", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    for r in results:
+        print(f"{r.experiment}: {r.verdict} ({r.rule.statistic}, {r.decision.test}, p = {r.decision.p:.3g}, "
+              f"alpha {r.rule.alpha}; baseline {len(r.baseline)} seeds, new {len(r.new)})")
+    print(f"report: {args.out / 'check.md'}")
+    return EXIT_CRITERION if any(r.decision.changed for r in results) else EXIT_OK
+
+
+COMMANDS = {"check": check, "reproduce": reproduce, "evaluate": evaluate, "compare": compare, "sweep": sweep, "aggregate": aggregate,
             "list": list_experiments}
 
 

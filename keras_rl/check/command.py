@@ -1,0 +1,235 @@
+"""``keras-rl check``: fresh seeds against the committed baseline, by the post's rule.
+
+For each experiment: its rule for the tier (``rules.py``), the fresh seeds run (in batches
+where the post has a seed-batched learner), each seed's statistic for them and for the
+baseline's runs (cut to the rule's episodes), the test, and the rule's measured error
+rates (``results/checks/calibration.json``, written by ``reproductions/check_calibrate.py``).
+Writes ``check.md``, ``check.json`` and per experiment ``<experiment>/check.png`` under
+``--out``; the fresh runs go in ``<out>/<experiment>/seed_<n>``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from keras_rl.check.rules import CheckRule, rule_for
+from keras_rl.check.statistics import Decision, decide, seed_statistic
+from keras_rl.errors import ConfigError, RunFolderError
+from keras_rl.registry import get_experiment
+from keras_rl.runs.files import atomic_write_text, read_episodes
+from keras_rl.runs.summary import RunSummary
+
+CALIBRATION = Path(__file__).resolve().parents[2] / "results" / "checks" / "calibration.json"
+"""Where the measured error rates of every rule are committed (in a checkout)."""
+MARKER = "check.json"
+
+
+@dataclass
+class CheckResult:
+    experiment: str
+    rule: CheckRule
+    baseline: dict[int, float]
+    """Seed -> the statistic, for the baseline's runs."""
+    new: dict[int, float]
+    decision: Decision
+    overrides: list[str]
+    error_rates: dict[str, Any] | None
+    """The rule's measured false-alarm rate and power, if calibrated."""
+
+    @property
+    def verdict(self) -> str:
+        return "changed" if self.decision.changed else "consistent"
+
+
+def baseline_values(experiment, rule: CheckRule, folder: Path) -> tuple[dict[int, float], list]:
+    """Each baseline seed's statistic (and its rows, for the plot); a clear error if the
+    folder is not a finished faithful baseline."""
+    seed_dirs = sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1]))
+    if not seed_dirs:
+        raise RunFolderError(f"no baseline at {folder} (expected seed_<n>/ folders); --against names the folder "
+                             "that holds <experiment>/baseline")
+    faithful = experiment.config_cls.for_variant("faithful").to_dict()
+    values, rows_of = {}, {}
+    for seed_dir in seed_dirs:
+        summary = RunSummary.read(seed_dir)
+        made = experiment.config_cls.from_dict(json.loads((seed_dir / "config.json").read_text())).to_dict()
+        differing = sorted(k for k in faithful if k not in ("seed",) and made.get(k) != faithful[k])
+        if differing:
+            raise RunFolderError(f"{seed_dir} is not a faithful run ({', '.join(differing[:3])} differ); "
+                                 "a baseline must be the faithful variant")
+        if summary.status != "completed":
+            raise RunFolderError(f"{seed_dir} did not finish ({summary.status}); a baseline needs finished runs")
+        rows = read_episodes(seed_dir / "episodes.csv")
+        values[summary.seed], rows_of[summary.seed] = _statistic(experiment, rule, rows), rows
+    return values, rows_of
+
+
+def _statistic(experiment, rule: CheckRule, rows: list[dict[str, Any]]) -> float:
+    config = experiment.config_cls.for_variant("faithful")
+    metric = experiment.make_metric(config)
+    return seed_statistic(rule.statistic, rows, rule.episodes, lambda m: metric.passes(m, config.threshold),
+                          experiment.success_at_end)
+
+
+def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, Any] | None:
+    """The calibrated error rates of exactly this rule, or None if it was never measured."""
+    if not calibration.is_file():
+        return None
+    entry = json.loads(calibration.read_text()).get(rule.experiment, {}).get("tiers", {}).get(rule.tier)
+    if not entry:
+        return None
+    measured = next((c for c in entry.get("candidates", []) if c["statistic"] == rule.statistic
+                     and c["alpha"] == rule.alpha and c["seeds"] == rule.seeds and c["episodes"] == rule.episodes),
+                    None)
+    return measured
+
+
+def prepare_out(out: Path) -> None:
+    """``--out`` holds nothing, or an earlier check's output (replaced): never anything else."""
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {out} is a file; check needs a folder")
+    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file():
+        raise ConfigError(f"--out {out} holds files that are not a check's output; refusing to touch them: "
+                          "pass an empty or new folder")
+
+
+def run_check(names: list[str], tier: str, against: Path, out: Path, seeds: list[int] | None,
+              overrides: list[str], workers: int, progress: bool, address: str | None = None) -> list[CheckResult]:
+    """Run the fresh seeds of every experiment at once, then test each against its baseline."""
+    from keras_rl.runs.backends import backend_for
+    from keras_rl.runs.jobs import SeedJob, batched, run_jobs
+
+    plan = []
+    for name in names:
+        experiment = get_experiment(name)
+        rule = rule_for(name, tier)
+        fresh = seeds if seeds is not None else rule.seed_list()
+        baseline, baseline_rows = baseline_values(experiment, rule, Path(against) / name / "baseline")
+        clash = sorted(set(fresh) & set(baseline))
+        if clash:
+            raise ConfigError(f"{name}: seeds {clash} are the baseline's own; check runs fresh seeds "
+                              f"(the baseline has {min(baseline)}-{max(baseline)})")
+        if len(fresh) < 2:
+            raise ConfigError(f"{name}: a check needs at least 2 fresh seeds, got {len(fresh)}")
+        config = experiment.config_cls.for_variant("faithful", episodes=rule.episodes).with_text_overrides(overrides)
+        plan.append((experiment, rule, fresh, config, baseline, baseline_rows))
+    prepare_out(out)
+    jobs = []
+    for experiment, rule, fresh, config, *_ in plan:
+        folder = out / experiment.name
+        if folder.exists():
+            shutil.rmtree(folder)
+        group = [SeedJob.of(config.replace(seed=s), folder / f"seed_{s}", start="overwrite") for s in fresh]
+        jobs += batched(group, rule.seed_batch)
+    atomic_write_text(out / MARKER, json.dumps({"status": "running", "experiments": names}, indent=2) + "\n")
+    outcome = run_jobs(jobs, backend_for(workers, len(jobs), address), progress=progress)
+    if outcome.interrupted:
+        raise KeyboardInterrupt
+    results = []
+    for experiment, rule, fresh, config, baseline, baseline_rows in plan:
+        new, new_rows = {}, {}
+        for s in fresh:
+            summary = RunSummary.read(out / experiment.name / f"seed_{s}")
+            rows = read_episodes(out / experiment.name / f"seed_{s}" / "episodes.csv") \
+                if (out / experiment.name / f"seed_{s}" / "episodes.csv").is_file() else []
+            if summary.status not in ("completed", "non_finite_loss") or not rows:
+                raise RunFolderError(f"{experiment.name} seed {s} did not finish ({summary.status}: {summary.message})")
+            new[s] = _statistic(experiment, rule, rows) if summary.status == "completed" else float("nan")
+            new_rows[s] = rows
+        decision = decide(list(baseline.values()), list(new.values()), rule.statistic, rule.alpha)
+        result = CheckResult(experiment.name, rule, baseline, new, decision, list(overrides), error_rates(rule))
+        results.append(result)
+        _plot(out / experiment.name / "check.png", experiment, result, baseline_rows, new_rows)
+    write_report(out, results, tier)
+    return results
+
+
+def write_report(out: Path, results: list[CheckResult], tier: str, command: str | None = None) -> None:
+    from keras_rl.runs.provenance import command_line
+
+    command = command or command_line()
+    lines = [f"# keras-rl check, tier {tier}", "", f"Command: `{command}`", "",
+             "| experiment | statistic | test | baseline median (n) | new median (n) | p | alpha | verdict "
+             "| false-alarm rate | power (gross / all mutants) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in results:
+        rates = r.error_rates
+        fa = f"{rates['false_alarm_rate']:.2%}" if rates else "not calibrated"
+        pw = f"{rates['power_gross']:.0%} / {rates['power_all']:.0%}" if rates else "not calibrated"
+        lines.append(f"| {r.experiment} | {r.rule.statistic} (first {r.rule.episodes} episodes) | "
+                     f"{r.decision.test} | {_median(r.baseline)} ({len(r.baseline)}) | {_median(r.new)} "
+                     f"({len(r.new)}) | {r.decision.p:.3g} | {r.rule.alpha} | **{r.verdict}** | {fa} | {pw} |")
+    if any(r.overrides for r in results):
+        lines += ["", "New runs with: " + ", ".join(f"`--set {o}`" for o in results[0].overrides)]
+    lines += ["", "The fresh seeds are never the baseline's; `changed` means p < alpha in either direction "
+                  "(learning faster is a change in fidelity too). Error rates: "
+                  "`python reproductions/check_calibrate.py` (results/checks/README.md).", ""]
+    atomic_write_text(out / "check.md", "\n".join(lines))
+    payload = {"tier": tier, "command": command, "status": "finished",
+               "changed": any(r.decision.changed for r in results),
+               "experiments": [{"experiment": r.experiment, "rule": asdict(r.rule), "verdict": r.verdict,
+                                "decision": asdict(r.decision), "overrides": r.overrides,
+                                "baseline": {str(k): _finite(v) for k, v in r.baseline.items()},
+                                "new": {str(k): _finite(v) for k, v in r.new.items()},
+                                "error_rates": r.error_rates} for r in results]}
+    atomic_write_text(out / MARKER, json.dumps(_json_safe(payload), indent=2) + "\n")
+
+
+def _median(values: dict[int, float]) -> str:
+    finite = [v for v in values.values() if math.isfinite(v)]
+    return f"{np.median(finite):.4g}" if finite else "n/a"
+
+
+def _finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
+def _json_safe(obj):
+    if isinstance(obj, dict):
+        return {k: _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_json_safe(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def _plot(path: Path, experiment, result: CheckResult, baseline_rows: dict, new_rows: dict) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from keras_rl.report.plots import save_figure
+
+    episodes = result.rule.episodes
+    fig, (curves, dist) = plt.subplots(1, 2, figsize=(10, 4), gridspec_kw={"width_ratios": [2, 1]})
+    for label, runs, color in (("baseline", baseline_rows, "tab:blue"), ("new", new_rows, "tab:orange")):
+        for rows in runs.values():
+            metric = [r["metric"] for r in rows[:episodes]]
+            curves.plot(range(1, len(metric) + 1), metric, color=color, alpha=0.25, lw=0.8)
+        curves.plot([], [], color=color, label=f"{label} ({len(runs)} seeds)")
+    config = experiment.config_cls.for_variant("faithful")
+    curves.axhline(config.threshold, color="k", ls="--", lw=0.8, label="threshold")
+    curves.set_xlabel("episode")
+    curves.set_ylabel(experiment.metric_label(config))
+    curves.set_title(f"{result.experiment}: learning curves (first {episodes} episodes)", fontsize=10)
+    curves.legend(fontsize=8)
+    curves.grid(alpha=0.3)
+    rng = np.random.default_rng(0)
+    for i, values in enumerate((result.baseline, result.new)):
+        v = np.asarray([x for x in values.values() if math.isfinite(x)])
+        dist.scatter(i + rng.uniform(-0.08, 0.08, len(v)), v, alpha=0.7)
+        if len(v):
+            dist.hlines(np.median(v), i - 0.2, i + 0.2, color="k")
+    dist.set_xticks([0, 1], ["baseline", "new"])
+    dist.set_ylabel(result.rule.statistic)
+    dist.set_title(f"p = {result.decision.p:.3g}: {result.verdict}", fontsize=10)
+    dist.grid(alpha=0.3, axis="y")
+    save_figure(fig, path)

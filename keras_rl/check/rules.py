@@ -1,0 +1,119 @@
+"""The pre-registered decision rules of ``keras-rl check`` and the mutants they are measured on.
+
+A rule fixes, per post and tier, before any check runs: the statistic, the test (Mann-Whitney
+U, or Fisher's exact test for ``success``), alpha, how many fresh seeds, how many episodes
+each plays, and how the seeds run. The candidates are every statistic of
+``statistics.STATISTICS`` the post defines, at alpha 0.01 and 0.005; the selection criterion,
+fixed with them, is: the most power against the mutants (the mean over the gross ones first,
+then over all) among the candidates whose false-alarm rate on the baseline is at most 1%.
+``reproductions/check_calibrate.py`` measures every candidate and says which one the
+criterion picks; ``tests/test_check.py`` fails if the rule below is not that one.
+
+The mutants are planted regressions, as ``--set`` overrides of the faithful config, from
+gross (the learner cannot learn) to subtle (a quirk switch flipped, a rate scaled).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+Tier = Literal["smoke", "full"]
+TIERS: tuple[str, ...] = ("smoke", "full")
+ALPHAS = (0.01, 0.005)
+"""The alphas a rule may use."""
+BASELINE_SEEDS = range(0, 30)
+"""The committed baseline's seeds (``results/checks/<experiment>/baseline``)."""
+
+
+@dataclass(frozen=True)
+class Mutant:
+    name: str
+    overrides: dict[str, str]
+    """``--set`` assignments, as the command line would give them."""
+    gross: bool
+    """Gross: the learner cannot learn what the post's learns. The smoke tier must flag
+    these at least 90% of the time."""
+    what: str
+
+
+@dataclass(frozen=True)
+class CheckRule:
+    experiment: str
+    tier: str
+    statistic: str
+    alpha: float
+    seeds: int
+    """Fresh seeds per check."""
+    episodes: int
+    """Episodes each fresh seed plays; the baseline's runs are cut to as many."""
+    first_seed: int
+    """The fresh seeds are ``first_seed .. first_seed + seeds - 1``: never the baseline's."""
+    seed_batch: int
+    """``--seed-batch`` for the fresh seeds (1 where the post has no seed-batched learner)."""
+    candidates: tuple[str, ...] = field(default=())
+    """The statistics the selection compared (with every alpha of ``ALPHAS``)."""
+
+    def seed_list(self) -> list[int]:
+        return list(range(self.first_seed, self.first_seed + self.seeds))
+
+
+RULES: dict[tuple[str, str], CheckRule] = {
+    # post 000: EMA > -300; seeds stop at the threshold (median ~130 episodes).
+    ("pendulum", "smoke"): CheckRule("pendulum", "smoke", "episodes_to_threshold", 0.01, seeds=10, episodes=250,
+                                     first_seed=1000, seed_batch=10,
+                                     candidates=("episodes_to_threshold", "success", "auc", "final_metric")),
+    ("pendulum", "full"): CheckRule("pendulum", "full", "episodes_to_threshold", 0.01, seeds=20, episodes=1000,
+                                    first_seed=2000, seed_batch=10,
+                                    candidates=("episodes_to_threshold", "success", "auc", "final_metric")),
+    # post 003: 100-episode mean >= 475 within 600 episodes; the smoke tier sees 250 episodes.
+    ("cartpole", "smoke"): CheckRule("cartpole", "smoke", "auc", 0.01, seeds=10, episodes=250, first_seed=1000,
+                                     seed_batch=10, candidates=("auc", "final_metric")),
+    ("cartpole", "full"): CheckRule("cartpole", "full", "auc", 0.01, seeds=20, episodes=600, first_seed=2000,
+                                    seed_batch=10,
+                                    candidates=("episodes_to_threshold", "success", "auc", "final_metric")),
+    # post 001: last-10 spread <= 2 after all 100 episodes (lower is better); no batching.
+    ("mountaincar", "smoke"): CheckRule("mountaincar", "smoke", "auc", 0.01, seeds=6, episodes=100, first_seed=1000,
+                                        seed_batch=1, candidates=("success", "auc", "final_metric")),
+    ("mountaincar", "full"): CheckRule("mountaincar", "full", "auc", 0.01, seeds=20, episodes=100, first_seed=2000,
+                                       seed_batch=1, candidates=("success", "auc", "final_metric")),
+}
+
+MUTANTS: dict[str, tuple[Mutant, ...]] = {
+    "pendulum": (
+        Mutant("critic_frozen", {"critic_lr": "1e-9"}, True, "the critic never learns (lr 1e-9)"),
+        Mutant("actor_frozen", {"actor_lr": "1e-9"}, True, "the actor never learns (lr 1e-9)"),
+        Mutant("gamma_0.9", {"gamma": "0.9"}, False, "gamma 0.99 -> 0.9"),
+        Mutant("tau_x10", {"tau": "0.01"}, False, "soft-update tau x10"),
+        Mutant("actor_lr_x0.3", {"actor_lr": "3e-4"}, False, "actor learning rate x0.3"),
+        Mutant("broadcast_target_off", {"broadcast_target": "false"}, False, "quirk P000-BROADCAST off"),
+    ),
+    "cartpole": (
+        Mutant("q_frozen", {"q_lr": "1e-9"}, True, "the Q-network never learns (lr 1e-9)"),
+        Mutant("random_policy", {"eps_start": "1.0", "eps_end": "0.99"}, True, "epsilon 1 -> 0.99: random actions"),
+        Mutant("gamma_0.9", {"gamma": "0.9"}, False, "gamma 0.99 -> 0.9"),
+        Mutant("tau_x10", {"tau": "0.05"}, False, "soft-update tau x10"),
+        Mutant("lr_x0.3", {"q_lr": "3e-5"}, False, "learning rate x0.3"),
+        Mutant("weight_decay_off", {"weight_decay": "0"}, False, "quirk P003-WD off"),
+    ),
+    "mountaincar": (
+        Mutant("actor_frozen", {"actor_lr": "1e-9"}, True, "the actor never learns (lr 1e-9)"),
+        Mutant("critic_frozen", {"critic_lr": "1e-9"}, True, "the critic never learns (lr 1e-9)"),
+        Mutant("gamma_0.9", {"gamma": "0.9"}, False, "gamma 0.999 -> 0.9"),
+        Mutant("tau_x10", {"tau": "0.01"}, False, "soft-update tau x10"),
+        Mutant("critic_lr_x0.3", {"critic_lr": "1.5e-4"}, False, "critic learning rate x0.3"),
+        Mutant("exploration_ou", {"exploration": "ou"}, False, "quirk P001-NOEXPLORE off"),
+    ),
+}
+
+
+def rule_for(experiment: str, tier: str) -> CheckRule:
+    from keras_rl.errors import ConfigError
+
+    try:
+        return RULES[(experiment, tier)]
+    except KeyError:
+        have = sorted({e for e, _ in RULES})
+        if experiment not in have:
+            raise ConfigError(f"check has no rule for {experiment!r}; it checks {', '.join(have)}") from None
+        raise ConfigError(f"unknown tier {tier!r}; choose one of {', '.join(TIERS)}") from None

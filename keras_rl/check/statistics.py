@@ -1,0 +1,129 @@
+"""Per-seed statistics of a run, the decision between two samples of them, and the decision
+rule's error rates by resampling.
+
+A statistic reads one seed's ``episodes.csv`` rows, cut to the first ``episodes`` episodes
+(a tier may look at fewer episodes than the post's budget: runs are prefixes of longer runs,
+since nothing in a run depends on its budget):
+
+- ``episodes_to_threshold``: the first episode whose metric meets the threshold; a seed that
+  never gets there counts as ``episodes + 1`` (censored: it ranks after every seed that did);
+- ``success``: 1 if it got there (post 001: if the metric meets it after the last episode);
+- ``auc``: the area under the learning curve, the mean of the metric over the episodes; a run
+  that stopped at the threshold keeps its last metric for the episodes it did not play;
+- ``final_metric``: the metric after the last episode.
+
+``decide`` compares the baseline's values with the new ones: a two-sided Mann-Whitney U test,
+or Fisher's exact test for ``success``; "changed" when p < alpha, in either direction (for a
+faithful reproduction, learning faster is a change in fidelity too).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from keras_rl.report.stats import fisher_exact, mann_whitney
+
+STATISTICS = ("episodes_to_threshold", "success", "auc", "final_metric")
+
+
+def _metrics(rows: list[dict[str, Any]], episodes: int) -> list[float]:
+    out = [float("nan") if r["metric"] is None else float(r["metric"]) for r in rows[:episodes]]
+    if len(out) < episodes and out:  # stopped at the threshold: it stays solved
+        out += [out[-1]] * (episodes - len(out))
+    return out
+
+
+def seed_statistic(name: str, rows: list[dict[str, Any]], episodes: int, passes: Callable[[float], bool],
+                   success_at_end: bool = False) -> float:
+    """Statistic ``name`` of one seed's episode rows, cut to ``episodes``."""
+    if name not in STATISTICS:
+        raise ValueError(f"unknown statistic {name!r}; choose one of {', '.join(STATISTICS)}")
+    if not rows:
+        raise ValueError("a run with no episodes has no statistic")
+    metrics = _metrics(rows, episodes)
+    reached = next((i + 1 for i, m in enumerate(metrics[:len(rows)]) if passes(m)), None)
+    if name == "episodes_to_threshold":
+        return float(reached if reached is not None else episodes + 1)
+    if name == "success":
+        complete = len(rows) >= episodes
+        return float(passes(metrics[-1]) and complete if success_at_end else reached is not None)
+    finite = [m for m in metrics if math.isfinite(m)]
+    if name == "auc":
+        return float(np.mean(finite)) if finite else float("nan")
+    return metrics[-1]
+
+
+@dataclass(frozen=True)
+class Decision:
+    p: float
+    changed: bool
+    test: str
+    statistic_value: float
+    """The test's statistic (Mann-Whitney U of the new sample, or Fisher's odds ratio input)."""
+
+
+def decide(baseline: Sequence[float], new: Sequence[float], statistic: str, alpha: float) -> Decision:
+    """Two-sided test of ``new`` against ``baseline``; changed when p < alpha."""
+    baseline, new = np.asarray(baseline, float), np.asarray(new, float)
+    if len(baseline) == 0 or len(new) == 0:
+        raise ValueError("both samples need at least one seed")
+    if statistic == "success":
+        p = fisher_exact(int(new.sum()), len(new), int(baseline.sum()), len(baseline))
+        return Decision(p, p < alpha, "Fisher's exact test (two-sided)", float(new.mean()))
+    if np.isnan(baseline).any() or np.isnan(new).any():  # a NaN run is a change in itself
+        return Decision(0.0, True, "Mann-Whitney U (two-sided)", float("nan"))
+    if np.ptp(np.concatenate([baseline, new])) == 0:  # all equal: nothing to tell apart
+        return Decision(1.0, False, "Mann-Whitney U (two-sided)", float("nan"))
+    u, p = mann_whitney(new, baseline)
+    return Decision(p, p < alpha, "Mann-Whitney U (two-sided)", u)
+
+
+def false_alarm_rate(baseline: Sequence[float], n: int, statistic: str, alpha: float, repeats: int = 10_000,
+                     rng: np.random.Generator | None = None) -> float:
+    """How often the rule cries "changed" when nothing changed: draw ``n`` of the baseline's
+    seeds as the "new" runs, test them against the rest, ``repeats`` times."""
+    rng = rng if rng is not None else np.random.default_rng(0)
+    values = np.asarray(baseline, float)
+    if not 0 < n < len(values):
+        raise ValueError(f"need 0 < n < {len(values)} baseline seeds, got n={n}")
+    alarms = 0
+    for _ in range(repeats):
+        pick = rng.permutation(len(values))
+        alarms += decide(values[pick[n:]], values[pick[:n]], statistic, alpha).changed
+    return alarms / repeats
+
+
+def power(baseline: Sequence[float], changed: Sequence[float], n: int, statistic: str, alpha: float,
+          repeats: int = 2_000, rng: np.random.Generator | None = None) -> float:
+    """How often the rule flags a changed learner: ``n`` seeds drawn (with replacement) from
+    the changed runs, tested against the whole baseline, ``repeats`` times."""
+    rng = rng if rng is not None else np.random.default_rng(1)
+    values, other = np.asarray(baseline, float), np.asarray(changed, float)
+    hits = 0
+    for _ in range(repeats):
+        hits += decide(values, other[rng.integers(0, len(other), n)], statistic, alpha).changed
+    return hits / repeats
+
+
+def detectable_shift(baseline: Sequence[float], n: int, alpha: float, target: float = 0.8, budget: int | None = None,
+                     repeats: int = 500, rng: np.random.Generator | None = None) -> int | None:
+    """The smallest shift d (in episodes) of episodes-to-threshold that the rule flags with
+    probability ``target``: "new" runs are baseline seeds drawn with replacement, d episodes
+    slower (capped at the censoring value ``budget + 1``). None if no shift up to the budget is."""
+    values = np.asarray(baseline, float)
+    cap = budget + 1 if budget is not None else np.inf
+    limit = int(budget if budget is not None else values.max())
+    lo, hi = 0, limit
+    if power(values, np.minimum(values + hi, cap), n, "episodes_to_threshold", alpha, repeats, rng) < target:
+        return None
+    while hi - lo > 1:  # power grows with the shift: bisect
+        mid = (lo + hi) // 2
+        if power(values, np.minimum(values + mid, cap), n, "episodes_to_threshold", alpha, repeats, rng) >= target:
+            hi = mid
+        else:
+            lo = mid
+    return hi

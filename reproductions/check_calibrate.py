@@ -1,0 +1,200 @@
+"""Measure the error rates of ``keras-rl check``'s decision rules, and which rule the
+pre-registered criterion picks (``keras_rl/check/rules.py``).
+
+    python reproductions/check_calibrate.py pendulum mountaincar --write
+    python reproductions/check_calibrate.py cartpole --make --workers 2 --write
+
+Inputs, all committed: the 30-seed faithful baseline ``results/checks/<exp>/baseline`` and
+each mutant's 10 seeds ``results/checks/<exp>/mutants/<name>`` (``--make`` runs the missing
+ones with the commands it prints). For every tier and every candidate rule (each statistic
+the tier lists, at each alpha of ``ALPHAS``), with the tier's number of fresh seeds n:
+
+- false-alarm rate: n baseline seeds drawn as the "new" runs and tested against the other
+  30 - n, 10,000 times;
+- power against each mutant: n seeds drawn with replacement from the mutant's runs, tested
+  against the whole baseline, 2,000 times; "gross" and "all" are the means over the mutants;
+- for the chosen rule, the smallest delay d (in episodes) of the baseline's learning curves
+  that the rule flags 80% of the time (a seed d episodes slower, and its statistic
+  recomputed): the smallest shift in median episodes-to-threshold it detects.
+
+The criterion: among candidates whose false-alarm rate is at most 1%, the most power against
+the gross mutants, then against all of them; ties go to the rule listed first. ``--write``
+puts the tables in ``results/checks/calibration.json`` and ``calibration.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
+
+from keras_rl.check.rules import ALPHAS, MUTANTS, RULES, TIERS  # noqa: E402
+from keras_rl.check.statistics import false_alarm_rate, power, seed_statistic  # noqa: E402
+from keras_rl.registry import get_experiment  # noqa: E402
+from keras_rl.runs.files import atomic_write_text, read_episodes  # noqa: E402
+from keras_rl.runs.summary import RunSummary  # noqa: E402
+
+CHECKS = ROOT / "results" / "checks"
+MUTANT_SEEDS = "0-9"
+
+
+def make_commands(name: str) -> list[list[str]]:
+    """The commands that make the baseline and every mutant's runs, where missing."""
+    rules = [RULES[(name, t)] for t in TIERS]
+    episodes, batch = max(r.episodes for r in rules), max(r.seed_batch for r in rules)
+    common = ["--no-progress", "--min-success-rate", "0", "--workers", "2"]
+    if batch > 1:
+        common += ["--seed-batch", "10"]
+    out = []
+    if not (CHECKS / name / "baseline").is_dir():
+        out.append(["keras-rl", "reproduce", name, "--seeds", "0-29", *(["--seed-batch", "15"] if batch > 1 else []),
+                    "--no-progress", "--min-success-rate", "0", "--workers", "2",
+                    "--out", f"results/checks/{name}/baseline"])
+    for m in MUTANTS[name]:
+        if not (CHECKS / name / "mutants" / m.name).is_dir():
+            sets = [a for k, v in m.overrides.items() for a in ("--set", f"{k}={v}")]
+            out.append(["keras-rl", "reproduce", name, "--seeds", MUTANT_SEEDS, "--episodes", str(episodes), *sets,
+                        *common, "--out", f"results/checks/{name}/mutants/{m.name}"])
+    return out
+
+
+def load(folder: Path) -> list[list[dict]]:
+    runs = []
+    for seed_dir in sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1])):
+        summary = RunSummary.read(seed_dir)
+        if summary.status not in ("completed", "non_finite_loss"):
+            raise SystemExit(f"error: {seed_dir} did not finish ({summary.status})")
+        runs.append(read_episodes(seed_dir / "episodes.csv") if summary.status == "completed" else None)
+    if not runs:
+        raise SystemExit(f"error: no runs under {folder}")
+    return runs
+
+
+def values(name: str, statistic: str, episodes: int, runs: list, delay: int = 0) -> np.ndarray:
+    """Each run's statistic (NaN for a run that blew up), its curve optionally ``delay`` episodes late."""
+    experiment = get_experiment(name)
+    config = experiment.config_cls.for_variant("faithful")
+    metric = experiment.make_metric(config)
+
+    def one(rows):
+        if rows is None:
+            return float("nan")
+        rows = [rows[0]] * delay + rows if delay else rows
+        return seed_statistic(statistic, rows, episodes, lambda m: metric.passes(m, config.threshold),
+                              experiment.success_at_end)
+
+    return np.asarray([one(r) for r in runs], float)
+
+
+def smallest_delay(name: str, rule, baseline_runs: list, target: float = 0.8) -> int | None:
+    """The smallest delay of the baseline's curves the rule flags ``target`` of the time."""
+    base = values(name, rule.statistic, rule.episodes, baseline_runs)
+
+    def flagged(d: int) -> bool:
+        return power(base, values(name, rule.statistic, rule.episodes, baseline_runs, d), rule.seeds, rule.statistic,
+                     rule.alpha, repeats=500) >= target
+
+    hi = rule.episodes
+    if not flagged(hi):
+        return None
+    lo = 0
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if flagged(mid) else (mid, hi)
+    return hi
+
+
+def calibrate(name: str) -> dict:
+    baseline = load(CHECKS / name / "baseline")
+    mutants = {m.name: (m, load(CHECKS / name / "mutants" / m.name)) for m in MUTANTS[name]}
+    out = {}
+    for tier in TIERS:
+        rule = RULES[(name, tier)]
+        rows = []
+        for statistic in rule.candidates:
+            base = values(name, statistic, rule.episodes, baseline)
+            for alpha in ALPHAS:
+                per_mutant = {m.name: power(base, values(name, statistic, rule.episodes, runs), rule.seeds, statistic,
+                                            alpha) for m, runs in mutants.values()}
+                gross = [per_mutant[m.name] for m, _ in mutants.values() if m.gross]
+                rows.append({"statistic": statistic, "alpha": alpha, "seeds": rule.seeds, "episodes": rule.episodes,
+                             "false_alarm_rate": false_alarm_rate(base, rule.seeds, statistic, alpha),
+                             "power": per_mutant, "power_gross": float(np.mean(gross)),
+                             "power_all": float(np.mean(list(per_mutant.values())))})
+        eligible = [r for r in rows if r["false_alarm_rate"] <= 0.01]
+        chosen = max(eligible, key=lambda r: (r["power_gross"], r["power_all"], -rows.index(r))) if eligible else None
+        entry = {"baseline_seeds": len(baseline), "mutant_seeds": {k: len(v[1]) for k, v in mutants.items()},
+                 "candidates": rows, "chosen": chosen and {"statistic": chosen["statistic"], "alpha": chosen["alpha"]},
+                 "rule": {"statistic": rule.statistic, "alpha": rule.alpha}}
+        if chosen and (chosen["statistic"], chosen["alpha"]) == (rule.statistic, rule.alpha):
+            entry["detectable_delay_80"] = smallest_delay(name, rule, baseline)
+        out[tier] = entry
+    return out
+
+
+def markdown(results: dict) -> str:
+    lines = ["# Error rates of `keras-rl check`'s rules", "",
+             "False alarms: the tier's n seeds drawn from the 30-seed baseline and tested against the other "
+             "30 - n, 10,000 times. Power: n seeds drawn with replacement from a mutant's 10 seeds, tested against "
+             "the whole baseline, 2,000 times. Delay: the smallest delay of every baseline curve (in episodes) "
+             "the rule flags 80% of the time.", ""]
+    for name, measured in results.items():
+        lines += [f"Command for {name}: `{measured['command']}`", ""]
+        for tier, entry in measured["tiers"].items():
+            rule = RULES[(name, tier)]
+            mutants = list(entry["mutant_seeds"])
+            lines += [f"## {name}, {tier} tier ({rule.seeds} fresh seeds, {rule.episodes} episodes)", "",
+                      "| statistic | alpha | false alarms | gross | all | " + " | ".join(mutants) + " |",
+                      "|---|---|---|---|---|" + "---|" * len(mutants)]
+            for r in entry["candidates"]:
+                mark = " **(rule)**" if (r["statistic"], r["alpha"]) == (rule.statistic, rule.alpha) else ""
+                lines.append(f"| {r['statistic']}{mark} | {r['alpha']} | {r['false_alarm_rate']:.2%} | "
+                             f"{r['power_gross']:.0%} | {r['power_all']:.0%} | "
+                             + " | ".join(f"{r['power'][m]:.0%}" for m in mutants) + " |")
+            chosen = entry["chosen"]
+            lines += ["", f"The criterion picks: {chosen['statistic']} at alpha {chosen['alpha']}" if chosen
+                      else "No candidate keeps false alarms at or below 1%."]
+            if "detectable_delay_80" in entry:
+                d = entry["detectable_delay_80"]
+                lines.append("Smallest delay detected 80% of the time: "
+                             + (f"{d} episodes." if d is not None else f"none up to {rule.episodes} episodes."))
+            lines.append("")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("experiments", nargs="+", choices=sorted(MUTANTS))
+    parser.add_argument("--make", action="store_true", help="run the missing baseline and mutant sets first")
+    parser.add_argument("--write", action="store_true", help="update results/checks/calibration.json and .md")
+    args = parser.parse_args()
+    for name in args.experiments:
+        for cmd in make_commands(name):
+            print(("running: " if args.make else "missing; make it with: ") + " ".join(cmd), file=sys.stderr)
+            if args.make:
+                subprocess.run([sys.executable, "-m", "keras_rl", *cmd[1:]], cwd=ROOT, check=True)
+        if make_commands(name):
+            raise SystemExit(2)
+    command = "python reproductions/check_calibrate.py " + " ".join(sys.argv[1:])
+    results = {name: {"command": command, "tiers": calibrate(name)} for name in args.experiments}
+    path = CHECKS / "calibration.json"
+    merged = json.loads(path.read_text()) if path.is_file() else {}
+    merged.update(results)
+    text = markdown({k: merged[k] for k in sorted(merged)})
+    print(text)
+    if args.write:
+        atomic_write_text(path, json.dumps(merged, indent=2) + "\n")
+        atomic_write_text(CHECKS / "calibration.md", text)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,131 @@
+"""``keras-rl check``: the statistics, the decision, the error-rate estimates and the command's refusals."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from keras_rl.check.rules import MUTANTS, RULES
+from keras_rl.check.statistics import decide, detectable_shift, false_alarm_rate, power, seed_statistic
+
+
+def rows(metrics, scores=None):
+    scores = scores if scores is not None else metrics
+    return [{"episode": i + 1, "score": s, "metric": m} for i, (m, s) in enumerate(zip(metrics, scores))]
+
+
+def above(threshold):
+    return lambda m: m is not None and np.isfinite(m) and m > threshold
+
+
+def test_statistics_of_a_seed_by_hand():
+    run = rows([-900, -600, -350, -290, -250])  # crosses > -300 at episode 4
+    assert seed_statistic("episodes_to_threshold", run, 10, above(-300)) == 4
+    assert seed_statistic("success", run, 10, above(-300)) == 1.0
+    assert seed_statistic("success", run, 3, above(-300)) == 0.0  # cut to 3 episodes: not yet
+    assert seed_statistic("episodes_to_threshold", run, 3, above(-300)) == 4  # censored at 3 + 1
+    # a run stopped at the threshold keeps its last metric for the episodes it did not play
+    assert seed_statistic("auc", run, 7, above(-300)) == pytest.approx((-900 - 600 - 350 - 290 - 250 * 3) / 7)
+    assert seed_statistic("final_metric", run, 7, above(-300)) == -250
+    assert seed_statistic("final_metric", run, 2, above(-300)) == -600
+    # judged at the end (post 001): only the last metric counts, and only for a complete run
+    end = rows([5.0, 1.0, 3.0])
+    assert seed_statistic("success", end, 3, lambda m: m <= 2, success_at_end=True) == 0.0
+    assert seed_statistic("success", end[:2], 2, lambda m: m <= 2, success_at_end=True) == 1.0
+    with pytest.raises(ValueError, match="unknown statistic"):
+        seed_statistic("median", run, 5, above(-300))
+
+
+def test_decide_flags_a_shift_in_either_direction_and_not_a_resample():
+    rng = np.random.default_rng(0)
+    base = rng.normal(130, 20, 30)
+    assert not decide(base, rng.normal(130, 20, 10), "episodes_to_threshold", 0.01).changed
+    assert decide(base, rng.normal(200, 20, 10), "episodes_to_threshold", 0.01).changed  # slower
+    assert decide(base, rng.normal(60, 20, 10), "episodes_to_threshold", 0.01).changed  # faster: a change too
+    fisher = decide(np.ones(30), np.zeros(10), "success", 0.01)
+    assert fisher.changed and fisher.test.startswith("Fisher")
+    assert not decide(np.ones(30), np.ones(10), "success", 0.01).changed
+    assert decide(base, [np.nan] * 10, "auc", 0.01).changed  # runs that blew up changed
+    assert not decide([5.0] * 30, [5.0] * 10, "auc", 0.01).changed  # nothing to tell apart
+
+
+def test_the_false_alarm_rate_of_a_resampled_sample_is_about_alpha():
+    base = np.random.default_rng(1).normal(size=30)
+    rate = false_alarm_rate(base, 10, "auc", 0.05, repeats=2000)
+    assert 0.02 < rate < 0.08, rate  # an exact test at alpha 0.05 on exchangeable draws
+    assert false_alarm_rate(base, 10, "auc", 0.01, repeats=2000) < rate
+
+
+def test_power_grows_with_the_shift_and_the_detectable_shift_is_found():
+    base = np.random.default_rng(2).normal(130, 25, 30).round()
+    small, large = power(base, base + 5, 10, "episodes_to_threshold", 0.01, repeats=300), \
+        power(base, base + 60, 10, "episodes_to_threshold", 0.01, repeats=300)
+    assert small < 0.3 and large > 0.95
+    shift = detectable_shift(base, 10, 0.01, budget=1000, repeats=200)
+    assert shift is not None and 5 < shift < 60
+    assert power(base, base + shift, 10, "episodes_to_threshold", 0.01, repeats=300) >= 0.7
+
+
+def test_every_rule_is_well_formed_and_every_post_has_five_mutants_some_gross():
+    from keras_rl.registry import get_experiment
+
+    for (name, tier), rule in RULES.items():
+        experiment = get_experiment(name)
+        assert rule.statistic in rule.candidates and rule.alpha in (0.01, 0.005)
+        assert not set(rule.seed_list()) & set(range(30)), "fresh seeds must not be the baseline's"
+        experiment.config_cls.for_variant("faithful", episodes=rule.episodes)  # a valid budget
+    for name, mutants in MUTANTS.items():
+        assert len(mutants) >= 5 and any(m.gross for m in mutants) and any(not m.gross for m in mutants)
+        base = get_experiment(name).config_cls.for_variant("faithful")
+        for m in mutants:  # every mutant is a valid config that differs from the faithful one
+            changed = base.with_text_overrides([f"{k}={v}" for k, v in m.overrides.items()])
+            assert changed != base, m.name
+
+
+def _cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "keras_rl", "check", *args], capture_output=True, text=True,
+                          timeout=300, cwd=cwd)
+
+
+def test_check_refuses_bad_input_with_exit_2_and_touches_nothing(tmp_path):
+    proc = _cli("pendulum", "--tier", "medium", "--out", str(tmp_path / "o"))
+    assert proc.returncode == 2 and "unknown tier 'medium'" in proc.stderr
+    proc = _cli("breakout", "--out", str(tmp_path / "o"))
+    assert proc.returncode == 2 and "breakout" in proc.stderr
+    proc = _cli("pendulum", "--against", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o"))
+    assert proc.returncode == 2 and "no baseline at" in proc.stderr
+    foreign = tmp_path / "mine"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("keep me")
+    baseline = tmp_path / "against" / "pendulum" / "baseline" / "seed_0"
+    _fake_baseline_seed(baseline)
+    proc = _cli("pendulum", "--against", str(tmp_path / "against"), "--out", str(foreign))
+    assert proc.returncode == 2 and "not a check's output" in proc.stderr
+    assert (foreign / "notes.txt").read_text() == "keep me"
+    proc = _cli("pendulum", "--against", str(tmp_path / "against"), "--seeds", "0-3", "--out", str(tmp_path / "o"))
+    assert proc.returncode == 2 and "baseline's own" in proc.stderr
+    proc = _cli("pendulum", "--against", str(tmp_path / "against"), "--set", "seed=4", "--out", str(tmp_path / "o"))
+    assert proc.returncode == 2 and "seed" in proc.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def _fake_baseline_seed(seed_dir, seed=0):
+    """A finished faithful pendulum run folder of three episodes (written with the project's own writers)."""
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs.files import RunRecorder
+    from keras_rl.runs.loop import SeedRun
+
+    exp = get_experiment("pendulum")
+    config = exp.config_cls.for_variant("faithful", seed=seed)
+    recorder = RunRecorder(seed_dir, ("critic_loss", "actor_loss"))
+    recorder.write_config(config.to_dict())
+    run = SeedRun(exp, config, recorder, exp.make_metric(config), "test")
+    from keras_rl.agents.skeleton import EpisodeStats
+
+    for episode, score in enumerate([-1200.0, -800.0, -250.0], 1):
+        run.record_episode(episode, score, 200, EpisodeStats(0, {"critic_loss": None, "actor_loss": None}))
+    run.summary("completed").write(seed_dir)
