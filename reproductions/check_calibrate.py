@@ -141,6 +141,18 @@ def calibrate(name: str) -> dict:
     return out
 
 
+def criterion_by_seeds(name: str) -> dict:
+    """The post's own success criterion on baseline seeds 0-9 (where post 001's was chosen)
+    beside seeds 10-29 (where it was not)."""
+    from keras_rl.report.stats import fisher_exact
+
+    summaries = [RunSummary.read(d) for d in (CHECKS / name / "baseline").glob("seed_*")]
+    first = [s.success for s in summaries if s.seed < 10]
+    rest = [s.success for s in summaries if s.seed >= 10]
+    return {"criterion": summaries[0].criterion, "0-9": f"{sum(first)}/{len(first)}", "10-29": f"{sum(rest)}/{len(rest)}",
+            "fisher_p": fisher_exact(sum(first), len(first), sum(rest), len(rest))}
+
+
 def markdown(results: dict) -> str:
     lines = ["# Error rates of `keras-rl check`'s rules", "",
              "False alarms: the tier's n seeds drawn from the 30-seed baseline and tested against the other "
@@ -149,6 +161,10 @@ def markdown(results: dict) -> str:
              "the rule flags 80% of the time.", ""]
     for name, measured in results.items():
         lines += [f"Command for {name}: `{measured['command']}`", ""]
+        split = measured.get("criterion_by_seeds")
+        if split:
+            lines += [f"The post's own criterion on the baseline ({split['criterion']}): seeds 0-9 "
+                      f"{split['0-9']}, seeds 10-29 {split['10-29']} (Fisher p = {split['fisher_p']:.3g}).", ""]
         for tier, entry in measured["tiers"].items():
             rule = RULES[(name, tier)]
             mutants = list(entry["mutant_seeds"])
@@ -185,7 +201,8 @@ def main() -> None:
         if make_commands(name):
             raise SystemExit(2)
     command = "python reproductions/check_calibrate.py " + " ".join(sys.argv[1:])
-    results = {name: {"command": command, "tiers": calibrate(name)} for name in args.experiments}
+    results = {name: {"command": command, "criterion_by_seeds": criterion_by_seeds(name), "tiers": calibrate(name)}
+               for name in args.experiments}
     path = CHECKS / "calibration.json"
     merged = json.loads(path.read_text()) if path.is_file() else {}
     merged.update(results)

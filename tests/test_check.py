@@ -129,3 +129,38 @@ def _fake_baseline_seed(seed_dir, seed=0):
     for episode, score in enumerate([-1200.0, -800.0, -250.0], 1):
         run.record_episode(episode, score, 200, EpisodeStats(0, {"critic_loss": None, "actor_loss": None}))
     run.summary("completed").write(seed_dir)
+
+
+def test_each_calibrated_rule_is_the_one_the_pre_registered_criterion_picks():
+    """``reproductions/check_calibrate.py --write`` measured every candidate; the rule in
+    ``rules.py`` must be the one its criterion picks, with false alarms at most 1%."""
+    from keras_rl.check.command import CALIBRATION
+
+    measured = json.loads(CALIBRATION.read_text())
+    assert measured, "no rule calibrated yet"
+    for name, entry in measured.items():
+        for tier, result in entry["tiers"].items():
+            rule = RULES[(name, tier)]
+            assert result["chosen"] == {"statistic": rule.statistic, "alpha": rule.alpha}, (name, tier, result["chosen"])
+            mine = next(c for c in result["candidates"] if (c["statistic"], c["alpha"]) == (rule.statistic, rule.alpha))
+            assert mine["false_alarm_rate"] <= 0.01 and (mine["seeds"], mine["episodes"]) == (rule.seeds, rule.episodes)
+
+
+@pytest.mark.slow
+def test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline(tmp_path):
+    """``keras-rl check --tier smoke`` on this code: fresh seeds of all three posts against
+    the committed baselines. The rule's measured false-alarm rate (results/checks/calibration.md)
+    is at most 1% per post, so this fails on an unchanged learner about once in a hundred
+    code bases, and on a grossly broken one (the smoke tier's measured power) nearly always.
+    It replaces the k-of-n threshold tests of posts 000, 001 and 003 (Keras)."""
+    out = tmp_path / "check"
+    proc = subprocess.run([sys.executable, "-m", "keras_rl", "check", "--tier", "smoke", "--no-progress",
+                           "--out", str(out)], capture_output=True, text=True, timeout=1500)
+    report = json.loads((out / "check.json").read_text())
+    assert proc.returncode == 0, (proc.stdout, proc.stderr[-3000:])
+    assert [e["experiment"] for e in report["experiments"]] == ["pendulum", "cartpole", "mountaincar"]
+    for e in report["experiments"]:
+        assert e["verdict"] == "consistent" and len(e["baseline"]) == 30 and len(e["new"]) == e["rule"]["seeds"]
+        assert not set(e["new"]) & set(e["baseline"])  # fresh seeds
+        assert (out / e["experiment"] / "check.png").is_file()
+    assert (out / "check.md").read_text().count("consistent") == 3

@@ -169,7 +169,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         lines += ["", "New runs with: " + ", ".join(f"`--set {o}`" for o in results[0].overrides)]
     lines += ["", "The fresh seeds are never the baseline's; `changed` means p < alpha in either direction "
                   "(learning faster is a change in fidelity too). Error rates: "
-                  "`python reproductions/check_calibrate.py` (results/checks/README.md).", ""]
+                  "`python reproductions/check_calibrate.py` (results/checks/calibration.md).", ""]
     atomic_write_text(out / "check.md", "\n".join(lines))
     payload = {"tier": tier, "command": command, "status": "finished",
                "changed": any(r.decision.changed for r in results),
