@@ -35,6 +35,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "reproductions"))
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
 from keras_rl.check.rules import ALPHAS, MUTANTS, RULES, TIERS  # noqa: E402
@@ -187,6 +188,28 @@ def markdown(results: dict) -> str:
     return "\n".join(lines)
 
 
+RULES_BEGIN, RULES_END = "<!-- check-rules:begin -->", "<!-- check-rules:end -->"
+
+
+def rules_table(merged: dict) -> str:
+    """results/README.md's table of the rules and their measured error rates (from calibration.json)."""
+    lines = ["| post | tier | rule: statistic, test, alpha | fresh seeds x episodes | false alarms | power: gross | "
+             "power: all mutants | smallest delay flagged 80% |", "|---|---|---|---|---|---|---|---|"]
+    for (name, tier), rule in RULES.items():
+        entry = merged.get(name, {}).get("tiers", {}).get(tier)
+        mine = entry and next((c for c in entry["candidates"]
+                               if (c["statistic"], c["alpha"]) == (rule.statistic, rule.alpha)), None)
+        test = "Fisher" if rule.statistic == "success" else "Mann-Whitney U"
+        head = f"| {name} | {tier} | {rule.statistic}, {test}, {rule.alpha} | {rule.seeds} x {rule.episodes} |"
+        if not mine:
+            lines.append(head + " not calibrated yet | | | |")
+            continue
+        delay = entry.get("detectable_delay_80")
+        lines.append(head + f" {mine['false_alarm_rate']:.2%} | {mine['power_gross']:.0%} | {mine['power_all']:.0%} | "
+                     + (f"{delay} episodes" if delay is not None else "none within the tier's episodes") + " |")
+    return "\n".join(lines)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("experiments", nargs="+", choices=sorted(MUTANTS))
@@ -209,8 +232,12 @@ def main() -> None:
     text = markdown({k: merged[k] for k in sorted(merged)})
     print(text)
     if args.write:
+        from findings_table import replace_block
+
         atomic_write_text(path, json.dumps(merged, indent=2) + "\n")
         atomic_write_text(CHECKS / "calibration.md", text)
+        readme = ROOT / "results" / "README.md"
+        atomic_write_text(readme, replace_block(readme.read_text(), RULES_BEGIN, RULES_END, rules_table(merged)))
 
 
 if __name__ == "__main__":

@@ -95,7 +95,7 @@ def compare_table() -> str:
     return "\n".join(lines)
 
 
-def _replace(content: str, begin: str, end: str, text: str) -> str:
+def replace_block(content: str, begin: str, end: str, text: str) -> str:
     if begin not in content or end not in content:
         raise SystemExit(f"results/README.md has no {begin} ... {end} markers to replace")
     head, rest = content.split(begin, 1)
@@ -114,8 +114,8 @@ def main() -> None:
     from keras_rl.runs.files import atomic_write_text
 
     readme = ROOT / "results" / "README.md"
-    content = _replace(readme.read_text(), BEGIN, END, text)
-    atomic_write_text(readme, _replace(content, COMPARE_BEGIN, COMPARE_END, compared))
+    content = replace_block(readme.read_text(), BEGIN, END, text)
+    atomic_write_text(readme, replace_block(content, COMPARE_BEGIN, COMPARE_END, compared))
     print(f"updated {readme}")
 
 

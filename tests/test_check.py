@@ -164,3 +164,19 @@ def test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline(
         assert not set(e["new"]) & set(e["baseline"])  # fresh seeds
         assert (out / e["experiment"] / "check.png").is_file()
     assert (out / "check.md").read_text().count("consistent") == 3
+
+
+def test_results_readme_states_the_calibrated_error_rates():
+    import importlib.util
+    from pathlib import Path
+
+    from keras_rl.check.command import CALIBRATION
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("check_calibrate", root / "reproductions" / "check_calibrate.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    readme = (root / "results" / "README.md").read_text()
+    stated = readme.split(module.RULES_BEGIN, 1)[1].split(module.RULES_END, 1)[0].strip()
+    assert stated == module.rules_table(json.loads(CALIBRATION.read_text())), \
+        "results/README.md is stale: run python reproductions/check_calibrate.py ... --write"

@@ -35,12 +35,15 @@ class DQNLearner:
         self.gamma, self.tau, self.grad_clip_value = float(gamma), float(tau), float(grad_clip_value)
         self.layout = layout
         optimizer.build(q_network.trainable_variables)
-        rows = tf.TensorSpec([None, layout.width], tf.float32)
-        obs = tf.TensorSpec([layout.obs_dim], tf.float32)
+        rows, obs = self.input_specs()
         self._train = compile_step(self._train_rows, xla, rows)
         self._act = compile_step(self._greedy, xla, obs)
         self._train_and_act = compile_step(lambda r, s: (self._train_rows(r), self._greedy(s)), xla, rows, obs)
         self._sync_and_act = compile_step(lambda s: (self._soft_update(), self._greedy(s))[1], xla, obs)
+
+    def input_specs(self) -> tuple[tf.TensorSpec, tf.TensorSpec]:
+        """Packed rows [B, width] and one state [obs] (the seed-batched learner adds a seed axis)."""
+        return tf.TensorSpec([None, self.layout.width], tf.float32), tf.TensorSpec([self.layout.obs_dim], tf.float32)
 
     # -- the Learner protocol --------------------------------------------------------------
     def train(self, rows: np.ndarray) -> dict[str, tf.Tensor]:
@@ -80,22 +83,29 @@ class DQNLearner:
 
     # -- traced ----------------------------------------------------------------------------
     def update(self, batch: Batch) -> dict[str, tf.Tensor]:
-        """In [None] ``optimize_model``: Q(s,a), V(s') from the target net, Huber, clip, AdamW."""
+        """In [None] ``optimize_model``: Q(s,a), V(s') from the target net, Huber, clip, AdamW.
+        Shapes are [B, ...], or [S, B, ...] for S stacked seeds: each seed's loss is the mean
+        over its own batch, and the gradient is taken of their sum (``total_loss``)."""
         states, actions, rewards, next_states, dones = batch
-        actions = tf.cast(actions[:, 0], tf.int32)  # [B]
+        actions = tf.cast(actions[..., 0], tf.int32)  # [B]
         # next_state_values[non_final_mask] = target_net(non_final_next_states).max(1)[0]
-        next_values = tf.reduce_max(self.target_network(next_states), axis=1) * (1.0 - dones)  # [B]
+        next_values = tf.reduce_max(self.target_network(next_states), axis=-1) * (1.0 - dones)  # [B]
         expected = next_values * self.gamma + rewards  # [B]
         with tf.GradientTape() as tape:
             q_values = self.q_network(states)  # [B, A]
-            state_action_values = tf.gather(q_values, actions[:, None], batch_dims=1)[:, 0]  # [B]
-            loss = huber(state_action_values - expected)
-        grads = tape.gradient(loss, self.q_network.trainable_variables)
+            state_action_values = tf.gather(q_values, actions[..., None], batch_dims=actions.shape.rank)[..., 0]
+            loss = huber(state_action_values - expected, axis=-1)  # a scalar, or [S]
+            total = self.total_loss(loss)
+        grads = tape.gradient(total, self.q_network.trainable_variables)
         # torch.nn.utils.clip_grad_value_(policy_net.parameters(), 100), before optimizer.step()
         grads = [tf.clip_by_value(g, -self.grad_clip_value, self.grad_clip_value) for g in grads]
         self.optimizer.apply_gradients(zip(grads, self.q_network.trainable_variables))
         self._soft_update()
         return {"loss": loss}
+
+    def total_loss(self, loss: tf.Tensor) -> tf.Tensor:
+        """What the gradient is taken of: the loss itself (the stacked learner: the sum over seeds)."""
+        return loss
 
     def _soft_update(self):
         soft_update(self.target_network.variables, self.q_network.variables, self.tau)

@@ -31,7 +31,7 @@ from keras_rl.buffers import Layout
 from keras_rl.envs import EnvSpec
 from keras_rl.learners.common import compile_step, save_weights, soft_update
 from keras_rl.learners.ddpg import post000_networks
-from keras_rl.learners.dqn import huber, post003_networks, post003_optimizer
+from keras_rl.learners.dqn import DQNLearner, post003_networks, post003_optimizer
 from keras_rl.seeding import seed_everything
 
 
@@ -214,28 +214,23 @@ class StackedQNetwork(keras.Model):
         return x
 
 
-class StackedDQNLearner:
+class StackedDQNLearner(DQNLearner):
     """Post 003's ``optimize_model`` (Huber, clip-by-value 100, torch's AdamW with amsgrad)
-    and its every-step soft update, for S seeds in one call."""
-
-    loss_names = ("loss",)
+    and its every-step soft update, for S seeds in one call: ``DQNLearner``'s own update on
+    [S, B, ...] batches, its gradient taken of the sum of the seeds' losses."""
 
     def __init__(self, q_network, target_network, optimizer, gamma: float, tau: float, grad_clip_value: float,
                  layout: Layout, seeds: int, xla: bool = True):
-        self.q_network, self.target_network, self.optimizer = q_network, target_network, optimizer
+        self.seeds = seeds
         self.solo_networks: list[keras.Model] = []  # seed k's solo policy net, for saving
-        self.gamma, self.tau, self.grad_clip_value, self.layout = float(gamma), float(tau), float(grad_clip_value), layout
-        optimizer.build(q_network.trainable_variables)
-        rows = tf.TensorSpec([seeds, None, layout.width], tf.float32)
-        obs = tf.TensorSpec([seeds, layout.obs_dim], tf.float32)
-        self._train = compile_step(self._train_rows, xla, rows)
-        self._act = compile_step(self._greedy, xla, obs)
-        self._train_and_act = compile_step(lambda r, s: (self._train_rows(r), self._greedy(s)), xla, rows, obs)
-        self._sync_and_act = compile_step(lambda s: (self._soft_update(), self._greedy(s))[1], xla, obs)
+        super().__init__(q_network, target_network, optimizer, gamma, tau, grad_clip_value, layout, xla=xla)
 
-    def train(self, rows: np.ndarray) -> dict[str, tf.Tensor]:
-        """One update of every seed on its own rows ``[S, B, width]``; losses ``[S]``."""
-        return self._train(tf.constant(rows))
+    def input_specs(self) -> tuple[tf.TensorSpec, tf.TensorSpec]:
+        return (tf.TensorSpec([self.seeds, None, self.layout.width], tf.float32),
+                tf.TensorSpec([self.seeds, self.layout.obs_dim], tf.float32))
+
+    def total_loss(self, loss: tf.Tensor) -> tf.Tensor:
+        return tf.reduce_sum(loss)  # each slice gets its solo gradient
 
     def act(self, states: np.ndarray) -> np.ndarray:
         """Each seed's greedy action ``[S]`` for its state ``[S, obs]``."""
@@ -260,26 +255,6 @@ class StackedDQNLearner:
         network = self.solo_networks[k]
         network.set_weights(self.slice_weights(k)["q_network"])
         save_weights(network, Path(run_dir) / "q_network.weights.h5")
-
-    def _train_rows(self, rows):
-        states, actions, rewards, next_states, dones = self.layout.split(rows)  # [S, B, ...]
-        actions = tf.cast(actions[..., 0], tf.int32)  # [S, B]
-        next_values = tf.reduce_max(self.target_network(next_states), axis=-1) * (1.0 - dones)  # [S, B]
-        expected = next_values * self.gamma + rewards
-        with tf.GradientTape() as tape:
-            q_values = self.q_network(states)  # [S, B, A]
-            chosen = tf.gather(q_values, actions[..., None], batch_dims=2)[..., 0]  # [S, B]
-            losses = huber(chosen - expected, axis=1)  # [S]: each seed's own mean
-            loss = tf.reduce_sum(losses)  # the sum: each slice gets its solo gradient
-        grads = tape.gradient(loss, self.q_network.trainable_variables)
-        grads = [tf.clip_by_value(g, -self.grad_clip_value, self.grad_clip_value) for g in grads]
-        self.optimizer.apply_gradients(zip(grads, self.q_network.trainable_variables))
-        self._soft_update()
-        return {"loss": losses}
-
-    def _soft_update(self):
-        soft_update(self.target_network.variables, self.q_network.variables, self.tau)
-        return tf.constant(0)
 
     def _greedy(self, states):
         return tf.argmax(self.q_network(states[:, None, :])[:, 0], axis=-1, output_type=tf.int32)  # [S]
@@ -323,6 +298,16 @@ class SoloAsStack:
         self.learner.save(run_dir)
 
 
+def _per_seed(configs: Sequence, build) -> list:
+    """``build(config)`` for each seed, Keras seeded first as that seed's solo run seeds it."""
+    _check_equal_but_seed(configs)
+    built = []
+    for config in configs:
+        seed_everything(config.seed)
+        built.append(build(config))
+    return built
+
+
 def stack_post000(configs: Sequence, spec: EnvSpec, xla: bool = True):
     """Post 000's learner for the seeds of ``configs`` (one config per seed, equal but for the
     seed): each slice starts from the weights its solo run draws (``seed_everything(seed)``,
@@ -333,11 +318,7 @@ def stack_post000(configs: Sequence, spec: EnvSpec, xla: bool = True):
 
         seed_everything(c.seed)
         return SoloAsStack(post000_learner(c, spec, xla=xla), NETWORKS)
-    _check_equal_but_seed(configs)
-    solos = []
-    for config in configs:
-        seed_everything(config.seed)
-        solos.append(post000_networks(config, spec))
+    solos = _per_seed(configs, lambda config: post000_networks(config, spec))
     obs_dim, act_dim = spec.obs_dim, spec.action_dim
     nets = [StackedActor([s[0] for s in solos], obs_dim), StackedCritic([s[1] for s in solos], obs_dim + act_dim),
             StackedActor([s[2] for s in solos], obs_dim), StackedCritic([s[3] for s in solos], obs_dim + act_dim)]
@@ -355,11 +336,7 @@ def stack_post003(configs: Sequence, spec: EnvSpec, xla: bool = True):
 
         seed_everything(c.seed)
         return SoloAsStack(post003_learner(c, spec, xla=xla), DQN_NETWORKS)
-    _check_equal_but_seed(configs)
-    solos = []
-    for config in configs:
-        seed_everything(config.seed)
-        solos.append(post003_networks(config, spec))
+    solos = _per_seed(configs, lambda config: post003_networks(config, spec))
     learner = StackedDQNLearner(StackedQNetwork([q for q, _ in solos]), StackedQNetwork([t for _, t in solos]),
                                 post003_optimizer(c), c.gamma, c.tau, c.grad_clip_value, Layout(spec.obs_dim, 1),
                                 seeds=len(configs), xla=xla)
