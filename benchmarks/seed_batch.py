@@ -114,6 +114,7 @@ def main() -> None:
     parser.add_argument("--study-episodes", type=int, default=None, help="episodes per seed in part 3 "
                                                                          "(default: as --episodes)")
     parser.add_argument("--skip-study", action="store_true", help="parts 1 and 2 only")
+    parser.add_argument("--study-only", action="store_true", help="part 3 only")
     args = parser.parse_args()
     name = args.experiment
     episodes = args.episodes or DEFAULT_EPISODES[name]
@@ -121,6 +122,19 @@ def main() -> None:
     from keras_rl.seeding import configure_tensorflow
 
     configure_tensorflow(1)
+    if not args.study_only:
+        parts_1_and_2(name, episodes)
+    if args.skip_study:
+        return
+    study = args.study_episodes or episodes
+    today = study_seconds(name, study, "--workers", "2")
+    batched = study_seconds(name, study, "--workers", "2", "--seed-batch", "5")
+    print(f"\n10-seed study, {study} episodes per seed, as commands (start-up included):")
+    print(f"| --workers 2 | {today:.1f} s | 1.00x |")
+    print(f"| --workers 2 --seed-batch 5 | {batched:.1f} s | {today / batched:.2f}x faster |")
+
+
+def parts_1_and_2(name: str, episodes: int) -> None:
     solo, solo_steps = solo_seconds(name, episodes)
     per_step = solo / solo_steps
     print(f"{name} (post {'000' if name == 'pendulum' else '003'}), {episodes} episodes per seed, 1 thread; "
@@ -138,14 +152,6 @@ def main() -> None:
     for seeds in (1, 2, 4, 5, 8, 10, 16):
         ms = learner_call_ms(name, seeds)
         print(f"| {seeds} | {ms:.3f} | {ms / seeds:.3f} |")
-    if args.skip_study:
-        return
-    study = args.study_episodes or episodes
-    today = study_seconds(name, study, "--workers", "2")
-    batched = study_seconds(name, study, "--workers", "2", "--seed-batch", "5")
-    print(f"\n10-seed study, {study} episodes per seed, as commands (start-up included):")
-    print(f"| --workers 2 | {today:.1f} s | 1.00x |")
-    print(f"| --workers 2 --seed-batch 5 | {batched:.1f} s | {today / batched:.2f}x faster |")
 
 
 if __name__ == "__main__":
