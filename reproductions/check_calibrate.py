@@ -114,6 +114,32 @@ def smallest_delay(name: str, rule, baseline_runs: list, target: float = 0.8) ->
     return hi
 
 
+OLD_TESTS = {  # the k-of-n threshold tests the smoke tier replaces: (passes k of n seeds, per-seed pass on rows)
+    "pendulum": ("2 of 3 seeds reach EMA > -300 within 300 episodes", 2, 3, "episodes_to_threshold", 300,
+                 lambda value: value <= 300),
+    "cartpole": ("1 of 4 seeds reaches a 100-episode mean of 475 within 600 episodes", 1, 4, "success", 600,
+                 lambda value: value == 1.0),
+    "mountaincar": ("2 of 3 seeds meet post 001's criterion after 100 episodes", 2, 3, "success", 100,
+                    lambda value: value == 1.0),
+}
+
+
+def old_test(name: str, baseline: list, mutants: dict, repeats: int = 10_000) -> dict:
+    """The k-of-n test's false-alarm rate (it fails on baseline seeds) and power (it fails on
+    a mutant's seeds), n seeds drawn with replacement each time."""
+    what, k, n, statistic, episodes, passes = OLD_TESTS[name]
+    rng = np.random.default_rng(3)
+
+    def fail_rate(runs) -> float:
+        ok = np.asarray([passes(v) for v in values(name, statistic, episodes, runs)])
+        return float(np.mean([ok[rng.integers(0, len(ok), n)].sum() < k for _ in range(repeats)]))
+
+    per_mutant = {m.name: fail_rate(runs) for m, runs in mutants.values()}
+    gross = [per_mutant[m.name] for m, _ in mutants.values() if m.gross]
+    return {"test": what, "false_alarm_rate": fail_rate(baseline), "power": per_mutant,
+            "power_gross": float(np.mean(gross)), "power_all": float(np.mean(list(per_mutant.values())))}
+
+
 def calibrate(name: str) -> dict:
     baseline = load(CHECKS / name / "baseline")
     mutants = {m.name: (m, load(CHECKS / name / "mutants" / m.name)) for m in MUTANTS[name]}
@@ -139,6 +165,7 @@ def calibrate(name: str) -> dict:
         if chosen and (chosen["statistic"], chosen["alpha"]) == (rule.statistic, rule.alpha):
             entry["detectable_delay_80"] = smallest_delay(name, rule, baseline)
         out[tier] = entry
+    out["smoke"]["old_k_of_n_test"] = old_test(name, baseline, mutants)
     return out
 
 
@@ -177,6 +204,11 @@ def markdown(results: dict) -> str:
                 lines.append(f"| {r['statistic']}{mark} | {r['alpha']} | {r['false_alarm_rate']:.2%} | "
                              f"{r['power_gross']:.0%} | {r['power_all']:.0%} | "
                              + " | ".join(f"{r['power'][m]:.0%}" for m in mutants) + " |")
+            old = entry.get("old_k_of_n_test")
+            if old:
+                lines.append(f"| the old slow test: {old['test']} | - | {old['false_alarm_rate']:.2%} | "
+                             f"{old['power_gross']:.0%} | {old['power_all']:.0%} | "
+                             + " | ".join(f"{old['power'][m]:.0%}" for m in mutants) + " |")
             chosen = entry["chosen"]
             lines += ["", f"The criterion picks: {chosen['statistic']} at alpha {chosen['alpha']}" if chosen
                       else "No candidate keeps false alarms at or below 1%."]

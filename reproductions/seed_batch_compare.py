@@ -40,7 +40,8 @@ def _first_difference(ra: list[dict], rb: list[dict], key) -> int | None:
 
 def _batch_walls(summaries: list[RunSummary], size: int) -> str:
     """Each batch lasts until its last seed stops: the longest ``wall_seconds`` among its
-    seeds, the batches being ``size`` consecutive seeds."""
+    seeds, the batches being ``size`` consecutive seeds of the batched folder (all of them,
+    also those without a solo twin)."""
     ordered = sorted(summaries, key=lambda s: s.seed)
     walls = [max(s.wall_seconds for s in ordered[i:i + size]) for i in range(0, len(ordered), size)]
     return (f"the {len(walls)} batches of {size} took " + ", ".join(f"{w:.0f} s" for w in walls)
@@ -83,7 +84,7 @@ def main() -> None:
               f"10000 resamples).",
               f"- Mann-Whitney U (two-sided) p = {p:.3g}.",
               f"- Wall time: the solo seeds took {sum(s.wall_seconds for s in solo_s):.0f} s of seed time in all; "
-              + _batch_walls(batch_s, args.batch_size) + ".", ""]
+              + _batch_walls([RunSummary.read(d) for d in args.batched.glob("seed_*")], args.batch_size) + ".", ""]
     text = "\n".join(lines)
     print(text)
     if args.write:
