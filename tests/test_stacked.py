@@ -12,6 +12,7 @@ from keras_rl.learners.ddpg import post000_learner
 from keras_rl.learners.stacked import NETWORKS, layer_weights, stack_post000
 from keras_rl.posts.pendulum import PendulumDDPGConfig
 from keras_rl.runs.files import read_episodes
+from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import seed_everything
 
 SPEC = EnvSpec(3, 1, 2.0)
@@ -150,6 +151,10 @@ def test_a_seed_that_reaches_the_threshold_stops_while_the_others_go_on(tmp_path
         rows = _csv(tmp_path / "t" / f"seed_{s.seed}" / "episodes.csv")
         assert len(rows) == s.reached_at_episode == s.episodes_run and s.success and s.status == "completed"
     assert max(s.episodes_run for s in by_seed.values()) == 6 or all(s.reached_at_episode for s in summaries)
+    longest = max(summaries, key=lambda s: s.episodes_run)
+    for s in stopped:  # its summary was final when it stopped: its wall time ends there
+        assert s.wall_seconds < longest.wall_seconds
+        assert RunSummary.read(tmp_path / "t" / f"seed_{s.seed}").wall_seconds == s.wall_seconds
 
 
 def _envs(seeds, wrap=None):

@@ -50,6 +50,8 @@ class _Seed:
         self.status, self.message = "running", ""
         self.score, self.steps, self.episode, self.state, self.action = 0.0, 0, 0, None, None
         self.saved = False
+        self.final: RunSummary | None = None
+        """The summary written when the seed stopped (its wall time ends there)."""
 
     @property
     def active(self) -> bool:
@@ -90,9 +92,10 @@ def run_seed_batch(experiment: Experiment, configs: list, out_dirs: list[Path], 
         for k, s in enumerate(seeds):
             if s.active:  # an error outside any one seed: every seed still running says so
                 s.finish("error", "the batch stopped on an error")
-            _flush(s, learner, k)
+            if s.final is None:
+                _flush(s, learner, k)
             s.env.close()
-    return [s.run.summary(s.status, s.message) for s in seeds]
+    return [s.final for s in seeds]
 
 
 def _loop(seeds: list[_Seed], learner, interrupted: list, bar) -> None:
@@ -136,9 +139,7 @@ def _loop(seeds: list[_Seed], learner, interrupted: list, bar) -> None:
             s = seeds[k]
             if s.active:
                 _end_episode(s, *records[k])
-                if s.status == "completed":
-                    _save(s, learner, k)
-                else:
+                if s.status != "completed":
                     s.episode += 1
                     s.parts.explorer.reset()
                     s.parts.tally.reset()
@@ -148,6 +149,8 @@ def _loop(seeds: list[_Seed], learner, interrupted: list, bar) -> None:
         for k, s in enumerate(seeds):
             if s.active:
                 s.action = s.parts.explorer(raw[k])
+            elif s.final is None:  # it stopped on this step: its files and summary now, its wall time its own
+                _flush(s, learner, k)
 
 
 def _begin_episode(s: _Seed, obs) -> None:
@@ -200,6 +203,8 @@ def _save(s: _Seed, learner, k: int) -> None:
 
 
 def _flush(s: _Seed, learner, k: int) -> None:
+    """A seed's last word: its weights (when it finished or was stopped) and its final summary."""
     if s.status in ("completed", "interrupted") and not s.saved:
         _save(s, learner, k)
-    s.run.summary(s.status, s.message).write(s.recorder.out_dir)
+    s.final = s.run.summary(s.status, s.message)
+    s.final.write(s.recorder.out_dir)
