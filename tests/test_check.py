@@ -28,8 +28,10 @@ def test_statistics_of_a_seed_by_hand():
     assert seed_statistic("success", run, 10, above(-300)) == 1.0
     assert seed_statistic("success", run, 3, above(-300)) == 0.0  # cut to 3 episodes: not yet
     assert seed_statistic("episodes_to_threshold", run, 3, above(-300)) == 4  # censored at 3 + 1
-    # a run stopped at the threshold keeps its last metric for the episodes it did not play
-    assert seed_statistic("auc", run, 7, above(-300)) == pytest.approx((-900 - 600 - 350 - 290 - 250 * 3) / 7)
+    # the mean score; a run stopped at the threshold counts its last metric for the episodes it did not play
+    scored = rows([-900, -600, -350, -290, -250], scores=[-1000, -500, -300, -200, -100])
+    assert seed_statistic("auc", scored, 7, above(-300)) == pytest.approx((-1000 - 500 - 300 - 200 - 100 - 250 * 2) / 7)
+    assert seed_statistic("auc", scored, 2, above(-300)) == pytest.approx(-750)
     assert seed_statistic("final_metric", run, 7, above(-300)) == -250
     assert seed_statistic("final_metric", run, 2, above(-300)) == -600
     # judged at the end (post 001): only the last metric counts, and only for a complete run

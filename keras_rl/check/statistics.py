@@ -8,8 +8,9 @@ since nothing in a run depends on its budget):
 - ``episodes_to_threshold``: the first episode whose metric meets the threshold; a seed that
   never gets there counts as ``episodes + 1`` (censored: it ranks after every seed that did);
 - ``success``: 1 if it got there (post 001: if the metric meets it after the last episode);
-- ``auc``: the area under the learning curve, the mean of the metric over the episodes; a run
-  that stopped at the threshold keeps its last metric for the episodes it did not play;
+- ``auc``: the area under the learning curve, the mean score over the episodes; a run that
+  stopped at the threshold (post 000) counts its last metric, an average of scores on the
+  score's scale, for each episode it did not play;
 - ``final_metric``: the metric after the last episode.
 
 ``decide`` compares the baseline's values with the new ones: a two-sided Mann-Whitney U test,
@@ -19,7 +20,6 @@ faithful reproduction, learning faster is a change in fidelity too).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
@@ -51,9 +51,10 @@ def seed_statistic(name: str, rows: list[dict[str, Any]], episodes: int, passes:
     if name == "success":
         complete = len(rows) >= episodes
         return float(passes(metrics[-1]) and complete if success_at_end else reached is not None)
-    finite = [m for m in metrics if math.isfinite(m)]
     if name == "auc":
-        return float(np.mean(finite)) if finite else float("nan")
+        scores = [float(r["score"]) for r in rows[:episodes]]
+        scores += [metrics[-1]] * (episodes - len(scores))
+        return float(np.mean(scores))
     return metrics[-1]
 
 
