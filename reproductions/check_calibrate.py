@@ -68,6 +68,11 @@ def make_commands(name: str) -> list[list[str]]:
     return out
 
 
+def budget(folder: Path) -> int:
+    """The episode budget the runs in ``folder`` were made with (the smallest, if they differ)."""
+    return min(json.loads((d / "config.json").read_text())["episodes"] for d in folder.glob("seed_*"))
+
+
 def load(folder: Path) -> list[list[dict]]:
     runs = []
     for seed_dir in sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1])):
@@ -143,9 +148,13 @@ def old_test(name: str, baseline: list, mutants: dict, repeats: int = 10_000) ->
 def calibrate(name: str) -> dict:
     baseline = load(CHECKS / name / "baseline")
     mutants = {m.name: (m, load(CHECKS / name / "mutants" / m.name)) for m in MUTANTS[name]}
+    shortest = min(budget(CHECKS / name / "mutants" / m.name) for m in MUTANTS[name])
     out = {}
     for tier in TIERS:
         rule = RULES[(name, tier)]
+        if shortest < rule.episodes:  # a mutant run cut short would look like a failure
+            out[tier] = {"not_calibrated": f"the mutant runs have {shortest} episodes; this tier needs {rule.episodes}"}
+            continue
         rows = []
         for statistic in rule.candidates:
             base = values(name, statistic, rule.episodes, baseline)
@@ -165,7 +174,8 @@ def calibrate(name: str) -> dict:
         if chosen and (chosen["statistic"], chosen["alpha"]) == (rule.statistic, rule.alpha):
             entry["detectable_delay_80"] = smallest_delay(name, rule, baseline)
         out[tier] = entry
-    out["smoke"]["old_k_of_n_test"] = old_test(name, baseline, mutants)
+    if shortest >= OLD_TESTS[name][4] and "candidates" in out["smoke"]:
+        out["smoke"]["old_k_of_n_test"] = old_test(name, baseline, mutants)
     return out
 
 
@@ -195,6 +205,9 @@ def markdown(results: dict) -> str:
                       f"{split['0-9']}, seeds 10-29 {split['10-29']} (Fisher p = {split['fisher_p']:.3g}).", ""]
         for tier, entry in measured["tiers"].items():
             rule = RULES[(name, tier)]
+            if "not_calibrated" in entry:
+                lines += [f"## {name}, {tier} tier: not calibrated ({entry['not_calibrated']})", ""]
+                continue
             mutants = list(entry["mutant_seeds"])
             lines += [f"## {name}, {tier} tier ({rule.seeds} fresh seeds, {rule.episodes} episodes)", "",
                       "| statistic | alpha | false alarms | gross | all | " + " | ".join(mutants) + " |",
@@ -229,7 +242,7 @@ def rules_table(merged: dict) -> str:
              "power: all mutants | smallest delay flagged 80% |", "|---|---|---|---|---|---|---|---|"]
     for (name, tier), rule in RULES.items():
         entry = merged.get(name, {}).get("tiers", {}).get(tier)
-        mine = entry and next((c for c in entry["candidates"]
+        mine = entry and "candidates" in entry and next((c for c in entry["candidates"]
                                if (c["statistic"], c["alpha"]) == (rule.statistic, rule.alpha)), None)
         test = "Fisher" if rule.statistic == "success" else "Mann-Whitney U"
         head = f"| {name} | {tier} | {rule.statistic}, {test}, {rule.alpha} | {rule.seeds} x {rule.episodes} |"

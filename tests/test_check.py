@@ -142,6 +142,8 @@ def test_each_calibrated_rule_is_the_one_the_pre_registered_criterion_picks():
     assert measured, "no rule calibrated yet"
     for name, entry in measured.items():
         for tier, result in entry["tiers"].items():
+            if "not_calibrated" in result:
+                continue
             rule = RULES[(name, tier)]
             assert result["chosen"] == {"statistic": rule.statistic, "alpha": rule.alpha}, (name, tier, result["chosen"])
             mine = next(c for c in result["candidates"] if (c["statistic"], c["alpha"]) == (rule.statistic, rule.alpha))

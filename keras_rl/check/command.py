@@ -83,7 +83,7 @@ def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, A
     if not calibration.is_file():
         return None
     entry = json.loads(calibration.read_text()).get(rule.experiment, {}).get("tiers", {}).get(rule.tier)
-    if not entry:
+    if not entry or "candidates" not in entry:
         return None
     measured = next((c for c in entry.get("candidates", []) if c["statistic"] == rule.statistic
                      and c["alpha"] == rule.alpha and c["seeds"] == rule.seeds and c["episodes"] == rule.episodes),
