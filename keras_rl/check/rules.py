@@ -67,7 +67,9 @@ RULES: dict[tuple[str, str], CheckRule] = {
                                     first_seed=2000, seed_batch=10,
                                     candidates=("episodes_to_threshold", "success", "auc", "final_metric")),
     # post 003: 100-episode mean >= 475 within 600 episodes; the smoke tier sees 250 episodes.
-    ("cartpole", "smoke"): CheckRule("cartpole", "smoke", "auc", 0.01, seeds=10, episodes=250, first_seed=1000,
+    # Calibrated: final_metric (the 100-episode mean at episode 250) has the most power, by a
+    # hair over auc (84% against 83% over all mutants, both 100% against the gross ones).
+    ("cartpole", "smoke"): CheckRule("cartpole", "smoke", "final_metric", 0.01, seeds=10, episodes=250, first_seed=1000,
                                      seed_batch=10, candidates=("auc", "final_metric")),
     ("cartpole", "full"): CheckRule("cartpole", "full", "auc", 0.01, seeds=20, episodes=600, first_seed=2000,
                                     seed_batch=10,
