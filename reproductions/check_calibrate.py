@@ -152,8 +152,14 @@ def old_test(name: str, baseline: list, mutants: dict | None, repeats: int = 10_
 def calibrate(name: str) -> dict:
     baseline = load(CHECKS / name / "baseline")
     missing = [m.name for m in MUTANTS[name] if not (CHECKS / name / "mutants" / m.name).is_dir()]
-    if missing:
-        out = {tier: {"not_calibrated": f"no mutant runs yet ({', '.join(missing)})"} for tier in TIERS}
+    if missing:  # false alarms need only the baseline; power waits for the mutants
+        out = {}
+        for tier in TIERS:
+            rule = RULES[(name, tier)]
+            out[tier] = {"not_calibrated": f"no mutant runs yet ({', '.join(missing)})",
+                         "false_alarm_rates": [{"statistic": st, "alpha": a, "false_alarm_rate": false_alarm_rate(
+                             values(name, st, rule.episodes, baseline), rule.seeds, st, a)}
+                             for st in rule.candidates for a in ALPHAS]}
         out["smoke"]["old_k_of_n_test"] = old_test(name, baseline, None)
         return out
     mutants = {m.name: (m, load(CHECKS / name / "mutants" / m.name)) for m in MUTANTS[name]}
@@ -216,6 +222,13 @@ def markdown(results: dict) -> str:
             rule = RULES[(name, tier)]
             if "not_calibrated" in entry:
                 lines += [f"## {name}, {tier} tier: not calibrated ({entry['not_calibrated']})", ""]
+                if entry.get("false_alarm_rates"):
+                    lines += ["False alarms alone (power needs the mutants):", "",
+                              "| statistic | alpha | false alarms |", "|---|---|---|"]
+                    lines += [f"| {r['statistic']}"
+                              + (" **(rule)**" if (r["statistic"], r["alpha"]) == (rule.statistic, rule.alpha) else "")
+                              + f" | {r['alpha']} | {r['false_alarm_rate']:.2%} |" for r in entry["false_alarm_rates"]]
+                    lines.append("")
                 old = entry.get("old_k_of_n_test")
                 if old:
                     lines += [f"The old slow test ({old['test']}) fails on baseline seeds "
@@ -263,7 +276,10 @@ def rules_table(merged: dict) -> str:
         test = "Fisher" if rule.statistic == "success" else "Mann-Whitney U"
         head = f"| {name} | {tier} | {rule.statistic}, {test}, {rule.alpha} | {rule.seeds} x {rule.episodes} |"
         if not mine:
-            lines.append(head + " not calibrated yet | | | |")
+            alone = entry and next((c for c in entry.get("false_alarm_rates", [])
+                                    if (c["statistic"], c["alpha"]) == (rule.statistic, rule.alpha)), None)
+            lines.append(head + (f" {alone['false_alarm_rate']:.2%} | no mutants yet | | |" if alone
+                                 else " not calibrated yet | | | |"))
             continue
         delay = entry.get("detectable_delay_80")
         lines.append(head + f" {mine['false_alarm_rate']:.2%} | {mine['power_gross']:.0%} | {mine['power_all']:.0%} | "
