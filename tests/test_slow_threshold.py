@@ -5,6 +5,12 @@ tier of ``keras-rl check`` (tests/test_check.py) replaced it. Measured on the 30
 baseline, the old test cried wolf 3.7% of the time (each seed succeeds with p = 0.57, and
 0.43^4 = 3.4%), the smoke rule 0.7%, and the smoke rule flags both gross mutants always and
 all six 84% of the time (results/checks/calibration.md).
+
+Post 001's Keras test ("2 of 3 seeds meet the criterion after 100 episodes") is gone too: on
+the 30-seed baseline the criterion holds for 25 seeds (10/10 on the seeds 0-9 it was chosen
+on, 15/20 on seeds 10-29), so the old test failed an unchanged learner 7.5% of the time; the
+smoke rule's false-alarm rate is 0.99%. Its power against post 001's mutants is not measured
+yet (their runs are still to make), and neither was the old test's.
 """
 
 import json
@@ -57,22 +63,6 @@ def reproduce(tmp_path, *args):
                           capture_output=True, text=True, timeout=3600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     return out
-
-
-@pytest.mark.slow
-def test_faithful_mountaincar_converges_in_2_of_3_seeds(tmp_path):
-    """k=2 of n=3 seeds must meet post 001's faithful criterion after its 100 episodes:
-    the returns of the last 10 episodes lie within 2.0 of each other ("roughly converged").
-
-    Derivation: see reproductions/FIDELITY.md (P001 criterion) and
-    results/mountaincar/faithful/summary.md. Teeth: an actor whose parameters keep moving
-    (a too-large learning rate, a broken soft update, exploration noise) changes its
-    deterministic episode returns by far more than 2 between episodes.
-    """
-    out = reproduce(tmp_path, "mountaincar", "--variant", "faithful", "--seeds", "0-2", "--workers", "2")
-    summaries = [json.loads((out / f"seed_{s}" / "summary.json").read_text()) for s in range(3)]
-    assert sum(s["success"] for s in summaries) >= 2, [s["final_metric"] for s in summaries]
-    assert all(s["episodes_run"] == 100 for s in summaries)
 
 
 @pytest.mark.slow
