@@ -281,9 +281,10 @@ def rules_table(merged: dict) -> str:
             lines.append(head + (f" {alone['false_alarm_rate']:.2%} | no mutants yet | | |" if alone
                                  else " not calibrated yet | | | |"))
             continue
-        delay = entry.get("detectable_delay_80")
+        delay = entry.get("detectable_delay_80", "not measured")
         lines.append(head + f" {mine['false_alarm_rate']:.2%} | {mine['power_gross']:.0%} | {mine['power_all']:.0%} | "
-                     + (f"{delay} episodes" if delay is not None else "none within the tier's episodes") + " |")
+                     + (f"{delay} episodes" if isinstance(delay, int) else
+                        "none within the tier's episodes" if delay is None else delay) + " |")
     return "\n".join(lines)
 
 

@@ -63,7 +63,9 @@ RULES: dict[tuple[str, str], CheckRule] = {
     ("pendulum", "smoke"): CheckRule("pendulum", "smoke", "episodes_to_threshold", 0.01, seeds=10, episodes=250,
                                      first_seed=1000, seed_batch=10,
                                      candidates=("episodes_to_threshold", "success", "auc", "final_metric")),
-    ("pendulum", "full"): CheckRule("pendulum", "full", "episodes_to_threshold", 0.01, seeds=20, episodes=1000,
+    # Calibrated: auc edges out episodes_to_threshold here by a hair (both 100% against the
+    # gross mutants and 85% against all; auc flags actor_lr x0.3 13% of the time, against 12%).
+    ("pendulum", "full"): CheckRule("pendulum", "full", "auc", 0.01, seeds=20, episodes=1000,
                                     first_seed=2000, seed_batch=10,
                                     candidates=("episodes_to_threshold", "success", "auc", "final_metric")),
     # post 003: 100-episode mean >= 475 within 600 episodes; the smoke tier sees 250 episodes.
