@@ -23,7 +23,7 @@ from keras_rl.check.rules import CheckRule, rule_for
 from keras_rl.check.statistics import Decision, decide, seed_statistic
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.registry import get_experiment
-from keras_rl.runs.files import atomic_write_text, read_episodes
+from keras_rl.runs.files import atomic_write_json, atomic_write_text, read_episodes
 from keras_rl.runs.summary import RunSummary
 
 CALIBRATION = Path(__file__).resolve().parents[2] / "results" / "checks" / "calibration.json"
@@ -128,7 +128,7 @@ def run_check(names: list[str], tier: str, against: Path, out: Path, seeds: list
             shutil.rmtree(folder)
         group = [SeedJob.of(config.replace(seed=s), folder / f"seed_{s}", start="overwrite") for s in fresh]
         jobs += batched(group, rule.seed_batch)
-    atomic_write_text(out / MARKER, json.dumps({"status": "running", "experiments": names}, indent=2) + "\n")
+    atomic_write_json(out / MARKER, {"status": "running", "experiments": names})
     outcome = run_jobs(jobs, backend_for(workers, len(jobs), address), progress=progress)
     if outcome.interrupted:
         raise KeyboardInterrupt
@@ -175,29 +175,15 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
                "changed": any(r.decision.changed for r in results),
                "experiments": [{"experiment": r.experiment, "rule": asdict(r.rule), "verdict": r.verdict,
                                 "decision": asdict(r.decision), "overrides": r.overrides,
-                                "baseline": {str(k): _finite(v) for k, v in r.baseline.items()},
-                                "new": {str(k): _finite(v) for k, v in r.new.items()},
+                                "baseline": {str(k): v for k, v in r.baseline.items()},
+                                "new": {str(k): v for k, v in r.new.items()},
                                 "error_rates": r.error_rates} for r in results]}
-    atomic_write_text(out / MARKER, json.dumps(_json_safe(payload), indent=2) + "\n")
+    atomic_write_json(out / MARKER, payload)
 
 
 def _median(values: dict[int, float]) -> str:
     finite = [v for v in values.values() if math.isfinite(v)]
     return f"{np.median(finite):.4g}" if finite else "n/a"
-
-
-def _finite(value: float) -> float | None:
-    return value if math.isfinite(value) else None
-
-
-def _json_safe(obj):
-    if isinstance(obj, dict):
-        return {k: _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 def _plot(path: Path, experiment, result: CheckResult, baseline_rows: dict, new_rows: dict) -> None:
