@@ -140,6 +140,8 @@ def test_batched_seeds_are_independent_of_their_neighbours_and_of_each_other(tmp
     assert len({tuple(v) for v in scores.values()}) == 4  # every seed its own env, noise and weights
     for name in ("config.json", "summary.json", "actor.weights.h5", "critic.weights.h5"):
         assert (tmp_path / "a" / "seed_0" / name).is_file()
+    # each summary names the seeds it was trained with, since its bits depend on them
+    assert RunSummary.read(tmp_path / "b" / "seed_3").provenance["seed_batch"] == [3, 4, 5, 6]
 
 
 def test_a_seed_that_reaches_the_threshold_stops_while_the_others_go_on(tmp_path):

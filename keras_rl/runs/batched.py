@@ -75,7 +75,8 @@ def run_seed_batch(experiment: Experiment, configs: list, out_dirs: list[Path], 
     learner = stacked_implementation(experiment.name, configs[0].framework).load()(configs, spec)
     seeds = [_Seed(experiment, c, env, experiment.assemble(c, spec, _NoLearner(learner.loss_names), env.action_space),
                    d, command) for c, env, d in zip(configs, envs, out_dirs)]
-    for s in seeds:
+    for s in seeds:  # which seeds shared its stacked updates: its bits depend on them
+        s.run.provenance["seed_batch"] = [c.seed for c in configs]
         s.run.summary("running").write(s.recorder.out_dir)
     bar = None
     if progress:
