@@ -11,7 +11,7 @@ from scipy import stats
 
 from keras_rl.cli import main
 from keras_rl.runs.files import read_episodes
-from keras_rl.report.stats import fisher_exact, iqm, iqm_ci, mann_whitney, median_difference_ci
+from keras_rl.report.stats import fisher_exact, iqm, iqm_ci, mann_whitney, median_difference_ci, success_difference_ci
 
 
 def test_mann_whitney_against_a_hand_computed_u():
@@ -20,6 +20,19 @@ def test_mann_whitney_against_a_hand_computed_u():
     assert u == 0 and p == pytest.approx(0.2)
     u, _ = mann_whitney([4, 5], [1, 2, 3])
     assert u == 6  # len(a) * len(b) - 0
+
+
+def test_success_difference_ci_against_newcombes_published_example():
+    # Newcombe (1998), Statistics in Medicine 17:873, table II example (a): 56/70 against
+    # 48/80, method 10 (hybrid score): 0.0524 to 0.3339.
+    d = success_difference_ci(56, 70, 48, 80)
+    assert d.estimate == pytest.approx(0.2)
+    assert (d.low, d.high) == (pytest.approx(0.0524, abs=5e-5), pytest.approx(0.3339, abs=5e-5))
+    same = success_difference_ci(10, 10, 10, 10)  # 10/10 twice: no difference, yet an honest width
+    assert same.estimate == 0 and same.low < -0.2 and same.high > 0.2
+    assert success_difference_ci(0, 10, 10, 10).high < -0.5
+    with pytest.raises(ValueError, match="successes"):
+        success_difference_ci(3, 0, 1, 2)
 
 
 def test_fisher_exact_against_a_hand_computed_p():

@@ -43,7 +43,7 @@ def sweep_dir(tmp_path_factory):
 
 
 def test_sweep_folders_are_well_formed_and_its_numbers_recompute_from_the_csvs(sweep_dir):
-    from keras_rl.report.stats import fisher_exact, mann_whitney, median_difference_ci
+    from keras_rl.report.stats import fisher_exact, mann_whitney, median_difference_ci, success_difference_ci
 
     result = json.loads((sweep_dir / "sweep.json").read_text())
     assert [p["point"] for p in result["points"]] == ["noise_sigma=0.2", "noise_sigma=0.6"]
@@ -68,6 +68,9 @@ def test_sweep_folders_are_well_formed_and_its_numbers_recompute_from_the_csvs(s
         assert by_point[point]["median"] == (float(np.median(hits)) if hits else None)
     other, base = by_point["noise_sigma=0.6"], by_point["noise_sigma=0.2"]
     assert other["fisher_p"] == pytest.approx(fisher_exact(other["successes"], 2, base["successes"], 2))
+    rate = success_difference_ci(other["successes"], 2, base["successes"], 2)
+    assert [other["success_difference"][k] for k in ("estimate", "low", "high")] == pytest.approx(
+        [rate.estimate, rate.low, rate.high])
     a, b = other["episodes_to_threshold"], base["episodes_to_threshold"]
     if a and b:
         diff = median_difference_ci(a, b, np.random.default_rng(0))

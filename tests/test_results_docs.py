@@ -6,8 +6,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def load_generator():
-    spec = importlib.util.spec_from_file_location("findings_table", ROOT / "reproductions" / "findings_table.py")
+def load_generator(name: str = "findings_table"):
+    spec = importlib.util.spec_from_file_location(name, ROOT / "reproductions" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -39,3 +39,16 @@ def test_the_cartpole_seeds_said_to_fail_are_the_ones_that_failed():
     failed = {s for s in range(10) if not json.loads(
         (ROOT / "results" / "cartpole" / "faithful" / f"seed_{s}" / "summary.json").read_text())["success"]}
     assert said == failed
+
+
+def test_fidelitys_measured_effect_tables_are_up_to_date():
+    gen = load_generator("ablation_table")
+    ledger = (ROOT / "reproductions" / "FIDELITY.md").read_text()
+    for experiment in gen.SOURCES:
+        assert block(ledger, *gen.markers(experiment)) == gen.table(experiment), \
+            f"FIDELITY.md's {experiment} table is stale: run python reproductions/ablation_table.py --write"
+    # every quirk switch of post 000 has its row, with numbers (its ablations are committed)
+    pendulum = gen.table("pendulum")
+    for ledger_id in ("P000-NOISE", "P000-DONE", "P000-BROADCAST", "P000-TARGETINIT"):
+        row = next(line for line in pendulum.splitlines() if line.startswith(f"| {ledger_id} |"))
+        assert "not run yet" not in row and "10/10" in row

@@ -3,6 +3,9 @@
 - ``median_difference_ci``: a percentile-bootstrap 95% CI of median(a) - median(b), the
   two samples resampled independently (``scipy.stats.bootstrap``).
 - ``mann_whitney``: the two-sided Mann-Whitney U test (``scipy.stats.mannwhitneyu``).
+- ``success_difference_ci``: a difference of two success rates with Newcombe's hybrid score
+  95% interval, built from each rate's Wilson interval (``scipy.stats.binomtest``); unlike a
+  bootstrap it stays informative at 10/10 and 0/10.
 - ``iqm_ci``: the interquartile mean (the mean of the middle 50%, ``trim_mean(x, 0.25)``)
   with rliable's stratified-bootstrap percentile CI. rliable resamples runs with
   replacement *within each task* and recomputes the aggregate; with one task per
@@ -76,6 +79,22 @@ def fisher_exact(successes_a: int, n_a: int, successes_b: int, n_b: int) -> floa
             raise ValueError(f"successes must lie in [0, n], got {s} of {n}")
     table = [[successes_a, n_a - successes_a], [successes_b, n_b - successes_b]]
     return float(stats.fisher_exact(table, alternative="two-sided").pvalue)
+
+
+def success_difference_ci(successes_a: int, n_a: int, successes_b: int, n_b: int) -> Interval:
+    """rate(a) - rate(b) with Newcombe's (1998, method 10) hybrid score 95% interval:
+    ``d - sqrt((p_a - l_a)^2 + (u_b - p_b)^2)`` to ``d + sqrt((u_a - p_a)^2 + (p_b - l_b)^2)``,
+    where (l, u) is each rate's Wilson score interval."""
+    rates, bounds = [], []
+    for k, n in ((successes_a, n_a), (successes_b, n_b)):
+        if n < 1 or not 0 <= k <= n:
+            raise ValueError(f"successes must lie in [0, n] with n >= 1, got {k} of {n}")
+        ci = stats.binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+        rates.append(k / n)
+        bounds.append((float(ci.low), float(ci.high)))
+    (pa, pb), ((la, ua), (lb, ub)) = rates, bounds
+    d = pa - pb
+    return Interval(d, d - float(np.hypot(pa - la, ub - pb)), d + float(np.hypot(ua - pa, pb - lb)))
 
 
 def episodes_to_threshold_stats(reached: list[int | None], success: list[bool] | None = None) -> dict:

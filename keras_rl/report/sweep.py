@@ -9,6 +9,7 @@ are ``report/stats.py``'s, the same ones ``compare`` reports; each point's folde
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +17,8 @@ import numpy as np
 
 from keras_rl.errors import ConfigError
 from keras_rl.report.aggregate import write_aggregate
-from keras_rl.report.stats import episodes_to_threshold_stats, fisher_exact, mann_whitney, median_difference_ci
+from keras_rl.report.stats import (episodes_to_threshold_stats, fisher_exact, mann_whitney, median_difference_ci,
+                                   success_difference_ci)
 from keras_rl.runs.files import atomic_write_json, atomic_write_text
 from keras_rl.runs.summary import RunSummary
 
@@ -39,6 +41,8 @@ def analyse_sweep(summaries: dict[str, list[RunSummary]], baseline: str) -> dict
             diff = median_difference_ci(a, b, np.random.default_rng(0)) if a and b else None
             row.update(median_difference=None if diff is None else
                        {"estimate": diff.estimate, "low": diff.low, "high": diff.high},
+                       success_difference=dataclasses.asdict(success_difference_ci(
+                           st["successes"], st["seeds"], base["successes"], base["seeds"])),
                        mann_whitney_p=mann_whitney(a, b)[1],
                        fisher_p=fisher_exact(st["successes"], st["seeds"], base["successes"], base["seeds"]))
         rows.append(row)
@@ -62,22 +66,25 @@ def write_sweep_report(out: Path, experiment, base_config, summaries: dict[str, 
     criterion = next((s.criterion for ss in summaries.values() for s in ss), "")
     lines = [f"# {experiment.name} ({base_config.variant}, {base_config.framework}) sweep", "",
              f"Criterion: {criterion}. Baseline: `{baseline}`. Command: `{command}`", "",
-             "| grid point | success | episodes to threshold: median (IQR) | minus baseline [95% CI] "
-             "| Mann-Whitney p | Fisher p | curves |",
-             "|---|---|---|---|---|---|---|"]
+             "| grid point | success | minus baseline [95% CI] | Fisher p | episodes to threshold: median (IQR) "
+             "| minus baseline [95% CI] | Mann-Whitney p | curves |",
+             "|---|---|---|---|---|---|---|---|"]
     for row in result["points"]:
         diff = row.get("median_difference")
         diff_text = "(baseline)" if row["point"] == baseline else (
             "n/a" if diff is None else f"{diff['estimate']:.4g} [{diff['low']:.4g}, {diff['high']:.4g}]")
+        rate = row.get("success_difference")
+        rate_text = "(baseline)" if rate is None else f"{rate['estimate']:+.2f} [{rate['low']:+.2f}, {rate['high']:+.2f}]"
         unfinished = f" ({len(row['unfinished'])} unfinished)" if row["unfinished"] else ""
-        lines.append(f"| `{row['point']}` | {row['successes']}/{row['seeds']}{unfinished} "
+        lines.append(f"| `{row['point']}` | {row['successes']}/{row['seeds']}{unfinished} | {rate_text} "
+                     f"| {_fmt(row.get('fisher_p'), '.3g') if row['point'] != baseline else '-'} "
                      f"| {_fmt(row['median'])} ({_fmt(row['q25'])}-{_fmt(row['q75'])}) | {diff_text} "
                      f"| {_fmt(row.get('mann_whitney_p'), '.3g') if row['point'] != baseline else '-'} "
-                     f"| {_fmt(row.get('fisher_p'), '.3g') if row['point'] != baseline else '-'} "
                      f"| [curves]({row['point']}/curves.png) |")
-    lines += ["", "Episodes to threshold are over the seeds that succeeded. The difference is the median of a point "
-              "minus the baseline's, with a percentile bootstrap (10000 resamples); Mann-Whitney U is two-sided on "
-              "the same samples; Fisher's exact test compares the success counts. At 10 seeds only large effects "
+    lines += ["", "The success difference is a point's success rate minus the baseline's, with Newcombe's hybrid "
+              "score interval; Fisher's exact test compares the success counts. Episodes to threshold are over the "
+              "seeds that succeeded; their difference is the median of a point minus the baseline's, with a "
+              "percentile bootstrap (10000 resamples); Mann-Whitney U is two-sided on the same samples. At 10 seeds only large effects "
               "are detectable: an interval that includes 0 is no evidence of no effect.", ""]
     atomic_write_text(out / "sweep.md", "\n".join(lines))
     atomic_write_json(out / "sweep.json", {"experiment": experiment.name, "variant": base_config.variant,

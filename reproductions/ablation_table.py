@@ -1,0 +1,141 @@
+"""Each quirk switch's measured effect, for ``reproductions/FIDELITY.md``, from the committed
+ablation runs.
+
+    python reproductions/ablation_table.py            # print the three tables
+    python reproductions/ablation_table.py --write    # replace them in reproductions/FIDELITY.md
+
+Per post: the faithful runs, and for every quirk switch of its config (``QUIRKS``) the runs
+with that switch flipped alone, seeds 0-9 at the post's budget. Every number comes from
+``keras_rl.report.sweep.analyse_sweep``, the same code that writes a sweep's ``sweep.md``:
+
+- the success rate under the post's own criterion, its difference from faithful with
+  Newcombe's hybrid score 95% interval, and Fisher's exact p;
+- episodes to threshold over the seeds that succeeded (median and IQR), the difference of
+  medians with a percentile-bootstrap 95% interval, and the two-sided Mann-Whitney p.
+
+The reading is mechanical: "changes the success rate" when that interval excludes 0; else
+"faster"/"slower" when both the Mann-Whitney test (p < 0.05) and the interval of the median
+difference say so, with a caveat when only one does; else "no measurable effect at 10 seeds". An interval that includes 0 is no evidence of no effect; the interval
+says how large an effect the 10 seeds leave room for.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "reproductions"))
+
+from findings_table import replace_block  # noqa: E402
+
+FIDELITY = ROOT / "reproductions" / "FIDELITY.md"
+SWEEP = "keras-rl sweep {exp} --ablate --seeds 0-9 --workers 2{batch} --no-progress --out results/{exp}/ablations"
+SOURCES = {
+    # post 000's ablations predate `sweep`: one `reproduce --set SWITCH=false` folder each
+    "pendulum": {"base": "results/pendulum/faithful", "points": "results/pendulum/ablations",
+                 "also": {"fixed (all four off)": "results/pendulum/fixed"},
+                 "command": "keras-rl reproduce pendulum --seeds 0-9 --workers 2 --no-progress --min-success-rate 0 "
+                            "--set SWITCH=false --out results/pendulum/ablations/SWITCH=false"},
+    "cartpole": {"base": "results/cartpole/ablations/base", "points": "results/cartpole/ablations", "also": {},
+                 "command": SWEEP.format(exp="cartpole", batch=" --seed-batch 10")},
+    "mountaincar": {"base": "results/mountaincar/ablations/base", "points": "results/mountaincar/ablations", "also": {},
+                    "command": SWEEP.format(exp="mountaincar", batch="")},
+}
+
+
+def markers(experiment: str) -> tuple[str, str]:
+    return f"<!-- ablations:{experiment}:begin -->", f"<!-- ablations:{experiment}:end -->"
+
+
+def _summaries(folder: Path) -> list:
+    from keras_rl.runs.summary import RunSummary
+
+    return [RunSummary.read(d) for d in sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1]))]
+
+
+def _reading(row: dict) -> str:
+    if row["unfinished"] and len(row["unfinished"]) == row["seeds"]:
+        return "every seed stopped early (see its summaries)"
+    rate, diff = row["success_difference"], row.get("median_difference")
+    if rate["low"] > 0 or rate["high"] < 0:
+        return "changes the success rate"
+    tested = row.get("mann_whitney_p") is not None and row["mann_whitney_p"] < 0.05
+    excluded = diff is not None and (diff["low"] > 0 or diff["high"] < 0)
+    if diff is not None and (tested or excluded):
+        direction = "slower" if diff["estimate"] > 0 else "faster"
+        return direction if tested and excluded else (
+            f"{direction} by Mann-Whitney (p < 0.05), but the median's interval includes 0" if tested else
+            f"{direction} by the median's interval, but Mann-Whitney p >= 0.05")
+    return "no measurable effect at 10 seeds"
+
+
+def table(experiment: str) -> str:
+    from keras_rl.registry import get_experiment
+    from keras_rl.report.sweep import analyse_sweep
+    from keras_rl.runs.sweep import point_name
+
+    source = SOURCES[experiment]
+    config_cls = get_experiment(experiment).config_cls
+    defaults = config_cls()
+    rows = [("-", "faithful", ROOT / source["base"])]
+    for field, (ledger_id, off) in config_cls.QUIRKS.items():
+        flipped = point_name({field: off})
+        rows.append((ledger_id, f"`{field}`: `{point_name({field: getattr(defaults, field)}).split('=', 1)[1]}` -> "
+                     f"`{flipped.split('=', 1)[1]}`", ROOT / source["points"] / flipped))
+    rows += [("-", name, ROOT / folder) for name, folder in source["also"].items()]
+
+    lines = [f"Regenerate the runs with `{source['command']}` and this table with "
+             "`python reproductions/ablation_table.py --write`.", "",
+             "| id | runs (seeds 0-9) | success | minus faithful [95% CI] | Fisher p | episodes to threshold: "
+             "median (IQR) | minus faithful [95% CI] | Mann-Whitney p | reading |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    summaries = {label: _summaries(folder) for _, label, folder in rows if folder.is_dir()}
+    if "faithful" not in summaries:
+        return "\n".join(lines[:2] + ["Not run yet: no faithful runs in " + source["base"] + "."])
+    result = {r["point"]: r for r in analyse_sweep(summaries, "faithful")["points"]}
+    g = lambda v: "n/a" if v is None else f"{v:g}"  # noqa: E731
+    p = lambda v: "n/a" if v is None or v != v else f"{v:.2g}"  # noqa: E731
+    for ledger_id, label, folder in rows:
+        if label not in result:
+            lines.append(f"| {ledger_id} | {label} | not run yet | | | | | | |")
+            continue
+        r = result[label]
+        stopped = f" ({len(r['unfinished'])} stopped early)" if r["unfinished"] else ""
+        spread = f"{g(r['median'])} ({g(r['q25'])}-{g(r['q75'])})"
+        if label == "faithful":
+            lines.append(f"| {ledger_id} | {label} | {r['successes']}/{r['seeds']}{stopped} | - | - | {spread} | - | - | - |")
+            continue
+        rate, diff = r["success_difference"], r.get("median_difference")
+        diff_text = "n/a" if diff is None else f"{diff['estimate']:+g} [{diff['low']:+g}, {diff['high']:+g}]"
+        lines.append(f"| {ledger_id} | {label} | {r['successes']}/{r['seeds']}{stopped} "
+                     f"| {rate['estimate']:+.2f} [{rate['low']:+.2f}, {rate['high']:+.2f}] | {p(r['fisher_p'])} "
+                     f"| {spread} | {diff_text} | {p(r.get('mann_whitney_p'))} | {_reading(r)} |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("experiments", nargs="*", default=list(SOURCES), help="default: all three posts")
+    parser.add_argument("--write", action="store_true", help="replace the tables in reproductions/FIDELITY.md")
+    args = parser.parse_args()
+    unknown = sorted(set(args.experiments) - set(SOURCES))
+    if unknown:
+        parser.error(f"unknown experiment(s) {', '.join(unknown)}; choose from {', '.join(SOURCES)}")
+    tables = {name: table(name) for name in args.experiments}
+    if not args.write:
+        print("\n\n".join(tables.values()))
+        return
+    from keras_rl.runs.files import atomic_write_text
+
+    content = FIDELITY.read_text()
+    for name, text in tables.items():
+        content = replace_block(content, *markers(name), text)
+    atomic_write_text(FIDELITY, content)
+    print(f"updated {FIDELITY}")
+
+
+if __name__ == "__main__":
+    main()
