@@ -91,7 +91,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--overwrite", action="store_true",
                      help="replace seed folders that already hold a run (each is cleared whole first)")
     rep.add_argument("--resume", action="store_true",
-                     help="continue interrupted or killed runs from their checkpoint.pkl (same options as before)")
+                     help="continue interrupted or killed runs from their checkpoint.pkl, keeping seeds that already "
+                          "completed (same options as before)")
     rep.add_argument("--checkpoint-every", type=int, default=10, metavar="N",
                      help="write checkpoint.pkl every N episodes, and when stopped (default 10; 0: only when stopped)")
     rep.add_argument("--tensorboard", type=_path_arg, default=None, metavar="DIR",
@@ -240,9 +241,11 @@ def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool) -> list[s
                 modes.append("resume")
             elif held is None:
                 modes.append("new")  # nothing to resume: start it
+            elif held.startswith("a completed run"):
+                modes.append("keep")  # finishing an interrupted set: its finished seeds stay as they are
             else:
-                raise ConfigError(f"--resume: {seed_dir} holds {held} but no {CHECKPOINT}; "
-                                  "a completed run has nothing to resume (use --overwrite to run it again)")
+                raise ConfigError(f"--resume: {seed_dir} holds {held} but no {CHECKPOINT}, so it cannot be "
+                                  "continued (use --overwrite to run it again)")
         elif held is not None and not overwrite:
             occupied.append(f"{seed_dir} ({held})")
         else:
@@ -253,6 +256,26 @@ def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool) -> list[s
                           + ". Pass --overwrite to replace them, --resume to continue unfinished ones, "
                           "or --out for another folder")
     return modes
+
+
+def _kept_runs(base, seeds_and_dirs: list) -> list:
+    """The summaries of the completed seeds ``--resume`` keeps; refuses a completed run made
+    by another config or code version, which must not join the set unnoticed."""
+    from keras_rl.errors import RunFolderError
+    from keras_rl.runs.provenance import code_version
+    from keras_rl.runs.reuse import check_reusable
+    from keras_rl.runs.summary import RunSummary
+
+    kept, version = [], code_version() if seeds_and_dirs else None
+    for seed, seed_dir in seeds_and_dirs:
+        try:
+            check_reusable(seed_dir, base.replace(seed=seed), version)
+        except RunFolderError as exc:
+            raise ConfigError(f"--resume keeps completed seeds, but {str(exc).split('; ')[0]}; "
+                              "use --overwrite to run it again, or --out for another folder") from None
+        print(f"seed {seed}: already completed in {seed_dir}, kept", file=sys.stderr)
+        kept.append(RunSummary.read(seed_dir))
+    return kept
 
 
 def _set_suffix(assignments: list[str]) -> str:
@@ -298,11 +321,12 @@ def reproduce(args: argparse.Namespace) -> int:
     from keras_rl.runs.backends import backend_for
     from keras_rl.runs.jobs import SeedJob, batched, run_jobs
 
+    kept = _kept_runs(base, [(s, d) for s, d, m in zip(seeds, seed_dirs, modes) if m == "keep"])
     jobs = batched([SeedJob.of(base.replace(seed=s), d, start=m, checkpoint_every=args.checkpoint_every,
-                               tensorboard=args.tensorboard) for s, d, m in zip(seeds, seed_dirs, modes)],
+                               tensorboard=args.tensorboard) for s, d, m in zip(seeds, seed_dirs, modes) if m != "keep"],
                    args.seed_batch)
     outcome = run_jobs(jobs, backend_for(workers, len(jobs), address), progress=not args.no_progress)
-    summaries = outcome.summaries
+    summaries = sorted(kept + outcome.summaries, key=lambda s: seeds.index(s.seed))
     failures = [s for s in summaries if s.status in ("non_finite_loss", "error")]
     for s in failures:
         print(f"error: seed {s.seed}: {s.message}", file=sys.stderr)

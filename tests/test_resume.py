@@ -115,3 +115,22 @@ def test_resume_with_other_options_is_refused(tmp_path):
     other = subprocess.run([*args("pendulum", "keras", 30, out)[:-2], "--out", str(out), "--resume", "--set",
                             "tau=0.01"], capture_output=True, text=True, timeout=300)
     assert other.returncode == 2 and "was made with tau=0.001" in other.stderr
+
+
+def test_resume_finishes_a_set_keeping_its_completed_seeds_and_refuses_ones_of_another_config(tmp_path):
+    out = tmp_path / "set"
+    quick = ["pendulum", "--episodes", "3", "--no-progress", "--min-success-rate", "0", "--out", str(out)]
+    first = subprocess.run([*CLI, *quick, "--seeds", "0"], capture_output=True, text=True, timeout=300)
+    assert first.returncode == 0, first.stderr
+    done = out / "seed_0" / "episodes.csv"
+    before = (done.stat().st_mtime_ns, done.read_bytes())
+    other = subprocess.run([*CLI, *quick, "--seeds", "0-1", "--resume", "--set", "tau=0.01"], capture_output=True,
+                           text=True, timeout=300)
+    assert other.returncode == 2 and "different config" in other.stderr and "tau=" in other.stderr, other.stderr
+    assert not (out / "seed_1").exists()  # refused before anything ran
+    finish = subprocess.run([*CLI, *quick, "--seeds", "0-1", "--resume"], capture_output=True, text=True, timeout=300)
+    assert finish.returncode == 0, finish.stderr
+    assert "seed 0: already completed" in finish.stderr and "kept" in finish.stderr
+    assert (done.stat().st_mtime_ns, done.read_bytes()) == before  # kept, not rerun
+    assert len(rows(out / "seed_1" / "episodes.csv")) == 3
+    assert "2 seeds" in (out / "summary.md").read_text()  # the set's summary covers both
