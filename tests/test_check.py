@@ -52,6 +52,7 @@ def test_decide_flags_a_shift_in_either_direction_and_not_a_resample():
     assert fisher.changed and fisher.test.startswith("Fisher")
     assert not decide(np.ones(30), np.ones(10), "success", 0.01).changed
     assert decide(base, [np.nan] * 10, "auc", 0.01).changed  # runs that blew up changed
+    assert decide(np.ones(30), [1.0] * 9 + [np.nan], "success", 0.01).changed  # for every statistic
     assert not decide([5.0] * 30, [5.0] * 10, "auc", 0.01).changed  # nothing to tell apart
 
 

@@ -72,11 +72,12 @@ def decide(baseline: Sequence[float], new: Sequence[float], statistic: str, alph
     baseline, new = np.asarray(baseline, float), np.asarray(new, float)
     if len(baseline) == 0 or len(new) == 0:
         raise ValueError("both samples need at least one seed")
+    test = "Fisher's exact test (two-sided)" if statistic == "success" else "Mann-Whitney U (two-sided)"
+    if np.isnan(baseline).any() or np.isnan(new).any():  # a run that blew up is a change in itself
+        return Decision(0.0, True, test, float("nan"))
     if statistic == "success":
         p = fisher_exact(int(new.sum()), len(new), int(baseline.sum()), len(baseline))
-        return Decision(p, p < alpha, "Fisher's exact test (two-sided)", float(new.mean()))
-    if np.isnan(baseline).any() or np.isnan(new).any():  # a NaN run is a change in itself
-        return Decision(0.0, True, "Mann-Whitney U (two-sided)", float("nan"))
+        return Decision(p, p < alpha, test, float(new.mean()))
     if np.ptp(np.concatenate([baseline, new])) == 0:  # all equal: nothing to tell apart
         return Decision(1.0, False, "Mann-Whitney U (two-sided)", float("nan"))
     u, p = mann_whitney(new, baseline)
