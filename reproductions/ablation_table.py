@@ -56,9 +56,9 @@ def _summaries(folder: Path) -> list:
     return [RunSummary.read(d) for d in sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1]))]
 
 
-def _reading(row: dict) -> str:
+def _reading(row: dict, statuses: list[str]) -> str:
     if row["unfinished"] and len(row["unfinished"]) == row["seeds"]:
-        return "every seed stopped early (see its summaries)"
+        return "every seed stopped early: " + ", ".join(sorted(set(statuses)))
     rate, diff = row["success_difference"], row.get("median_difference")
     if rate["low"] > 0 or rate["high"] < 0:
         return "changes the success rate"
@@ -104,7 +104,7 @@ def table(experiment: str) -> str:
             continue
         r = result[label]
         stopped = f" ({len(r['unfinished'])} stopped early)" if r["unfinished"] else ""
-        spread = f"{g(r['median'])} ({g(r['q25'])}-{g(r['q75'])})"
+        spread = "n/a" if r["median"] is None else f"{g(r['median'])} ({g(r['q25'])}-{g(r['q75'])})"
         if label == "faithful":
             lines.append(f"| {ledger_id} | {label} | {r['successes']}/{r['seeds']}{stopped} | - | - | {spread} | - | - | - |")
             continue
@@ -112,7 +112,8 @@ def table(experiment: str) -> str:
         diff_text = "n/a" if diff is None else f"{diff['estimate']:+g} [{diff['low']:+g}, {diff['high']:+g}]"
         lines.append(f"| {ledger_id} | {label} | {r['successes']}/{r['seeds']}{stopped} "
                      f"| {rate['estimate']:+.2f} [{rate['low']:+.2f}, {rate['high']:+.2f}] | {p(r['fisher_p'])} "
-                     f"| {spread} | {diff_text} | {p(r.get('mann_whitney_p'))} | {_reading(r)} |")
+                     f"| {spread} | {diff_text} | {p(r.get('mann_whitney_p'))} "
+                     f"| {_reading(r, [x.status for x in summaries[label]])} |")
     return "\n".join(lines)
 
 
