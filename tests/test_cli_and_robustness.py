@@ -123,6 +123,14 @@ def test_nan_in_a_loss_stops_the_run_and_keeps_the_episodes(tmp_path):
     rows = read_episodes(tmp_path / "episodes.csv")
     assert [r["episode"] for r in rows] == [1, 2]  # the episode that hit NaN is not recorded
     assert json.loads((tmp_path / "summary.json").read_text())["status"] == "non_finite_loss"
+    # a NaN is this config's outcome: sweep and compare reuse it rather than rerun it each time
+    from keras_rl.runs.provenance import code_version
+    from keras_rl.runs.reuse import check_reusable
+
+    assert check_reusable(tmp_path, config, code_version()) is None
+    stopped = json.loads((tmp_path / "summary.json").read_text()) | {"status": "interrupted"}
+    (tmp_path / "summary.json").write_text(json.dumps(stopped))
+    assert check_reusable(tmp_path, config, code_version()) == "unfinished (interrupted)"
 
 
 def test_ctrl_c_mid_episode_is_taken_between_env_steps(tmp_path):

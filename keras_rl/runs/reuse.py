@@ -11,10 +11,15 @@ from keras_rl.runs.summary import RunSummary
 
 IGNORED_FIELDS = {"seed"}
 """The seed is in the folder's name; every other field must match."""
+OUTCOMES = ("completed", "non_finite_loss")
+"""Statuses that are what a config and seed do, so a rerun would only repeat them: a loss
+that turns NaN is the run's result (post 001 with the learning phase on, at update 1), not
+an accident like an interruption or a failed write."""
 
 
 def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
-    """None if ``seed_dir`` holds a finished run of config ``expected``; else why it cannot be reused.
+    """None if ``seed_dir`` holds a finished run of config ``expected`` (``OUTCOMES``); else why
+    it cannot be reused.
 
     Raises RunFolderError for a run of a *different* config or code version. A folder made
     before a field existed (or under an older field name) is read through the config's
@@ -38,6 +43,6 @@ def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
     if theirs != code_version:
         raise RunFolderError(f"{seed_dir} was made by code version {theirs}, this is {code_version}; "
                              "refusing to mix code versions: pass --rerun to replace it")
-    if summary.status != "completed":
+    if summary.status not in OUTCOMES:
         return f"unfinished ({summary.status})"
     return None
