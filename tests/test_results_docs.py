@@ -52,3 +52,15 @@ def test_fidelitys_measured_effect_tables_are_up_to_date():
     for ledger_id in ("P000-NOISE", "P000-DONE", "P000-BROADCAST", "P000-TARGETINIT"):
         row = next(line for line in pendulum.splitlines() if line.startswith(f"| {ledger_id} |"))
         assert "not run yet" not in row and "10/10" in row
+
+
+def test_every_committed_run_records_the_commit_and_clean_tree_that_made_it():
+    import json
+
+    summaries = sorted((ROOT / "results").glob("**/seed_*/summary.json"))
+    assert len(summaries) > 500
+    missing = [str(p.parent.relative_to(ROOT)) for p in summaries
+               if not json.loads(p.read_text()).get("provenance", {}).get("commit")]
+    dirty = [str(p.parent.relative_to(ROOT)) for p in summaries if json.loads(p.read_text())["provenance"].get("dirty")]
+    assert not missing, f"runs without provenance (regenerate them): {missing[:5]}"
+    assert not dirty, f"runs made from a dirty tree (regenerate them from a clean checkout): {dirty[:5]}"
