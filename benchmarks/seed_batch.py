@@ -2,6 +2,7 @@
 
     python benchmarks/seed_batch.py                          # post 000, 8 episodes per seed
     python benchmarks/seed_batch.py --experiment cartpole    # post 003, 250 episodes per seed
+    python benchmarks/seed_batch.py --experiment mountaincar # post 001, 4 episodes (999 steps) per seed
 
 Part 1 (one process, one TensorFlow thread): one solo seed, then S = 2, 4, 8, 10 and 16
 seeds in one ``--seed-batch`` run, every seed playing its own episodes. The ratio is the
@@ -33,8 +34,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import keras_rl  # noqa: E402,F401
 
-OVERRIDES = {"pendulum": {"train_start": 200, "stop_at_threshold": False}, "cartpole": {}}
-DEFAULT_EPISODES = {"pendulum": 8, "cartpole": 250}
+OVERRIDES = {"pendulum": {"train_start": 200, "stop_at_threshold": False}, "cartpole": {}, "mountaincar": {}}
+POST = {"pendulum": "000", "mountaincar": "001", "cartpole": "003"}
+DEFAULT_EPISODES = {"pendulum": 8, "cartpole": 250, "mountaincar": 4}
 
 
 def _configs(experiment: str, seeds, episodes: int):
@@ -59,7 +61,7 @@ def solo_seconds(experiment: str, episodes: int) -> tuple[float, int]:
 
 def batch_seconds(experiment: str, seeds: int, episodes: int) -> tuple[float, int]:
     """A batch's wall time and vector steps (its longest seed's env steps)."""
-    from keras_rl.runs.batched import run_seed_batch
+    from keras_rl.runs.loop import run_seeds as run_seed_batch
 
     exp, configs = _configs(experiment, range(seeds), episodes)
     with tempfile.TemporaryDirectory() as tmp:
@@ -137,7 +139,7 @@ def main() -> None:
 def parts_1_and_2(name: str, episodes: int) -> None:
     solo, solo_steps = solo_seconds(name, episodes)
     per_step = solo / solo_steps
-    print(f"{name} (post {'000' if name == 'pendulum' else '003'}), {episodes} episodes per seed, 1 thread; "
+    print(f"{name} (post {POST[name]}), {episodes} episodes per seed, 1 thread; "
           f"one solo seed: {solo:.2f} s for {solo_steps} env steps ({per_step * 1000:.2f} ms per step)")
     print("| seeds | how | wall s | vector steps | wall / one solo seed over as many steps |")
     print("|---|---|---|---|---|")

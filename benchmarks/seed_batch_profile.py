@@ -46,7 +46,7 @@ def main() -> None:
     args = parser.parse_args()
 
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.batched import run_seed_batch
+    from keras_rl.runs.loop import run_seeds as run_seed_batch
     from keras_rl.runs.loop import run_seed
     from keras_rl.seeding import configure_tensorflow
 

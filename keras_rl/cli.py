@@ -86,8 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--min-success-rate", type=float, default=1.0,
                      help="exit 0 only if at least this share of seeds succeed (default 1.0: all)")
     rep.add_argument("--seed-batch", type=int, default=1, metavar="S",
-                     help="train S seeds together in one compiled step per env step (pendulum and cartpole, keras; "
-                          "default 1)")
+                     help="train S seeds together in one compiled step per env step (keras; default 1)")
     rep.add_argument("--overwrite", action="store_true",
                      help="replace seed folders that already hold a run (each is cleared whole first)")
     rep.add_argument("--resume", action="store_true",
@@ -122,7 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--reuse-only", action="store_true", help="run nothing; fail if a seed is missing")
     cp.add_argument("--seed-batch", type=int, default=1, metavar="S",
                     help="Keras runs still to make: train S seeds together in one compiled step per env step "
-                         "(pendulum and cartpole; default 1)")
+                         "(default 1)")
     cp.add_argument("--no-progress", action="store_true", help="no progress bars")
 
     sw = sub.add_parser("sweep", help="a grid of config values x seeds, resumable, with a report per grid point")
@@ -145,7 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--address", default=None, help="run on the Ray cluster at HOST:PORT (default: $RAY_ADDRESS)")
     sw.add_argument("--seed-batch", type=int, default=1, metavar="S",
                     help="train S seeds of a grid point together in one compiled step per env step "
-                         "(pendulum and cartpole in Keras; default 1)")
+                         "(Keras; default 1)")
     sw.add_argument("--out", type=_path_arg, required=True, help="the sweep's folder: <grid point>/seed_<n>/, sweep.md")
     sw.add_argument("--yes", action="store_true", help="allow a sweep of more than 10,000 jobs")
     sw.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -314,8 +313,7 @@ def reproduce(args: argparse.Namespace) -> int:
     seed_dirs = [out / f"seed_{s}" for s in seeds]
     modes = _start_modes(seed_dirs, args.overwrite, args.resume)
     address = _address(args)
-    _check_seed_batch(args.seed_batch, experiment.name, args.framework, address,
-                      resume=args.resume, tensorboard=args.tensorboard)
+    _check_seed_batch(args.seed_batch, experiment.name, args.framework)
 
     from keras_rl.report.aggregate import write_aggregate
     from keras_rl.runs.backends import backend_for
@@ -377,10 +375,13 @@ def evaluate(args: argparse.Namespace) -> int:
 
 
 def compare(args: argparse.Namespace) -> int:
+    if args.rerun and args.reuse_only:
+        raise ConfigError("--rerun and --reuse-only contradict each other (one reruns every seed, the other runs "
+                          "none); pick one")
     workers = _check_counts(args.workers, args.episodes)
     seeds = parse_seeds(args.seeds)
     address = _address(args)
-    _check_seed_batch(args.seed_batch, args.experiment, "keras", address)
+    _check_seed_batch(args.seed_batch, args.experiment, "keras")
     from keras_rl.report.compare import compare as run_compare
     from keras_rl.runs.provenance import command_line
 
@@ -396,8 +397,7 @@ def compare(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _check_seed_batch(seed_batch: int, experiment: str, framework: str, address: str | None,
-                      resume: bool = False, tensorboard=None) -> None:
+def _check_seed_batch(seed_batch: int, experiment: str, framework: str) -> None:
     """``--seed-batch S``: a clear error before anything runs when it cannot apply."""
     if seed_batch < 1:
         raise ConfigError(f"--seed-batch must be at least 1, got {seed_batch}")
@@ -405,8 +405,6 @@ def _check_seed_batch(seed_batch: int, experiment: str, framework: str, address:
         from keras_rl.learners.table import stacked_implementation
 
         stacked_implementation(experiment, framework)  # a clear error if there is none
-        if resume or tensorboard or address:
-            raise ConfigError("--seed-batch does not yet combine with --resume, --tensorboard or --address")
 
 
 def _address(args: argparse.Namespace) -> str | None:
@@ -443,7 +441,7 @@ def sweep(args: argparse.Namespace) -> int:
                           f"{', '.join(p.name for p in points)}")
     _check_writable_dir(args.out, "--out")
     address = _address(args)
-    _check_seed_batch(args.seed_batch, experiment.name, args.framework, address)
+    _check_seed_batch(args.seed_batch, experiment.name, args.framework)
     every, todo, configs = sweep_jobs(base, points, seeds, args.out, args.yes)
     if args.framework == "torch":
         from keras_rl.torch import require_torch

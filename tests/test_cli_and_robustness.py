@@ -13,6 +13,7 @@ from keras_rl.cli import main, parse_seeds
 from keras_rl.posts.pendulum import PendulumDDPGConfig
 from keras_rl.registry import get_experiment
 from keras_rl.runs.loop import run_seed
+from keras_rl.errors import RunFolderError
 from keras_rl.runs.files import read_episodes
 from wrappers import NaNRewardAfter, SigintAt
 
@@ -256,3 +257,39 @@ def test_cartpole_run_folder_and_evaluate_with_gif(tmp_path, framework, weights)
     scores = json.loads((run_dir / "evaluation.json").read_text())["scores"]
     assert len(scores) == 2 and all(1 <= s <= 500 for s in scores)
     assert gif.read_bytes()[:6] in (b"GIF87a", b"GIF89a")
+
+
+def test_compare_and_sweep_never_remove_a_seed_folder_they_did_not_make(tmp_path, capsys):
+    """Issue #23.1: a seed folder without summary.json (someone's notes in it) is refused
+    with its name, not deleted; --rerun is the way to replace it."""
+    from keras_rl.posts.pendulum import PendulumDDPGConfig
+    from keras_rl.runs.provenance import code_version
+    from keras_rl.runs.reuse import check_reusable
+
+    seed_dir = tmp_path / "seed_0"
+    seed_dir.mkdir()
+    (seed_dir / "NOTES.txt").write_text("mine")
+    with pytest.raises(RunFolderError, match="NOTES.txt.*no summary.json.*left as it is"):
+        check_reusable(seed_dir, PendulumDDPGConfig(seed=0), code_version())
+    assert (seed_dir / "NOTES.txt").read_text() == "mine"
+    assert check_reusable(tmp_path / "seed_1", PendulumDDPGConfig(seed=1), code_version()) == "missing"
+    (tmp_path / "seed_2").mkdir()  # an empty folder holds nothing to lose
+    assert check_reusable(tmp_path / "seed_2", PendulumDDPGConfig(seed=2), code_version()) == "missing"
+    pytest.importorskip("torch", reason="compare needs the torch extra")
+    argv = ["compare", "pendulum", "--seeds", "0", "--episodes", "2", "--runs", str(tmp_path / "runs"), "--no-progress"]
+    assert main([*argv, "--out", str(tmp_path / "R1")]) == 0
+    made = tmp_path / "runs" / "pendulum" / "faithful" / "seed_0"
+    (made / "summary.json").unlink()
+    (made / "NOTES.txt").write_text("mine")
+    capsys.readouterr()
+    assert main([*argv, "--out", str(tmp_path / "R2")]) == 2  # the issue's reproducer exited 0 and lost NOTES.txt
+    err = capsys.readouterr().err
+    assert f"{made} holds files (NOTES.txt" in err and "no summary.json" in err
+    assert (made / "NOTES.txt").read_text() == "mine"
+
+
+def test_compare_refuses_rerun_with_reuse_only(capsys):
+    from keras_rl.cli import main
+
+    assert main(["compare", "pendulum", "--seeds", "0", "--rerun", "--reuse-only"]) == 2
+    assert "--rerun and --reuse-only contradict each other" in capsys.readouterr().err

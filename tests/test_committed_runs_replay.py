@@ -70,3 +70,36 @@ def test_committed_run_reproduces_bit_for_bit(tmp_path, folder, experiment, extr
     assert len(got) == len(expected)
     for want, have in zip(expected, got):
         assert have == want, f"{folder}: first difference at episode {want['episode']}"
+
+
+BATCH_CASES = [
+    # (committed set, experiment, the batch of seeds its command made together, episodes to rerun)
+    pytest.param("checks/pendulum/baseline", "pendulum", "0-14", 12, id="post000-batch-of-15-first12"),
+    pytest.param("checks/cartpole/baseline", "cartpole", "0-14", 60, id="post003-batch-of-15-first60"),
+]
+
+
+@pytest.mark.parametrize("folder, experiment, seeds, episodes", BATCH_CASES)
+def test_committed_seed_batch_reproduces_bit_for_bit(tmp_path, folder, experiment, seeds, episodes):
+    """A committed seed-batched set (``--seed-batch 15``): each seed's bits depend on its batch
+    mates, so the same batch is rerun and every seed compared."""
+    committed = RESULTS / folder
+    first, last = (int(x) for x in seeds.split("-"))
+    summary = json.loads((committed / f"seed_{first}" / "summary.json").read_text())
+    assert f"--seeds 0-29 --workers 2 --seed-batch {last - first + 1}" in summary["command"]  # batches 0-14, 15-29
+    theirs = summary.get("provenance", {}).get("cpu_model")
+    if theirs is not None and theirs != cpu_model():
+        warnings.warn(f"{folder} was made on {theirs!r}, this is {cpu_model()!r}: only 5 episodes are compared")
+        episodes = 5
+    out = tmp_path / "run"
+    proc = subprocess.run(
+        [sys.executable, "-m", "keras_rl", "reproduce", experiment, "--seeds", seeds, "--seed-batch",
+         str(last - first + 1), "--episodes", str(episodes), "--no-progress", "--min-success-rate", "0",
+         "--out", str(out)], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr
+    for seed in range(first, last + 1):
+        expected = read_rows(committed / f"seed_{seed}" / "episodes.csv")[:episodes]
+        got = read_rows(out / f"seed_{seed}" / "episodes.csv")
+        assert len(got) == len(expected), f"seed {seed}"
+        for want, have in zip(expected, got):
+            assert have == want, f"{folder} seed {seed}: first difference at episode {want['episode']}"

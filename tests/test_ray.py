@@ -137,10 +137,11 @@ def _descendants(pid: int) -> set[int]:
 
 
 def test_two_node_cluster_runs_jobs_on_both_nodes_and_files_land_in_the_drivers_out(tmp_path):
+    """Two seed batches (``--seed-batch 2``) and two solo seeds on a 2-node cluster."""
     from ray.cluster_utils import Cluster
 
     from keras_rl.posts.pendulum import PendulumDDPGConfig
-    from keras_rl.runs.jobs import SeedJob, run_jobs
+    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched, run_jobs
     from keras_rl.runs.ray_backend import RayBackend
 
     os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
@@ -150,12 +151,15 @@ def test_two_node_cluster_runs_jobs_on_both_nodes_and_files_land_in_the_drivers_
     cluster.wait_for_nodes()
     try:
         config = PendulumDDPGConfig(episodes=2, stop_at_threshold=False)
-        jobs = [SeedJob.of(config.replace(seed=s), tmp_path / f"seed_{s}") for s in range(4)]
+        jobs = [SeedJob.of(config.replace(seed=s), tmp_path / f"seed_{s}") for s in range(6)]
+        jobs = batched(jobs[:4], 2) + jobs[4:]
+        assert [isinstance(j, SeedBatchJob) for j in jobs] == [True, True, False, False]
         outcome = run_jobs(jobs, RayBackend(address=cluster.address), progress=False)
-        assert not outcome.interrupted and [s.status for s in outcome.summaries] == ["completed"] * 4
+        assert not outcome.interrupted and [s.status for s in outcome.summaries] == ["completed"] * 6
         nodes = {s.provenance["ray_node_id"] for s in outcome.summaries}
         assert len(nodes) == 2  # the jobs ran on both nodes
-        for s in range(4):
+        assert [s.provenance.get("seed_batch") for s in outcome.summaries] == [[0, 1]] * 2 + [[2, 3]] * 2 + [None] * 2
+        for s in range(6):
             assert len(read_episodes(tmp_path / f"seed_{s}" / "episodes.csv")) == 2
             assert (tmp_path / f"seed_{s}" / "actor.weights.h5").is_file()
     finally:

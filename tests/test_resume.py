@@ -5,6 +5,7 @@ refused and nothing in the folder is touched."""
 from __future__ import annotations
 
 import csv
+import json
 import os
 import signal
 import subprocess
@@ -36,6 +37,23 @@ def args(experiment, framework, episodes, out, seed=2):
             "--no-progress", "--checkpoint-every", "3", *quick, "--out", str(out)]
 
 
+def kill_when_on_disk(command: list[str], csv_path: Path, episodes: int, timeout: float = 600) -> int:
+    """Start ``command``, SIGKILL it once ``csv_path`` holds ``episodes`` rows; the rows it kept."""
+    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env_for_child(),
+                            preexec_fn=_default_signals)
+    deadline = time.monotonic() + timeout
+    try:
+        while time.monotonic() < deadline and proc.poll() is None:
+            if csv_path.is_file() and len(rows(csv_path)) >= episodes:
+                break
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.wait(timeout=60)
+    assert proc.returncode == -signal.SIGKILL, "the run ended before it could be killed"
+    return len(rows(csv_path))
+
+
 def env_for_child():
     # the child must die of SIGKILL, and take SIGINT/SIGTERM itself, whatever this runner ignores
     return {**os.environ, "PYTHONUNBUFFERED": "1"}
@@ -50,19 +68,8 @@ def test_killed_and_resumed_run_equals_an_uninterrupted_one(tmp_path, experiment
                               text=True, timeout=600)
     assert straight.returncode in (0, 1), straight.stderr
     csv_path = tmp_path / "killed" / "seed_2" / "episodes.csv"
-    proc = subprocess.Popen(args(experiment, framework, episodes, tmp_path / "killed"), stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, env=env_for_child(), preexec_fn=_default_signals)
-    deadline = time.monotonic() + 600
-    try:
-        while time.monotonic() < deadline and proc.poll() is None:
-            if csv_path.is_file() and len(rows(csv_path)) >= kill_after:
-                break
-            time.sleep(0.02)
-        proc.send_signal(signal.SIGKILL)
-    finally:
-        proc.wait(timeout=60)
-    kept = len(rows(csv_path))
-    assert proc.returncode == -signal.SIGKILL and kept < episodes, "the run finished before it could be killed"
+    kept = kill_when_on_disk(args(experiment, framework, episodes, tmp_path / "killed"), csv_path, kill_after)
+    assert kept < episodes, "the run finished before it could be killed"
     assert (tmp_path / "killed" / "seed_2" / "checkpoint.pkl").is_file()
     resumed = subprocess.run([*args(experiment, framework, episodes, tmp_path / "killed"), "--resume"],
                              capture_output=True, text=True, timeout=600)
@@ -71,6 +78,71 @@ def test_killed_and_resumed_run_equals_an_uninterrupted_one(tmp_path, experiment
     assert len(expected) == episodes
     assert rows(csv_path) == expected, f"resumed after {kept} episodes on disk"
     assert not (tmp_path / "killed" / "seed_2" / "checkpoint.pkl").exists()  # a completed run keeps none
+
+
+BATCH_CASES = [  # experiment, seeds, episodes, kill after this many episodes are on disk for the first seed
+    ("cartpole", "1-3", 50, 30),  # episodes of different lengths: checkpoints fall mid-episode for some seeds
+    ("pendulum", "1-2", 12, 7),
+]
+
+
+@pytest.mark.parametrize("experiment, seeds, episodes, kill_after", BATCH_CASES, ids=[c[0] for c in BATCH_CASES])
+def test_a_killed_and_resumed_batch_equals_an_uninterrupted_batch_for_every_seed(tmp_path, experiment, seeds, episodes,
+                                                                                 kill_after):
+    def batch_args(out):
+        return [*args(experiment, "keras", episodes, out)[:-2], "--seeds", seeds, "--seed-batch", "4",
+                "--out", str(out)]
+
+    first, last = (int(x) for x in seeds.split("-"))
+    straight = subprocess.run(batch_args(tmp_path / "straight"), capture_output=True, text=True, timeout=600)
+    assert straight.returncode in (0, 1), straight.stderr
+    csv_path = tmp_path / "killed" / f"seed_{first}" / "episodes.csv"
+    assert kill_when_on_disk(batch_args(tmp_path / "killed"), csv_path, kill_after) < episodes, "finished first"
+    resumed = subprocess.run([*batch_args(tmp_path / "killed"), "--resume"], capture_output=True, text=True,
+                             timeout=600)
+    assert resumed.returncode in (0, 1), resumed.stderr
+    for seed in range(first, last + 1):
+        expected = rows(tmp_path / "straight" / f"seed_{seed}" / "episodes.csv")
+        assert rows(tmp_path / "killed" / f"seed_{seed}" / "episodes.csv") == expected, f"seed {seed}"
+        summary = json.loads((tmp_path / "killed" / f"seed_{seed}" / "summary.json").read_text())
+        assert summary["provenance"]["seed_batch"] == list(range(first, last + 1))
+        assert not list((tmp_path / "killed" / f"seed_{seed}").glob("checkpoint*.pkl"))  # the batch ended
+
+
+def test_a_batch_killed_while_writing_its_checkpoints_resumes_from_the_step_every_seed_holds(tmp_path):
+    from keras_rl.errors import RunFolderError
+    from keras_rl.runs.checkpoint import read_batch_checkpoints, write_checkpoint
+
+    dirs = [tmp_path / f"seed_{s}" for s in (0, 1)]
+    for step in (4, 9):
+        for d in dirs:
+            write_checkpoint(d, {"version": 2, "batch": [0, 1], "vector_step": step, "who": d.name})
+    write_checkpoint(dirs[0], {"version": 2, "batch": [0, 1], "vector_step": 15, "who": "seed_0"})  # then killed
+    states = read_batch_checkpoints(dirs, [0, 1])
+    assert [(st["vector_step"], st["who"]) for st in states] == [(9, "seed_0"), (9, "seed_1")]
+    with pytest.raises(RunFolderError, match="belongs to a batch of seeds \\[0, 1\\]"):
+        read_batch_checkpoints(dirs, [0, 1, 2])
+    write_checkpoint(dirs[1], {"version": 2, "batch": [0, 1], "vector_step": 20, "who": "seed_1"})
+    write_checkpoint(dirs[1], {"version": 2, "batch": [0, 1], "vector_step": 21, "who": "seed_1"})
+    with pytest.raises(RunFolderError, match="not written at one vector step"):
+        read_batch_checkpoints(dirs, [0, 1])
+
+
+def test_a_resumed_seed_must_resume_with_its_batch(tmp_path):
+    from keras_rl.errors import RunFolderError
+    from keras_rl.posts.cartpole import CartPoleDQNConfig
+    from keras_rl.runs.checkpoint import write_checkpoint
+    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched
+
+    jobs = []
+    for seed in (4, 5):
+        write_checkpoint(tmp_path / f"seed_{seed}", {"version": 2, "batch": [5, 4], "vector_step": 3})
+        jobs.append(SeedJob.of(CartPoleDQNConfig(seed=seed), tmp_path / f"seed_{seed}", start="resume", command="x"))
+    packed = batched(jobs, 1)  # whatever --seed-batch says now, the batch that wrote them resumes whole
+    assert len(packed) == 1 and isinstance(packed[0], SeedBatchJob)
+    assert [j.config["seed"] for j in packed[0].jobs] == [5, 4]  # in the checkpoint's order
+    with pytest.raises(RunFolderError, match="resume them together"):
+        batched(jobs[:1], 4)
 
 
 def _default_signals():

@@ -110,7 +110,7 @@ def _csv(path):
 
 def _batch(tmp_path, name, seeds, **overrides):
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.batched import run_seed_batch
+    from keras_rl.runs.loop import run_seeds as run_seed_batch
 
     exp = get_experiment("pendulum")
     configs = [exp.config_cls.for_variant("faithful", seed=s, **overrides) for s in seeds]
@@ -169,7 +169,7 @@ def _envs(seeds, wrap=None):
 
 def test_a_nan_in_one_seed_stops_that_seed_only(tmp_path):
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.batched import run_seed_batch
+    from keras_rl.runs.loop import run_seeds as run_seed_batch
 
     exp = get_experiment("pendulum")
     seeds = [0, 1, 2]
@@ -187,7 +187,7 @@ def test_ctrl_c_stops_every_seed_of_a_batch_and_keeps_their_episodes(tmp_path):
     import signal
 
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.batched import run_seed_batch
+    from keras_rl.runs.loop import run_seeds as run_seed_batch
 
     exp = get_experiment("pendulum")
     seeds = [0, 1]
@@ -282,7 +282,7 @@ def test_one_stacked_dqn_update_equals_each_seeds_solo_update_and_ignores_its_ba
 
 def _cartpole_runs(tmp_path, name, seeds, episodes, batch: bool):
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.batched import run_seed_batch
+    from keras_rl.runs.loop import run_seeds as run_seed_batch
     from keras_rl.runs.loop import run_seed
 
     exp = get_experiment("cartpole")

@@ -251,11 +251,13 @@ def test_every_option_has_help_text():
     assert "faithful-intended" in subparsers.choices["reproduce"].format_help()
 
 
-def test_tensorboard_scalars_read_back(tmp_path):
+@pytest.mark.parametrize("seed_batch", [1, 2])
+def test_tensorboard_scalars_read_back(tmp_path, seed_batch):
     import tensorflow as tf
 
     proc = run_cli("reproduce", "cartpole", "--seeds", "0-1", "--episodes", "3", "--no-progress",
-                   "--out", str(tmp_path / "runs"), "--tensorboard", str(tmp_path / "tb"))
+                   "--out", str(tmp_path / "runs"), "--tensorboard", str(tmp_path / "tb"),
+                   "--seed-batch", str(seed_batch))
     assert proc.returncode == 1, proc.stderr
     runs = sorted(p.name for p in (tmp_path / "tb").iterdir())
     assert runs == ["cartpole-faithful-keras-seed0", "cartpole-faithful-keras-seed1"]

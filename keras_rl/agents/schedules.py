@@ -1,15 +1,17 @@
-"""Training schedules: when, after storing a step's transitions, the learner trains.
+"""Training schedules: which updates an env step makes, once its transitions are stored.
 
-``after_store(learner, buffer, total_steps, next_state, over)`` runs the step's updates and
-returns ``(losses of each update, the next action or None)``. A schedule that can fuse the
-last update with picking the next action does (one compiled call); when it returns no
-action and the episode goes on, the agent asks the learner for one.
+``batches(buffer, total_steps)`` draws the step's training batches (packed rows, one per
+update; none when the step does not train). ``fuse_act``: the step's last update and the
+next action may be one compiled call (the posts pick step t+1's action with the weights
+step t's update made). The schedule only decides; the agent (``skeleton.run_updates``) or
+the episode loop (``runs/loop.py``, for a seed axis) turns the batches into learner calls.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+
+import numpy as np
 
 
 @dataclass(frozen=True)
@@ -27,29 +29,28 @@ class EveryStep:
     every: int = 1
     fuse_act: bool = True
 
-    def after_store(self, learner, buffer, total_steps: int, next_state, over: bool) -> tuple[list, Any]:
+    def batches(self, buffer, total_steps: int) -> list[np.ndarray]:
         if len(buffer) >= self.train_start and total_steps % self.every == 0:
-            rows = buffer.sample_rows(self.batch_size)  # random.sample: without replacement
-            if over or not self.fuse_act:
-                return [learner.train(rows)], None
-            losses, action = learner.train_and_act(rows, next_state)
-            return [losses], action
-        return [], learner.act_without_update(next_state, want_action=not over)
+            return [buffer.sample_rows(self.batch_size)]  # random.sample: without replacement
+        return []
 
 
 @dataclass(frozen=True)
 class Bursts:
     """Post 001 P001-TRIGGER: ``if len(agent.memory) > 1000: agent.train()`` every env step,
     and ``train()`` pops batch after batch ``while len(self.memory) > 100``, each its own
-    update (with its soft update). The trigger is strict: ``> train_start``."""
+    update (with its soft update). The trigger is strict: ``> train_start``. The batches
+    are popped before the first update; the buffer draws from its own generator, which no
+    update touches, so they are the batches the post pops one update at a time."""
 
     train_start: int
     train_down_to: int
     batch_size: int
+    fuse_act: bool = False  # agent.get_action is its own predict
 
-    def after_store(self, learner, buffer, total_steps: int, next_state, over: bool) -> tuple[list, Any]:
-        losses = []
+    def batches(self, buffer, total_steps: int) -> list[np.ndarray]:
+        out = []
         if len(buffer) > self.train_start:
             while len(buffer) > self.train_down_to:
-                losses.append(learner.train(buffer.sample_rows(self.batch_size)))
-        return losses, None
+                out.append(buffer.sample_rows(self.batch_size))
+        return out

@@ -46,15 +46,37 @@ class DDPGLearner:
         self.gamma, self.tau = float(gamma), float(tau)
         self.broadcast_target = bool(broadcast_target)
         self.layout = layout
-        actor_optimizer.build(actor.trainable_variables)
-        critic_optimizer.build(critic.trainable_variables)
-        rows = tf.TensorSpec([None, layout.width], tf.float32)  # packed transitions, see buffers.py
-        obs = tf.TensorSpec([layout.obs_dim], tf.float32)
+        self.build_optimizers()
+        rows, obs = self.input_specs()
         self._train = compile_step(self._train_rows, xla, rows)
         self._act = compile_step(self._act_one, xla, obs)
         # Acting and training fused into one call per env step: the post trains at the
         # end of step t and picks step t+1's action with the updated actor; so do we.
         self._train_and_act = compile_step(self._train_rows_and_act, xla, rows, obs)
+
+    # -- hooks: a stacked learner (``stacked.py``) runs this same update over a seed axis -----
+    def build_optimizers(self) -> None:
+        self.actor_optimizer.build(self.actor.trainable_variables)
+        self.critic_optimizer.build(self.critic.trainable_variables)
+
+    def input_specs(self) -> tuple[tf.TensorSpec, tf.TensorSpec]:
+        """Packed transitions ``[B, width]`` (buffers.py) and one state ``[obs]``."""
+        return tf.TensorSpec([None, self.layout.width], tf.float32), tf.TensorSpec([self.layout.obs_dim], tf.float32)
+
+    def seed_mean(self, x: tf.Tensor) -> tf.Tensor:
+        """A loss's mean over the batch (per seed, stacked)."""
+        return tf.reduce_mean(x)
+
+    def total(self, loss: tf.Tensor) -> tf.Tensor:
+        """What the gradient is taken of (stacked: the sum of the seeds' losses)."""
+        return loss
+
+    def apply_gradients(self, optimizer, grads, variables) -> None:
+        optimizer.apply_gradients(zip(grads, variables))
+
+    def soft_update_targets(self) -> None:
+        soft_update(self.target_actor.variables, self.actor.variables, self.tau)
+        soft_update(self.target_critic.variables, self.critic.variables, self.tau)
 
     @classmethod
     def with_adam(cls, networks: tuple[keras.Model, keras.Model, keras.Model, keras.Model], actor_lr: float,
@@ -107,12 +129,12 @@ class DDPGLearner:
     def td_targets(self, rewards: tf.Tensor, next_states: tf.Tensor, dones: tf.Tensor) -> tf.Tensor:
         """The critic's regression targets, [B,B] under P000-BROADCAST, else [B,1]."""
         next_q = self.target_critic(next_states, self.target_actor(next_states))  # [B, 1]
-        rewards = rewards[:, None]  # [B, 1]: the post's rewards came back from env.step as (1,)
+        rewards = rewards[..., None]  # [B, 1]: the post's rewards came back from env.step as (1,)
         if self.broadcast_target:
             # P000-BROADCAST: the post's dones are [B], so (1 - dones) broadcasts along the
             # *columns*: targets[i, j] = r_i + gamma * Q'_i * (1 - d_j)            # [B, B]
-            return rewards + self.gamma * next_q * (1.0 - dones[None, :])
-        return rewards + self.gamma * next_q * (1.0 - dones[:, None])  # [B, 1]
+            return rewards + self.gamma * next_q * (1.0 - dones[..., None, :])
+        return rewards + self.gamma * next_q * (1.0 - dones[..., :, None])  # [B, 1]
 
     def update(self, batch: Batch) -> dict[str, tf.Tensor]:
         """Post 000 §2.3.3, traceable: critic tape, actor tape, soft updates."""
@@ -122,15 +144,15 @@ class DDPGLearner:
         with tf.GradientTape() as tape:
             q_values = self.critic(states, actions)  # [B, 1]
             # Under P000-BROADCAST q_values [B,1] - targets [B,B] averages over B*B terms.
-            critic_loss = tf.reduce_mean(tf.square(q_values - targets))
-        critic_grads = tape.gradient(critic_loss, self.critic.trainable_variables)
-        self.critic_optimizer.apply_gradients(zip(critic_grads, self.critic.trainable_variables))
+            critic_loss = self.seed_mean(tf.square(q_values - targets))
+            critic_total = self.total(critic_loss)
+        critic_grads = tape.gradient(critic_total, self.critic.trainable_variables)
+        self.apply_gradients(self.critic_optimizer, critic_grads, self.critic.trainable_variables)
 
         actor_grads, actor_loss = self.actor_gradients(states, actions)
-        self.actor_optimizer.apply_gradients(zip(actor_grads, self.actor.trainable_variables))
+        self.apply_gradients(self.actor_optimizer, actor_grads, self.actor.trainable_variables)
 
-        soft_update(self.target_actor.variables, self.actor.variables, self.tau)
-        soft_update(self.target_critic.variables, self.critic.variables, self.tau)
+        self.soft_update_targets()
         return {"critic_loss": critic_loss, "actor_loss": actor_loss}
 
     def actor_gradients(self, states, actions):
@@ -139,8 +161,9 @@ class DDPGLearner:
         if self.actor_update == "mean_q":
             with tf.GradientTape() as tape:
                 q_values = self.critic(states, self.actor(states))  # the freshly updated critic
-                actor_loss = -tf.reduce_mean(q_values)
-            return tape.gradient(actor_loss, variables), actor_loss
+                actor_loss = -self.seed_mean(q_values)
+                actor_total = self.total(actor_loss)
+            return tape.gradient(actor_total, variables), actor_loss
         # post 001: dQ/da from the updated critic, at the buffer's actions (as the post feeds
         # `actions`) or at mu(s); a constant for the actor's update (a placeholder in Keras 2)
         policy_actions = self.actor(states)
@@ -149,7 +172,7 @@ class DDPGLearner:
             tape.watch(at)
             q_values = self.critic(states, at)
         dq_da = tf.stop_gradient(tape.gradient(q_values, at))  # [B, act]
-        actor_loss = -tf.reduce_mean(q_values)
+        actor_loss = -self.seed_mean(q_values)
         if self.actor_update == "dpg_intended":
             with tf.GradientTape() as tape:
                 mu = self.actor(states)

@@ -71,3 +71,52 @@ class TorchAdamW(keras.optimizers.Optimizer):
         config = super().get_config()
         config.update(beta_1=self.beta_1, beta_2=self.beta_2, epsilon=self.epsilon, amsgrad=self.amsgrad)
         return config
+
+
+class SeedAdam:
+    """Keras' Adam for S stacked seeds, each with its own step count, and a mask.
+
+    The arithmetic is ``keras.optimizers.Adam.update_step``'s, op for op, with the step
+    count a vector ``[S]``: ``alpha = lr * sqrt(1 - beta2^t) / (1 - beta1^t)`` per seed,
+    ``m += (g - m)(1 - beta1)``, ``v += (g^2 - v)(1 - beta2)``, ``p -= m * alpha / (sqrt(v) + eps)``.
+    A seed whose mask is False keeps its slice of every variable, its moments and its step
+    count bit for bit (post 001's seeds train different numbers of batches on one env
+    step, P001-POP). With every mask True it computes what a Keras Adam per seed computes.
+    """
+
+    def __init__(self, variables, seeds: int, learning_rate: float, beta_1: float = 0.9, beta_2: float = 0.999,
+                 epsilon: float = 1e-7):
+        import tensorflow as tf
+
+        self.learning_rate = tf.Variable(learning_rate, dtype=tf.float32, trainable=False, name="learning_rate")
+        self.beta_1, self.beta_2, self.epsilon = beta_1, beta_2, epsilon
+        self.steps = tf.Variable(tf.zeros([seeds], tf.int64), trainable=False, name="steps")
+        self.m = [tf.Variable(tf.zeros_like(v), trainable=False, name="m") for v in variables]
+        self.v = [tf.Variable(tf.zeros_like(v), trainable=False, name="v") for v in variables]
+
+    @property
+    def variables(self) -> list:
+        """In the order a checkpoint holds them (``SliceState`` slices every one with a seed axis)."""
+        return [self.steps, self.learning_rate, *self.m, *self.v]
+
+    def apply(self, grads, variables, mask) -> None:
+        """One step for the seeds where ``mask`` [S] is True."""
+        import tensorflow as tf
+
+        for g, variable, m, v in zip(grads, variables, self.m, self.v, strict=True):
+            dtype = variable.dtype
+            shape = [-1] + [1] * (len(variable.shape) - 1)  # [S, 1, ...]: per seed, broadcast
+            local_step = tf.reshape(tf.cast(self.steps + 1, dtype), shape)
+            beta_1_power = tf.pow(tf.cast(self.beta_1, dtype), local_step)
+            beta_2_power = tf.pow(tf.cast(self.beta_2, dtype), local_step)
+            lr = tf.cast(self.learning_rate, dtype)
+            alpha = lr * tf.sqrt(1 - beta_2_power) / (1 - beta_1_power)
+            g = tf.cast(g, dtype)
+            new_m = m + (g - m) * (1 - self.beta_1)
+            new_v = v + (tf.square(g) - v) * (1 - self.beta_2)
+            new_p = variable - (new_m * alpha) / (tf.sqrt(new_v) + self.epsilon)
+            keep = tf.reshape(mask, shape)
+            m.assign(tf.where(keep, new_m, m))
+            v.assign(tf.where(keep, new_v, v))
+            variable.assign(tf.where(keep, new_p, variable))
+        self.steps.assign(tf.where(mask, self.steps + 1, self.steps))

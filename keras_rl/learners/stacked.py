@@ -14,14 +14,14 @@ Seed k's slice starts from the very weights seed k's solo run draws: ``stack_pos
 ``stack_post003`` seed Keras as a solo run does, build the solo networks, and stack them.
 A stack of one seed is the solo learner itself (``SoloAsStack``).
 
-The seed-batched episode loop is ``runs/batched.py``; the equivalence tests are
+The episode loop over a seed axis is ``runs/loop.py``; the equivalence tests are
 ``tests/test_stacked.py``.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 import keras
 import numpy as np
@@ -29,8 +29,9 @@ import tensorflow as tf
 
 from keras_rl.buffers import Layout
 from keras_rl.envs import EnvSpec
-from keras_rl.learners.common import compile_step, save_weights, soft_update
-from keras_rl.learners.ddpg import post000_networks
+from keras_rl.learners.common import save_weights
+from keras_rl.learners.optimizers import SeedAdam
+from keras_rl.learners.ddpg import DDPGLearner, post000_networks, post001_networks
 from keras_rl.learners.dqn import DQNLearner, post003_networks, post003_optimizer
 from keras_rl.seeding import seed_everything
 
@@ -47,6 +48,12 @@ def layers_of(model) -> list:
     return list(model.dense) if hasattr(model, "dense") else [*model.hidden, model.out]
 
 
+def model_variables(model) -> list:
+    """A solo network's variables in order, but for a noise layer's seed-generator state
+    (post 001's GaussianNoise, the identity at learning phase 0): what a stack holds of it."""
+    return [v for v in model.variables if "seed_generator" not in v.path]
+
+
 def layer_weights(model) -> list[np.ndarray]:
     """(kernel, bias) of each layer of a network, solo or stacked, in layer order."""
     return [v.numpy() for layer in layers_of(model) for v in (layer.kernel, layer.bias)]
@@ -58,10 +65,34 @@ def _check_equal_but_seed(configs: Sequence) -> None:
         raise ValueError("seed-batched configs must be equal but for the seed")
 
 
+class SliceState:
+    """A seed's part of a stacked learner's state, for its own checkpoint: every variable
+    with a seed axis (the networks' and the optimizer's moments) sliced at k; the scalars
+    (the optimizer's step count and learning rate) are the same for every seed. The
+    learner lists its variables in ``_stateful()``."""
+
+    _stateful: Callable[[], list]
+
+    def slice_state(self, k: int) -> dict:
+        return {"variables": [v.numpy()[k].copy() if len(v.shape) else v.numpy().copy() for v in self._stateful()]}
+
+    def load_slice_state(self, k: int, state: dict) -> None:
+        variables, values = self._stateful(), state["variables"]
+        if len(variables) != len(values):
+            raise ValueError(f"checkpoint holds {len(values)} values for {len(variables)} variables")
+        for variable, value in zip(variables, values):
+            if len(variable.shape):
+                whole = variable.numpy()
+                whole[k] = value
+                variable.assign(whole)
+            else:
+                variable.assign(value)
+
+
 class StackedDense(keras.layers.Layer):
     """``Dense`` for S seeds at once: ``[S, B, in] -> [S, B, out]``."""
 
-    def __init__(self, seeds: int, units_in: int, units: int, activation: str | None = None):
+    def __init__(self, seeds: int, units_in: int, units: int, activation=None):
         super().__init__()
         self.kernel = self.add_weight(shape=(seeds, units_in, units), initializer="zeros", name="kernel")
         self.bias = self.add_weight(shape=(seeds, units), initializer="zeros", name="bias")
@@ -76,18 +107,49 @@ class StackedDense(keras.layers.Layer):
         self.bias.assign(np.stack([d.bias.numpy() for d in denses]))
 
 
+class StackedBatchNorm(keras.layers.Layer):
+    """``BatchNormalization`` at learning phase 0 for S seeds (post 001, P001-PHASE): each
+    seed normalises with its own moving statistics, which nothing updates; its gamma and
+    beta train. ``[S, B, F] -> [S, B, F]``. Variables in Keras' order (gamma, beta, moving
+    mean, moving variance), so a seed's slice is its solo layer's weights."""
+
+    def __init__(self, seeds: int, features: int, epsilon: float):
+        super().__init__()
+        self.gamma = self.add_weight(shape=(seeds, features), initializer="ones", name="gamma")
+        self.beta = self.add_weight(shape=(seeds, features), initializer="zeros", name="beta")
+        self.moving_mean = self.add_weight(shape=(seeds, features), initializer="zeros", name="moving_mean",
+                                           trainable=False)
+        self.moving_variance = self.add_weight(shape=(seeds, features), initializer="ones", name="moving_variance",
+                                               trainable=False)
+        self.epsilon = float(epsilon)
+
+    def call(self, x: tf.Tensor) -> tf.Tensor:
+        return tf.nn.batch_normalization(x, self.moving_mean[:, None, :], self.moving_variance[:, None, :],
+                                         self.beta[:, None, :], self.gamma[:, None, :], self.epsilon)
+
+    def set_from(self, norms: Sequence[keras.layers.BatchNormalization]) -> None:
+        for mine, name in ((self.gamma, "gamma"), (self.beta, "beta"), (self.moving_mean, "moving_mean"),
+                           (self.moving_variance, "moving_variance")):
+            mine.assign(np.stack([getattr(n, name).numpy() for n in norms]))
+
+
+def _stacked_dense(solos: Sequence, seeds: int, units_in: int) -> StackedDense:
+    """A stack of the k-th solo ``Dense`` of every seed, its activation included."""
+    first = solos[0]
+    layer = StackedDense(seeds, units_in, first.units, first.activation)
+    layer.set_from(solos)
+    return layer
+
+
 class StackedActor(keras.Model):
     """Post 000 §2.2's actor for S seeds: Dense 64 relu x2, Dense(act, tanh), times the bound."""
 
     def __init__(self, solos: Sequence[keras.Model], obs_dim: int):
         super().__init__()
-        s, widths = len(solos), [obs_dim, *(d.units for d in solos[0].hidden), solos[0].out.units]
+        s, widths = len(solos), [obs_dim, *(d.units for d in solos[0].hidden)]
         self.action_bound = solos[0].action_bound
-        self.hidden = [StackedDense(s, a, b, "relu") for a, b in zip(widths[:-2], widths[1:-1])]
-        self.out = StackedDense(s, widths[-2], widths[-1], "tanh")
-        for i, layer in enumerate(self.hidden):
-            layer.set_from([m.hidden[i] for m in solos])
-        self.out.set_from([m.out for m in solos])
+        self.hidden = [_stacked_dense([m.hidden[i] for m in solos], s, w) for i, w in enumerate(widths[:-1])]
+        self.out = _stacked_dense([m.out for m in solos], s, widths[-1])
 
     def call(self, state):  # [S, B, obs] -> [S, B, act]
         x = state
@@ -101,12 +163,9 @@ class StackedCritic(keras.Model):
 
     def __init__(self, solos: Sequence[keras.Model], in_dim: int):
         super().__init__()
-        s, widths = len(solos), [in_dim, *(d.units for d in solos[0].hidden), 1]
-        self.hidden = [StackedDense(s, a, b, "relu") for a, b in zip(widths[:-2], widths[1:-1])]
-        self.out = StackedDense(s, widths[-2], 1)
-        for i, layer in enumerate(self.hidden):
-            layer.set_from([m.hidden[i] for m in solos])
-        self.out.set_from([m.out for m in solos])
+        s, widths = len(solos), [in_dim, *(d.units for d in solos[0].hidden)]
+        self.hidden = [_stacked_dense([m.hidden[i] for m in solos], s, w) for i, w in enumerate(widths[:-1])]
+        self.out = _stacked_dense([m.out for m in solos], s, widths[-1])
 
     def call(self, state, action):  # -> [S, B, 1]
         x = tf.concat([state, action], axis=-1)
@@ -115,85 +174,135 @@ class StackedCritic(keras.Model):
         return self.out(x)
 
 
-class StackedDDPGLearner:
-    """Post 000's update (critic tape, actor tape, soft updates) for S seeds in one call."""
+class StackedMountainCarActor(keras.Model):
+    """Post 001's actor for S seeds at learning phase 0: the noise layer is the identity,
+    then BatchNormalization, 3 x Dense 32 selu, Dense(act, tanh)."""
 
-    loss_names = ("critic_loss", "actor_loss")
+    def __init__(self, solos: Sequence[keras.Model], obs_dim: int):
+        super().__init__()
+        s, widths = len(solos), [obs_dim, *(d.units for d in solos[0].hidden)]
+        self.norm = StackedBatchNorm(s, obs_dim, solos[0].norm.epsilon)
+        self.norm.set_from([m.norm for m in solos])
+        self.hidden = [_stacked_dense([m.hidden[i] for m in solos], s, w) for i, w in enumerate(widths[:-1])]
+        self.out = _stacked_dense([m.out for m in solos], s, widths[-1])
 
-    def __init__(self, actor, critic, target_actor, target_critic, actor_lr: float, critic_lr: float, gamma: float,
-                 tau: float, broadcast_target: bool, layout: Layout, seeds: int, xla: bool = True):
-        self.actor, self.critic, self.target_actor, self.target_critic = actor, critic, target_actor, target_critic
+    def call(self, state):  # [S, B, obs] -> [S, B, act]
+        x = self.norm(state)
+        for layer in self.hidden:
+            x = layer(x)
+        return self.out(x)
+
+
+class StackedMountainCarCritic(keras.Model):
+    """Post 001's critic for S seeds at learning phase 0: state -> BatchNormalization ->
+    Dense selu -> concatenate with the action -> Dense selu -> Dense 1."""
+
+    def __init__(self, solos: Sequence[keras.Model], obs_dim: int, action_dim: int):
+        super().__init__()
+        s = len(solos)
+        self.norm = StackedBatchNorm(s, obs_dim, solos[0].norm.epsilon)
+        self.norm.set_from([m.norm for m in solos])
+        self.fc1 = _stacked_dense([m.fc1 for m in solos], s, obs_dim)
+        self.fc2 = _stacked_dense([m.fc2 for m in solos], s, solos[0].fc1.units + action_dim)
+        self.out = _stacked_dense([m.out for m in solos], s, solos[0].fc2.units)
+
+    def call(self, state, action):  # -> [S, B, 1]
+        x = self.fc1(self.norm(state))
+        x = self.fc2(tf.concat([x, action], axis=-1))
+        return self.out(x)
+
+
+class StackedDDPGLearner(SliceState, DDPGLearner):
+    """``DDPGLearner``'s own update (critic tape, actor tape, soft updates; every actor
+    update: ``mean_q``, ``dpg_intended``, ``dpg_literal``) for S seeds in one call, through
+    its hooks: ``[S, B, ...]`` batches, each seed's loss its own mean, the gradient taken of
+    their sum, and Adam per seed (``SeedAdam``) with a mask: a seed that does not train on a
+    call keeps its weights, moments and step count (post 001's bursts differ per seed)."""
+
+    def __init__(self, networks, actor_lr: float, critic_lr: float, seeds: int, xla: bool = True, **kwargs):
+        actor, critic = networks[0], networks[1]
+        self.seeds = seeds
+        self._mask = tf.Variable(tf.ones([seeds], tf.bool), trainable=False, name="mask")
+        self._mask_now = np.ones(seeds, bool)
         self.solo_policies: list[tuple[keras.Model, keras.Model]] = []  # (actor, critic) per seed, for saving
-        self.actor_optimizer = keras.optimizers.Adam(learning_rate=actor_lr)
-        self.critic_optimizer = keras.optimizers.Adam(learning_rate=critic_lr)
-        self.actor_optimizer.build(actor.trainable_variables)
-        self.critic_optimizer.build(critic.trainable_variables)
-        self.gamma, self.tau, self.broadcast_target, self.layout = float(gamma), float(tau), bool(broadcast_target), layout
-        rows = tf.TensorSpec([seeds, None, layout.width], tf.float32)  # [S, B, width]
-        obs = tf.TensorSpec([seeds, layout.obs_dim], tf.float32)  # [S, obs]
-        self._train = compile_step(self._train_rows, xla, rows)
-        self._act = compile_step(self._act_all, xla, obs)
-        self._train_and_act = compile_step(lambda r, s: (self._train_rows(r), self._act_all(s)), xla, rows, obs)
+        super().__init__(*networks, SeedAdam(actor.trainable_variables, seeds, actor_lr),
+                         SeedAdam(critic.trainable_variables, seeds, critic_lr), xla=xla, **kwargs)
 
-    def train(self, rows: np.ndarray) -> dict[str, tf.Tensor]:
-        """One update of every seed on its own rows ``[S, B, width]``; losses ``[S]``."""
+    # -- DDPGLearner's hooks -----------------------------------------------------------------
+    def build_optimizers(self) -> None:
+        pass  # SeedAdam makes its moments when it is made
+
+    def input_specs(self) -> tuple[tf.TensorSpec, tf.TensorSpec]:
+        return (tf.TensorSpec([self.seeds, None, self.layout.width], tf.float32),  # [S, B, width]
+                tf.TensorSpec([self.seeds, self.layout.obs_dim], tf.float32))  # [S, obs]
+
+    def seed_mean(self, x: tf.Tensor) -> tf.Tensor:
+        return tf.reduce_mean(x, axis=list(range(1, len(x.shape))))  # [S]: each seed's own loss
+
+    def total(self, loss: tf.Tensor) -> tf.Tensor:
+        return tf.reduce_sum(loss)  # each slice gets its solo gradient
+
+    def apply_gradients(self, optimizer, grads, variables) -> None:
+        optimizer.apply(grads, variables, self._mask)
+
+    def soft_update_targets(self) -> None:
+        for target, source in ((self.target_actor, self.actor), (self.target_critic, self.critic)):
+            for t, s in zip(target.variables, source.variables, strict=True):
+                keep = tf.reshape(self._mask, [-1] + [1] * (len(t.shape) - 1))
+                t.assign(tf.where(keep, self.tau * s + (1.0 - self.tau) * t, t))
+
+    def _act_one(self, states):
+        return self.actor(states[:, None, :])[:, 0]  # [S, act]
+
+    def _stateful(self) -> list:
+        return [*(v for name in NETWORKS for v in getattr(self, name).variables),
+                *self.actor_optimizer.variables, *self.critic_optimizer.variables]
+
+    # -- the stacked interface ---------------------------------------------------------------
+    def train(self, rows: np.ndarray, mask: np.ndarray | None = None) -> dict[str, tf.Tensor]:
+        """One update of the seeds where ``mask`` is True (all by default) on their own rows
+        ``[S, B, width]``; losses ``[S]`` (a masked seed's are not its own: unread)."""
+        self._set_mask(mask)
         return self._train(tf.constant(rows))
+
+    def _set_mask(self, mask: np.ndarray | None) -> None:
+        mask = np.ones(self.seeds, bool) if mask is None else np.asarray(mask, bool)
+        if not np.array_equal(mask, self._mask_now):
+            self._mask.assign(mask)
+            self._mask_now = mask
 
     def act(self, states: np.ndarray) -> np.ndarray:
         """Each seed's action for its state: ``[S, obs] -> [S, act]``."""
         return self._act(tf.constant(states, tf.float32)).numpy()
 
-    def train_and_act(self, rows: np.ndarray, states: np.ndarray, after_episode_end: bool = False):
-        """One update of every seed, then each seed's action for ``states``. After an
-        episode end the solo run trains, then acts on the new episode's first state in a
-        call of its own; so does this (XLA may round a fused call differently)."""
-        if after_episode_end:
+    def train_and_act(self, rows: np.ndarray, states: np.ndarray, separate: bool = False):
+        """One update of every seed, then each seed's action for ``states``. ``separate``:
+        two calls, as the solo run makes after an episode end (it trains, then acts on the
+        new episode's first state) and where the post acts through its own predict (XLA
+        may round a fused call differently)."""
+        self._set_mask(None)
+        if separate:
             return self.train(rows), self.act(states)
         losses, actions = self._train_and_act(tf.constant(rows), tf.constant(states, tf.float32))
         return losses, actions.numpy()
 
-    def act_without_update(self, states: np.ndarray, after_episode_end: bool = False) -> np.ndarray:
-        """Before the warm-up ends post 000 only acts."""
+    def act_without_update(self, states: np.ndarray, separate: bool = False) -> np.ndarray:
+        """Before the warm-up ends DDPG only acts (``separate`` changes nothing here)."""
         return self.act(states)
 
     def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
-        """Seed k's weights: (kernel, bias) per layer of each network, as a solo model holds them."""
-        return {name: [w[k] for w in layer_weights(getattr(self, name))] for name in NETWORKS}
+        """Seed k's weights, as its solo model holds them (its ``variables``, in order)."""
+        return {name: [v.numpy()[k] for v in getattr(self, name).variables] for name in NETWORKS}
 
     def save_slice(self, k: int, run_dir) -> None:
         """Seed k's actor and critic as a solo run saves them (``actor.weights.h5``, ``critic.weights.h5``)."""
         weights = self.slice_weights(k)
         actor, critic = self.solo_policies[k]
-        actor.set_weights(weights["actor"])
-        critic.set_weights(weights["critic"])
+        for model, values in ((actor, weights["actor"]), (critic, weights["critic"])):
+            for variable, value in zip(model_variables(model), values, strict=True):
+                variable.assign(value)
         save_weights(actor, Path(run_dir) / "actor.weights.h5")
         save_weights(critic, Path(run_dir) / "critic.weights.h5")
-
-    def _train_rows(self, rows):
-        # [S, B, obs], [S, B, act], [S, B], [S, B, obs], [S, B]
-        states, actions, rewards, next_states, dones = self.layout.split(rows)
-        next_q = self.target_critic(next_states, self.target_actor(next_states))  # [S, B, 1]
-        if self.broadcast_target:  # P000-BROADCAST per seed: [S, B, B]
-            targets = rewards[:, :, None] + self.gamma * next_q * (1.0 - dones[:, None, :])
-        else:
-            targets = rewards[:, :, None] + self.gamma * next_q * (1.0 - dones[:, :, None])  # [S, B, 1]
-        with tf.GradientTape() as tape:
-            q = self.critic(states, actions)  # [S, B, 1]
-            critic_losses = tf.reduce_mean(tf.square(q - targets), axis=[1, 2])  # [S]: each seed's own loss
-            critic_loss = tf.reduce_sum(critic_losses)  # the sum: each slice gets its solo gradient
-        grads = tape.gradient(critic_loss, self.critic.trainable_variables)
-        self.critic_optimizer.apply_gradients(zip(grads, self.critic.trainable_variables))
-        with tf.GradientTape() as tape:
-            actor_losses = -tf.reduce_mean(self.critic(states, self.actor(states)), axis=[1, 2])  # [S]
-            actor_loss = tf.reduce_sum(actor_losses)
-        grads = tape.gradient(actor_loss, self.actor.trainable_variables)
-        self.actor_optimizer.apply_gradients(zip(grads, self.actor.trainable_variables))
-        soft_update(self.target_actor.variables, self.actor.variables, self.tau)
-        soft_update(self.target_critic.variables, self.critic.variables, self.tau)
-        return {"critic_loss": critic_losses, "actor_loss": actor_losses}
-
-    def _act_all(self, states):
-        return self.actor(states[:, None, :])[:, 0]  # [S, act]
 
 
 class StackedQNetwork(keras.Model):
@@ -214,7 +323,7 @@ class StackedQNetwork(keras.Model):
         return x
 
 
-class StackedDQNLearner(DQNLearner):
+class StackedDQNLearner(SliceState, DQNLearner):
     """Post 003's ``optimize_model`` (Huber, clip-by-value 100, torch's AdamW with amsgrad)
     and its every-step soft update, for S seeds in one call: ``DQNLearner``'s own update on
     [S, B, ...] batches, its gradient taken of the sum of the seeds' losses."""
@@ -236,14 +345,14 @@ class StackedDQNLearner(DQNLearner):
         """Each seed's greedy action ``[S]`` for its state ``[S, obs]``."""
         return self._act(tf.constant(states, tf.float32)).numpy()
 
-    def train_and_act(self, rows: np.ndarray, states: np.ndarray, after_episode_end: bool = False):
+    def train_and_act(self, rows: np.ndarray, states: np.ndarray, separate: bool = False):
         """The update, then the greedy actions for ``states`` (a seed whose episode just
-        ended passes its next episode's first state): one call either way, since the
-        solo run's separate ``act`` reads the same updated weights."""
+        ended passes its next episode's first state): one call even when ``separate``,
+        since the solo run's separate ``act`` reads the same updated weights."""
         losses, actions = self._train_and_act(tf.constant(rows), tf.constant(states, tf.float32))
         return losses, actions.numpy()
 
-    def act_without_update(self, states: np.ndarray, after_episode_end: bool = False) -> np.ndarray:
+    def act_without_update(self, states: np.ndarray, separate: bool = False) -> np.ndarray:
         """Before the first batch the tutorial's soft update still runs every step."""
         return self._sync_and_act(tf.constant(states, tf.float32)).numpy()
 
@@ -261,14 +370,14 @@ class StackedDQNLearner(DQNLearner):
 
 
 class SoloAsStack:
-    """A stack of one seed is the solo learner itself, behind the stacked interface: XLA
-    rounds a one-row batched matmul differently from Dense's matmul (about 1e-7, measured),
-    so S=1 through the stacked layers would not be bit-identical to the solo run; this is,
-    call for call (after an episode end: the update, then a separate act, as the solo
-    agent does)."""
+    """Any solo learner (Keras or PyTorch) behind the stacked interface, for a seed axis of
+    one: XLA rounds a one-row batched matmul differently from Dense's matmul (about 1e-7,
+    measured), so S=1 through the stacked layers would not be bit-identical to the solo
+    run; this is, call for call (``separate``: the update, then an act of its own, as the
+    solo agent makes them after an episode end and where the post does not fuse them)."""
 
-    def __init__(self, learner, networks: Sequence[str]):
-        self.learner, self.networks = learner, tuple(networks)
+    def __init__(self, learner):
+        self.learner = learner
         self.loss_names = tuple(learner.loss_names)
 
     @staticmethod
@@ -281,21 +390,29 @@ class SoloAsStack:
     def act(self, states: np.ndarray) -> np.ndarray:
         return np.asarray(self.learner.act(states[0]))[None]
 
-    def train_and_act(self, rows: np.ndarray, states: np.ndarray, after_episode_end: bool = False):
-        if after_episode_end:
+    def train_and_act(self, rows: np.ndarray, states: np.ndarray, separate: bool = False):
+        if separate:
             return self.train(rows), self.act(states)
         losses, action = self.learner.train_and_act(rows[0], states[0])
         return self._one(losses), np.asarray(action)[None]
 
-    def act_without_update(self, states: np.ndarray, after_episode_end: bool = False) -> np.ndarray:
-        action = self.learner.act_without_update(states[0], want_action=not after_episode_end)
-        return self.act(states) if after_episode_end else np.asarray(action)[None]
+    def act_without_update(self, states: np.ndarray, separate: bool = False) -> np.ndarray:
+        """``separate``: the episode ended on this step, so the solo run makes no act here
+        (the learner may still do its every-step work), then acts on the next first state."""
+        action = self.learner.act_without_update(states[0], want_action=not separate)
+        return self.act(states) if separate else np.asarray(action)[None]
 
     def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
-        return {name: layer_weights(getattr(self.learner, name)) for name in self.networks}
+        return self.learner.weights()
 
     def save_slice(self, k: int, run_dir) -> None:
         self.learner.save(run_dir)
+
+    def slice_state(self, k: int) -> dict:
+        return self.learner.state_dict()
+
+    def load_slice_state(self, k: int, state: dict) -> None:
+        self.learner.load_state_dict(state)
 
 
 def _per_seed(configs: Sequence, build) -> list:
@@ -308,24 +425,52 @@ def _per_seed(configs: Sequence, build) -> list:
     return built
 
 
+def _stack_ddpg(configs: Sequence, spec: EnvSpec, networks, stacked_actor, stacked_critic, xla: bool, **kwargs):
+    """A DDPG post's learner for the seeds of ``configs`` (equal but for the seed): each
+    slice starts from the weights its solo run draws (``seed_everything(seed)``, then the
+    solo builder ``networks``)."""
+    c = configs[0]
+    solos = _per_seed(configs, lambda config: networks(config, spec))
+    nets = [stacked_actor([s[i] for s in solos]) if i in (0, 2) else stacked_critic([s[i] for s in solos])
+            for i in range(4)]
+    learner = StackedDDPGLearner(nets, c.actor_lr, c.critic_lr, seeds=len(configs), xla=xla, gamma=c.gamma, tau=c.tau,
+                                 layout=Layout(spec.obs_dim, spec.action_dim), **kwargs)
+    learner.solo_policies = [(s[0], s[1]) for s in solos]
+    return learner
+
+
 def stack_post000(configs: Sequence, spec: EnvSpec, xla: bool = True):
-    """Post 000's learner for the seeds of ``configs`` (one config per seed, equal but for the
-    seed): each slice starts from the weights its solo run draws (``seed_everything(seed)``,
-    then the solo builder)."""
+    """Post 000's learner for the seeds of ``configs``."""
     c = configs[0]
     if len(configs) == 1:
         from keras_rl.learners.ddpg import post000_learner
 
         seed_everything(c.seed)
-        return SoloAsStack(post000_learner(c, spec, xla=xla), NETWORKS)
-    solos = _per_seed(configs, lambda config: post000_networks(config, spec))
-    obs_dim, act_dim = spec.obs_dim, spec.action_dim
-    nets = [StackedActor([s[0] for s in solos], obs_dim), StackedCritic([s[1] for s in solos], obs_dim + act_dim),
-            StackedActor([s[2] for s in solos], obs_dim), StackedCritic([s[3] for s in solos], obs_dim + act_dim)]
-    learner = StackedDDPGLearner(*nets, c.actor_lr, c.critic_lr, c.gamma, c.tau, c.broadcast_target,
-                                 Layout(obs_dim, act_dim), seeds=len(configs), xla=xla)
-    learner.solo_policies = [(s[0], s[1]) for s in solos]
-    return learner
+        return SoloAsStack(post000_learner(c, spec, xla=xla))
+    obs, act = spec.obs_dim, spec.action_dim
+    return _stack_ddpg(configs, spec, post000_networks, lambda m: StackedActor(m, obs),
+                       lambda m: StackedCritic(m, obs + act), xla, broadcast_target=c.broadcast_target)
+
+
+def stack_post001(configs: Sequence, spec: EnvSpec, xla: bool = True):
+    """Post 001's learner for the seeds of ``configs``, every actor update (P001-ACTORGRAD,
+    P001-DQDA) included; at learning phase 0 only (P001-PHASE on makes every seed NaN at
+    its first update, and its noise layer draws from TensorFlow's one generator)."""
+    c = configs[0]
+    if len(configs) == 1:
+        from keras_rl.learners.ddpg import post001_learner
+
+        seed_everything(c.seed)
+        return SoloAsStack(post001_learner(c, spec, xla=xla))
+    if c.learning_phase_training:
+        from keras_rl.errors import ConfigError
+
+        raise ConfigError("--seed-batch does not cover learning_phase_training=true (its noise layer draws from "
+                          "TensorFlow's one generator, so seeds could not keep their own draws); run it without")
+    obs, act = spec.obs_dim, spec.action_dim
+    return _stack_ddpg(configs, spec, post001_networks, lambda m: StackedMountainCarActor(m, obs),
+                       lambda m: StackedMountainCarCritic(m, obs, act), xla, broadcast_target=False,
+                       actor_update=c.actor_gradient, dqda_at_buffer_actions=c.dqda_at_buffer_actions)
 
 
 def stack_post003(configs: Sequence, spec: EnvSpec, xla: bool = True):
@@ -335,7 +480,7 @@ def stack_post003(configs: Sequence, spec: EnvSpec, xla: bool = True):
         from keras_rl.learners.dqn import post003_learner
 
         seed_everything(c.seed)
-        return SoloAsStack(post003_learner(c, spec, xla=xla), DQN_NETWORKS)
+        return SoloAsStack(post003_learner(c, spec, xla=xla))
     solos = _per_seed(configs, lambda config: post003_networks(config, spec))
     learner = StackedDQNLearner(StackedQNetwork([q for q, _ in solos]), StackedQNetwork([t for _, t in solos]),
                                 post003_optimizer(c), c.gamma, c.tau, c.grad_clip_value, Layout(spec.obs_dim, 1),

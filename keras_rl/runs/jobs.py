@@ -23,7 +23,7 @@ from typing import Any, Literal, Protocol
 from keras_rl.errors import RunFolderError
 from keras_rl.registry import get_experiment
 from keras_rl.report.plots import plot_seed_curve
-from keras_rl.runs.loop import run_seed
+from keras_rl.runs.loop import run_seeds
 from keras_rl.runs.provenance import command_line
 from keras_rl.runs.signals import sigterm_as_interrupt
 from keras_rl.runs.summary import RunSummary
@@ -52,7 +52,8 @@ class SeedJob:
 
 @dataclass(frozen=True)
 class SeedBatchJob:
-    """Several seeds of one config trained together (``--seed-batch``): ``runs/batched.py``."""
+    """Several seeds of one config trained together (``--seed-batch``) on one seed axis
+    (``runs/loop.py``); they start alike (all new, all overwritten, or all resumed)."""
 
     jobs: tuple[SeedJob, ...]
 
@@ -64,29 +65,50 @@ def members(job) -> tuple[SeedJob, ...]:
 
 def batched(jobs: list[SeedJob], seed_batch: int) -> list:
     """``jobs`` packed into batches of up to ``seed_batch`` seeds. Only jobs that differ in
-    nothing but the seed share a batch (a sweep's grid points never do), and only fresh
-    jobs of an experiment and framework with a seed-batched learner (``learners/table.py``)
-    are packed: the others (PyTorch runs in ``compare``, resumed runs, TensorBoard runs)
-    run alone, as before. A group of one is the job itself."""
-    if seed_batch <= 1:
-        return list(jobs)
+    nothing but the seed share a batch (a sweep's grid points never do), and only jobs of
+    an experiment and framework with a seed-batched learner (``learners/table.py``) are
+    packed: the others (post 003's PyTorch tutorial in ``compare``, say) run alone. A job
+    that resumes joins the batch its checkpoint was written by, whatever ``seed_batch`` is
+    now. A group of one is the job itself."""
     from keras_rl.learners.table import STACKED
 
     groups: dict[tuple, list[SeedJob]] = {}
+    resumed: dict[tuple, list[SeedJob]] = {}
     alone = []
     for job in jobs:
-        if (job.experiment, job.config.get("framework")) not in STACKED or job.start == "resume" or job.tensorboard:
+        if job.start == "resume":
+            batch = checkpoint_batch(job.out_dir)
+            if len(batch) > 1:
+                resumed.setdefault((tuple(batch), job.command), []).append(job)
+                continue
+        if seed_batch <= 1 or job.start == "resume" or (job.experiment, job.config.get("framework")) not in STACKED:
             alone.append(job)
             continue
         key = (job.experiment, json.dumps({k: v for k, v in job.config.items() if k != "seed"}, sort_keys=True),
-               job.command)
+               job.command, str(job.tensorboard), job.checkpoint_every)
         groups.setdefault(key, []).append(job)
     out = []
     for group in groups.values():
         for i in range(0, len(group), seed_batch):
             chunk = tuple(group[i:i + seed_batch])
             out.append(chunk[0] if len(chunk) == 1 else SeedBatchJob(chunk))
+    for (batch, _), group in resumed.items():
+        have = sorted(j.config["seed"] for j in group)
+        if have != sorted(batch):
+            raise RunFolderError(f"{group[0].out_dir} was checkpointed in a batch of seeds {list(batch)}; resume "
+                                 f"them together (this command resumes {have} of them)")
+        out.append(SeedBatchJob(tuple(sorted(group, key=lambda j: list(batch).index(j.config["seed"])))))
     return out + alone
+
+
+def checkpoint_batch(run_dir: Path) -> list[int]:
+    """The seeds whose batch wrote the folder's checkpoint (one seed for a solo run; none
+    where there is no checkpoint)."""
+    from keras_rl.runs.checkpoint import CHECKPOINT, read_checkpoint
+
+    if not (Path(run_dir) / CHECKPOINT).is_file():
+        return []
+    return list(read_checkpoint(run_dir).get("batch", []))
 
 
 @dataclass
@@ -97,20 +119,24 @@ class JobsOutcome:
 
 
 def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> RunSummary:
-    """Run one job here and draw its ``curve.png`` (whatever the run's end); a batch returns
-    the summary of its first interrupted seed, else of its last."""
-    if isinstance(job, SeedBatchJob):
-        return _execute_batch(job, progress)
-    experiment = get_experiment(job.experiment)
-    config = experiment.config_cls.from_dict(job.config)
-    if job.start == "overwrite" and Path(job.out_dir).exists():
-        shutil.rmtree(job.out_dir)  # whole: no weights or evaluation.json of the old run survive
+    """Run one job (a seed, or a batch of seeds) here through the one episode loop and draw
+    each seed's ``curve.png`` (whatever the run's end); a batch returns the summary of its
+    first interrupted seed, else of its last."""
+    group = members(job)
+    experiment = get_experiment(group[0].experiment)
+    configs = [experiment.config_cls.from_dict(j.config) for j in group]
+    for j in group:
+        if j.start == "overwrite" and Path(j.out_dir).exists():
+            shutil.rmtree(j.out_dir)  # whole: no weights or evaluation.json of the old run survive
+    first = group[0]
     try:
-        return run_seed(experiment, config, job.out_dir, progress=progress, position=position,
-                        resume=job.start == "resume", checkpoint_every=job.checkpoint_every,
-                        tensorboard=job.tensorboard, should_stop=should_stop, command=job.command)
+        summaries = run_seeds(experiment, configs, [j.out_dir for j in group], progress=progress, position=position,
+                              resume=first.start == "resume", checkpoint_every=first.checkpoint_every,
+                              tensorboard=first.tensorboard, should_stop=should_stop, command=first.command)
     finally:
-        _draw_curve(job.out_dir, experiment, config)
+        for j, config in zip(group, configs):
+            _draw_curve(j.out_dir, experiment, config)
+    return next((s for s in summaries if s.status == "interrupted"), summaries[-1])
 
 
 def _draw_curve(out_dir: Path, experiment, config) -> None:
@@ -118,23 +144,6 @@ def _draw_curve(out_dir: Path, experiment, config) -> None:
         plot_seed_curve(out_dir, experiment, config)
     except OSError as exc:  # a full disk: the run's own files and summary are what count
         print(f"warning: could not draw {Path(out_dir) / 'curve.png'}: {exc}", file=sys.stderr)
-
-
-def _execute_batch(job: SeedBatchJob, progress: bool) -> RunSummary:
-    from keras_rl.runs.batched import run_seed_batch
-
-    experiment = get_experiment(job.jobs[0].experiment)
-    configs = [experiment.config_cls.from_dict(j.config) for j in job.jobs]
-    for j in job.jobs:
-        if Path(j.out_dir).exists():
-            shutil.rmtree(j.out_dir)
-    try:
-        summaries = run_seed_batch(experiment, configs, [j.out_dir for j in job.jobs], progress=progress,
-                                   command=job.jobs[0].command)
-    finally:
-        for j, config in zip(job.jobs, configs):
-            _draw_curve(j.out_dir, experiment, config)
-    return next((s for s in summaries if s.status == "interrupted"), summaries[-1])
 
 
 class Backend(Protocol):

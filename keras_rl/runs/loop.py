@@ -1,20 +1,53 @@
-"""The episode loop shared by every post: train one seed and keep its folder current."""
+"""The one episode loop: S seeds of one config trained together, over a seed axis.
+
+A solo run is the case S=1 (``run_seed``), not a different program. Each seed keeps
+everything of its own: its env (seeded as its solo run seeds it), its agent's parts
+(replay buffer, transition rule, schedule, explorer, loss tally), its metric, its counters,
+its run folder and summary. One learner holds the seed axis (``SeedAxis``):
+
+- ``SoloAsStack`` around the table's learner (``learners/table.py``) for one seed, Keras
+  or PyTorch: call for call the solo learner's calls, so S=1 is bit-identical to the runs
+  committed before this loop existed (``tests/test_committed_runs_replay.py``);
+- a stacked learner (``learners/stacked.py``) for S>1: one compiled update per env step
+  for every seed, each slice stepping as its solo run would to about 1e-7 (XLA's batched
+  matmul rounds differently), so long runs drift apart the way chaotic runs do;
+- post 003's PyTorch tutorial, which brings its own whole agent (``WholeAgentAxis``; one
+  seed: its code is the original).
+
+Every env step is a vector step: each running seed steps its env and stores its
+transitions (``Agent.store``); a seed whose episode ended resets its env at once; then one
+learner call trains every seed and picks every next action; then ended episodes are
+recorded. A seed that finishes (threshold, budget, or a non-finite loss of its own) is
+masked: its slice keeps stepping on rows of zeros so the others stay in lockstep, but
+nothing of it is recorded any more, and nothing of it reaches the other slices (the loss
+is a sum of per-seed losses; Adam and the soft update are elementwise).
+
+Checkpoints (``--resume``): every ``checkpoint_every`` episodes per seed, and when a signal
+or the dispatcher stops the batch, every seed writes the state at the current vector step
+to its own folder: its parts mid-episode included, its env (pickled, mid-episode), its
+slice of the learner, and the generators outside it. A batch's checkpoints carry the
+vector step they were taken at and the seeds of the batch; a seed keeps its previous one
+beside the current one until the next is written, so a batch killed while writing them
+resumes from the newest vector step every seed holds. Resuming replays the rest exactly as
+an uninterrupted run of the same batch (``tests/test_resume.py``).
+"""
 
 from __future__ import annotations
 
-import copy
 import datetime
 import json
 import math
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
+
+import numpy as np
 
 from keras_rl.errors import ConfigError, NonFiniteLossError
 from keras_rl.experiment import Experiment
-from keras_rl.registry import build_agent
-from keras_rl.rngs import global_rng_state, rng_state, set_global_rng_state, set_rng_state
-from keras_rl.runs.checkpoint import CHECKPOINT, read_checkpoint, write_checkpoint
+from keras_rl.learners.table import implementation, stacked_implementation
+from keras_rl.rngs import global_rng_state, set_global_rng_state
+from keras_rl.runs.checkpoint import delete_checkpoints, read_batch_checkpoints, write_checkpoint
 from keras_rl.runs.files import RunRecorder, atomic_write_text, episode_columns, episodes_csv_text
 from keras_rl.runs.provenance import command_line, library_versions, provenance
 from keras_rl.runs.signals import signal_name, stop_signals_as_flag, stop_signals_deferred
@@ -22,48 +55,245 @@ from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import configure_tensorflow, seed_everything
 
 
-def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = True,
-             position: int = 0, threads: int | None = 1, env=None, resume: bool = False,
-             checkpoint_every: int = 10, tensorboard: Path | None = None,
-             should_stop: Callable[[], bool] | None = None, command: str | None = None) -> RunSummary:
-    """Train one seed to the threshold or the budget; write and return its summary.
+def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = True, position: int = 0,
+             threads: int | None = 1, env=None, resume: bool = False, checkpoint_every: int = 10,
+             tensorboard: Path | None = None, should_stop: Callable[[], bool] | None = None,
+             command: str | None = None) -> RunSummary:
+    """Train one seed: ``run_seeds`` with a seed axis of one."""
+    return run_seeds(experiment, [config], [out_dir], progress=progress, position=position, threads=threads,
+                     envs=None if env is None else [env], resume=resume, checkpoint_every=checkpoint_every,
+                     tensorboard=tensorboard, should_stop=should_stop, command=command)[0]
 
-    Ctrl-C, SIGTERM, a non-finite loss or any other error still leaves ``episodes.csv``
-    with every finished episode and a ``summary.json`` whose ``status`` says how the run
-    ended; the summary is rewritten after every episode, so even a killed run's summary
-    counts the episodes on disk. Every ``checkpoint_every`` episodes, and when a signal
-    stops the run, the state at the last episode boundary goes to ``checkpoint.pkl``;
-    ``resume=True`` continues from it. ``env`` may be passed in (tests wrap envs).
-    ``should_stop`` is asked after every episode; True stops the run as a signal would (a
-    distributed backend's stop flag). ``command`` is the command line to record (a job run
-    elsewhere carries its driver's; by default this process's).
+
+def run_seeds(experiment: Experiment, configs: Sequence, out_dirs: Sequence[Path], progress: bool = True,
+              position: int = 0, threads: int | None = 1, envs: Sequence | None = None, resume: bool = False,
+              checkpoint_every: int = 10, tensorboard: Path | None = None,
+              should_stop: Callable[[], bool] | None = None, command: str | None = None) -> list[RunSummary]:
+    """Train the seeds of ``configs`` (equal but for the seed) together to the threshold or
+    the budget; write each one's folder and return their summaries.
+
+    Ctrl-C, SIGTERM, a non-finite loss or any other error still leaves each seed's
+    ``episodes.csv`` with every finished episode and a ``summary.json`` whose ``status``
+    says how that seed ended; the summary is rewritten after every episode. ``envs`` may be
+    passed in, one per seed (tests wrap envs). ``should_stop`` is asked after every vector
+    step; True stops the batch as a signal would (a distributed backend's stop flag).
+    ``command`` is the command line to record (a job run elsewhere carries its driver's).
     """
+    configs = list(configs)
+    same_but_seed(configs)
+    if len({c.episodes for c in configs}) != 1:
+        raise ConfigError("seed-batched runs share one budget")
     configure_tensorflow(threads)
-    seed_everything(config.seed)
-    env = env if env is not None else experiment.make_env(config)
-    env.action_space.seed(config.seed)
-    agent = build_agent(experiment, config, env)
-    recorder = RunRecorder(Path(out_dir), agent.loss_names)
-    metric = experiment.make_metric(config)
-    run = SeedRun(experiment, config, recorder, metric, command)
+    axis, envs = build_seed_axis(experiment, configs, envs)
+    seeds = [_Seed(experiment, c, env, Path(d), axis.loss_names, command) for c, env, d in zip(configs, envs, out_dirs)]
+    batch = [c.seed for c in configs]
+    for s in seeds:
+        if len(seeds) > 1:  # which seeds shared its stacked updates: its bits depend on them
+            s.run.provenance["seed_batch"] = batch
+    state = _Batch(seeds, axis, checkpoint_every, batch)
     if resume:
-        run.restore(read_checkpoint(recorder.out_dir), agent, env)
+        state.restore(read_batch_checkpoints([s.recorder.out_dir for s in seeds], batch))
     else:
-        recorder.write_config(config.to_dict())
-    writer = _TensorBoard(tensorboard, config) if tensorboard else None
+        for s in seeds:
+            s.recorder.write_config(s.config.to_dict())
+    for s in seeds:
+        if s.final is None:  # a summary from the start: no stale one from an earlier run survives
+            s.run.summary("running").write(s.recorder.out_dir)
+        if tensorboard and s.final is None:
+            s.writer = _TensorBoard(tensorboard, s.config)
+    bar = _progress_bar(experiment, configs, seeds, position) if progress else None
+    try:
+        with stop_signals_as_flag() as interrupted:  # checked between vector steps
+            state.loop(interrupted, bar, should_stop)
+    except Exception as exc:  # keep what was written, record why, re-raise
+        for s in seeds:
+            if s.active:
+                s.finish("error", f"{type(exc).__name__}: {exc}")
+        raise
+    finally:
+        # A second signal (or the one a parent forwards) must not cut the flush short.
+        with stop_signals_deferred(reraise=False):
+            if bar is not None:
+                bar.close()
+            state.close()
+    return [s.final for s in seeds]
 
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
 
-        bar = tqdm(total=config.episodes, initial=len(recorder.rows), position=position, leave=position == 0,
-                   dynamic_ncols=True, unit="ep",
-                   desc=f"{experiment.name}/{config.variant}/{config.framework} seed {config.seed}")
+def same_but_seed(configs: Sequence) -> None:
+    """Seeds share a batch only when their configs are equal but for the seed."""
+    first = configs[0].replace(seed=0).to_dict()
+    if any(c.replace(seed=0).to_dict() != first for c in configs[1:]):
+        raise ConfigError("seed-batched configs must be equal but for the seed")
 
-    # A summary from the start: no stale summary from an earlier run in this folder survives.
-    run.summary("running").write(recorder.out_dir)
-    with stop_signals_as_flag() as interrupted:  # checked between env steps (see stop_signals_as_flag)
-        return _train(run, env, agent, bar, interrupted, checkpoint_every, writer, should_stop)
+
+def build_seed_axis(experiment: Experiment, configs: list, envs: Sequence | None):
+    """The seed axis for ``configs``, and each seed's env, built in the order a solo run
+    draws its initial weights (Keras seeded with the seed, env, then the learner)."""
+    c = configs[0]
+    impl = implementation(experiment.name, c.framework)
+    if len(configs) == 1:
+        seed_everything(c.seed)
+    envs = list(envs) if envs is not None else [experiment.make_env(config) for config in configs]
+    for config, env in zip(configs, envs):
+        env.action_space.seed(config.seed)
+    spec = experiment.env_spec(envs[0])
+    if impl.whole_agent:
+        if len(configs) > 1:
+            raise ConfigError(f"{experiment.name}'s {c.framework} version is the original code, one seed per run; "
+                              "it does not batch (drop --seed-batch)")
+        return WholeAgentAxis(impl.load()(c, spec, envs[0].action_space)), envs
+    if len(configs) == 1:
+        from keras_rl.learners.stacked import SoloAsStack
+
+        learner = SoloAsStack(impl.load()(c, spec))
+    else:
+        learner = stacked_implementation(experiment.name, c.framework).load()(configs, spec)
+    agents = [experiment.assemble(config, spec, learner, env.action_space) for config, env in zip(configs, envs)]
+    return PartsAxis(agents, learner), envs
+
+
+class PartsAxis:
+    """Each seed's agent parts (``agents/skeleton.Agent``'s phases) and one learner that
+    holds the seed axis (stacked calls: ``[S, ...]`` in, ``[S, ...]`` out)."""
+
+    def __init__(self, agents: list, learner):
+        self.agents, self.learner = agents, learner
+        self.loss_names = tuple(learner.loss_names)
+        self.batches: list[list] = [[] for _ in agents]
+        self.raw: np.ndarray | None = None
+
+    def begin(self, k: int, obs) -> None:
+        self.agents[k].start_episode(obs)
+
+    def first_actions(self) -> None:
+        for agent in self.agents:
+            agent.reset_episode_stats()
+        self.raw = self.learner.act(np.stack([a.state for a in self.agents]))
+        for k, agent in enumerate(self.agents):
+            agent.explore(self.raw[k])
+
+    def store(self, k: int, reward: float, obs, terminated: bool, truncated: bool) -> None:
+        self.batches[k] = self.agents[k].store(reward, obs, terminated, truncated)
+
+    def learn(self, running: list[bool], any_ended: bool) -> dict[int, str]:
+        """Every running seed's updates of this env step and every seed's next action, in
+        the calls the solo run makes (``skeleton.run_updates``) with a seed axis; returns
+        the seeds whose loss went non-finite, with the message."""
+        counts = [len(self.batches[k]) if running[k] else 0 for k in range(len(self.agents))]
+        n = max(counts, default=0)
+        alike = len({c for c, r in zip(counts, running) if r}) <= 1
+        if not alike and not hasattr(self.learner, "_set_mask"):
+            raise ConfigError("seed-batched runs of this learner need the seeds to train the same number of batches "
+                              "on each env step")
+        states = np.stack([a.state for a in self.agents])
+        if n == 0:
+            self.raw = self.learner.act_without_update(states, separate=any_ended)
+            return {}
+        rounds = []  # (losses [S] by name, which seeds trained)
+        if alike:  # every running seed trains n batches: the solo run's calls, stacked
+            separate = any_ended or not self.agents[0].schedule.fuse_act
+            for i in range(n - 1):
+                rounds.append((_numpy(self.learner.train(self._rows(i, running))), running))
+            last, self.raw = self.learner.train_and_act(self._rows(n - 1, running), states, separate=separate)
+            rounds.append((_numpy(last), running))
+        else:  # post 001's bursts: round i trains the seeds with more than i batches, the others masked
+            for i in range(n):
+                mask = [c > i for c in counts]
+                rounds.append((_numpy(self.learner.train(self._rows(i, mask), mask=np.array(mask))), mask))
+            self.raw = self.learner.act(states)
+        failed = {}
+        for k, agent in enumerate(self.agents):
+            if running[k]:
+                try:
+                    agent.record_losses([{name: v[k] for name, v in losses.items()}
+                                         for losses, trained in rounds if trained[k]])
+                except NonFiniteLossError as exc:
+                    failed[k] = str(exc)
+        return failed
+
+    def _rows(self, i: int, trains: list[bool]) -> np.ndarray:
+        """Update i's rows ``[S, B, width]``; a seed that does not train on it gives rows of zeros."""
+        shape = next(self.batches[k][i].shape for k in range(len(self.agents)) if trains[k])
+        return np.stack([self.batches[k][i] if trains[k] else np.zeros(shape, np.float32)
+                         for k in range(len(self.agents))])
+
+    def next_actions(self, running: list[bool], restarted: set[int]) -> None:
+        for k, agent in enumerate(self.agents):
+            if k in restarted:
+                agent.reset_episode_stats()
+            if running[k]:
+                agent.explore(self.raw[k])
+
+    def action(self, k: int):
+        return self.agents[k]._action
+
+    def episode_stats(self, k: int):
+        return self.agents[k].end_episode()
+
+    def save(self, k: int, run_dir: Path) -> None:
+        self.learner.save_slice(k, run_dir)
+
+    def seed_state(self, k: int) -> dict[str, Any]:
+        return {"parts": self.agents[k].parts_state(), "learner": self.learner.slice_state(k)}
+
+    def load_seed_state(self, k: int, state: dict[str, Any]) -> None:
+        self.agents[k].load_parts_state(state["parts"])
+        self.learner.load_slice_state(k, state["learner"])
+
+
+def _numpy(losses) -> dict[str, np.ndarray]:
+    return {name: np.asarray(v) for name, v in losses.items()}  # [S] each
+
+
+class WholeAgentAxis:
+    """A seed axis of one whole agent that trains itself inside its ``step`` (post 003's
+    PyTorch tutorial): the loop's phases call its verbs in the solo order."""
+
+    def __init__(self, agent):
+        self.agent = agent
+        self.loss_names = tuple(agent.loss_names)
+        self._obs, self._action, self._failed = None, None, None
+
+    def begin(self, k: int, obs) -> None:
+        self._obs = obs  # its begin_episode resets the tally: it runs after the episode is recorded
+
+    def first_actions(self) -> None:
+        self._action = self.agent.begin_episode(self._obs)
+
+    def store(self, k: int, reward: float, obs, terminated: bool, truncated: bool) -> None:
+        try:
+            self._action = self.agent.step(reward, obs, terminated, truncated)
+        except NonFiniteLossError as exc:
+            self._failed = str(exc)
+
+    def learn(self, running: list[bool], any_ended: bool) -> dict[int, str]:
+        failed, self._failed = self._failed, None
+        return {} if failed is None else {0: failed}
+
+    def next_actions(self, running: list[bool], restarted: set[int]) -> None:
+        if restarted and running[0]:
+            self._action = self.agent.begin_episode(self._obs)
+
+    def action(self, k: int):
+        return self._action
+
+    def episode_stats(self, k: int):
+        return self.agent.end_episode()
+
+    def save(self, k: int, run_dir: Path) -> None:
+        self.agent.save(run_dir)
+
+    def seed_state(self, k: int) -> dict[str, Any]:
+        tally = self.agent.tally
+        return {"agent": self.agent.state_dict(), "action": self._action,
+                "agent_step": {"state": self.agent._state, "action": self.agent._action},
+                "tally": {"sums": dict(tally.sums), "updates": tally.updates}}
+
+    def load_seed_state(self, k: int, state: dict[str, Any]) -> None:
+        self.agent.load_state_dict(state["agent"])
+        self._action = state["action"]
+        self.agent._state, self.agent._action = state["agent_step"]["state"], state["agent_step"]["action"]
+        self.agent.tally.sums, self.agent.tally.updates = dict(state["tally"]["sums"]), int(state["tally"]["updates"])
 
 
 class SeedRun:
@@ -78,47 +308,7 @@ class SeedRun:
         self.versions = library_versions(config.framework)
         self.reached_at: int | None = None
         self.total_steps = 0
-        self.snapshot: dict[str, Any] | None = None
 
-    # -- checkpoints ----------------------------------------------------------------------
-    def capture(self, agent, env) -> None:
-        """The state at this episode boundary, kept in memory (written by ``save``)."""
-        self.snapshot = {
-            "config": self.config.to_dict(), "rows": list(self.recorder.rows), "reached_at": self.reached_at,
-            "total_steps": self.total_steps, "elapsed": time.perf_counter() - self.start,
-            "metric": copy.deepcopy(self.metric), "agent": agent.state_dict(),
-            "env_rng": rng_state(env.unwrapped.np_random), "action_space_rng": rng_state(env.action_space.np_random),
-            "global_rng": global_rng_state()}
-
-    def save(self) -> None:
-        if self.snapshot is not None:
-            write_checkpoint(self.recorder.out_dir, self.snapshot)
-
-    def restore(self, state: dict[str, Any], agent, env) -> None:
-        wanted = json.loads(json.dumps(self.config.to_dict()))
-        theirs = json.loads(json.dumps(state["config"]))
-        differing = sorted(k for k in wanted if theirs.get(k) != wanted[k])
-        if differing:
-            k = differing[0]
-            raise ConfigError(f"--resume: the checkpoint in {self.recorder.out_dir} was made with {k}={theirs.get(k)!r}, "
-                              f"this command asks for {wanted[k]!r}; resume with the same options")
-        if getattr(self.config, "learning_phase_training", False):
-            raise ConfigError("--resume does not cover learning_phase_training=true (its noise layer draws from "
-                              "TensorFlow's generator, which checkpoints do not hold)")
-        agent.load_state_dict(state["agent"])
-        self.metric.__dict__.update(state["metric"].__dict__)
-        set_rng_state(env.unwrapped.np_random, state["env_rng"])
-        set_rng_state(env.action_space.np_random, state["action_space_rng"])
-        set_global_rng_state(state["global_rng"])
-        self.recorder.rows = list(state["rows"])
-        self.reached_at, self.total_steps = state["reached_at"], int(state["total_steps"])
-        self.start = time.perf_counter() - float(state["elapsed"])
-        # episodes played after the checkpoint are played again, so they leave the CSV
-        atomic_write_text(self.recorder.out_dir / "episodes.csv",
-                          episodes_csv_text(self.recorder.rows, episode_columns(self.recorder.loss_names)))
-        self.snapshot = state
-
-    # -- episodes and the summary ------------------------------------------------------------
     def record_episode(self, episode: int, score: float, steps: int, stats) -> dict[str, Any]:
         """An episode's row into ``episodes.csv``, the threshold check, and a current
         ``summary.json``; returns the row."""
@@ -152,6 +342,228 @@ class SeedRun:
             extras=self.experiment.summary_extras(rows, c))
 
 
+class _Seed:
+    """One seed's own part of a batch: its env, its records and where its episode stands."""
+
+    def __init__(self, experiment: Experiment, config, env, out_dir: Path, loss_names, command: str | None):
+        self.config, self.env = config, env
+        self.recorder = RunRecorder(out_dir, loss_names)
+        self.run = SeedRun(experiment, config, self.recorder, experiment.make_metric(config), command)
+        self.status, self.message = "running", ""
+        self.score, self.steps, self.episode = 0.0, 0, 0
+        self.saved = False
+        self.writer: _TensorBoard | None = None
+        self.final: RunSummary | None = None
+        """The summary written when the seed stopped (its wall time ends there)."""
+
+    @property
+    def active(self) -> bool:
+        return self.status == "running"
+
+    def finish(self, status: str, message: str = "") -> None:
+        self.status, self.message = status, message
+
+    def snapshot(self) -> dict[str, Any]:
+        run = self.run
+        return {"config": self.config.to_dict(), "rows": list(self.recorder.rows), "reached_at": run.reached_at,
+                "total_steps": run.total_steps, "elapsed": time.perf_counter() - run.start, "metric": run.metric,
+                # an interrupted seed resumes: it is running as far as the checkpoint goes
+                "status": "running" if self.status == "interrupted" else self.status,
+                "message": "" if self.status == "interrupted" else self.message, "episode": self.episode, "score": self.score,
+                "steps": self.steps, "saved": self.saved, "env": self.env}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        wanted = json.loads(json.dumps(self.config.to_dict()))
+        theirs = json.loads(json.dumps(state["config"]))
+        differing = sorted(k for k in wanted if theirs.get(k) != wanted[k])
+        if differing:
+            k = differing[0]
+            raise ConfigError(f"--resume: the checkpoint in {self.recorder.out_dir} was made with {k}={theirs.get(k)!r}, "
+                              f"this command asks for {wanted[k]!r}; resume with the same options")
+        if getattr(self.config, "learning_phase_training", False):
+            raise ConfigError("--resume does not cover learning_phase_training=true (its noise layer draws from "
+                              "TensorFlow's generator, which checkpoints do not hold)")
+        run = self.run
+        run.metric.__dict__.update(state["metric"].__dict__)
+        self.recorder.rows = list(state["rows"])
+        run.reached_at, run.total_steps = state["reached_at"], int(state["total_steps"])
+        run.start = time.perf_counter() - float(state["elapsed"])
+        self.status, self.message = state["status"], state["message"]
+        self.episode, self.score, self.steps, self.saved = state["episode"], state["score"], state["steps"], state["saved"]
+        _load_env_state(self.env, state["env"])
+        if self.active:  # episodes played after the checkpoint are played again, so they leave the CSV
+            atomic_write_text(self.recorder.out_dir / "episodes.csv",
+                              episodes_csv_text(self.recorder.rows, episode_columns(self.recorder.loss_names)))
+        else:  # it had finished before the checkpoint: its files stay as they are
+            self.final = RunSummary.read(self.recorder.out_dir)
+
+
+def _load_env_state(env, saved) -> None:
+    """``saved`` (the pickled env of a checkpoint) into ``env`` in place, wrapper by wrapper:
+    the agent's parts hold references into ``env`` (post 003's explorer samples its action
+    space), so its objects stay and take the saved state (a space its generator)."""
+    import gymnasium as gym
+
+    mine, theirs = env, saved
+    while True:
+        for key, value in vars(theirs).items():
+            if key == "env":
+                continue
+            held = vars(mine).get(key)
+            if isinstance(value, gym.spaces.Space) and isinstance(held, gym.spaces.Space):
+                held._np_random = value._np_random
+            else:
+                vars(mine)[key] = value
+        if not isinstance(theirs, gym.Wrapper):
+            return
+        mine, theirs = mine.env, theirs.env
+
+
+class _Batch:
+    """The loop's state: the seeds, the seed axis, and the vector-step counter checkpoints carry."""
+
+    def __init__(self, seeds: list[_Seed], axis, checkpoint_every: int, batch: list[int]):
+        self.seeds, self.axis, self.checkpoint_every, self.batch = seeds, axis, checkpoint_every, batch
+        self.vector_step = 0
+        self.since_checkpoint = 0
+        self.started = False
+
+    # -- the loop -------------------------------------------------------------------------
+    def loop(self, interrupted: list, bar, should_stop) -> None:
+        """Vector step after vector step until no seed is running. A seed whose episode ends
+        begins its next one at once (its own env reset), so episodes of any length line up;
+        the one learner call of the step trains every seed and picks every next action, and
+        the ended episode is recorded after it, as the solo agent records it after the
+        step's update."""
+        seeds, axis = self.seeds, self.axis
+        if not self.started:
+            for k, s in enumerate(seeds):
+                axis.begin(k, s.env.reset(seed=s.config.seed)[0])
+                s.episode = 1
+            axis.first_actions()
+            self.started = True
+        while any(s.active for s in seeds):
+            ended = []
+            for k, s in enumerate(seeds):
+                if not s.active:
+                    continue
+                obs, reward, terminated, truncated, _ = s.env.step(axis.action(k))
+                s.score += float(reward)
+                s.steps += 1
+                axis.store(k, float(reward), obs, terminated, truncated)
+                if terminated or truncated:
+                    ended.append(k)
+            records = {k: (seeds[k].score, seeds[k].steps) for k in ended}
+            for k in ended:  # the next episode's first state, so that one call acts for every seed
+                if seeds[k].episode < seeds[k].config.episodes:
+                    axis.begin(k, seeds[k].env.reset()[0])
+            running = [s.active for s in seeds]
+            for k, message in axis.learn(running, any_ended=bool(ended)).items():
+                seeds[k].finish("non_finite_loss", message)
+            self.vector_step += 1
+            restarted = set()
+            for k in ended:
+                s = seeds[k]
+                if not s.active:
+                    continue
+                row = s.run.record_episode(s.episode, *records[k], axis.episode_stats(k))
+                if s.writer is not None:
+                    s.writer.episode(row)
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix(score=f"{row['score']:.1f}", metric=f"{row['metric']:.1f}", refresh=False)
+                self.since_checkpoint += 1
+                if (s.run.reached_at is not None and s.config.stop_at_threshold) or s.episode == s.config.episodes:
+                    s.finish("completed")
+                else:
+                    s.episode += 1
+                    s.score, s.steps = 0.0, 0
+                    restarted.add(k)
+            axis.next_actions([s.active for s in seeds], restarted)
+            for k, s in enumerate(seeds):
+                if not s.active and s.final is None:  # it stopped on this step: its files and summary now
+                    self.flush(k)
+            if interrupted or (should_stop is not None and should_stop()):
+                by = signal_name(interrupted) if interrupted else "the dispatcher's stop request (Ctrl-C or SIGTERM)"
+                for s in seeds:
+                    if s.active:
+                        s.finish("interrupted", f"stopped by {by}; the episodes so far are kept (--resume continues)")
+                return
+            if (self.checkpoint_every and any(s.active for s in seeds)
+                    and self.since_checkpoint >= self.checkpoint_every * len(seeds)):
+                self.write_checkpoints()
+
+    # -- checkpoints ------------------------------------------------------------------------
+    def write_checkpoints(self) -> None:
+        """Every seed's state at this vector step, each into its own folder."""
+        shared = {"version": 2, "batch": self.batch, "vector_step": self.vector_step, "global_rng": global_rng_state()}
+        for k, s in enumerate(self.seeds):
+            write_checkpoint(s.recorder.out_dir, {**shared, "seed": s.snapshot(), "axis": self.axis.seed_state(k)})
+        self.since_checkpoint = 0
+
+    def restore(self, states: list[dict[str, Any]]) -> None:
+        for k, (s, state) in enumerate(zip(self.seeds, states)):
+            s.restore(state["seed"])
+            self.axis.load_seed_state(k, state["axis"])
+        set_global_rng_state(states[0]["global_rng"])
+        self.vector_step = int(states[0]["vector_step"])
+        self.started = True
+
+    # -- the end ------------------------------------------------------------------------------
+    def flush(self, k: int) -> None:
+        """A seed's last word: its weights (when it finished or was stopped, before its masked
+        slice moves on) and its final summary; a failed write makes the run an error that
+        names the file, so no summary claims success for a run whose files are missing."""
+        s = self.seeds[k]
+        if s.status in ("completed", "interrupted") and not s.saved:
+            try:
+                self.axis.save(k, s.recorder.out_dir)
+                s.saved = True
+            except Exception as exc:  # disk full, permissions
+                s.finish("error", f"could not write the run's files in {s.recorder.out_dir}: "
+                                  f"{type(exc).__name__}: {exc}")
+        if s.writer is not None:
+            s.writer.close()
+            s.writer = None
+        s.final = s.run.summary(s.status, s.message)
+        s.final.write(s.recorder.out_dir)
+
+    def close(self) -> None:
+        """Every seed's final files. Checkpoints: an interrupted batch writes them (every
+        seed's, finished ones included, so the batch resumes whole); a batch that ended
+        removes them."""
+        seeds = self.seeds
+        for k, s in enumerate(seeds):
+            if s.active:  # an error outside any one seed: every seed still running says so
+                s.finish("error", "the batch stopped on an error")
+        if any(s.status == "interrupted" for s in seeds):
+            try:
+                self.write_checkpoints()
+            except Exception as exc:  # disk full: say so in every interrupted seed's summary
+                for s in seeds:
+                    if s.status == "interrupted":
+                        s.finish("error", f"could not write the checkpoint in {s.recorder.out_dir}: "
+                                          f"{type(exc).__name__}: {exc}")
+                        s.final = None
+        elif all(s.status in ("completed", "non_finite_loss") for s in seeds):
+            for s in seeds:
+                delete_checkpoints(s.recorder.out_dir)
+        for k, s in enumerate(seeds):
+            if s.final is None:
+                self.flush(k)
+            s.env.close()
+
+
+def _progress_bar(experiment: Experiment, configs: list, seeds: list[_Seed], position: int):
+    from tqdm.auto import tqdm
+
+    c = configs[0]
+    who = (f"seed {c.seed}" if len(configs) == 1
+           else f"seeds {configs[0].seed}..{configs[-1].seed} (batch of {len(configs)})")
+    return tqdm(total=len(seeds) * c.episodes, initial=sum(len(s.recorder.rows) for s in seeds), position=position,
+                leave=position == 0, dynamic_ncols=True, unit="ep", desc=f"{experiment.name}/{c.variant}/{c.framework} {who}")
+
+
 class _TensorBoard:
     """Per-episode score, metric and losses as TensorBoard scalars, one run folder per seed."""
 
@@ -172,73 +584,3 @@ class _TensorBoard:
     def close(self) -> None:
         self.writer.close()
 
-
-def _train(run: SeedRun, env, agent, bar, interrupted: list, checkpoint_every: int, writer,
-           should_stop: Callable[[], bool] | None = None) -> RunSummary:
-    """``run_seed``'s episode loop and its final flush."""
-    config, recorder = run.config, run.recorder
-    status, message = "running", ""
-    try:
-        for episode in range(len(recorder.rows) + 1, config.episodes + 1):
-            obs, _ = env.reset(seed=config.seed if episode == 1 else None)
-            action = agent.begin_episode(obs)
-            score, steps = 0.0, 0
-            while action is not None:
-                obs, reward, terminated, truncated, _ = env.step(action)
-                score += float(reward)
-                steps += 1
-                action = agent.step(float(reward), obs, terminated, truncated)
-                if interrupted:
-                    raise KeyboardInterrupt
-            row = run.record_episode(episode, score, steps, agent.end_episode())
-            if writer is not None:
-                writer.episode(row)
-            run.capture(agent, env)
-            if checkpoint_every and episode % checkpoint_every == 0:
-                run.save()
-            if bar is not None:
-                bar.update(1)
-                bar.set_postfix(score=f"{score:.1f}", metric=f"{row['metric']:.1f}", steps=run.total_steps,
-                                refresh=False)
-            if interrupted or (should_stop is not None and should_stop()):
-                raise KeyboardInterrupt
-            if run.reached_at is not None and config.stop_at_threshold:
-                break
-        status = "completed"
-    except KeyboardInterrupt:
-        status = "interrupted"
-        by = signal_name(interrupted) if interrupted else "the dispatcher's stop request (Ctrl-C or SIGTERM)"
-        message = f"stopped by {by}; the episodes so far are kept (--resume continues)"
-    except NonFiniteLossError as exc:
-        status, message = "non_finite_loss", str(exc)
-    except Exception as exc:  # keep what was written, record why, re-raise below
-        status, message = "error", f"{type(exc).__name__}: {exc}"
-        raise
-    finally:
-        # A second signal (or the one a parent forwards) must not cut the flush short.
-        with stop_signals_deferred(reraise=False):
-            if bar is not None:
-                bar.close()
-            if writer is not None:
-                writer.close()
-            status, message = _flush(run, agent, status, message)
-            summary = run.summary(status, message)
-            summary.write(recorder.out_dir)
-            env.close()
-    return summary
-
-
-def _flush(run: SeedRun, agent, status: str, message: str) -> tuple[str, str]:
-    """Weights and checkpoint at the end of a run; a failed write makes the run an error
-    that names the file, so no summary claims success for a run whose files are missing."""
-    out = run.recorder.out_dir
-    try:
-        if status in ("completed", "interrupted"):
-            agent.save(out)
-        if status == "interrupted":
-            run.save()
-        elif status == "completed":
-            (out / CHECKPOINT).unlink(missing_ok=True)
-    except Exception as exc:  # disk full, permissions
-        return "error", f"could not write the run's files in {out}: {type(exc).__name__}: {exc}"
-    return status, message

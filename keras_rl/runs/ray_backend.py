@@ -32,8 +32,9 @@ from pathlib import Path
 from typing import Any
 
 from keras_rl.errors import ConfigError
+from keras_rl.runs.checkpoint import delete_checkpoints
 from keras_rl.runs.files import atomic_write_bytes
-from keras_rl.runs.jobs import SeedBatchJob, execute
+from keras_rl.runs.jobs import SeedBatchJob, execute, members
 from keras_rl.runs.signals import sigterm_as_interrupt
 
 MAX_RETRIES = 3
@@ -44,34 +45,45 @@ def _pack(folder: Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in Path(folder).iterdir() if p.is_file() and not p.name.startswith(".")}
 
 
-def _seed_task(job, files_in: dict[str, bytes] | None, stop_flag) -> dict[str, bytes] | None:
-    """One seed on a Ray worker. ``files_in`` None: this node shares the driver's disk (a
-    local instance), so the seed writes its folder in place, visible as it runs. Otherwise
-    the folder is made in a temporary directory (with the files of a run to resume) and
-    returned whole. A rerun after a dead worker starts the folder afresh (or resumes)."""
+def _seed_task(job, files_in: list[dict[str, bytes]] | None, stop_flag) -> list[dict[str, bytes]] | None:
+    """One job (a seed, or a batch of seeds on one seed axis) on a Ray worker. ``files_in``
+    None: this node shares the driver's disk (a local instance), so each seed writes its
+    folder in place, visible as it runs. Otherwise each seed's folder is made in a
+    temporary directory (with the files of a run to resume) and returned whole, one dict
+    per seed. A rerun after a dead worker starts the folders afresh (or resumes)."""
     import ray
 
     def should_stop() -> bool:
         return ray.get(stop_flag.is_set.remote())
 
-    if isinstance(job, SeedBatchJob):  # in place (batches run on a local instance only)
-        execute(job, progress=False)
-        return None
-    resume = job.start == "resume"
+    group = members(job)
+    resume = group[0].start == "resume"
+    node = ray.get_runtime_context().get_node_id()
     if files_in is None:
-        execute(dataclasses.replace(job, start="resume" if resume else "overwrite"), progress=False,
-                should_stop=should_stop)
-        _record_node(Path(job.out_dir), ray.get_runtime_context().get_node_id())
+        execute(_with(job, lambda j: dataclasses.replace(j, start="resume" if resume else "overwrite")),
+                progress=False, should_stop=should_stop)
+        for j in group:
+            _record_node(Path(j.out_dir), node)
         return None
     with tempfile.TemporaryDirectory(prefix="keras-rl-seed-") as tmp:
-        run_dir = Path(tmp) / "seed"
-        run_dir.mkdir()
-        for name, data in files_in.items():
-            (run_dir / name).write_bytes(data)
-        execute(dataclasses.replace(job, out_dir=run_dir, start="resume" if resume else "new"),
+        dirs = [Path(tmp) / f"seed_{j.config['seed']}" for j in group]
+        for run_dir, files in zip(dirs, files_in):
+            run_dir.mkdir()
+            for name, data in files.items():
+                (run_dir / name).write_bytes(data)
+        moved = iter(dirs)
+        execute(_with(job, lambda j: dataclasses.replace(j, out_dir=next(moved), start="resume" if resume else "new")),
                 progress=False, should_stop=should_stop)
-        _record_node(run_dir, ray.get_runtime_context().get_node_id())
-        return _pack(run_dir)
+        for run_dir in dirs:
+            _record_node(run_dir, node)
+        return [_pack(run_dir) for run_dir in dirs]
+
+
+def _with(job, change):
+    """``job`` with ``change`` applied to each of its seeds."""
+    if isinstance(job, SeedBatchJob):
+        return SeedBatchJob(tuple(change(j) for j in job.jobs))
+    return change(job)
 
 
 def _record_node(run_dir: Path, node_id: str) -> None:
@@ -168,7 +180,8 @@ class RayBackend:
                 job = running.pop(ref)
                 files = ray.get(ref)
                 if ship:
-                    _land(job, files)
+                    for member, member_files in zip(members(job), files):
+                        _land(member, member_files)
                 if bar is not None:
                     bar.update(1)
 
@@ -176,7 +189,8 @@ class RayBackend:
             while pending or running:
                 while pending and len(running) < slots:
                     job = pending.pop(0)
-                    files = (_pack(job.out_dir) if job.start == "resume" else {}) if ship else None
+                    files = ([_pack(m.out_dir) if m.start == "resume" else {} for m in members(job)] if ship
+                             else None)
                     running[task.remote(job, files, stop)] = job
                 collect(ray.wait(list(running), num_returns=1, timeout=0.5)[0])
         except KeyboardInterrupt:
@@ -207,7 +221,7 @@ def _land(job, files: dict[str, bytes]) -> None:
     for name, data in files.items():
         atomic_write_bytes(out / name, data)
     if "checkpoint.pkl" not in files:
-        (out / "checkpoint.pkl").unlink(missing_ok=True)
+        delete_checkpoints(out)
 
 
 def _bar(total: int):

@@ -27,6 +27,11 @@ def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
     if the default is wanted.
     """
     if not (seed_dir / "summary.json").is_file():
+        if seed_dir.is_dir() and any(seed_dir.iterdir()):  # not a run this project made: never removed unasked
+            held = ", ".join(sorted(p.name for p in seed_dir.iterdir())[:5])
+            raise RunFolderError(f"{seed_dir} holds files ({held}) but no summary.json, so it is not a run that can be "
+                                 "reused and it is left as it is; move what you keep there and pass --rerun to "
+                                 "replace it")
         return "missing"
     summary = RunSummary.read(seed_dir)
     try:
