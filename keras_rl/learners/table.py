@@ -43,6 +43,8 @@ STACKED: dict[tuple[str, str], Implementation] = {
     ("pendulum", "keras"): Implementation("keras_rl.learners.stacked:stack_post000"),
     ("cartpole", "keras"): Implementation("keras_rl.learners.stacked:stack_post003"),
     ("mountaincar", "keras"): Implementation("keras_rl.learners.stacked:stack_post001"),
+    ("pendulum", "torch"): Implementation("keras_rl.torch.stacked:stack_post000"),
+    ("mountaincar", "torch"): Implementation("keras_rl.torch.stacked:stack_post001"),
 }
 """Seed-batched learners (``--seed-batch``): ``factory(configs, spec)`` for S seeds at once."""
 

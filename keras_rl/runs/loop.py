@@ -182,7 +182,7 @@ class PartsAxis:
         counts = [len(self.batches[k]) if running[k] else 0 for k in range(len(self.agents))]
         n = max(counts, default=0)
         alike = len({c for c, r in zip(counts, running) if r}) <= 1
-        if not alike and not hasattr(self.learner, "_set_mask"):
+        if not alike and not getattr(self.learner, "takes_masks", False):
             raise ConfigError("seed-batched runs of this learner need the seeds to train the same number of batches "
                               "on each env step")
         states = np.stack([a.state for a in self.agents])

@@ -283,19 +283,19 @@ class TorchDDPGLearner:
     def td_targets(self, rewards, next_states, dones):
         """The critic's regression targets, [B,B] under P000-BROADCAST, else [B,1]."""
         next_q = self.target_critic(next_states, self.target_actor(next_states))  # [B, 1]
-        rewards = rewards[:, None]
+        rewards = rewards[..., None]
         if self.broadcast_target:
-            return rewards + self.gamma * next_q * (1.0 - dones[None, :])  # [B, B], as in the Keras learner
-        return rewards + self.gamma * next_q * (1.0 - dones[:, None])
+            return rewards + self.gamma * next_q * (1.0 - dones[..., None, :])  # [B, B], as in the Keras learner
+        return rewards + self.gamma * next_q * (1.0 - dones[..., :, None])
 
     def update(self, batch: Batch) -> dict:
         states, actions, rewards, next_states, dones = batch
         targets = self.td_targets(rewards, next_states, dones)
 
         q_values = self.critic(states, actions)
-        critic_loss = torch.mean(torch.square(q_values - targets))
+        critic_loss = self.seed_mean(torch.square(q_values - targets))
         self.critic_optimizer.zero_grad(set_to_none=False)
-        critic_loss.backward()
+        self.total(critic_loss).backward()
         self.critic_optimizer.step()
 
         grads, actor_loss = self.actor_gradients(states, actions)
@@ -304,21 +304,33 @@ class TorchDDPGLearner:
         self.actor_optimizer.step()
 
         with torch.no_grad():
-            for target, source in self._soft_pairs:
-                soft_update(target, source, self.tau)
+            self.soft_update_targets()
         return {"critic_loss": critic_loss.detach(), "actor_loss": actor_loss.detach()}
+
+    # -- hooks: the seed-batched learner (``torch/stacked.py``) runs this update over a seed axis
+    def seed_mean(self, x):
+        """A loss's mean over the batch (per seed, stacked)."""
+        return torch.mean(x)
+
+    def total(self, loss):
+        """What the gradient is taken of (stacked: the sum of the seeds' losses)."""
+        return loss
+
+    def soft_update_targets(self) -> None:
+        for target, source in self._soft_pairs:
+            soft_update(target, source, self.tau)
 
     def actor_gradients(self, states, actions):
         """The actor's gradients, as in ``DDPGLearner.actor_gradients``, and -mean Q to report."""
         params = self._actor_params
         if self.actor_update == "mean_q":
-            actor_loss = -torch.mean(self.critic(states, self.actor(states)))
-            return torch.autograd.grad(actor_loss, params), actor_loss
+            actor_loss = -self.seed_mean(self.critic(states, self.actor(states)))
+            return torch.autograd.grad(self.total(actor_loss), params), actor_loss
         policy_actions = self.actor(states)  # [B, act], with its graph for the step below
         at = (actions if self.dqda_at_buffer_actions else policy_actions).detach().requires_grad_(True)
         q_values = self.critic(states, at)
         (dq_da,) = torch.autograd.grad(q_values.sum(), at)  # a constant for the actor's step
-        actor_loss = -torch.mean(q_values)
+        actor_loss = -self.seed_mean(q_values)
         if self.actor_update == "dpg_intended":
             return torch.autograd.grad(policy_actions, params, grad_outputs=-dq_da), actor_loss
         # dpg_literal: the gradient of the sum of every entry of the first-order gradients.

@@ -1,0 +1,219 @@
+"""The PyTorch ports of posts 000 and 001 for S seeds at once (``--seed-batch``).
+
+Each network is the solo module run under ``torch.func.vmap`` with ``functional_call``
+over its seeds' stacked weights (``torch.func.stack_module_state``): seed k's slice is
+seed k's solo module, parameter for parameter, so nothing of the networks is written a
+second time. The update is ``TorchDDPGLearner.update`` itself, through its hooks: each
+seed's loss its own mean, the gradient taken of their sum (so each slice gets its solo
+gradient), Keras' Adam per seed with its own step count and a mask (``SeedKerasAdam``:
+post 001's seeds train different numbers of batches on one env step), and masked soft
+updates. Each slice starts from the weights its solo run draws (``torch.manual_seed``,
+then the solo builder). The tests: ``tests/test_torch_stacked.py``.
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from keras_rl.buffers import Layout
+from keras_rl.envs import EnvSpec
+from keras_rl.errors import ConfigError
+from keras_rl.torch import require_torch, save_state
+from keras_rl.torch.ddpg import TorchDDPGLearner, post000_learner, post001_learner
+
+torch = require_torch()
+nn = torch.nn
+
+NETWORKS = ("actor", "critic", "target_actor", "target_critic")
+
+
+class Vmapped(nn.Module):
+    """S copies of one solo module, weights stacked on a leading seed axis: ``[S, B, ...]``
+    in, ``[S, B, ...]`` out. ``parameters()`` then ``buffers()`` pair up one to one with a
+    solo module's (``_variables``' order)."""
+
+    def __init__(self, solos: Sequence[nn.Module]):
+        super().__init__()
+        params, buffers = torch.func.stack_module_state(list(solos))
+        self.template = [copy.deepcopy(solos[0]).to("meta")]  # a list: not a submodule, its weights unused
+        self.param_names, self.buffer_names = list(params), list(buffers)
+        self.stacked = nn.ParameterList(nn.Parameter(p.detach().clone()) for p in params.values())
+        for i, b in enumerate(buffers.values()):
+            self.register_buffer(f"b{i}", b.detach().clone())
+
+    def forward(self, *inputs):
+        params = dict(zip(self.param_names, self.stacked))
+        buffers = dict(zip(self.buffer_names, self.buffers()))
+        template = self.template[0]
+
+        def one(p, b, *xs):
+            return torch.func.functional_call(template, (p, b), xs)
+
+        return torch.func.vmap(one)(params, buffers, *inputs)
+
+
+def _keep(mask, like):
+    return mask.reshape([-1] + [1] * (like.dim() - 1))
+
+
+class SeedKerasAdam:
+    """``KerasAdam`` (torch's Adam with Keras' epsilon placement) for stacked parameters,
+    each seed with its own step count; a seed whose mask is False keeps its slice of every
+    parameter, its moments and its step count bit for bit. With every mask True it is the
+    solo optimizer's arithmetic per seed (torch's single-tensor Adam: ``m.lerp_(g, 1-b1)``,
+    ``v = b2 v + (1-b2) g^2``, ``p -= lr/(1-b1^t) * m / (sqrt(v)/sqrt(1-b2^t) + eps_t)``,
+    with ``eps_t = eps / sqrt(1-b2^t)``; the bias corrections in double precision)."""
+
+    def __init__(self, params, seeds: int, lr: float, epsilon: float = 1e-7, betas=(0.9, 0.999)):
+        self.params = list(params)
+        self.lr, self.epsilon, (self.beta_1, self.beta_2) = float(lr), float(epsilon), betas
+        self.steps = torch.zeros(seeds, dtype=torch.int64)
+        self.m = [torch.zeros_like(p) for p in self.params]
+        self.v = [torch.zeros_like(p) for p in self.params]
+        self.mask = torch.ones(seeds, dtype=torch.bool)
+
+    def zero_grad(self, set_to_none: bool = False) -> None:
+        for p in self.params:
+            p.grad = None
+
+    @torch.no_grad()
+    def step(self) -> None:
+        t = (self.steps + 1).to(torch.float64)
+        bias_correction1 = 1 - self.beta_1 ** t
+        bias_correction2_sqrt = (1 - self.beta_2 ** t).sqrt()
+        step_size = (self.lr / bias_correction1).to(torch.float32)
+        eps = (self.epsilon / bias_correction2_sqrt).to(torch.float32)
+        bc2 = bias_correction2_sqrt.to(torch.float32)
+        for p, m, v in zip(self.params, self.m, self.v, strict=True):
+            g = p.grad
+            keep = _keep(self.mask, p)
+            new_m = m.lerp(g, 1 - self.beta_1)
+            new_v = v.mul(self.beta_2).addcmul(g, g, value=1 - self.beta_2)
+            denom = new_v.sqrt() / _keep(bc2, p) + _keep(eps, p)
+            new_p = p - _keep(step_size, p) * (new_m / denom)
+            m.copy_(torch.where(keep, new_m, m))
+            v.copy_(torch.where(keep, new_v, v))
+            p.copy_(torch.where(keep, new_p, p))
+        self.steps = torch.where(self.mask, self.steps + 1, self.steps)
+
+    def tensors(self) -> list:
+        return [self.steps, *self.m, *self.v]
+
+
+class StackedTorchDDPGLearner(TorchDDPGLearner):
+    """``TorchDDPGLearner``'s update for S seeds in one call (see the module docstring)."""
+
+    takes_masks = True
+    """``train(rows, mask)``: the loop may train some seeds and not others on one call."""
+
+    def __init__(self, solos: Sequence[tuple], actor_lr: float, critic_lr: float, gamma: float, tau: float,
+                 broadcast_target: bool, layout: Layout, **kwargs):
+        self.seeds = len(solos)
+        nets = [Vmapped([s[i] for s in solos]) for i in range(4)]
+        super().__init__(*nets, actor_lr, critic_lr, gamma, tau, broadcast_target, layout, **kwargs)
+        self.actor_optimizer = SeedKerasAdam(nets[0].parameters(), self.seeds, actor_lr)
+        self.critic_optimizer = SeedKerasAdam(nets[1].parameters(), self.seeds, critic_lr)
+        self.solo_policies = [(s[0], s[1]) for s in solos]  # seed k's modules, for saving its slice
+
+    # -- TorchDDPGLearner's hooks --------------------------------------------------------------
+    def seed_mean(self, x):
+        return x.mean(dim=tuple(range(1, x.dim())))  # [S]: each seed's own loss
+
+    def total(self, loss):
+        return loss.sum()  # each slice gets its solo gradient
+
+    def soft_update_targets(self) -> None:
+        mask = self.actor_optimizer.mask
+        for target, source in self._soft_pairs:
+            for t, s in zip(target, source, strict=True):
+                t.copy_(torch.where(_keep(mask, t), self.tau * s + (1.0 - self.tau) * t, t))
+
+    # -- the stacked interface -------------------------------------------------------------------
+    def train(self, rows: np.ndarray, mask: np.ndarray | None = None) -> dict:
+        """One update of the seeds where ``mask`` is True (all by default) on their own rows
+        ``[S, B, width]``; losses ``[S]``."""
+        mask = torch.ones(self.seeds, dtype=torch.bool) if mask is None else torch.as_tensor(np.asarray(mask, bool))
+        self.actor_optimizer.mask = self.critic_optimizer.mask = mask
+        return super().train(rows)
+
+    @torch.no_grad()
+    def act(self, states: np.ndarray) -> np.ndarray:
+        """Each seed's action for its state: ``[S, obs] -> [S, act]``."""
+        return self.actor(torch.as_tensor(np.asarray(states, np.float32))[:, None, :])[:, 0].numpy()
+
+    def train_and_act(self, rows: np.ndarray, states: np.ndarray, separate: bool = False):
+        return self.train(rows), self.act(states)
+
+    def act_without_update(self, states: np.ndarray, separate: bool = False) -> np.ndarray:
+        return self.act(states)
+
+    def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
+        """Seed k's weights as its solo module holds them (parameters, then buffers)."""
+        return {name: [t[k].detach().numpy().copy() for t in (*getattr(self, name).parameters(),
+                                                               *getattr(self, name).buffers())]
+                for name in NETWORKS}
+
+    def save_slice(self, k: int, run_dir) -> None:
+        """Seed k's ``actor.pt`` and ``critic.pt``, as a solo run saves them."""
+        weights = self.slice_weights(k)
+        actor, critic = self.solo_policies[k]
+        with torch.no_grad():
+            for module, values in ((actor, weights["actor"]), (critic, weights["critic"])):
+                for tensor, value in zip((*module.parameters(), *module.buffers()), values, strict=True):
+                    tensor.copy_(torch.from_numpy(value))
+        save_state(actor, Path(run_dir) / "actor.pt")
+        save_state(critic, Path(run_dir) / "critic.pt")
+
+    def _stateful(self) -> list:
+        return [*(t for name in NETWORKS for t in (*getattr(self, name).parameters(), *getattr(self, name).buffers())),
+                *self.actor_optimizer.tensors(), *self.critic_optimizer.tensors()]
+
+    def slice_state(self, k: int) -> dict:
+        return {"tensors": [t[k].detach().clone() for t in self._stateful()]}
+
+    @torch.no_grad()
+    def load_slice_state(self, k: int, state: dict) -> None:
+        tensors = self._stateful()
+        if len(tensors) != len(state["tensors"]):
+            raise ValueError(f"checkpoint holds {len(state['tensors'])} values for {len(tensors)} tensors")
+        for tensor, value in zip(tensors, state["tensors"]):
+            tensor[k] = value
+
+
+def _solo_networks(build, configs: Sequence, spec: EnvSpec) -> list[tuple]:
+    """Each seed's four solo modules, drawn as its solo run draws them (its solo learner's)."""
+    first = {k: v for k, v in configs[0].to_dict().items() if k != "seed"}
+    if any({k: v for k, v in c.to_dict().items() if k != "seed"} != first for c in configs):
+        raise ValueError("seed-batched configs must be equal but for the seed")
+    return [(lambda solo: (solo.actor, solo.critic, solo.target_actor, solo.target_critic))(build(c, spec))
+            for c in configs]
+
+
+def stack_post000(configs: Sequence, spec: EnvSpec):
+    """Post 000's PyTorch learner for the seeds of ``configs``."""
+    c = configs[0]
+    if len(configs) == 1:
+        from keras_rl.learners.stacked import SoloAsStack
+
+        return SoloAsStack(post000_learner(c, spec))
+    return StackedTorchDDPGLearner(_solo_networks(post000_learner, configs, spec), c.actor_lr, c.critic_lr, c.gamma,
+                                   c.tau, c.broadcast_target, Layout(spec.obs_dim, spec.action_dim))
+
+
+def stack_post001(configs: Sequence, spec: EnvSpec):
+    """Post 001's PyTorch learner for the seeds of ``configs``, at learning phase 0."""
+    c = configs[0]
+    if len(configs) == 1:
+        from keras_rl.learners.stacked import SoloAsStack
+
+        return SoloAsStack(post001_learner(c, spec))
+    if c.learning_phase_training:
+        raise ConfigError("--seed-batch does not cover learning_phase_training=true (its BatchNormalization updates "
+                          "its statistics in place and its noise draws from one generator); run it without")
+    return StackedTorchDDPGLearner(_solo_networks(post001_learner, configs, spec), c.actor_lr, c.critic_lr, c.gamma,
+                                   c.tau, False, Layout(spec.obs_dim, spec.action_dim), actor_update=c.actor_gradient,
+                                   dqda_at_buffer_actions=c.dqda_at_buffer_actions)
