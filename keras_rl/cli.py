@@ -1,9 +1,9 @@
 """``keras-rl``: reproduce a post over seeds, compare frameworks, or evaluate a saved run.
 
-    keras-rl reproduce pendulum --variant faithful --seeds 0-9 --workers 2 --out results/pendulum
-    keras-rl compare pendulum --seeds 0-9 --workers 2
+    keras-rl reproduce pendulum --variant faithful --seeds 0-9 --workers 2 --out runs/pendulum
+    keras-rl compare pendulum --seeds 0-9 --workers 2 --runs runs --out runs/compare
     keras-rl sweep pendulum --grid tau=0.001,0.005 --seeds 0-3 --workers 2 --out runs/s
-    keras-rl evaluate results/pendulum/faithful/seed_0 --episodes 5 --gif pendulum.gif
+    keras-rl evaluate runs/pendulum/seed_0 --episodes 5 --gif pendulum.gif
     keras-rl aggregate results/pendulum/faithful
     keras-rl check pendulum cartpole mountaincar --tier smoke
     keras-rl list
@@ -21,9 +21,16 @@ from typing import Sequence
 from keras_rl import __version__
 from keras_rl.errors import ConfigError, KerasRLError
 
-EXIT_OK, EXIT_CRITERION, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_OK, EXIT_CRITERION, EXIT_USAGE = 0, 1, 2
 MAX_SEEDS = 10_000
 """More seeds than this in one command is taken for a typo (``0-100000``) and refused."""
+
+
+def _stopped() -> int:
+    """The exit code of a command a signal stopped (130 Ctrl-C, 143 SIGTERM)."""
+    from keras_rl.runs.signals import stop_exit_code
+
+    return stop_exit_code()
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -99,11 +106,13 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--no-progress", action="store_true", help="no progress bars")
 
     ev = sub.add_parser("evaluate", help="reload a run's saved policy and play greedy episodes")
-    ev.add_argument("run_dir", type=Path, help="a seed's run folder, e.g. results/pendulum/faithful/seed_0 "
-                                               "(weights are not committed: reproduce the seed first)")
+    ev.add_argument("run_dir", type=Path, help="a seed's run folder with its weights, e.g. runs/pendulum/seed_0 "
+                                               "(committed runs hold none: reproduce the seed first)")
     ev.add_argument("--episodes", type=int, default=5, help="greedy episodes to play (default 5)")
     ev.add_argument("--seed", type=int, default=None, help="env seed (default: the run's seed + 10000)")
-    ev.add_argument("--gif", type=_path_arg, default=None, help="record the first episode to this GIF")
+    ev.add_argument("--gif", type=_path_arg, default=None, help="record the first episode to this .gif file")
+    ev.add_argument("--overwrite", action="store_true",
+                    help="replace an evaluation.json of more episodes than this one plays")
 
     cp = sub.add_parser("compare", help="run or reuse the same seeds in Keras and PyTorch and report the difference")
     cp.add_argument("experiment", help="experiment name (see `keras-rl list`)")
@@ -343,7 +352,7 @@ def reproduce(args: argparse.Namespace) -> int:
         print(experiment.post_reference)
     if outcome.interrupted:
         print("interrupted: partial results are on disk, marked unfinished; --resume continues them", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return _stopped()
     if failures:
         print(f"exit 1: {len(failures)} of {len(seeds)} seeds stopped with an error", file=sys.stderr)
         return EXIT_CRITERION
@@ -361,14 +370,16 @@ def evaluate(args: argparse.Namespace) -> int:
     if args.episodes <= 0:
         raise ConfigError(f"--episodes must be positive, got {args.episodes}")
     if args.gif is not None:
+        if args.gif.suffix.lower() != ".gif":
+            raise ConfigError(f"--gif writes a GIF; name it *.gif, not {args.gif.name!r}")
         _check_writable_file(args.gif, "--gif")
     from keras_rl.runs.evaluate import evaluate_run
 
-    result = evaluate_run(args.run_dir, episodes=args.episodes, gif=args.gif, seed=args.seed, progress=True)
+    result = evaluate_run(args.run_dir, episodes=args.episodes, gif=args.gif, seed=args.seed, progress=True,
+                          overwrite=args.overwrite)
     if result.get("interrupted"):
-        print(f"interrupted: {len(result['scores'])} episodes kept in {args.run_dir / 'evaluation.json'}",
-              file=sys.stderr)
-        return EXIT_INTERRUPTED
+        print(f"interrupted: {len(result['scores'])} episodes kept in {result['written']}", file=sys.stderr)
+        return _stopped()
     print(f"mean score over {result['episodes']} greedy episodes: {result['mean']:.2f} "
           f"(std {result['std']:.2f})" + (f"; GIF: {result['gif']}" if "gif" in result else ""))
     return EXIT_OK
@@ -391,7 +402,7 @@ def compare(args: argparse.Namespace) -> int:
                              command_line(), args.matched_init, address=address, seed_batch=args.seed_batch)
     except KeyboardInterrupt:
         print("interrupted: the runs so far are on disk; run compare again to reuse them", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return _stopped()
     print(f"report: {result.out_dir / 'report.md'}")
     print(result.verdict)
     return EXIT_OK
@@ -467,7 +478,7 @@ def sweep(args: argparse.Namespace) -> int:
         print(f"  {row['point']}: {row['successes']}/{row['seeds']} succeeded, median episodes {row['median']}")
     if outcome.interrupted:
         print("interrupted: finished jobs are kept; run the same sweep again to resume it", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return _stopped()
     failed = [s for ss in summaries.values() for s in ss if s.status in ("non_finite_loss", "error")]
     return EXIT_CRITERION if failed else EXIT_OK
 
@@ -508,7 +519,7 @@ def check(args: argparse.Namespace) -> int:
                             not args.no_progress)
     except KeyboardInterrupt:
         print("interrupted: no verdict", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return _stopped()
     for r in results:
         print(f"{r.experiment}: {r.verdict} ({r.rule.statistic}, {r.decision.test}, p = {r.decision.p:.3g}, "
               f"alpha {r.rule.alpha}; baseline {len(r.baseline)} seeds, new {len(r.new)})")

@@ -235,4 +235,5 @@ def _parse_value(name: str, hint: Any, text: str) -> Any:
     except ValueError:
         kind = getattr(hint, "__name__", None) or ("comma-separated list of ints"
                                                    if typing.get_origin(hint) is tuple else str(hint))
-        raise ConfigError(f"{name} expects a {kind}, got {text!r}") from None
+        article = "an" if kind[0] in "aeiou" else "a"
+        raise ConfigError(f"{name} expects {article} {kind}, got {text!r}") from None

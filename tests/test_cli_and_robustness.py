@@ -49,7 +49,7 @@ def test_parse_seeds():
     (["reproduce", "pendulum", "--set", "actor_lr=-0.001"], "actor_lr must be positive"),
     (["reproduce", "pendulum", "--set", "tau=2"], "tau must be in (0, 1]"),
     (["reproduce", "pendulum", "--set", "gamma=nan"], "gamma must be finite"),
-    (["reproduce", "pendulum", "--set", "batch_size=lots"], "batch_size expects a int"),
+    (["reproduce", "pendulum", "--set", "batch_size=lots"], "batch_size expects an int"),
     (["reproduce", "pendulum", "--set", "warp=9"], "unknown pendulum config field 'warp'"),
     (["reproduce", "pendulum", "--workers", "0"], "--workers must be at least 1"),
     (["reproduce", "pendulum", "--set", "env_id=NoSuchEnv-v9"], "unknown environment 'NoSuchEnv-v9'"),
@@ -112,6 +112,51 @@ def test_evaluate_plays_greedy_episodes_and_writes_a_gif(short_run, tmp_path):
 
     with Image.open(gif) as img:
         assert img.n_frames == 200
+    assert "episode:   1 |" in proc.stdout and "episode:   0" not in proc.stdout  # numbered as episodes.csv
+
+
+def test_evaluate_keeps_a_longer_evaluation_and_refuses_a_gif_named_otherwise(short_run, capsys):
+    """#23.4 and #23.10: a 1-episode evaluation replaced a 100-episode one; --gif x.mp4 wrote a GIF."""
+    path = short_run / "evaluation.json"
+    longer = {"episodes": 100, "episodes_asked": 100, "scores": [-1.0] * 100, "interrupted": False}
+    path.write_text(json.dumps(longer))
+    assert main(["evaluate", str(short_run), "--episodes", "1"]) == 2
+    assert "holds an evaluation of 100 episodes" in capsys.readouterr().err
+    assert json.loads(path.read_text()) == longer  # nothing played, nothing replaced
+    assert main(["evaluate", str(short_run), "--episodes", "1", "--gif", str(short_run / "x.mp4")]) == 2
+    assert "name it *.gif" in capsys.readouterr().err
+    assert main(["evaluate", str(short_run), "--episodes", "1", "--overwrite"]) == 0
+    assert json.loads(path.read_text())["episodes"] == 1
+
+
+def test_an_interrupted_evaluation_never_replaces_a_finished_one(short_run, monkeypatch):
+    import dataclasses
+
+    import gymnasium as gym
+
+    from keras_rl.runs import evaluate
+
+    class InterruptAt(gym.Wrapper):
+        def __init__(self, env, at=250):  # in the second episode
+            super().__init__(env)
+            self.at, self.steps = at, 0
+
+        def step(self, action):
+            self.steps += 1
+            if self.steps == self.at:
+                raise KeyboardInterrupt
+            return self.env.step(action)
+
+    path = short_run / "evaluation.json"
+    finished = {"episodes": 3, "scores": [-1.0] * 3, "interrupted": False}
+    path.write_text(json.dumps(finished))
+    real = evaluate.get_experiment("pendulum")
+    wrapped = dataclasses.replace(real, make_env=lambda *a, **k: InterruptAt(real.make_env(*a, **k)))
+    monkeypatch.setattr(evaluate, "get_experiment", lambda name: wrapped)
+    result = evaluate.evaluate_run(short_run, episodes=5)
+    assert result["interrupted"] and len(result["scores"]) == 1
+    assert json.loads(path.read_text()) == finished
+    assert json.loads((short_run / "evaluation.interrupted.json").read_text())["episodes"] == 1
 
 
 def test_nan_in_a_loss_stops_the_run_and_keeps_the_episodes(tmp_path):
@@ -293,3 +338,28 @@ def test_compare_refuses_rerun_with_reuse_only(capsys):
 
     assert main(["compare", "pendulum", "--seeds", "0", "--rerun", "--reuse-only"]) == 2
     assert "--rerun and --reuse-only contradict each other" in capsys.readouterr().err
+
+
+def test_a_second_command_writing_the_same_run_folder_is_refused(tmp_path):
+    """#23.5: two commands with one --out were not kept apart (the second's --overwrite
+    cleared the first's folder under it). The second now exits 2 naming the folder, and the
+    first finishes as if alone."""
+    out = tmp_path / "out"
+    argv = [*CLI, "reproduce", "pendulum", "--seeds", "4", "--episodes", "60", "--no-progress",
+            "--set", "stop_at_threshold=false", "--set", "train_start=64", "--min-success-rate", "0",
+            "--out", str(out)]
+    first = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    csv_path = out / "seed_4" / "episodes.csv"
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and first.poll() is None and not csv_path.is_file():
+        time.sleep(0.05)
+    assert first.poll() is None, "the first command ended before the second could meet it"
+    second = run_cli(*argv[3:], "--overwrite")
+    assert first.poll() is None, "the first command ended before the second met it"
+    assert second.returncode == 2, second.stderr
+    assert f"{out / 'seed_4'} is being written by another keras-rl command (pid {first.pid})" in second.stderr
+    _, stderr = first.communicate(timeout=300)
+    assert first.returncode == 0, stderr
+    assert len(read_episodes(csv_path)) == 60
+    again = run_cli(*argv[3:], "--episodes", "2", "--overwrite")
+    assert again.returncode == 0, again.stderr  # the lock went with the first command

@@ -225,6 +225,7 @@ def test_a_killed_ray_worker_is_retried_and_its_seed_reruns_to_the_same_csv(tmp_
     (["--grid", "warp=1,2"], "unknown pendulum config field 'warp'"),
     (["--grid", "tau=fast"], "tau expects a float, got 'fast'"),
     (["--grid", "tau=0.1,"], "has an empty value"),
+    (["--grid", "tau=0.1,0.10,1e-1"], "gives tau=0.1 more than once"),  # #23.2: it counted one seed as 3
     (["--grid", "tau=5"], "tau must be in (0, 1]"),
     (["--grid", "seed=1,2"], "use --seeds"),
     ([], "needs --grid"),

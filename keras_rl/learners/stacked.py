@@ -219,6 +219,9 @@ class StackedDDPGLearner(SliceState, DDPGLearner):
     their sum, and Adam per seed (``SeedAdam``) with a mask: a seed that does not train on a
     call keeps its weights, moments and step count (post 001's bursts differ per seed)."""
 
+    takes_masks = True
+    """``train(rows, mask)``: the loop may train some seeds and not others on one call."""
+
     def __init__(self, networks, actor_lr: float, critic_lr: float, seeds: int, xla: bool = True, **kwargs):
         actor, critic = networks[0], networks[1]
         self.seeds = seeds

@@ -31,12 +31,25 @@ def load_run_config(run_dir: Path):
         raise RunFolderError(f"{path} is corrupt: {exc}") from None
 
 
+EVALUATION = "evaluation.json"
+INTERRUPTED = "evaluation.interrupted.json"
+
+
 def evaluate_run(run_dir: Path, episodes: int = 5, gif: Path | None = None, seed: int | None = None,
-                 progress: bool = False) -> dict[str, Any]:
-    """Reload the saved policy and play greedy episodes, like post 000 §3's test section."""
+                 progress: bool = False, overwrite: bool = False) -> dict[str, Any]:
+    """Reload the saved policy and play greedy episodes, like post 000 §3's test section.
+
+    The result goes to ``evaluation.json``. An evaluation of more episodes already there
+    (post 001's ``fixed`` criterion reads a 100-episode one) is kept: a shorter one is
+    refused before anything plays unless ``overwrite``. An interrupted evaluation never
+    replaces a finished one: it goes to ``evaluation.interrupted.json``."""
     if episodes <= 0:
         raise ConfigError(f"--episodes must be positive, got {episodes}")
     experiment, config = load_run_config(run_dir)
+    held = _held_episodes(Path(run_dir) / EVALUATION)
+    if held is not None and held > episodes and not overwrite:
+        raise ConfigError(f"{Path(run_dir) / EVALUATION} holds an evaluation of {held} episodes; this one of "
+                          f"{episodes} would replace it. Ask for {held} or more, or pass --overwrite")
     configure_tensorflow(1)
     seed = config.seed + 10_000 if seed is None else seed
     seed_everything(seed)
@@ -57,8 +70,8 @@ def evaluate_run(run_dir: Path, episodes: int = 5, gif: Path | None = None, seed
                     score += float(reward)
                     done = terminated or truncated
                 scores.append(score)
-                if progress:
-                    print(f"episode: {episode:3d} | score: {score:.3f}")
+                if progress:  # numbered from 1, as episodes.csv numbers them
+                    print(f"episode: {episode + 1:3d} | score: {score:.3f}")
     except KeyboardInterrupt:  # Ctrl-C or SIGTERM: keep the episodes played so far
         interrupted = True
     env.close()
@@ -75,5 +88,18 @@ def evaluate_run(run_dir: Path, episodes: int = 5, gif: Path | None = None, seed
         images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 / 30), loop=0)
         atomic_write_bytes(Path(gif), buf.getvalue())
         result["gif"] = str(gif)
-    atomic_write_json(Path(run_dir) / "evaluation.json", result)
+    target = Path(run_dir) / (INTERRUPTED if interrupted and held is not None else EVALUATION)
+    atomic_write_json(target, result)
+    result["written"] = str(target)
     return result
+
+
+def _held_episodes(path: Path) -> int | None:
+    """How many episodes the finished evaluation at ``path`` played (None: none there)."""
+    if not path.is_file():
+        return None
+    try:
+        held = json.loads(path.read_text())
+        return None if held.get("interrupted") else int(held["episodes"])
+    except (ValueError, KeyError, TypeError, AttributeError):
+        raise RunFolderError(f"{path} is corrupt; move it aside to evaluate again") from None

@@ -8,6 +8,7 @@ No plotting here: ``keras_rl/report/plots.py`` draws the curves.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -139,3 +140,39 @@ class RunRecorder:
             atomic_write_text(self.out_dir / "episodes.csv",
                               episodes_csv_text([*self.rows, row], episode_columns(self.loss_names)))
             self.rows.append(row)
+
+
+@contextlib.contextmanager
+def run_folder_locks(run_dirs: Iterable[Path]):
+    """One writer per run folder: an exclusive ``flock`` on ``.<folder>.lock`` beside each
+    folder (beside it, so clearing the folder for ``--overwrite`` keeps the lock), held for
+    the block. A folder another process holds raises a RunFolderError that names it and
+    the holder's pid, before anything in any of the folders is touched. The lock goes with
+    the process, however it ends (``kill -9`` included)."""
+    import fcntl
+
+    from keras_rl.errors import RunFolderError
+
+    handles = []
+    try:
+        for run_dir in run_dirs:
+            run_dir = Path(run_dir)
+            run_dir.parent.mkdir(parents=True, exist_ok=True)
+            handle = open(run_dir.parent / f".{run_dir.name}.lock", "a+")
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                handle.seek(0)
+                holder = handle.read().strip() or "another process"
+                handle.close()
+                raise RunFolderError(f"{run_dir} is being written by another keras-rl command ({holder}); wait for "
+                                     "it to end, or pass another --out") from None
+            handle.seek(0)
+            handle.truncate()
+            handle.write(f"pid {os.getpid()}")
+            handle.flush()
+            handles.append(handle)
+        yield
+    finally:
+        for handle in handles:
+            handle.close()  # releases the lock

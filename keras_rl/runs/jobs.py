@@ -23,6 +23,7 @@ from typing import Any, Literal, Protocol
 from keras_rl.errors import RunFolderError
 from keras_rl.registry import get_experiment
 from keras_rl.report.plots import plot_seed_curve
+from keras_rl.runs.files import run_folder_locks
 from keras_rl.runs.loop import run_seeds
 from keras_rl.runs.provenance import command_line
 from keras_rl.runs.signals import sigterm_as_interrupt
@@ -125,17 +126,19 @@ def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> 
     group = members(job)
     experiment = get_experiment(group[0].experiment)
     configs = [experiment.config_cls.from_dict(j.config) for j in group]
-    for j in group:
-        if j.start == "overwrite" and Path(j.out_dir).exists():
-            shutil.rmtree(j.out_dir)  # whole: no weights or evaluation.json of the old run survive
     first = group[0]
-    try:
-        summaries = run_seeds(experiment, configs, [j.out_dir for j in group], progress=progress, position=position,
-                              resume=first.start == "resume", checkpoint_every=first.checkpoint_every,
-                              tensorboard=first.tensorboard, should_stop=should_stop, command=first.command)
-    finally:
-        for j, config in zip(group, configs):
-            _draw_curve(j.out_dir, experiment, config)
+    with run_folder_locks(j.out_dir for j in group):  # a second command writing these folders is refused
+        for j in group:
+            if j.start == "overwrite" and Path(j.out_dir).exists():
+                shutil.rmtree(j.out_dir)  # whole: no weights or evaluation.json of the old run survive
+        try:
+            summaries = run_seeds(experiment, configs, [j.out_dir for j in group], progress=progress,
+                                  position=position, resume=first.start == "resume",
+                                  checkpoint_every=first.checkpoint_every, tensorboard=first.tensorboard,
+                                  should_stop=should_stop, command=first.command)
+        finally:
+            for j, config in zip(group, configs):
+                _draw_curve(j.out_dir, experiment, config)
     return next((s for s in summaries if s.status == "interrupted"), summaries[-1])
 
 

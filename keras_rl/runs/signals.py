@@ -8,6 +8,20 @@ import signal
 import threading
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+_RECEIVED: list[int] = []
+"""Every stop signal this process took through the handlers below, in order."""
+
+
+def stop_exit_code() -> int:
+    """The exit code of a command a signal stopped: 128 + its number, as the shell reports a
+    process the signal killed (130 for Ctrl-C, 143 for SIGTERM, which ``timeout``, Slurm and
+    Kubernetes read); 130 when none was recorded (a KeyboardInterrupt raised by Python)."""
+    return 128 + (_RECEIVED[-1] if _RECEIVED else int(signal.SIGINT))
+
+
+def _record(caught: list[int], signum: int) -> None:
+    caught.append(signum)
+    _RECEIVED.append(signum)
 
 
 @contextlib.contextmanager
@@ -28,7 +42,7 @@ def stop_signals_as_flag():
     previous = {}
     for sig in STOP_SIGNALS:
         if signal.getsignal(sig) is not signal.SIG_IGN:
-            previous[sig] = signal.signal(sig, lambda signum, frame: caught.append(signum))
+            previous[sig] = signal.signal(sig, lambda signum, frame: _record(caught, signum))
     try:
         yield caught
     finally:
@@ -58,6 +72,7 @@ def sigterm_as_interrupt():
         return
 
     def _raise(signum, frame):
+        _RECEIVED.append(signum)
         raise KeyboardInterrupt
 
     previous = signal.signal(signal.SIGTERM, _raise)

@@ -60,7 +60,12 @@ def parse_grid(config_cls, items: list[str]) -> list[GridPoint]:
             raise ConfigError(f"--grid {item!r} has an empty value")
         if "hidden_units" in name:  # widths are themselves comma lists: separate grid values with ';'
             texts = values.split(";")
-        axes.append((name, [config_cls.parse_field(name, t) for t in texts]))
+        parsed = [config_cls.parse_field(name, t) for t in texts]
+        repeated = sorted({_text(v) for v in parsed if parsed.count(v) > 1})
+        if repeated:  # 0.1, 0.10 and 1e-1 are one grid point: as three they would count its seeds thrice
+            raise ConfigError(f"--grid {item!r} gives {name}={' and '.join(repeated)} more than once (values are "
+                              "compared after parsing); give each value once")
+        axes.append((name, parsed))
     points = [dict(zip((a for a, _ in axes), combo)) for combo in itertools.product(*(v for _, v in axes))]
     return [GridPoint(point_name(p), p) for p in points]
 
