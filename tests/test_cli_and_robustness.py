@@ -363,3 +363,27 @@ def test_a_second_command_writing_the_same_run_folder_is_refused(tmp_path):
     assert len(read_episodes(csv_path)) == 60
     again = run_cli(*argv[3:], "--episodes", "2", "--overwrite")
     assert again.returncode == 0, again.stderr  # the lock went with the first command
+
+
+@pytest.mark.parametrize("damage, message", [
+    (lambda p: p.write_text("garbage\n"), "is not an episodes.csv (no header with 'score')"),
+    (lambda p: p.write_text(""), "is not an episodes.csv"),
+    (lambda p: p.write_text(p.read_text()[:p.read_text().rindex(",-") + 2]), "line 8"),  # cut after a minus sign
+    (lambda p: p.write_bytes(b"\xff\xfe\x00garbage"), "is not text"),
+    (lambda p: p.write_text("".join(p.read_text().splitlines(keepends=True)[:4])), "holds 3 episodes, but its "
+                                                                                   "summary.json counts 7"),
+], ids=["garbage", "empty", "cut-mid-number", "binary", "truncated-rows"])
+def test_aggregate_names_a_damaged_episodes_csv_and_exits_2(short_run, tmp_path, damage, message, capsys):
+    """#23.6 and #23.7: a damaged episodes.csv gave a raw traceback (exit 1); a truncated one
+    was accepted silently. Now exit 2, naming the file, and nothing is written."""
+    import shutil
+
+    parent = tmp_path / "set"
+    shutil.copytree(short_run.parent, parent)
+    csv_path = parent / "seed_3" / "episodes.csv"
+    damage(csv_path)
+    before = {p.name: p.read_bytes() for p in parent.iterdir() if p.is_file()}
+    assert main(["aggregate", str(parent)]) == 2
+    err = capsys.readouterr().err
+    assert str(csv_path) in err and message in err and "Traceback" not in err
+    assert {p.name: p.read_bytes() for p in parent.iterdir() if p.is_file()} == before

@@ -25,6 +25,11 @@ def write_aggregate(out_dir: Path, summaries: list[RunSummary], threshold: float
     """Write ``summary.md`` and ``curves.png`` for the seeds in ``summaries``."""
     out_dir = Path(out_dir)
     summaries = sorted(summaries, key=lambda s: s.seed)
+    curves = {}  # every seed's rows, read (and checked) before anything is written
+    for s in summaries:
+        csv_path = out_dir / f"seed_{s.seed}" / "episodes.csv"
+        if csv_path.is_file():
+            curves[s.seed] = read_episodes(csv_path, expected_rows=s.rows_expected)
     stats = episodes_to_threshold_stats([s.reached_at_episode for s in summaries], [s.success for s in summaries])
     walls = [s.wall_seconds for s in summaries]
     lines = [
@@ -52,13 +57,9 @@ def write_aggregate(out_dir: Path, summaries: list[RunSummary], threshold: float
     atomic_write_text(out_dir / "summary.md", "\n".join(lines))
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
-    for s in summaries:
-        csv_path = out_dir / f"seed_{s.seed}" / "episodes.csv"
-        if not csv_path.is_file():
-            continue
-        rows = read_episodes(csv_path)
+    for seed, rows in curves.items():
         metric = [r["metric"] if r["metric"] is not None and np.isfinite(r["metric"]) else np.nan for r in rows]
-        ax.plot([r["episode"] for r in rows], metric, lw=1.2, label=f"seed {s.seed}")
+        ax.plot([r["episode"] for r in rows], metric, lw=1.2, label=f"seed {seed}")
     ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
     ax.set_xlabel("episode")
     ax.set_ylabel(metric_label)

@@ -63,7 +63,8 @@ def load_runs(folder: Path, seeds: list[int]) -> list[dict[str, Any]]:
         csv_path = seed_dir / "episodes.csv"
         if not csv_path.is_file():
             raise RunFolderError(f"seed {seed}: {csv_path} is missing (the run wrote no episode)")
-        runs.append({"seed": seed, "summary": summary, "rows": read_episodes(csv_path)})
+        runs.append({"seed": seed, "summary": summary,
+                     "rows": read_episodes(csv_path, expected_rows=summary.rows_expected)})
     return runs
 
 

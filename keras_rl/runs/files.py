@@ -109,14 +109,34 @@ def episodes_csv_text(rows: Iterable[dict[str, Any]], columns: tuple[str, ...]) 
 INTEGER_COLUMNS = ("episode", "steps", "total_steps")
 
 
-def read_episodes(path: Path) -> list[dict[str, Any]]:
-    """Parse an ``episodes.csv`` back into typed rows."""
-    with open(path, newline="") as fh:
-        reader = csv.DictReader(fh)
-        if reader.fieldnames is None or "score" not in reader.fieldnames:
-            raise ValueError(f"{path} is not an episodes.csv (no header with 'score')")
-        return [{k: (None if v in ("", None) else int(v) if k in INTEGER_COLUMNS else float(v))
-                 for k, v in raw.items()} for raw in reader]
+def read_episodes(path: Path, expected_rows: int | None = None) -> list[dict[str, Any]]:
+    """Parse an ``episodes.csv`` back into typed rows. A damaged file (garbage, a line cut
+    off mid-number, a missing field) or one of another length than ``expected_rows`` (what
+    its ``summary.json`` counts) raises a RunFolderError that names the file and the line."""
+    from keras_rl.errors import RunFolderError
+
+    path = Path(path)
+    damaged = "damaged or cut off: rerun the seed (--overwrite, or --rerun in compare and sweep)"
+    try:
+        with open(path, newline="") as fh:
+            reader = csv.DictReader(fh)
+            if reader.fieldnames is None or "score" not in reader.fieldnames:
+                raise RunFolderError(f"{path} is not an episodes.csv (no header with 'score'): {damaged}")
+            rows = []
+            for line, raw in enumerate(reader, start=2):
+                if None in raw or None in raw.values():
+                    raise RunFolderError(f"{path} line {line} has another number of fields than its header: {damaged}")
+                try:
+                    rows.append({k: (None if v == "" else int(v) if k in INTEGER_COLUMNS else float(v))
+                                 for k, v in raw.items()})
+                except ValueError as exc:
+                    raise RunFolderError(f"{path} line {line} cannot be read ({exc}): {damaged}") from None
+    except UnicodeDecodeError:
+        raise RunFolderError(f"{path} is not text: {damaged}") from None
+    if expected_rows is not None and len(rows) != expected_rows:
+        raise RunFolderError(f"{path} holds {len(rows)} episodes, but its summary.json counts {expected_rows}: "
+                             f"{damaged}")
+    return rows
 
 
 @dataclass

@@ -75,8 +75,8 @@ def run_seeds(experiment: Experiment, configs: Sequence, out_dirs: Sequence[Path
     Ctrl-C, SIGTERM, a non-finite loss or any other error still leaves each seed's
     ``episodes.csv`` with every finished episode and a ``summary.json`` whose ``status``
     says how that seed ended; the summary is rewritten after every episode. ``envs`` may be
-    passed in, one per seed (tests wrap envs). ``should_stop`` is asked after every vector
-    step; True stops the batch as a signal would (a distributed backend's stop flag).
+    passed in, one per seed (tests wrap envs). ``should_stop`` is asked whenever an episode
+    ends; True stops the batch as a signal would (a distributed backend's stop flag).
     ``command`` is the command line to record (a job run elsewhere carries its driver's).
     """
     configs = list(configs)
@@ -483,7 +483,8 @@ class _Batch:
             for k, s in enumerate(seeds):
                 if not s.active and s.final is None:  # it stopped on this step: its files and summary now
                     self.flush(k)
-            if interrupted or (should_stop is not None and should_stop()):
+            # the dispatcher's flag costs a round trip (a Ray actor call): asked when an episode ends
+            if interrupted or (ended and should_stop is not None and should_stop()):
                 by = signal_name(interrupted) if interrupted else "the dispatcher's stop request (Ctrl-C or SIGTERM)"
                 for s in seeds:
                     if s.active:

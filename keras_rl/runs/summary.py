@@ -47,6 +47,12 @@ class RunSummary:
     def finished(self) -> bool:
         return self.status == "completed"
 
+    @property
+    def rows_expected(self) -> int | None:
+        """The rows its ``episodes.csv`` must hold: ``episodes_run``, once the run has ended
+        (a run killed while running may have written one episode more than its summary counts)."""
+        return None if self.status == "running" else self.episodes_run
+
     def to_json(self) -> dict[str, Any]:
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "extras"}
         out["finished"] = self.finished
