@@ -341,7 +341,7 @@ def reproduce(args: argparse.Namespace) -> int:
         write_aggregate(out, summaries, base.threshold, f"{experiment.name} ({args.variant}, {args.framework}), "
                         f"{len(summaries)} seeds", experiment.metric_label(base), experiment.post_reference)
     for s in summaries:
-        verdict = "PASS" if s.success else "FAIL"
+        verdict = "PASS" if s.success else "FAIL" if s.status == "completed" else "no verdict"
         where = f"reached at episode {s.reached_at_episode}" if s.reached_at_episode else "not reached"
         seed_dir = out / f"seed_{s.seed}"
         files = ", ".join(sorted(p.name for p in seed_dir.iterdir() if not p.name.startswith(".")))
@@ -475,7 +475,8 @@ def sweep(args: argparse.Namespace) -> int:
     result = write_sweep_report(args.out, experiment, base, summaries, baseline, command_line())
     print(f"report: {args.out / 'sweep.md'}")
     for row in result["points"]:
-        print(f"  {row['point']}: {row['successes']}/{row['seeds']} succeeded, median episodes {row['median']}")
+        median = "n/a (no seed reached the threshold)" if row["median"] is None else f"{row['median']:g}"
+        print(f"  {row['point']}: {row['successes']}/{row['seeds']} succeeded, median episodes to threshold {median}")
     if outcome.interrupted:
         print("interrupted: finished jobs are kept; run the same sweep again to resume it", file=sys.stderr)
         return _stopped()
@@ -504,7 +505,11 @@ def list_experiments(args: argparse.Namespace) -> int:
 def check(args: argparse.Namespace) -> int:
     from keras_rl.check.rules import RULES, TIERS
 
-    names = args.experiments or sorted({e for e, _ in RULES}, key=["pendulum", "cartpole", "mountaincar"].index)
+    known = sorted({e for e, _ in RULES}, key=["pendulum", "cartpole", "mountaincar"].index)
+    names = args.experiments or known
+    unknown = [n for n in names if n not in known]
+    if unknown:  # before TensorFlow loads: a typo is named in a second, not after the imports
+        raise ConfigError(f"unknown experiment {unknown[0]!r}; check knows {', '.join(known)}")
     if args.tier not in TIERS:
         raise ConfigError(f"unknown tier {args.tier!r}; choose one of {', '.join(TIERS)}")
     if len(set(names)) != len(names):

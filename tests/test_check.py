@@ -185,3 +185,29 @@ def test_results_readme_states_the_calibrated_error_rates():
     stated = readme.split(module.RULES_BEGIN, 1)[1].split(module.RULES_END, 1)[0].strip()
     assert stated == module.rules_table(json.loads(CALIBRATION.read_text())), \
         "results/README.md is stale: run python reproductions/check_calibrate.py ... --write"
+
+
+def test_check_names_an_unknown_experiment_before_tensorflow_loads():
+    """#23.10: `check cartpool` imported TensorFlow before saying the name was unknown."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from keras_rl.cli import main; rc = main(['check', 'cartpool']); "
+            "print(rc, 'tensorflow' in sys.modules)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.stdout.split() == ["2", "False"], proc.stderr
+    assert "unknown experiment 'cartpool'; check knows pendulum, cartpole, mountaincar" in proc.stderr
+
+
+def test_a_baseline_of_another_post_is_named_as_such():
+    """#23.9: --against a folder holding another post's baseline listed unknown config fields."""
+    from pathlib import Path
+
+    from keras_rl.check.command import baseline_values
+    from keras_rl.check.rules import rule_for
+    from keras_rl.errors import RunFolderError
+    from keras_rl.registry import get_experiment
+
+    cartpole = Path(__file__).resolve().parent.parent / "results" / "checks" / "cartpole" / "baseline"
+    with pytest.raises(RunFolderError, match="is a baseline of cartpole, not of pendulum"):
+        baseline_values(get_experiment("pendulum"), rule_for("pendulum", "smoke"), cartpole)

@@ -39,6 +39,7 @@ def sweep_dir(tmp_path_factory):
                           timeout=900)
     assert proc.returncode == 0, proc.stderr
     assert "4 jobs; 0 already done, 4 to run" in proc.stderr
+    assert "median episodes to threshold" in proc.stdout and "None" not in proc.stdout  # #23.9: it printed None
     return out
 
 
@@ -78,6 +79,7 @@ def test_sweep_folders_are_well_formed_and_its_numbers_recompute_from_the_csvs(s
         assert other["mann_whitney_p"] == pytest.approx(mann_whitney(a, b)[1])
     table = (sweep_dir / "sweep.md").read_text()
     assert f"| `noise_sigma=0.6` | {other['successes']}/2" in table and "(baseline)" in table
+    assert "At 2 seeds a point only effects large enough" in table  # #23.9: it said 10 whatever n was
 
 
 def test_a_second_run_of_the_same_sweep_skips_every_job(sweep_dir):

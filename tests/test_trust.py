@@ -93,8 +93,9 @@ def test_sigterm_is_handled_like_ctrl_c(tmp_path, workers):
             break
         time.sleep(0.05)
     proc.send_signal(signal.SIGTERM)  # to the command only, as `timeout` or `docker stop` send it
-    _, stderr = proc.communicate(timeout=120)
+    stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 143, stderr
+    assert "seed 0: interrupted, no verdict" in stdout and "FAIL" not in stdout  # #23.9: it said FAIL
     summary = strict_json(out / "seed_0" / "summary.json")
     assert summary["status"] == "interrupted" and "SIG" in summary["message"]
     assert summary["episodes_run"] == len(read_episodes(csv)) >= 3

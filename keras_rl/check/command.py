@@ -59,6 +59,9 @@ def baseline_values(experiment, rule: CheckRule, folder: Path) -> tuple[dict[int
     values, rows_of = {}, {}
     for seed_dir in seed_dirs:
         summary = RunSummary.read(seed_dir)
+        if summary.experiment != experiment.name:
+            raise RunFolderError(f"{seed_dir} is a baseline of {summary.experiment}, not of {experiment.name}: "
+                                 f"--against names the folder that holds {experiment.name}/baseline")
         made = experiment.config_cls.from_dict(json.loads((seed_dir / "config.json").read_text())).to_dict()
         differing = sorted(k for k in faithful if k not in ("seed",) and made.get(k) != faithful[k])
         if differing:
@@ -66,7 +69,7 @@ def baseline_values(experiment, rule: CheckRule, folder: Path) -> tuple[dict[int
                                  "a baseline must be the faithful variant")
         if summary.status != "completed":
             raise RunFolderError(f"{seed_dir} did not finish ({summary.status}); a baseline needs finished runs")
-        rows = read_episodes(seed_dir / "episodes.csv")
+        rows = read_episodes(seed_dir / "episodes.csv", expected_rows=summary.rows_expected)
         values[summary.seed], rows_of[summary.seed] = _statistic(experiment, rule, rows), rows
     return values, rows_of
 

@@ -84,10 +84,17 @@ def write_sweep_report(out: Path, experiment, base_config, summaries: dict[str, 
     lines += ["", "The success difference is a point's success rate minus the baseline's, with Newcombe's hybrid "
               "score interval; Fisher's exact test compares the success counts. Episodes to threshold are over the "
               "seeds that succeeded; their difference is the median of a point minus the baseline's, with a "
-              "percentile bootstrap (10000 resamples); Mann-Whitney U is two-sided on the same samples. At 10 seeds only large effects "
-              "are detectable: an interval that includes 0 is no evidence of no effect.", ""]
+              "percentile bootstrap (10000 resamples); Mann-Whitney U is two-sided on the same samples. At "
+              f"{_seed_count(result)} seeds a point only effects large enough for these intervals to exclude 0 are "
+              "detectable: an interval that includes 0 is no evidence of no effect.", ""]
     atomic_write_text(out / "sweep.md", "\n".join(lines))
     atomic_write_json(out / "sweep.json", {"experiment": experiment.name, "variant": base_config.variant,
                                            "framework": base_config.framework, "criterion": criterion,
                                            "command": command, **result})
     return result
+
+
+def _seed_count(result: dict[str, Any]) -> str:
+    """The seeds per point, as the sentence about detectable effects needs it ("10", "8 to 10")."""
+    counts = sorted({row["seeds"] for row in result["points"]})
+    return str(counts[0]) if len(counts) == 1 else f"{counts[0]} to {counts[-1]}"
