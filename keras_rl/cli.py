@@ -160,6 +160,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     ag = sub.add_parser("aggregate", help="rebuild summary.md and curves.png of a multi-seed folder")
     ag.add_argument("parent", type=Path, help="a folder of seed_<n>/ run folders, e.g. results/pendulum/faithful")
+    ag.add_argument("--x-axis", choices=("episode", "steps"), default="episode",
+                    help="what each seed's curve.png counts along x: episodes (default) or env steps")
 
     ck = sub.add_parser("check", help="regression-test the reproductions: fresh seeds against the committed "
                                       "baseline, by each post's pre-registered rule (exit 0 consistent, 1 changed)")
@@ -487,7 +489,7 @@ def sweep(args: argparse.Namespace) -> int:
 def aggregate(args: argparse.Namespace) -> int:
     from keras_rl.report.aggregate import rebuild
 
-    stats = rebuild(args.parent)
+    stats = rebuild(args.parent, x_axis=args.x_axis)
     print(f"{args.parent}/summary.md: {stats['successes']}/{stats['seeds']} seeds succeeded")
     return EXIT_OK
 

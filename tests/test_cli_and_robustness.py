@@ -387,3 +387,15 @@ def test_aggregate_names_a_damaged_episodes_csv_and_exits_2(short_run, tmp_path,
     err = capsys.readouterr().err
     assert str(csv_path) in err and message in err and "Traceback" not in err
     assert {p.name: p.read_bytes() for p in parent.iterdir() if p.is_file()} == before
+
+
+def test_aggregate_redraws_curves_against_env_steps(short_run, tmp_path, capsys):
+    import shutil
+
+    parent = tmp_path / "set"
+    shutil.copytree(short_run.parent, parent)
+    (parent / "seed_3" / "curve.png").unlink()
+    assert main(["aggregate", str(parent), "--x-axis", "steps"]) == 0
+    assert (parent / "seed_3" / "curve.png").read_bytes()[:4] == b"\x89PNG"
+    with pytest.raises(SystemExit):
+        main(["aggregate", str(parent), "--x-axis", "time"])

@@ -80,6 +80,7 @@ def test_sweep_folders_are_well_formed_and_its_numbers_recompute_from_the_csvs(s
     table = (sweep_dir / "sweep.md").read_text()
     assert f"| `noise_sigma=0.6` | {other['successes']}/2" in table and "(baseline)" in table
     assert "At 2 seeds a point only effects large enough" in table  # #23.9: it said 10 whatever n was
+    assert "](sweep.png)" in table and (sweep_dir / "sweep.png").read_bytes()[:4] == b"\x89PNG"  # #23.15
 
 
 def test_a_second_run_of_the_same_sweep_skips_every_job(sweep_dir):

@@ -70,7 +70,7 @@ def write_aggregate(out_dir: Path, summaries: list[RunSummary], threshold: float
     return stats
 
 
-def rebuild(parent: Path) -> dict[str, Any]:
+def rebuild(parent: Path, x_axis: str = "episode") -> dict[str, Any]:
     """Rewrite ``summary.md``, ``curves.png`` and each seed's ``curve.png`` of a multi-seed
     folder from its seeds' files."""
     parent = Path(parent)
@@ -99,7 +99,7 @@ def rebuild(parent: Path) -> dict[str, Any]:
             raise RunFolderError(f"{seed_dir} was made with a different config than {seed_dirs[0]} "
                                  f"({k}={other[k]!r} there, {first[k]!r} here); refusing to aggregate mixed runs")
     for seed_dir, config in zip(seed_dirs, loaded):
-        plot_seed_curve(seed_dir, experiment, config)
+        plot_seed_curve(seed_dir, experiment, config, x_axis=x_axis)
     return write_aggregate(parent, summaries, loaded[0].threshold,
                            f"{name} ({variant}, {framework}), {len(summaries)} seeds",
                            experiment.metric_label(loaded[0]), experiment.post_reference)

@@ -11,6 +11,7 @@ import matplotlib
 
 matplotlib.use("Agg")  # files only; no display needed
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from keras_rl.runs.files import atomic_write_bytes, read_episodes  # noqa: E402
 
@@ -22,23 +23,37 @@ def save_figure(fig, path: Path) -> None:
     atomic_write_bytes(path, buf.getvalue())
 
 
+X_AXES = {"episode": "episode", "steps": "env steps"}
+"""What a curve's x axis counts: episodes, or env steps (``total_steps`` at the episode's end)."""
+
+
 def plot_curve(path: Path, rows: list[dict[str, Any]], threshold: float, title: str,
-               metric_label: str, score_label: str = "score", metric_in_score_units: bool = True) -> None:
+               metric_label: str, score_label: str = "score", metric_in_score_units: bool = True,
+               reached_at: int | None = None, x_axis: str = "episode") -> None:
     """Score and metric per episode with the threshold line, like the post's figure.
 
     A metric in other units than the score (post 001's goal share or return spread) gets
-    its own axis on the right, with the threshold drawn there.
+    its own axis on the right, with the threshold drawn there. ``reached_at``: the episode
+    where the run first met its criterion, marked with a dotted line. ``x_axis``: ``episode``
+    or ``steps`` (``X_AXES``).
     """
+    if x_axis not in X_AXES:
+        raise ValueError(f"x_axis must be one of {', '.join(X_AXES)}, got {x_axis!r}")
     fig, ax = plt.subplots(figsize=(7, 4))
-    episodes = [r["episode"] for r in rows]
+    episodes = [r["episode"] if x_axis == "episode" else r["total_steps"] for r in rows]
     ax.plot(episodes, [r["score"] for r in rows], color="tab:blue", lw=0.8, label=score_label)
     metric_ax = ax if metric_in_score_units else ax.twinx()
     metric = [r["metric"] if r["metric"] is not None and math.isfinite(r["metric"]) else float("nan") for r in rows]
     metric_ax.plot(episodes, metric, color="tab:orange", lw=1.6, label=metric_label)
     metric_ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
+    if reached_at is not None and 1 <= reached_at <= len(rows):
+        at = episodes[reached_at - 1]
+        ax.axvline(at, color="tab:green", ls=":", lw=1.2,
+                   label=f"threshold reached (episode {reached_at}" + (f", step {at})" if x_axis == "steps" else ")"))
     if not metric_in_score_units:
         metric_ax.set_ylabel(metric_label, color="tab:orange", fontsize=8)
-    ax.set_xlabel("episode")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel(X_AXES[x_axis])
     ax.set_ylabel(score_label)
     ax.set_title(title)
     handles = ax.get_legend_handles_labels()
@@ -50,11 +65,52 @@ def plot_curve(path: Path, rows: list[dict[str, Any]], threshold: float, title: 
     save_figure(fig, path)
 
 
-def plot_seed_curve(run_dir: Path, experiment, config) -> None:
-    """A seed folder's ``curve.png`` from its ``episodes.csv`` (nothing if it has no episode)."""
+def plot_seed_curve(run_dir: Path, experiment, config, x_axis: str = "episode") -> None:
+    """A seed folder's ``curve.png`` from its ``episodes.csv`` (nothing if it has no episode),
+    the episode where it met its criterion marked (from ``summary.json``, when there is one)."""
+    from keras_rl.errors import RunFolderError
+    from keras_rl.runs.summary import RunSummary
+
     csv_path = Path(run_dir) / "episodes.csv"
     rows = read_episodes(csv_path) if csv_path.is_file() else []
+    try:
+        reached = RunSummary.read(run_dir).reached_at_episode
+    except RunFolderError:
+        reached = None
     if rows:
         plot_curve(Path(run_dir) / "curve.png", rows, config.threshold,
                    f"{experiment.name} ({config.variant}, {config.framework}), seed {config.seed}",
-                   experiment.metric_label(config), metric_in_score_units=experiment.metric_in_score_units)
+                   experiment.metric_label(config), metric_in_score_units=experiment.metric_in_score_units,
+                   reached_at=reached, x_axis=x_axis)
+
+
+def plot_sweep(path: Path, curves: dict[str, list[list[dict[str, Any]]]], threshold: float, metric_label: str,
+               title: str) -> None:
+    """One figure for a sweep: per grid point, the median of its seeds' metric per episode
+    with the interquartile band (episodes a seed did not play, after it stopped, are left
+    out of that episode's quantiles)."""
+    import numpy as np
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for name, runs in curves.items():
+        length = max((len(rows) for rows in runs), default=0)
+        if not length:
+            continue
+        grid = np.full((len(runs), length), np.nan)
+        for i, rows in enumerate(runs):
+            for j, r in enumerate(rows):
+                if r["metric"] is not None and math.isfinite(r["metric"]):
+                    grid[i, j] = r["metric"]
+        played = ~np.all(np.isnan(grid), axis=0)
+        episodes = np.arange(1, length + 1)[played]
+        q25, q50, q75 = (np.nanpercentile(grid[:, played], q, axis=0) for q in (25, 50, 75))
+        line, = ax.plot(episodes, q50, lw=1.4, label=f"{name} (median of {len(runs)} seeds)")
+        ax.fill_between(episodes, q25, q75, color=line.get_color(), alpha=0.2, lw=0)
+    ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel("episode")
+    ax.set_ylabel(f"{metric_label} (median, IQR band)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
+    save_figure(fig, path)

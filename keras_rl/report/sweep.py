@@ -19,7 +19,8 @@ from keras_rl.errors import ConfigError
 from keras_rl.report.aggregate import write_aggregate
 from keras_rl.report.stats import (episodes_to_threshold_stats, fisher_exact, mann_whitney, median_difference_ci,
                                    success_difference_ci)
-from keras_rl.runs.files import atomic_write_json, atomic_write_text
+from keras_rl.report.plots import plot_sweep
+from keras_rl.runs.files import atomic_write_json, atomic_write_text, read_episodes
 from keras_rl.runs.summary import RunSummary
 
 
@@ -64,8 +65,14 @@ def write_sweep_report(out: Path, experiment, base_config, summaries: dict[str, 
             write_aggregate(out / name, ss, base_config.threshold, f"{experiment.name} sweep: {name}, {len(ss)} seeds",
                             experiment.metric_label(base_config), experiment.post_reference)
     criterion = next((s.criterion for ss in summaries.values() for s in ss), "")
+    curves = {name: [read_episodes(out / name / f"seed_{s.seed}" / "episodes.csv", expected_rows=s.rows_expected)
+                     for s in ss if (out / name / f"seed_{s.seed}" / "episodes.csv").is_file()]
+              for name, ss in summaries.items()}
+    plot_sweep(out / "sweep.png", curves, base_config.threshold, experiment.metric_label(base_config),
+               f"{experiment.name} ({base_config.variant}, {base_config.framework}) sweep")
     lines = [f"# {experiment.name} ({base_config.variant}, {base_config.framework}) sweep", "",
              f"Criterion: {criterion}. Baseline: `{baseline}`. Command: `{command}`", "",
+             "![every grid point's median metric per episode, with its interquartile band](sweep.png)", "",
              "| grid point | success | minus baseline [95% CI] | Fisher p | episodes to threshold: median (IQR) "
              "| minus baseline [95% CI] | Mann-Whitney p | curves |",
              "|---|---|---|---|---|---|---|---|"]

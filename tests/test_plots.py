@@ -1,0 +1,54 @@
+"""The figures (#23.15): the threshold episode marked, integer episode ticks, an env-steps
+x axis, and one overlay figure per sweep. The figure is inspected before it is saved."""
+
+from __future__ import annotations
+
+import pytest
+from matplotlib.ticker import MaxNLocator
+
+from keras_rl.report import plots
+
+
+def rows(n: int, steps: int = 200) -> list[dict]:
+    return [{"episode": e, "steps": steps, "total_steps": e * steps, "score": -1000.0 + 10 * e,
+             "metric": -1000.0 + 8 * e} for e in range(1, n + 1)]
+
+
+@pytest.fixture
+def drawn(monkeypatch):
+    figures = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, path: figures.append(fig))
+    return figures
+
+
+def test_the_threshold_episode_is_marked_and_ticks_are_whole_episodes(drawn, tmp_path):
+    plots.plot_curve(tmp_path / "c.png", rows(60), -600, "t", "EMA", reached_at=51)
+    ax = drawn[0].axes[0]
+    marks = [line for line in ax.get_lines() if line.get_label().startswith("threshold reached")]
+    assert len(marks) == 1 and list(marks[0].get_xdata()) == [51, 51]
+    assert marks[0].get_label() == "threshold reached (episode 51)"
+    assert isinstance(ax.xaxis.get_major_locator(), MaxNLocator) and ax.get_xlabel() == "episode"
+
+
+def test_an_env_steps_axis_puts_each_episode_at_its_total_steps(drawn, tmp_path):
+    plots.plot_curve(tmp_path / "c.png", rows(10), -600, "t", "EMA", reached_at=4, x_axis="steps")
+    ax = drawn[0].axes[0]
+    assert ax.get_xlabel() == "env steps"
+    assert list(ax.get_lines()[0].get_xdata()) == [200 * e for e in range(1, 11)]
+    assert any(line.get_label() == "threshold reached (episode 4, step 800)" for line in ax.get_lines())
+    with pytest.raises(ValueError, match="x_axis must be one of"):
+        plots.plot_curve(tmp_path / "c.png", rows(3), -600, "t", "EMA", x_axis="time")
+
+
+def test_no_mark_when_the_threshold_was_not_reached(drawn, tmp_path):
+    plots.plot_curve(tmp_path / "c.png", rows(10), -600, "t", "EMA", reached_at=None)
+    assert not any(line.get_label().startswith("threshold reached") for line in drawn[0].axes[0].get_lines())
+
+
+def test_the_sweep_figure_overlays_each_points_median_with_its_iqr(drawn, tmp_path):
+    short, long = rows(5), rows(8)
+    plots.plot_sweep(tmp_path / "s.png", {"a": [short, long, long], "b": [long]}, -600, "EMA", "sweep")
+    ax = drawn[0].axes[0]
+    medians = {line.get_label(): list(line.get_ydata()) for line in ax.get_lines()}
+    assert medians["a (median of 3 seeds)"] == [r["metric"] for r in long]  # every seed has the same metric here
+    assert len(ax.collections) == 2  # one IQR band per point
