@@ -39,12 +39,16 @@ POST = {"pendulum": "000", "mountaincar": "001", "cartpole": "003"}
 DEFAULT_EPISODES = {"pendulum": 8, "cartpole": 250, "mountaincar": 4}
 
 
+FRAMEWORK = ["keras"]
+"""--framework: keras, or torch for the PyTorch ports of posts 000 and 001."""
+
+
 def _configs(experiment: str, seeds, episodes: int):
     from keras_rl.registry import get_experiment
 
     exp = get_experiment(experiment)
-    return exp, [exp.config_cls.for_variant("faithful", seed=s, episodes=episodes, **OVERRIDES[experiment])
-                 for s in seeds]
+    return exp, [exp.config_cls.for_variant("faithful", seed=s, episodes=episodes, framework=FRAMEWORK[0],
+                                            **OVERRIDES[experiment]) for s in seeds]
 
 
 def solo_seconds(experiment: str, episodes: int) -> tuple[float, int]:
@@ -81,7 +85,7 @@ def learner_call_ms(experiment: str, seeds: int, calls: int = 300) -> float:
     env = get_experiment(experiment).make_env(configs[0])
     spec = exp.env_spec(env)
     env.close()
-    learner = stacked_implementation(experiment, "keras").load()(configs, spec)
+    learner = stacked_implementation(experiment, FRAMEWORK[0]).load()(configs, spec)
     layout = learner.layout if hasattr(learner, "layout") else learner.learner.layout
     batch = configs[0].batch_size
     rows = np.random.default_rng(0).uniform(0, 1, (seeds, batch, layout.width)).astype(np.float32)
@@ -100,8 +104,8 @@ def study_seconds(experiment: str, episodes: int, *extra: str) -> float:
     sets = [a for k, v in OVERRIDES[experiment].items() for a in ("--set", f"{k}={json.dumps(v)}")]
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
-        proc = subprocess.run([sys.executable, "-m", "keras_rl", "reproduce", experiment, "--seeds", "0-9",
-                               "--episodes", str(episodes), "--no-progress", *sets, "--out", tmp,
+        proc = subprocess.run([sys.executable, "-m", "keras_rl", "reproduce", experiment, "--framework", FRAMEWORK[0],
+                               "--seeds", "0-9", "--episodes", str(episodes), "--no-progress", *sets, "--out", tmp,
                                "--min-success-rate", "0", *extra], capture_output=True, text=True)
         if proc.returncode != 0:
             raise SystemExit(proc.stderr[-2000:])
@@ -115,10 +119,13 @@ def main() -> None:
                                                                    "pendulum, 250 for cartpole)")
     parser.add_argument("--study-episodes", type=int, default=None, help="episodes per seed in part 3 "
                                                                          "(default: as --episodes)")
+    parser.add_argument("--framework", choices=("keras", "torch"), default="keras",
+                        help="torch: the PyTorch ports (pendulum, mountaincar)")
     parser.add_argument("--skip-study", action="store_true", help="parts 1 and 2 only")
     parser.add_argument("--study-only", action="store_true", help="part 3 only")
     args = parser.parse_args()
     name = args.experiment
+    FRAMEWORK[0] = args.framework
     episodes = args.episodes or DEFAULT_EPISODES[name]
 
     from keras_rl.seeding import configure_tensorflow
@@ -139,7 +146,7 @@ def main() -> None:
 def parts_1_and_2(name: str, episodes: int) -> None:
     solo, solo_steps = solo_seconds(name, episodes)
     per_step = solo / solo_steps
-    print(f"{name} (post {POST[name]}), {episodes} episodes per seed, 1 thread; "
+    print(f"{name} (post {POST[name]}, {FRAMEWORK[0]}), {episodes} episodes per seed, 1 thread; "
           f"one solo seed: {solo:.2f} s for {solo_steps} env steps ({per_step * 1000:.2f} ms per step)")
     print("| seeds | how | wall s | vector steps | wall / one solo seed over as many steps |")
     print("|---|---|---|---|---|")
