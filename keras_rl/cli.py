@@ -74,13 +74,19 @@ def build_parser() -> argparse.ArgumentParser:
 
     rep = sub.add_parser("reproduce", help="train one experiment over one or more seeds")
     rep.add_argument("experiment", help="experiment name (see `keras-rl list`)")
-    rep.add_argument("--variant", default="faithful",
-                     help="faithful (the post's code as it ran), fixed, or another of the experiment's variants "
-                          "(`keras-rl list`; mountaincar also has faithful-intended)")
-    rep.add_argument("--framework", default="keras", help="keras (ours) or torch (where the experiment has one)")
+    rep.add_argument("--variant", default=None,
+                     help="faithful (the post's code as it ran; the default), fixed, or another of the experiment's "
+                          "variants (`keras-rl list`; mountaincar also has faithful-intended)")
+    rep.add_argument("--framework", default=None,
+                     help="keras (ours; the default) or torch (where the experiment has one)")
+    rep.add_argument("--config", type=Path, default=None, metavar="RUN/config.json",
+                     help="rerun a recorded run: its config.json gives every field (its seed too, unless --seeds "
+                          "is given); --set and --episodes still apply on top")
+    rep.add_argument("--dry-run", action="store_true",
+                     help="print the resolved config and each seed folder with how it would start; train nothing")
     rep.add_argument("--matched-init", action="store_true",
                      help="torch only: start from the Keras networks' initial weights for the same seed")
-    rep.add_argument("--seeds", default="0", help="seed list or range: 13, 0-9, 0,3,5 (default 0)")
+    rep.add_argument("--seeds", default=None, help="seed list or range: 13, 0-9, 0,3,5 (default 0, or --config's)")
     rep.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
     rep.add_argument("--out", type=_path_arg, default=None,
                      help="output folder (default results/<experiment>/<variant>); one seed_<n>/ per seed")
@@ -288,6 +294,28 @@ def _kept_runs(base, seeds_and_dirs: list) -> list:
     return kept
 
 
+def _recorded_config(experiment, args: argparse.Namespace):
+    """``--config``: the config a run folder recorded; the options it settles must not be given too."""
+    import json
+
+    given = [f"--{name.replace('_', '-')}" for name in ("variant", "framework") if getattr(args, name) is not None]
+    if args.matched_init:
+        given.append("--matched-init")
+    if given:
+        raise ConfigError(f"--config gives the variant and framework; drop {', '.join(given)}")
+    path = args.config if args.config.name == "config.json" or not args.config.is_dir() else args.config / "config.json"
+    try:
+        values = json.loads(path.read_text())
+    except OSError as exc:
+        raise ConfigError(f"--config {path}: cannot read it ({exc.strerror or exc})") from None
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"--config {path} is not JSON ({exc})") from None
+    if not isinstance(values, dict) or values.get("experiment") != experiment.name:
+        theirs = values.get("experiment") if isinstance(values, dict) else None
+        raise ConfigError(f"--config {path} is a config of {theirs!r}, not of {experiment.name}")
+    return experiment.config_cls.from_dict(values)
+
+
 def _set_suffix(assignments: list[str]) -> str:
     """``-set-tau=0.005,broadcast_target=false`` for a default folder of a modified config."""
     return "-set-" + ",".join(sorted(a.strip().replace("-", "_").replace("/", "_") for a in assignments))
@@ -299,7 +327,11 @@ def reproduce(args: argparse.Namespace) -> int:
     from keras_rl.runs.files import run_folder
 
     experiment = get_experiment(args.experiment)
-    seeds = parse_seeds(args.seeds)
+    recorded = _recorded_config(experiment, args) if args.config is not None else None
+    seeds = parse_seeds(args.seeds if args.seeds is not None else str(recorded.seed) if recorded else "0")
+    args.variant = recorded.variant if recorded else args.variant or "faithful"
+    args.framework = recorded.framework if recorded else args.framework or "keras"
+    args.matched_init = recorded.matched_init if recorded else args.matched_init
     workers = _check_counts(args.workers, args.episodes)
     if args.checkpoint_every < 0:
         raise ConfigError(f"--checkpoint-every must be zero or more, got {args.checkpoint_every}")
@@ -308,7 +340,11 @@ def reproduce(args: argparse.Namespace) -> int:
     overrides = {"framework": args.framework, "matched_init": args.matched_init}
     if args.episodes is not None:
         overrides["episodes"] = args.episodes
-    base = experiment.config_cls.for_variant(args.variant, **overrides).with_text_overrides(args.overrides)
+    if recorded is not None:
+        base = recorded.replace(**({"episodes": args.episodes} if args.episodes is not None else {}))
+        base = base.with_text_overrides(args.overrides)
+    else:
+        base = experiment.config_cls.for_variant(args.variant, **overrides).with_text_overrides(args.overrides)
     if args.framework == "torch":
         from keras_rl.torch import require_torch
 
@@ -325,6 +361,15 @@ def reproduce(args: argparse.Namespace) -> int:
     modes = _start_modes(seed_dirs, args.overwrite, args.resume)
     address = _address(args)
     _check_seed_batch(args.seed_batch, experiment.name, args.framework)
+    if args.dry_run:
+        import json
+
+        print(json.dumps({k: v for k, v in base.to_dict().items() if k != "seed"}, indent=2, sort_keys=True))
+        how = {"new": "new", "overwrite": "cleared, then new", "resume": "resumed from its checkpoint",
+               "keep": "completed, kept"}
+        for s, d, m in zip(seeds, seed_dirs, modes):
+            print(f"seed {s}: {d} ({how[m]})")
+        return EXIT_OK
 
     from keras_rl.report.aggregate import write_aggregate
     from keras_rl.runs.backends import backend_for

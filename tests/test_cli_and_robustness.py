@@ -6,6 +6,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -399,3 +400,27 @@ def test_aggregate_redraws_curves_against_env_steps(short_run, tmp_path, capsys)
     assert (parent / "seed_3" / "curve.png").read_bytes()[:4] == b"\x89PNG"
     with pytest.raises(SystemExit):
         main(["aggregate", str(parent), "--x-axis", "time"])
+
+
+def test_reproduce_reruns_a_recorded_config_and_dry_run_trains_nothing(tmp_path):
+    """#23.13: `--config RUN/config.json` reruns a recorded run (here a committed seed, its
+    first 20 episodes bit for bit), and `--dry-run` prints the config and the folders only."""
+    import csv
+
+    committed = Path(__file__).resolve().parent.parent / "results" / "cartpole" / "faithful" / "seed_0"
+    dry = run_cli("reproduce", "cartpole", "--config", str(committed / "config.json"), "--dry-run",
+                  "--out", str(tmp_path / "dry"))
+    assert dry.returncode == 0, dry.stderr
+    assert '"q_lr":' in dry.stdout and f"seed 0: {tmp_path / 'dry' / 'seed_0'} (new)" in dry.stdout
+    assert not (tmp_path / "dry").exists()
+    proc = run_cli("reproduce", "cartpole", "--config", str(committed), "--episodes", "20", "--no-progress",
+                   "--min-success-rate", "0", "--out", str(tmp_path / "again"))
+    assert proc.returncode == 0, proc.stderr
+
+    def rows(path):
+        with open(path, newline="") as fh:
+            return [{k: v for k, v in r.items() if k != "wall_seconds"} for r in csv.DictReader(fh)]
+
+    assert rows(tmp_path / "again" / "seed_0" / "episodes.csv") == rows(committed / "episodes.csv")[:20]
+    wrong = run_cli("reproduce", "pendulum", "--config", str(committed), "--dry-run")
+    assert wrong.returncode == 2 and "is a config of 'cartpole', not of pendulum" in wrong.stderr
