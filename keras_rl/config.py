@@ -103,6 +103,12 @@ class ExperimentConfig:
                 values[new] = value
         return values
 
+    def differs_from(self, other: "ExperimentConfig") -> list[str]:
+        """The fields, but the seed, where ``other`` differs: the one test of "the same config
+        but for the seed" (seeds that share a batch, runs that can be reused or aggregated)."""
+        mine, theirs = self.to_dict(), other.to_dict()
+        return sorted(k for k in mine.keys() | theirs.keys() if k != "seed" and mine.get(k) != theirs.get(k))
+
     def replace(self, **changes: Any) -> "ExperimentConfig":
         config = dataclasses.replace(self, **changes)
         config.validate()
@@ -237,3 +243,10 @@ def _parse_value(name: str, hint: Any, text: str) -> Any:
                                                    if typing.get_origin(hint) is tuple else str(hint))
         article = "an" if kind[0] in "aeiou" else "a"
         raise ConfigError(f"{name} expects {article} {kind}, got {text!r}") from None
+
+
+def check_same_but_seed(configs) -> None:
+    """Seeds share a batch only when their configs are equal but for the seed."""
+    differing = sorted({k for c in configs[1:] for k in configs[0].differs_from(c)})
+    if differing:
+        raise ConfigError(f"seed-batched configs must be equal but for the seed; these differ: {', '.join(differing)}")

@@ -28,6 +28,7 @@ import numpy as np
 import tensorflow as tf
 
 from keras_rl.buffers import Layout
+from keras_rl.config import check_same_but_seed
 from keras_rl.envs import EnvSpec
 from keras_rl.learners.common import save_weights
 from keras_rl.learners.optimizers import SeedAdam
@@ -57,12 +58,6 @@ def model_variables(model) -> list:
 def layer_weights(model) -> list[np.ndarray]:
     """(kernel, bias) of each layer of a network, solo or stacked, in layer order."""
     return [v.numpy() for layer in layers_of(model) for v in (layer.kernel, layer.bias)]
-
-
-def _check_equal_but_seed(configs: Sequence) -> None:
-    first = {k: v for k, v in configs[0].to_dict().items() if k != "seed"}
-    if any({k: v for k, v in c.to_dict().items() if k != "seed"} != first for c in configs):
-        raise ValueError("seed-batched configs must be equal but for the seed")
 
 
 class SliceState:
@@ -420,7 +415,7 @@ class SoloAsStack:
 
 def _per_seed(configs: Sequence, build) -> list:
     """``build(config)`` for each seed, Keras seeded first as that seed's solo run seeds it."""
-    _check_equal_but_seed(configs)
+    check_same_but_seed(configs)
     built = []
     for config in configs:
         seed_everything(config.seed)

@@ -90,10 +90,10 @@ def rebuild(parent: Path, x_axis: str = "episode") -> dict[str, Any]:
     (name, variant, framework), = keys
     experiment = get_experiment(name)
     loaded = [experiment.config_cls.from_dict(c) for c in configs]
-    first = {k: v for k, v in loaded[0].to_dict().items() if k != "seed"}
+    first = loaded[0].to_dict()
     for seed_dir, config in zip(seed_dirs[1:], loaded[1:]):
         other = config.to_dict()
-        differing = sorted(k for k in first if other[k] != first[k])
+        differing = loaded[0].differs_from(config)
         if differing:
             k = differing[0]
             raise RunFolderError(f"{seed_dir} was made with a different config than {seed_dirs[0]} "

@@ -43,6 +43,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from keras_rl.config import check_same_but_seed
 from keras_rl.errors import ConfigError, NonFiniteLossError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import implementation, stacked_implementation
@@ -80,7 +81,7 @@ def run_seeds(experiment: Experiment, configs: Sequence, out_dirs: Sequence[Path
     ``command`` is the command line to record (a job run elsewhere carries its driver's).
     """
     configs = list(configs)
-    same_but_seed(configs)
+    check_same_but_seed(configs)
     if len({c.episodes for c in configs}) != 1:
         raise ConfigError("seed-batched runs share one budget")
     configure_tensorflow(threads)
@@ -117,13 +118,6 @@ def run_seeds(experiment: Experiment, configs: Sequence, out_dirs: Sequence[Path
                 bar.close()
             state.close()
     return [s.final for s in seeds]
-
-
-def same_but_seed(configs: Sequence) -> None:
-    """Seeds share a batch only when their configs are equal but for the seed."""
-    first = configs[0].replace(seed=0).to_dict()
-    if any(c.replace(seed=0).to_dict() != first for c in configs[1:]):
-        raise ConfigError("seed-batched configs must be equal but for the seed")
 
 
 def build_seed_axis(experiment: Experiment, configs: list, envs: Sequence | None):

@@ -9,8 +9,6 @@ from keras_rl.errors import RunFolderError
 from keras_rl.runs.provenance import code_version_of
 from keras_rl.runs.summary import RunSummary
 
-IGNORED_FIELDS = {"seed"}
-"""The seed is in the folder's name; every other field must match."""
 OUTCOMES = ("completed", "non_finite_loss")
 """Statuses that are what a config and seed do, so a rerun would only repeat them: a loss
 that turns NaN is the run's result (post 001 with the learning phase on, at update 1), not
@@ -35,11 +33,11 @@ def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
         return "missing"
     summary = RunSummary.read(seed_dir)
     try:
-        made = type(expected).from_dict(json.loads((seed_dir / "config.json").read_text())).to_dict()
+        made_config = type(expected).from_dict(json.loads((seed_dir / "config.json").read_text()))
     except (OSError, ValueError) as exc:
         raise RunFolderError(f"{seed_dir} is corrupt ({exc}); delete it or pass --rerun") from None
-    wanted = expected.to_dict()
-    differing = sorted(k for k in wanted if k not in IGNORED_FIELDS and made.get(k) != wanted[k])
+    made, wanted = made_config.to_dict(), expected.to_dict()
+    differing = made_config.differs_from(expected)
     if differing:
         raise RunFolderError(
             f"{seed_dir} was made with a different config ({', '.join(f'{k}={made.get(k)!r} here, {wanted[k]!r} wanted' for k in differing[:3])}); "

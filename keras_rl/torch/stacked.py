@@ -20,6 +20,7 @@ from typing import Sequence
 import numpy as np
 
 from keras_rl.buffers import Layout
+from keras_rl.config import check_same_but_seed
 from keras_rl.envs import EnvSpec
 from keras_rl.errors import ConfigError
 from keras_rl.torch import require_torch, save_state
@@ -186,9 +187,7 @@ class StackedTorchDDPGLearner(TorchDDPGLearner):
 
 def _solo_networks(build, configs: Sequence, spec: EnvSpec) -> list[tuple]:
     """Each seed's four solo modules, drawn as its solo run draws them (its solo learner's)."""
-    first = {k: v for k, v in configs[0].to_dict().items() if k != "seed"}
-    if any({k: v for k, v in c.to_dict().items() if k != "seed"} != first for c in configs):
-        raise ValueError("seed-batched configs must be equal but for the seed")
+    check_same_but_seed(configs)
     return [(lambda solo: (solo.actor, solo.critic, solo.target_actor, solo.target_critic))(build(c, spec))
             for c in configs]
 
