@@ -2,6 +2,7 @@
 
     python benchmarks/seed_batch_profile.py --experiment cartpole --seeds 10 --episodes 150
     python benchmarks/seed_batch_profile.py --experiment pendulum --seeds 1 --episodes 20
+    python benchmarks/seed_batch_profile.py --experiment mountaincar --seeds 10 --episodes 5
 
 Runs one batch of S seeds (S=1: the solo loop) under cProfile, after an untimed warm-up
 run that compiles the learner's steps, and splits the wall time into the parts of a vector
@@ -40,7 +41,7 @@ PARTS = {  # part -> (file suffix, function name) whose cumulative time counts f
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--experiment", choices=["pendulum", "cartpole"], default="cartpole")
+    parser.add_argument("--experiment", choices=["pendulum", "cartpole", "mountaincar"], default="cartpole")
     parser.add_argument("--seeds", type=int, default=10, help="seeds in the batch (1: the solo loop)")
     parser.add_argument("--episodes", type=int, default=150)
     args = parser.parse_args()
