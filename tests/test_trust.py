@@ -4,6 +4,7 @@ TensorFlow loads, provenance, valid JSON, TensorBoard, and what the user is told
 from __future__ import annotations
 
 import json
+import re
 import math
 import os
 import shutil
@@ -117,6 +118,24 @@ def test_disk_full_is_an_error_naming_the_file_and_nothing_claims_success(tmp_pa
             summary = json.loads(summary_path.read_text())
             assert summary["status"] != "completed" and not summary["success"]
         assert "No space left on device" in proc.stderr or "could not write" in proc.stderr, proc.stderr
+    finally:
+        subprocess.run(["umount", str(mount)], capture_output=True)
+
+
+def test_disk_full_under_ray_is_one_line_per_seed_naming_the_file(tmp_path):
+    """#23.8: with --workers 2 a full disk printed a Ray stack trace with colour codes."""
+    mount = tmp_path / "tiny"
+    mount.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=200k", "tmpfs", str(mount)], capture_output=True).returncode:
+        pytest.skip("cannot mount a tmpfs here (needs root)")
+    try:
+        proc = run_cli("reproduce", "pendulum", "--seeds", "0-1", "--episodes", "20", "--workers", "2",
+                       "--no-progress", "--out", str(mount / "r"))
+        assert proc.returncode == 1
+        assert "Traceback" not in proc.stderr and "\x1b[" not in proc.stderr, proc.stderr
+        for seed in (0, 1):
+            assert re.search(rf"error: seed {seed}\b.*could not write {mount / 'r' / f'seed_{seed}'}/\S+: No space left",
+                             proc.stderr), proc.stderr
     finally:
         subprocess.run(["umount", str(mount)], capture_output=True)
 

@@ -178,7 +178,18 @@ class RayBackend:
         def collect(refs) -> None:
             for ref in refs:
                 job = running.pop(ref)
-                files = ray.get(ref)
+                try:
+                    files = ray.get(ref)
+                except ray.exceptions.RayTaskError as exc:  # one line, not the worker's coloured traceback
+                    cause = exc.cause if getattr(exc, "cause", None) is not None else exc
+                    unsaid = [m for m in members(job) if not (Path(m.out_dir) / "summary.json").is_file()]
+                    if unsaid:  # a seed whose summary records the error is reported from it by the command
+                        who = ", ".join(f"seed {m.config['seed']}" for m in unsaid)
+                        print(f"error: {who} in {Path(unsaid[0].out_dir).parent}: {type(cause).__name__}: "
+                              f"{_plain(str(cause))}", file=sys.stderr)
+                    if bar is not None:
+                        bar.update(1)
+                    continue
                 if ship:
                     for member, member_files in zip(members(job), files):
                         _land(member, member_files)
@@ -209,6 +220,13 @@ class RayBackend:
             if bar is not None:
                 bar.close()
         return interrupted
+
+
+def _plain(text: str) -> str:
+    """``text`` without terminal colour codes, on one line."""
+    import re
+
+    return " ".join(re.sub(r"\x1b\[[0-9;]*m", "", text).split())
 
 
 def _land(job, files: dict[str, bytes]) -> None:
