@@ -38,13 +38,19 @@ def config(seed: int, **changes) -> MountainCarDDPGConfig:
     return MountainCarDDPGConfig.for_variant("faithful", seed=seed).replace(**changes)
 
 
+XLA = False
+"""The update's arithmetic is compared here, not the compiler's rounding: plain tf.function
+graphs compile in a fraction of XLA's time. The runs through the loop (last test) use XLA,
+as every run does."""
+
+
 def solo(seed: int, **changes):
     seed_everything(seed)  # as the loop does before a solo learner is built
-    return post001_learner(config(seed, **changes), SPEC)
+    return post001_learner(config(seed, **changes), SPEC, xla=XLA)
 
 
 def stacked(seeds, **changes):
-    return stack_post001([config(s, **changes) for s in seeds], SPEC)
+    return stack_post001([config(s, **changes) for s in seeds], SPEC, xla=XLA)
 
 
 def weights(learner) -> dict:
@@ -66,14 +72,15 @@ def test_each_slice_starts_from_its_solo_runs_weights_batchnorm_included_and_see
 
 @pytest.mark.parametrize("changes", ACTOR_UPDATES)
 def test_one_stacked_update_equals_each_seeds_solo_update(changes):
-    seeds = [0, 1, 2, 3]
+    seeds = [0, 1, 2]
     stack = stacked(seeds, **changes)
     rows = np.stack([rows_for(s) for s in seeds])
     losses = stack.train(rows)
     for k, seed in enumerate(seeds):
         alone = solo(seed, **changes)
+        before = weights(alone)
         solo_losses = alone.train(rows[k])
-        moved = max_gap(weights(alone), weights(solo(seed, **changes)))
+        moved = max_gap(weights(alone), before)
         gap = max_gap(stack.slice_weights(k), weights(alone))
         assert gap <= 1e-6 and gap < 0.05 * moved, (seed, gap, moved)
         for name in ("critic_loss", "actor_loss"):
@@ -81,16 +88,16 @@ def test_one_stacked_update_equals_each_seeds_solo_update(changes):
 
 
 def test_a_masked_seed_keeps_weights_moments_and_its_own_adam_step_count_bit_for_bit():
-    seeds = [0, 1, 2, 3]
+    seeds = [0, 1, 2]
     stack = stacked(seeds)
-    before = [stack.slice_state(k) for k in range(4)]
+    before = [stack.slice_state(k) for k in range(3)]
     first, second = (np.stack([rows_for(s, salt) for s in seeds]) for salt in (0, 1))
-    stack.train(first, mask=np.array([True, False, True, False]))
-    for k in (1, 3):  # masked: every variable of its slice, the step count among them, as it was
+    stack.train(first, mask=np.array([True, False, True]))
+    for k in (1,):  # masked: every variable of its slice, the step count among them, as it was
         after = stack.slice_state(k)["variables"]
         assert all(np.array_equal(a, b) for a, b in zip(before[k]["variables"], after, strict=True))
-    stack.train(second)  # everyone trains: seeds 1 and 3 take their first Adam step, 0 and 2 their second
-    assert stack.actor_optimizer.steps.numpy().tolist() == [2, 1, 2, 1]
+    stack.train(second)  # everyone trains: seed 1 takes its first Adam step, 0 and 2 their second
+    assert stack.actor_optimizer.steps.numpy().tolist() == [2, 1, 2]
     for k, seed in enumerate(seeds):
         alone = solo(seed)
         if k in (0, 2):
