@@ -75,8 +75,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep = sub.add_parser("reproduce", help="train one experiment over one or more seeds")
     rep.add_argument("experiment", help="experiment name (see `keras-rl list`)")
     rep.add_argument("--variant", default=None,
-                     help="faithful (the post's code as it ran; the default), fixed, or another of the experiment's "
-                          "variants (`keras-rl list`; mountaincar also has faithful-intended)")
+                     help="the variant: faithful (the default), fixed; mountaincar also has faithful-intended "
+                          "(all: `keras-rl list`)")
     rep.add_argument("--framework", default=None,
                      help="keras (ours; the default) or torch (where the experiment has one)")
     rep.add_argument("--config", type=Path, default=None, metavar="RUN/config.json",
@@ -417,9 +417,9 @@ def evaluate(args: argparse.Namespace) -> int:
     if args.episodes <= 0:
         raise ConfigError(f"--episodes must be positive, got {args.episodes}")
     if args.gif is not None:
+        _check_writable_file(args.gif, "--gif")
         if args.gif.suffix.lower() != ".gif":
             raise ConfigError(f"--gif writes a GIF; name it *.gif, not {args.gif.name!r}")
-        _check_writable_file(args.gif, "--gif")
     from keras_rl.runs.evaluate import evaluate_run
 
     result = evaluate_run(args.run_dir, episodes=args.episodes, gif=args.gif, seed=args.seed, progress=True,

@@ -345,8 +345,9 @@ def test_seed_batch_on_sweep_runs_each_grid_point_as_a_batch_and_refuses_what_it
     def cli(*args):
         return subprocess.run([sys.executable, "-m", "keras_rl", *args], capture_output=True, text=True, timeout=600)
 
-    bad = cli("compare", "mountaincar", "--seeds", "0-1", "--seed-batch", "2", "--reuse-only")
-    assert bad.returncode == 2 and "--seed-batch has no keras learner for mountaincar" in bad.stderr, bad.stderr
+    bad = cli("reproduce", "cartpole", "--framework", "torch", "--seeds", "0-1", "--seed-batch", "2", "--dry-run",
+              "--out", str(tmp_path / "tutorial"))
+    assert bad.returncode == 2 and "--seed-batch has no torch learner for cartpole" in bad.stderr, bad.stderr
     out = tmp_path / "sweep"
     proc = cli("sweep", "cartpole", "--grid", "gamma=0.99,0.9", "--seeds", "0-1", "--episodes", "3",
                "--seed-batch", "2", "--no-progress", "--out", str(out))
