@@ -3,6 +3,7 @@ TensorFlow loads, provenance, valid JSON, TensorBoard, and what the user is told
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
 import math
@@ -104,12 +105,21 @@ def test_sigterm_is_handled_like_ctrl_c(tmp_path, workers):
     assert not (out / "seed_2").exists()  # the queued seed never started
 
 
-def test_disk_full_is_an_error_naming_the_file_and_nothing_claims_success(tmp_path):
-    mount = tmp_path / "tiny"
-    mount.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=40k", "tmpfs", str(mount)], capture_output=True).returncode:
+@contextlib.contextmanager
+def tiny_disk(folder, size: str):
+    """A tmpfs of ``size`` mounted at ``folder`` for the block (skips where it cannot mount)."""
+    folder.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(folder)],
+                      capture_output=True).returncode:
         pytest.skip("cannot mount a tmpfs here (needs root)")
     try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], capture_output=True)
+
+
+def test_disk_full_is_an_error_naming_the_file_and_nothing_claims_success(tmp_path):
+    with tiny_disk(tmp_path / "tiny", "40k") as mount:
         proc = run_cli("reproduce", "pendulum", "--seeds", "0", "--episodes", "3", "--no-progress",
                        "--set", "train_start=200", "--out", str(mount / "run"))
         assert proc.returncode != 0
@@ -118,17 +128,11 @@ def test_disk_full_is_an_error_naming_the_file_and_nothing_claims_success(tmp_pa
             summary = json.loads(summary_path.read_text())
             assert summary["status"] != "completed" and not summary["success"]
         assert "No space left on device" in proc.stderr or "could not write" in proc.stderr, proc.stderr
-    finally:
-        subprocess.run(["umount", str(mount)], capture_output=True)
 
 
 def test_disk_full_under_ray_is_one_line_per_seed_naming_the_file(tmp_path):
     """#23.8: with --workers 2 a full disk printed a Ray stack trace with colour codes."""
-    mount = tmp_path / "tiny"
-    mount.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=200k", "tmpfs", str(mount)], capture_output=True).returncode:
-        pytest.skip("cannot mount a tmpfs here (needs root)")
-    try:
+    with tiny_disk(tmp_path / "tiny", "200k") as mount:
         proc = run_cli("reproduce", "pendulum", "--seeds", "0-1", "--episodes", "20", "--workers", "2",
                        "--no-progress", "--out", str(mount / "r"))
         assert proc.returncode == 1
@@ -136,8 +140,6 @@ def test_disk_full_under_ray_is_one_line_per_seed_naming_the_file(tmp_path):
         for seed in (0, 1):
             assert re.search(rf"error: seed {seed}\b.*could not write {mount / 'r' / f'seed_{seed}'}/\S+: No space left",
                              proc.stderr), proc.stderr
-    finally:
-        subprocess.run(["umount", str(mount)], capture_output=True)
 
 
 # -- checks before anything heavy loads ----------------------------------------------------------------
