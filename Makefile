@@ -22,7 +22,7 @@ reproduce: install
 
 ## The whole suite, slow threshold tests included.
 test: install-test
-	$(BIN)/python -m pytest -ra
+	$(BIN)/python -m pytest -ra --durations=40
 
 test-fast: install-test
 	$(BIN)/python -m pytest -ra -m "not slow"
