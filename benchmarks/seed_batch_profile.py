@@ -47,8 +47,8 @@ def main() -> None:
     args = parser.parse_args()
 
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.loop import run_seeds as run_seed_batch
     from keras_rl.runs.loop import run_seed
+    from keras_rl.runs.loop import run_seeds as run_seed_batch
     from keras_rl.seeding import configure_tensorflow
 
     configure_tensorflow(1)

@@ -84,8 +84,8 @@ def time_post001_updates(batches_wanted: int, with_torch: bool) -> tuple[float, 
     from keras_rl.buffers import PoppingBuffer
     from keras_rl.envs import EnvSpec
     from keras_rl.posts.mountaincar import MountainCarDDPGConfig
-    from keras_rl.registry import agent_for
     from keras_rl.reference.post001_eager import PostAgent, fill, functional_models
+    from keras_rl.registry import agent_for
 
     rng = np.random.default_rng(0)
     n = 100 + 32 * batches_wanted

@@ -15,11 +15,12 @@ import argparse
 import os
 import sys
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from keras_rl import __version__
 from keras_rl.errors import ConfigError, KerasRLError
+from keras_rl.runs.options import RunOptions, run_options_parser
 
 EXIT_OK, EXIT_CRITERION, EXIT_USAGE = 0, 1, 2
 MAX_SEEDS = 10_000
@@ -72,7 +73,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"keras-rl {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    rep = sub.add_parser("reproduce", help="train one experiment over one or more seeds")
+    rep = sub.add_parser("reproduce", help="train one experiment over one or more seeds",
+                         parents=[run_options_parser()])
     rep.add_argument("experiment", help="experiment name (see `keras-rl list`)")
     rep.add_argument("--variant", default=None,
                      help="the variant: faithful (the default), fixed; mountaincar also has faithful-intended "
@@ -87,19 +89,10 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--matched-init", action="store_true",
                      help="torch only: start from the Keras networks' initial weights for the same seed")
     rep.add_argument("--seeds", default=None, help="seed list or range: 13, 0-9, 0,3,5 (default 0, or --config's)")
-    rep.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
     rep.add_argument("--out", type=_path_arg, default=None,
                      help="output folder (default results/<experiment>/<variant>); one seed_<n>/ per seed")
-    rep.add_argument("--workers", type=int, default=1,
-                     help="seeds at once on a local Ray instance (default 1: in this process, no Ray)")
-    rep.add_argument("--address", default=None,
-                     help="run the seeds on the Ray cluster at HOST:PORT (default: $RAY_ADDRESS if set)")
-    rep.add_argument("--set", dest="overrides", action="append", default=[], metavar="FIELD=VALUE",
-                     help="override a config field, e.g. --set tau=0.005 (repeatable)")
     rep.add_argument("--min-success-rate", type=float, default=1.0,
                      help="exit 0 only if at least this share of seeds succeed (default 1.0: all)")
-    rep.add_argument("--seed-batch", type=int, default=1, metavar="S",
-                     help="train S seeds together in one compiled step per env step (keras; default 1)")
     rep.add_argument("--overwrite", action="store_true",
                      help="replace seed folders that already hold a run (each is cleared whole first)")
     rep.add_argument("--resume", action="store_true",
@@ -109,7 +102,6 @@ def build_parser() -> argparse.ArgumentParser:
                      help="write checkpoint.pkl every N episodes, and when stopped (default 10; 0: only when stopped)")
     rep.add_argument("--tensorboard", type=_path_arg, default=None, metavar="DIR",
                      help="also log per-episode score, metric and losses as TensorBoard scalars under DIR")
-    rep.add_argument("--no-progress", action="store_true", help="no progress bars")
 
     ev = sub.add_parser("evaluate", help="reload a run's saved policy and play greedy episodes")
     ev.add_argument("run_dir", type=Path, help="a seed's run folder with its weights, e.g. runs/pendulum/seed_0 "
@@ -120,26 +112,20 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--overwrite", action="store_true",
                     help="replace an evaluation.json of more episodes than this one plays")
 
-    cp = sub.add_parser("compare", help="run or reuse the same seeds in Keras and PyTorch and report the difference")
+    cp = sub.add_parser("compare", help="run or reuse the same seeds in Keras and PyTorch and report the difference",
+                        parents=[run_options_parser("workers", "address", "seed_batch", "episodes", "no_progress")])
     cp.add_argument("experiment", help="experiment name (see `keras-rl list`)")
     cp.add_argument("--seeds", default="0-9", help="seed list or range, the same for both frameworks (default 0-9)")
     cp.add_argument("--variant", default="faithful", help="the variant to compare (default faithful)")
     cp.add_argument("--matched-init", action="store_true",
                     help="torch runs start from the Keras runs' initial weights (report in <out>/<experiment>/matched-init)")
-    cp.add_argument("--workers", type=int, default=1,
-                    help="seeds at once on a local Ray instance for the runs still to make (default 1: in-process)")
-    cp.add_argument("--address", default=None, help="run on the Ray cluster at HOST:PORT (default: $RAY_ADDRESS)")
-    cp.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
     cp.add_argument("--runs", type=Path, default=Path("results"), help="where run folders are found and made")
     cp.add_argument("--out", type=Path, default=Path("results/compare"), help="report folder root")
     cp.add_argument("--rerun", action="store_true", help="replace existing run folders instead of reusing them")
     cp.add_argument("--reuse-only", action="store_true", help="run nothing; fail if a seed is missing")
-    cp.add_argument("--seed-batch", type=int, default=1, metavar="S",
-                    help="Keras runs still to make: train S seeds together in one compiled step per env step "
-                         "(default 1)")
-    cp.add_argument("--no-progress", action="store_true", help="no progress bars")
 
-    sw = sub.add_parser("sweep", help="a grid of config values x seeds, resumable, with a report per grid point")
+    sw = sub.add_parser("sweep", help="a grid of config values x seeds, resumable, with a report per grid point",
+                        parents=[run_options_parser()])
     sw.add_argument("experiment", help="experiment name (see `keras-rl list`)")
     sw.add_argument("--seeds", default="0-9", help="seed list or range for every grid point (default 0-9)")
     sw.add_argument("--grid", action="append", default=[], metavar="FIELD=V1,V2",
@@ -151,18 +137,8 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--baseline", default=None, help="the grid point the others are compared with (default: the first)")
     sw.add_argument("--variant", default="faithful", help="the variant the grid modifies (default faithful)")
     sw.add_argument("--framework", default="keras", help="keras (ours) or torch")
-    sw.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
-    sw.add_argument("--set", dest="overrides", action="append", default=[], metavar="FIELD=VALUE",
-                    help="override a config field for every grid point (repeatable)")
-    sw.add_argument("--workers", type=int, default=1,
-                    help="seeds at once on a local Ray instance (default 1: in this process, no Ray)")
-    sw.add_argument("--address", default=None, help="run on the Ray cluster at HOST:PORT (default: $RAY_ADDRESS)")
-    sw.add_argument("--seed-batch", type=int, default=1, metavar="S",
-                    help="train S seeds of a grid point together in one compiled step per env step "
-                         "(Keras; default 1)")
     sw.add_argument("--out", type=_path_arg, required=True, help="the sweep's folder: <grid point>/seed_<n>/, sweep.md")
     sw.add_argument("--yes", action="store_true", help="allow a sweep of more than 10,000 jobs")
-    sw.add_argument("--no-progress", action="store_true", help="no progress bars")
 
     ag = sub.add_parser("aggregate", help="rebuild summary.md and curves.png of a multi-seed folder")
     ag.add_argument("parent", type=Path, help="a folder of seed_<n>/ run folders, e.g. results/pendulum/faithful")
@@ -170,7 +146,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="what each seed's curve.png counts along x: episodes (default) or env steps")
 
     ck = sub.add_parser("check", help="regression-test the reproductions: fresh seeds against the committed "
-                                      "baseline, by each post's pre-registered rule (exit 0 consistent, 1 changed)")
+                                      "baseline, by each post's pre-registered rule (exit 0 consistent, 1 changed)",
+                        parents=[run_options_parser("workers", "address", "set", "no_progress", workers_default=2)])
     ck.add_argument("experiments", nargs="*", default=None,
                     help="experiments to check (default: pendulum cartpole mountaincar)")
     ck.add_argument("--tier", default="smoke", help="smoke (minutes, in `make test`) or full (default smoke)")
@@ -179,31 +156,12 @@ def build_parser() -> argparse.ArgumentParser:
                          "checkout; copy it outside the tree for `git bisect run`)")
     ck.add_argument("--seeds", default=None, help="fresh seeds instead of the rule's (never the baseline's); "
                                                   "the rule's error rates are for its own number of seeds")
-    ck.add_argument("--set", dest="overrides", action="append", default=[], metavar="FIELD=VALUE",
-                    help="override a config field of the new runs, to ask whether a change alters the result")
-    ck.add_argument("--workers", type=int, default=2, help="seeds (or batches) at once on a local Ray instance "
-                                                           "(default 2; 1: in this process)")
     ck.add_argument("--out", type=_path_arg, default=Path("check-runs"),
                     help="where the fresh runs, check.md, check.json and the plots go (default check-runs; "
                          "an earlier check's output there is replaced, anything else is refused)")
-    ck.add_argument("--no-progress", action="store_true", help="no progress bars")
 
     sub.add_parser("list", help="list the experiments and their variants")
     return parser
-
-
-def _check_counts(workers: int, episodes: int | None) -> int:
-    """The worker count to use (clamped to the cores, with a warning), or a ConfigError."""
-    if workers < 1:
-        raise ConfigError(f"--workers must be at least 1, got {workers}")
-    if episodes is not None and episodes <= 0:
-        raise ConfigError(f"--episodes must be positive, got {episodes}")
-    cores = os.cpu_count() or 1
-    if workers > cores:
-        print(f"warning: --workers {workers} is more than this machine's {cores} cores; using {cores}",
-              file=sys.stderr)
-        return cores
-    return workers
 
 
 def _check_writable_dir(path: Path, flag: str) -> None:
@@ -229,8 +187,9 @@ def _check_writable_file(path: Path, flag: str) -> None:
     _check_writable_dir(path.parent if str(path.parent) else Path("."), f"{flag}'s folder")
 
 
-def _seed_folder_state(seed_dir: Path) -> str | None:
-    """None for a folder that does not exist or is empty; else what it holds, for messages."""
+def _seed_folder_state(seed_dir: Path) -> tuple[str, str] | None:
+    """None for a folder that does not exist or is empty; else (its summary's status, or
+    "unreadable", and what it holds, for messages)."""
     if not seed_dir.is_dir() or not any(seed_dir.iterdir()):
         return None
     from keras_rl.errors import RunFolderError
@@ -238,9 +197,9 @@ def _seed_folder_state(seed_dir: Path) -> str | None:
 
     try:
         s = RunSummary.read(seed_dir)
-        return f"a {s.status} run, {s.episodes_run} episodes"
+        return s.status, f"a {s.status} run, {s.episodes_run} episodes"
     except RunFolderError:
-        return "files of an earlier run"
+        return "unreadable", "files of an earlier run"
 
 
 def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool) -> list[str]:
@@ -251,13 +210,14 @@ def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool) -> list[s
 
     modes, occupied = [], []
     for seed_dir in seed_dirs:
-        held = _seed_folder_state(seed_dir)
+        state = _seed_folder_state(seed_dir)
+        status, held = state if state is not None else (None, None)
         if resume:
             if (seed_dir / CHECKPOINT).is_file():
                 modes.append("resume")
             elif held is None:
                 modes.append("new")  # nothing to resume: start it
-            elif held.startswith("a completed run"):
+            elif status == "completed":
                 modes.append("keep")  # finishing an interrupted set: its finished seeds stay as they are
             else:
                 raise ConfigError(f"--resume: {seed_dir} holds {held} but no {CHECKPOINT}, so it cannot be "
@@ -316,9 +276,12 @@ def _recorded_config(experiment, args: argparse.Namespace):
     return experiment.config_cls.from_dict(values)
 
 
-def _set_suffix(assignments: list[str]) -> str:
-    """``-set-tau=0.005,broadcast_target=false`` for a default folder of a modified config."""
-    return "-set-" + ",".join(sorted(a.strip().replace("-", "_").replace("/", "_") for a in assignments))
+def _set_suffix(config_cls, assignments: tuple[str, ...]) -> str:
+    """``-set-broadcast_target=false,tau=0.005`` for a default folder of a modified config,
+    named from the parsed values (``tau=5e-3`` and ``tau=0.005`` name one folder)."""
+    from keras_rl.config import overrides_name
+
+    return "-set-" + overrides_name(config_cls.parse_assignments(assignments)).replace("/", "_")
 
 
 def reproduce(args: argparse.Namespace) -> int:
@@ -332,19 +295,16 @@ def reproduce(args: argparse.Namespace) -> int:
     args.variant = recorded.variant if recorded else args.variant or "faithful"
     args.framework = recorded.framework if recorded else args.framework or "keras"
     args.matched_init = recorded.matched_init if recorded else args.matched_init
-    workers = _check_counts(args.workers, args.episodes)
+    options = RunOptions.from_args(args)
     if args.checkpoint_every < 0:
         raise ConfigError(f"--checkpoint-every must be zero or more, got {args.checkpoint_every}")
     if not 0 <= args.min_success_rate <= 1:
         raise ConfigError(f"--min-success-rate must be in [0, 1], got {args.min_success_rate}")
-    overrides = {"framework": args.framework, "matched_init": args.matched_init}
-    if args.episodes is not None:
-        overrides["episodes"] = args.episodes
     if recorded is not None:
-        base = recorded.replace(**({"episodes": args.episodes} if args.episodes is not None else {}))
-        base = base.with_text_overrides(args.overrides)
+        base = recorded.replace(**options.config_changes()).with_text_overrides(options.overrides)
     else:
-        base = experiment.config_cls.for_variant(args.variant, **overrides).with_text_overrides(args.overrides)
+        base = experiment.config_cls.for_variant(args.variant, framework=args.framework, matched_init=args.matched_init,
+                                                 **options.config_changes()).with_text_overrides(options.overrides)
     if args.framework == "torch":
         from keras_rl.torch import require_torch
 
@@ -352,15 +312,15 @@ def reproduce(args: argparse.Namespace) -> int:
     out = args.out
     if out is None:
         out = run_folder(Path("results"), experiment.name, args.variant, args.framework, args.matched_init)
-        if args.overrides:  # a modified config never lands in the variant's own folder
-            out = out.with_name(out.name + _set_suffix(args.overrides))
+        if options.overrides:  # a modified config never lands in the variant's own folder
+            out = out.with_name(out.name + _set_suffix(experiment.config_cls, options.overrides))
     _check_writable_dir(out, "--out")
     if args.tensorboard is not None:
         _check_writable_dir(args.tensorboard, "--tensorboard")
     seed_dirs = [out / f"seed_{s}" for s in seeds]
     modes = _start_modes(seed_dirs, args.overwrite, args.resume)
-    address = _address(args)
-    _check_seed_batch(args.seed_batch, experiment.name, args.framework)
+    options.check_address()  # now that the input is good: is the cluster there?
+    _check_seed_batch(options.seed_batch, experiment.name, args.framework)
     if args.dry_run:
         import json
 
@@ -378,8 +338,8 @@ def reproduce(args: argparse.Namespace) -> int:
     kept = _kept_runs(base, [(s, d) for s, d, m in zip(seeds, seed_dirs, modes) if m == "keep"])
     jobs = batched([SeedJob.of(base.replace(seed=s), d, start=m, checkpoint_every=args.checkpoint_every,
                                tensorboard=args.tensorboard) for s, d, m in zip(seeds, seed_dirs, modes) if m != "keep"],
-                   args.seed_batch)
-    outcome = run_jobs(jobs, backend_for(workers, len(jobs), address), progress=not args.no_progress)
+                   options.seed_batch)
+    outcome = run_jobs(jobs, backend_for(options.workers, len(jobs), options.address), progress=options.progress)
     summaries = sorted(kept + outcome.summaries, key=lambda s: seeds.index(s.seed))
     failures = [s for s in summaries if s.status in ("non_finite_loss", "error")]
     for s in failures:
@@ -436,17 +396,17 @@ def compare(args: argparse.Namespace) -> int:
     if args.rerun and args.reuse_only:
         raise ConfigError("--rerun and --reuse-only contradict each other (one reruns every seed, the other runs "
                           "none); pick one")
-    workers = _check_counts(args.workers, args.episodes)
     seeds = parse_seeds(args.seeds)
-    address = _address(args)
-    _check_seed_batch(args.seed_batch, args.experiment, "keras")
+    options = RunOptions.from_args(args)
+    options.check_address()
+    _check_seed_batch(options.seed_batch, args.experiment, "keras")
     from keras_rl.report.compare import compare as run_compare
     from keras_rl.runs.provenance import command_line
 
     try:
-        result = run_compare(args.experiment, seeds, args.variant, workers, args.runs,
-                             args.out, args.rerun, args.reuse_only, args.episodes, not args.no_progress,
-                             command_line(), args.matched_init, address=address, seed_batch=args.seed_batch)
+        result = run_compare(args.experiment, seeds, options, variant=args.variant, runs_root=args.runs,
+                             out_root=args.out, rerun=args.rerun, reuse_only=args.reuse_only,
+                             matched_init=args.matched_init, command=command_line())
     except KeyboardInterrupt:
         print("interrupted: the runs so far are on disk; run compare again to reuse them", file=sys.stderr)
         return _stopped()
@@ -456,23 +416,11 @@ def compare(args: argparse.Namespace) -> int:
 
 
 def _check_seed_batch(seed_batch: int, experiment: str, framework: str) -> None:
-    """``--seed-batch S``: a clear error before anything runs when it cannot apply."""
-    if seed_batch < 1:
-        raise ConfigError(f"--seed-batch must be at least 1, got {seed_batch}")
+    """``--seed-batch S`` (S > 1): a clear error before anything runs when it cannot apply."""
     if seed_batch > 1:
         from keras_rl.learners.table import stacked_implementation
 
         stacked_implementation(experiment, framework)  # a clear error if there is none
-
-
-def _address(args: argparse.Namespace) -> str | None:
-    """``--address``, else ``$RAY_ADDRESS``; checked for reachability before anything runs."""
-    address = args.address or os.environ.get("RAY_ADDRESS") or None
-    if address:
-        from keras_rl.runs.ray_backend import check_reachable
-
-        check_reachable(address)
-    return address
 
 
 def sweep(args: argparse.Namespace) -> int:
@@ -481,11 +429,9 @@ def sweep(args: argparse.Namespace) -> int:
 
     experiment = get_experiment(args.experiment)
     seeds = parse_seeds(args.seeds)
-    workers = _check_counts(args.workers, args.episodes)
-    overrides = {"framework": args.framework}
-    if args.episodes is not None:
-        overrides["episodes"] = args.episodes
-    base = experiment.config_cls.for_variant(args.variant, **overrides).with_text_overrides(args.overrides)
+    options = RunOptions.from_args(args)
+    base = experiment.config_cls.for_variant(args.variant, framework=args.framework, **options.config_changes())
+    base = base.with_text_overrides(options.overrides)
     if args.ablate and args.grid:
         raise ConfigError("--ablate makes its own grid; drop --grid, or sweep without --ablate")
     if not args.ablate and not args.grid:
@@ -498,8 +444,8 @@ def sweep(args: argparse.Namespace) -> int:
         raise ConfigError(f"--baseline {baseline!r} is not a grid point; the points are "
                           f"{', '.join(p.name for p in points)}")
     _check_writable_dir(args.out, "--out")
-    address = _address(args)
-    _check_seed_batch(args.seed_batch, experiment.name, args.framework)
+    options.check_address()
+    _check_seed_batch(options.seed_batch, experiment.name, args.framework)
     every, todo, configs = sweep_jobs(base, points, seeds, args.out, args.yes)
     if args.framework == "torch":
         from keras_rl.torch import require_torch
@@ -514,8 +460,8 @@ def sweep(args: argparse.Namespace) -> int:
     from keras_rl.runs.summary import RunSummary
 
     record_grid(args.out, points)
-    todo = batched(todo, args.seed_batch)
-    outcome = run_jobs(todo, backend_for(workers, len(todo), address), progress=not args.no_progress)
+    todo = batched(todo, options.seed_batch)
+    outcome = run_jobs(todo, backend_for(options.workers, len(todo), options.address), progress=options.progress)
     summaries = {p.name: [RunSummary.read(j.out_dir) for j in every
                           if Path(j.out_dir).parent.name == p.name and (Path(j.out_dir) / "summary.json").is_file()]
                  for p in points}
@@ -540,12 +486,13 @@ def aggregate(args: argparse.Namespace) -> int:
 
 
 def list_experiments(args: argparse.Namespace) -> int:
-    from keras_rl.learners.table import frameworks
+    from keras_rl.learners.table import STACKED, frameworks
     from keras_rl.registry import EXPERIMENTS
 
     for name, exp in sorted(EXPERIMENTS.items()):
+        batching = [fw for fw in frameworks(name) if (name, fw) in STACKED]
         print(f"{name:12s} {exp.description}; variants: {', '.join(exp.config_cls.VARIANTS)}; "
-              f"frameworks: {', '.join(frameworks(name))}")
+              f"frameworks: {', '.join(frameworks(name))}; --seed-batch: {', '.join(batching) or 'none'}")
     return EXIT_OK
 
 
@@ -561,14 +508,14 @@ def check(args: argparse.Namespace) -> int:
         raise ConfigError(f"unknown tier {args.tier!r}; choose one of {', '.join(TIERS)}")
     if len(set(names)) != len(names):
         raise ConfigError(f"an experiment is named twice: {' '.join(names)}")
-    workers = _check_counts(args.workers, None)
     seeds = parse_seeds(args.seeds) if args.seeds is not None else None
+    options = RunOptions.from_args(args)
+    options.check_address()
     from keras_rl.check.command import CALIBRATION, run_check
 
     against = args.against if args.against is not None else CALIBRATION.parent
     try:
-        results = run_check(names, args.tier, against, args.out, seeds, args.overrides, workers,
-                            not args.no_progress)
+        results = run_check(names, args.tier, against, args.out, seeds, options)
     except KeyboardInterrupt:
         print("interrupted: no verdict", file=sys.stderr)
         return _stopped()

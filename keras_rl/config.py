@@ -19,8 +19,9 @@ from __future__ import annotations
 import dataclasses
 import math
 import typing
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, ClassVar, Literal, Mapping
+from typing import Any, ClassVar, Literal
 
 from keras_rl.errors import ConfigError
 from keras_rl.learners.table import frameworks
@@ -58,7 +59,7 @@ class ExperimentConfig:
 
     # -- construction -------------------------------------------------------------------
     @classmethod
-    def for_variant(cls, variant: str, **overrides: Any) -> "ExperimentConfig":
+    def for_variant(cls, variant: str, **overrides: Any) -> ExperimentConfig:
         """The config of a named variant, with further field overrides on top."""
         if variant not in cls.VARIANTS:
             raise ConfigError(
@@ -69,7 +70,7 @@ class ExperimentConfig:
         return cls.from_dict(values)
 
     @classmethod
-    def from_dict(cls, values: Mapping[str, Any]) -> "ExperimentConfig":
+    def from_dict(cls, values: Mapping[str, Any]) -> ExperimentConfig:
         """A config from ``to_dict``'s output, including ``config.json`` of older runs."""
         values = cls.upgrade(values)
         names = {f.name for f in dataclasses.fields(cls)}
@@ -103,45 +104,59 @@ class ExperimentConfig:
                 values[new] = value
         return values
 
-    def differs_from(self, other: "ExperimentConfig") -> list[str]:
+    def differs_from(self, other: ExperimentConfig) -> list[str]:
         """The fields, but the seed, where ``other`` differs: the one test of "the same config
         but for the seed" (seeds that share a batch, runs that can be reused or aggregated)."""
         mine, theirs = self.to_dict(), other.to_dict()
         return sorted(k for k in mine.keys() | theirs.keys() if k != "seed" and mine.get(k) != theirs.get(k))
 
-    def replace(self, **changes: Any) -> "ExperimentConfig":
+    def replace(self, **changes: Any) -> ExperimentConfig:
         config = dataclasses.replace(self, **changes)
         config.validate()
         return config
 
-    def with_text_overrides(self, assignments: list[str]) -> "ExperimentConfig":
-        """Apply ``name=value`` strings from the command line, parsed by the field's type."""
-        hints = typing.get_type_hints(type(self))
-        changes: dict[str, Any] = {}
-        for item in assignments:
+    def with_text_overrides(self, assignments: list[str] | tuple[str, ...]) -> ExperimentConfig:
+        """Apply ``--set FIELD=VALUE`` texts, each parsed by its field's type."""
+        return self.replace(**self.parse_assignments(assignments))
+
+    NOT_FIELDS: ClassVar[tuple[str, ...]] = ("experiment", "post", "VARIANTS", "RENAMED", "RUN_FIELDS", "QUIRKS",
+                                             "NOT_FIELDS")
+
+    @classmethod
+    def parse_assignments(cls, items: list[str] | tuple[str, ...], flag: str = "--set",
+                          many: bool = False) -> dict[str, Any]:
+        """The one parser of ``FIELD=VALUE`` texts (``--set``; ``--grid`` with ``many``, whose
+        values are comma lists, ``;`` between layer widths). Each value is parsed by its
+        field's type, so ``tau=5e-3`` and ``tau=0.005`` are the same assignment. A
+        ConfigError names a malformed item, a run option, a renamed or unknown field, an
+        empty or unparsable value, and a field given twice."""
+        parsed: dict[str, Any] = {}
+        hints = typing.get_type_hints(cls)
+        for item in items:
             name, sep, text = item.partition("=")
             name = name.strip().replace("-", "_")
-            if not sep:
-                raise ConfigError(f"--set expects name=value, got {item!r}")
-            if name in self.RUN_FIELDS:
-                raise ConfigError(f"--set {name}=... is not a config override; use {self.RUN_FIELDS[name]}")
-            if name in self.RENAMED:
-                new = ", ".join(self.RENAMED[name](0))
-                raise ConfigError(f"{self.experiment} config field {name!r} was renamed; use {new}")
-            if name not in hints or name in ("experiment", "post", "VARIANTS", "RENAMED", "RUN_FIELDS", "QUIRKS"):
-                raise ConfigError(f"unknown {self.experiment} config field {name!r}")
-            changes[name] = self.parse_field(name, text)
-        return self.replace(**changes)
+            if not sep or not name:
+                raise ConfigError(f"{flag} expects {'FIELD=V1,V2,...' if many else 'FIELD=VALUE'}, got {item!r}")
+            if name in cls.RUN_FIELDS:
+                raise ConfigError(f"{flag} {name}=... is not a config field; use {cls.RUN_FIELDS[name]}")
+            if name in cls.RENAMED:
+                raise ConfigError(f"{cls.experiment} config field {name!r} was renamed; use "
+                                  f"{', '.join(cls.RENAMED[name](0))}")
+            if name not in hints or name in cls.NOT_FIELDS:
+                raise ConfigError(f"unknown {cls.experiment} config field {name!r}")
+            if name in parsed:
+                raise ConfigError(f"{flag} names {name} twice")
+            texts = (text.split(";") if "hidden_units" in name else text.split(",")) if many else [text]
+            if any(not t.strip() for t in texts):
+                raise ConfigError(f"{flag} {item!r} has an empty value")
+            values = [_parse_value(name, hints[name], t.strip()) for t in texts]
+            parsed[name] = values if many else values[0]
+        return parsed
 
     @classmethod
     def parse_field(cls, name: str, text: str) -> Any:
-        """A command-line value for field ``name``, parsed by the field's type (ConfigError if not)."""
-        hints = typing.get_type_hints(cls)
-        if name not in hints or name in ("experiment", "post", "VARIANTS", "RENAMED", "RUN_FIELDS", "QUIRKS"):
-            raise ConfigError(f"unknown {cls.experiment} config field {name!r}")
-        if not text.strip():
-            raise ConfigError(f"{name} has an empty value")
-        return _parse_value(name, hints[name], text.strip())
+        """One command-line value for field ``name``, parsed by the field's type."""
+        return cls.parse_assignments([f"{name}={text}"])[name.strip().replace("-", "_")]
 
     def to_dict(self) -> dict[str, Any]:
         return {"experiment": self.experiment, "post": self.post, **dataclasses.asdict(self)}
@@ -250,3 +265,19 @@ def check_same_but_seed(configs) -> None:
     differing = sorted({k for c in configs[1:] for k in configs[0].differs_from(c)})
     if differing:
         raise ConfigError(f"seed-batched configs must be equal but for the seed; these differ: {', '.join(differing)}")
+
+
+def value_text(value: Any) -> str:
+    """A parsed config value as folder names write it: ``0.005``, ``false``, ``400,300``."""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, tuple):
+        return ",".join(str(v) for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def overrides_name(overrides: Mapping[str, Any]) -> str:
+    """The one name of a set of parsed overrides, sorted by field: ``broadcast_target=false,tau=0.005``
+    (empty for none). Sweep points and ``--set`` folders are named by it, so equal values
+    written differently name the same folder."""
+    return ",".join(f"{k}={value_text(v)}" for k, v in sorted(overrides.items()))

@@ -98,7 +98,7 @@ def table(experiment: str) -> str:
     result = {r["point"]: r for r in analyse_sweep(summaries, "faithful")["points"]}
     g = lambda v: "n/a" if v is None else f"{v:g}"  # noqa: E731
     p = lambda v: "n/a" if v is None or v != v else f"{v:.2g}"  # noqa: E731
-    for ledger_id, label, folder in rows:
+    for ledger_id, label, _folder in rows:
         if label not in result:
             lines.append(f"| {ledger_id} | {label} | not run yet | | | | | | |")
             continue

@@ -16,8 +16,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from keras_rl.runs.files import read_episodes  # noqa: E402
 from keras_rl.report.stats import mann_whitney  # noqa: E402
+from keras_rl.runs.files import read_episodes  # noqa: E402
 
 
 def unsettled(folder: Path, first: int, last: int, threshold: float) -> dict[int, int]:

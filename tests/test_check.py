@@ -76,7 +76,7 @@ def test_power_grows_with_the_shift_and_the_detectable_shift_is_found():
 def test_every_rule_is_well_formed_and_every_post_has_five_mutants_some_gross():
     from keras_rl.registry import get_experiment
 
-    for (name, tier), rule in RULES.items():
+    for (name, _tier), rule in RULES.items():
         experiment = get_experiment(name)
         assert rule.statistic in rule.candidates and rule.alpha in (0.01, 0.005)
         assert not set(rule.seed_list()) & set(range(30)), "fresh seeds must not be the baseline's"

@@ -9,14 +9,14 @@ import time
 from pathlib import Path
 
 import pytest
+from wrappers import NaNRewardAfter, SigintAt
 
 from keras_rl.cli import main, parse_seeds
+from keras_rl.errors import RunFolderError
 from keras_rl.posts.pendulum import PendulumDDPGConfig
 from keras_rl.registry import get_experiment
-from keras_rl.runs.loop import run_seed
-from keras_rl.errors import RunFolderError
 from keras_rl.runs.files import read_episodes
-from wrappers import NaNRewardAfter, SigintAt
+from keras_rl.runs.loop import run_seed
 
 CLI = [sys.executable, "-m", "keras_rl"]
 

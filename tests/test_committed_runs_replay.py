@@ -56,7 +56,7 @@ def test_committed_run_reproduces_bit_for_bit(tmp_path, folder, experiment, extr
     theirs = summary.get("provenance", {}).get("cpu_model")
     if theirs is not None and theirs != cpu_model():
         warnings.warn(f"{folder} was made on {theirs!r}, this is {cpu_model()!r}: TensorFlow does not promise "
-                      "bit-exactness across CPUs, so only the first 5 episodes are compared")
+                      "bit-exactness across CPUs, so only the first 5 episodes are compared", stacklevel=2)
         expected = expected[:5]
     budget = len(expected) if episodes is not None or len(expected) < len(read_rows(committed / "episodes.csv")) \
         else config["episodes"]
@@ -89,7 +89,7 @@ def test_committed_seed_batch_reproduces_bit_for_bit(tmp_path, folder, experimen
     assert f"--seeds 0-29 --workers 2 --seed-batch {last - first + 1}" in summary["command"]  # batches 0-14, 15-29
     theirs = summary.get("provenance", {}).get("cpu_model")
     if theirs is not None and theirs != cpu_model():
-        warnings.warn(f"{folder} was made on {theirs!r}, this is {cpu_model()!r}: only 5 episodes are compared")
+        warnings.warn(f"{folder} was made on {theirs!r}, this is {cpu_model()!r}: only 5 episodes are compared", stacklevel=2)
         episodes = 5
     out = tmp_path / "run"
     proc = subprocess.run(

@@ -10,8 +10,8 @@ import pytest
 from scipy import stats
 
 from keras_rl.cli import main
-from keras_rl.runs.files import read_episodes
 from keras_rl.report.stats import fisher_exact, iqm, iqm_ci, mann_whitney, median_difference_ci, success_difference_ci
+from keras_rl.runs.files import read_episodes
 
 
 def test_mann_whitney_against_a_hand_computed_u():
@@ -99,7 +99,7 @@ def test_compare_writes_a_well_formed_report_whose_numbers_the_csvs_reproduce(co
             finals.append(rows[-1]["metric"])
             walls.append(summary["wall_seconds"])
             ms.append(summary["wall_seconds"] / summary["total_steps"] * 1e3)
-        line = next(l for l in report.splitlines() if l.startswith(f"| {fw} |"))
+        line = next(row for row in report.splitlines() if row.startswith(f"| {fw} |"))
         cells = [c.strip() for c in line.strip("|").split("|")]
         assert cells[1] == "0/2"  # 20 episodes cannot reach a 100-episode mean of 475
         assert float(cells[4].split(" ")[0]) == pytest.approx(iqm(finals), abs=1e-3)

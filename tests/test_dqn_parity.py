@@ -13,7 +13,7 @@ from keras_rl.seeding import seed_everything
 
 torch = pytest.importorskip("torch", reason="parity tests need the torch extra: pip install -e '.[torch]'")
 
-from keras_rl.torch.dqn_tutorial import TutorialDQNAgent, Transition  # noqa: E402
+from keras_rl.torch.dqn_tutorial import Transition, TutorialDQNAgent  # noqa: E402
 
 OBS, ACTIONS, B = 4, 2, 128
 SPEC = EnvSpec(OBS, 1, n_actions=ACTIONS)

@@ -11,9 +11,9 @@ import tensorflow as tf
 from keras_rl.buffers import Layout, PoppingBuffer
 from keras_rl.envs import EnvSpec
 from keras_rl.learners.ddpg import DDPGLearner
+from keras_rl.learners.networks import MountainCarActor, build
 from keras_rl.posts.mountaincar import MountainCarDDPGConfig, standardised_discounted_returns
 from keras_rl.registry import agent_for
-from keras_rl.learners.networks import MountainCarActor, build
 from keras_rl.seeding import seed_everything
 
 LOW, HIGH = np.array([-1.2, -0.07], np.float32), np.array([0.6, 0.07], np.float32)

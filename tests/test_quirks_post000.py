@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from keras_rl.envs import EnvSpec
+from keras_rl.learners.networks import Actor
 from keras_rl.posts.pendulum import PendulumDDPGConfig
 from keras_rl.registry import agent_for
-from keras_rl.learners.networks import Actor
 from keras_rl.seeding import seed_everything
 
 OBS = np.array([1.0, 0.0, 0.5], np.float32)
@@ -114,7 +114,7 @@ def test_P000_TEST_the_post_test_section_lines():
     assert isinstance(score, np.ndarray) and score.shape == (1,)
     # ... and "{:3f}".format of a 1-element ndarray raises on numpy 2
     with pytest.raises(TypeError):
-        "episode: {:3d} | score: {:3f}".format(0, score)
+        f"episode: {0:3d} | score: {score:3f}"
     # P000-TEST-SAVE: Keras 3's save_weights takes no save_format and wants a .weights.h5 name
     agent = make_agent("faithful")
     with pytest.raises((TypeError, ValueError)):

@@ -9,9 +9,9 @@ import pytest
 
 from keras_rl.envs import EnvSpec
 from keras_rl.learners.dqn import huber
+from keras_rl.metrics import RollingMean
 from keras_rl.posts.cartpole import CartPoleDQNConfig, epsilon
 from keras_rl.registry import agent_for
-from keras_rl.metrics import RollingMean
 from keras_rl.seeding import seed_everything
 
 OBS = np.array([0.01, -0.02, 0.03, 0.04], np.float32)

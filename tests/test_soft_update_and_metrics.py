@@ -2,8 +2,8 @@ import keras
 import numpy as np
 import pytest
 
-from keras_rl.metrics import GoalShare, PostEMA, RollingMean
 from keras_rl.learners.common import soft_update
+from keras_rl.metrics import GoalShare, PostEMA, RollingMean
 
 
 def test_soft_update_mixes_by_tau():

@@ -282,8 +282,8 @@ def test_one_stacked_dqn_update_equals_each_seeds_solo_update_and_ignores_its_ba
 
 def _cartpole_runs(tmp_path, name, seeds, episodes, batch: bool):
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.loop import run_seeds as run_seed_batch
     from keras_rl.runs.loop import run_seed
+    from keras_rl.runs.loop import run_seeds as run_seed_batch
 
     exp = get_experiment("cartpole")
     configs = [exp.config_cls.for_variant("faithful", seed=s, episodes=episodes) for s in seeds]

@@ -10,16 +10,27 @@ import keras  # noqa: E402
 import tensorflow as tf  # noqa: E402
 
 from keras_rl.envs import EnvSpec  # noqa: E402
+from keras_rl.errors import ConfigError, RunFolderError  # noqa: E402
 from keras_rl.posts.cartpole import CartPoleDQNConfig  # noqa: E402
 from keras_rl.posts.mountaincar import MountainCarDDPGConfig  # noqa: E402
 from keras_rl.posts.pendulum import PendulumDDPGConfig  # noqa: E402
 from keras_rl.registry import agent_for  # noqa: E402
-from keras_rl.errors import ConfigError, RunFolderError  # noqa: E402
 from keras_rl.seeding import seed_everything  # noqa: E402
-from keras_rl.torch.ddpg import KerasAdam, KerasBatchNorm, max_abs_difference  # noqa: E402
+from keras_rl.torch.networks import KerasBatchNorm  # noqa: E402
+from keras_rl.torch.optimizers import KerasAdam  # noqa: E402
 
 ATOL = 1e-5
 LOW, HIGH = np.array([-1.2, -0.07]), np.array([0.6, 0.07])
+
+
+def max_abs_difference(module, keras_model) -> float:
+    """The largest |torch - Keras| over every paired weight (for parity tests)."""
+    worst = 0.0
+    for tensor, variable, transpose in module.keras_pairs(keras_model):
+        value = np.asarray(variable.numpy())
+        value = value.T if transpose else value
+        worst = max(worst, float(np.max(np.abs(tensor.detach().numpy() - value))))
+    return worst
 
 
 def pendulum(config):

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import contextlib
 import json
-import re
 import math
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -174,13 +174,6 @@ def test_empty_out_is_refused(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["reproduce", "pendulum", "--out", ""])
     assert exc.value.code == 2 and "--out: is empty" in capsys.readouterr().err
-
-
-def test_workers_beyond_the_cores_are_clamped_with_a_warning(capsys, tmp_path):
-    from keras_rl.cli import _check_counts
-
-    assert _check_counts(1000, None) == os.cpu_count()
-    assert "more than this machine's" in capsys.readouterr().err
 
 
 def test_aggregate_refuses_mixed_configs_and_names_a_corrupt_seed(tiny, tmp_path, capsys):

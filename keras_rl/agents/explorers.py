@@ -8,7 +8,8 @@ The noise process itself (``OUNoise``) has the SB3 ActionNoise shape: ``__call__
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 

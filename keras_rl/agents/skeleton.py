@@ -15,9 +15,10 @@ Every post runs this same body. They differ only in the parts handed in: the lea
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 

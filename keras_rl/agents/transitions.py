@@ -7,8 +7,9 @@ transition is stored as it happens or at the episode's end with its reward repla
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Literal
+from typing import Literal
 
 import numpy as np
 

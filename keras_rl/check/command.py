@@ -24,6 +24,7 @@ from keras_rl.check.statistics import Decision, decide, seed_statistic
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.registry import get_experiment
 from keras_rl.runs.files import atomic_write_json, atomic_write_text, read_episodes
+from keras_rl.runs.options import RunOptions
 from keras_rl.runs.summary import RunSummary
 
 CALIBRATION = Path(__file__).resolve().parents[2] / "results" / "checks" / "calibration.json"
@@ -104,7 +105,7 @@ def prepare_out(out: Path) -> None:
 
 
 def run_check(names: list[str], tier: str, against: Path, out: Path, seeds: list[int] | None,
-              overrides: list[str], workers: int, progress: bool, address: str | None = None) -> list[CheckResult]:
+              options: RunOptions) -> list[CheckResult]:
     """Run the fresh seeds of every experiment at once, then test each against its baseline."""
     from keras_rl.runs.backends import backend_for
     from keras_rl.runs.jobs import SeedJob, batched, run_jobs
@@ -121,7 +122,7 @@ def run_check(names: list[str], tier: str, against: Path, out: Path, seeds: list
                               f"(the baseline has {min(baseline)}-{max(baseline)})")
         if len(fresh) < 2:
             raise ConfigError(f"{name}: a check needs at least 2 fresh seeds, got {len(fresh)}")
-        config = experiment.config_cls.for_variant("faithful", episodes=rule.episodes).with_text_overrides(overrides)
+        config = experiment.config_cls.for_variant("faithful", episodes=rule.episodes).with_text_overrides(options.overrides)
         plan.append((experiment, rule, fresh, config, baseline, baseline_rows))
     prepare_out(out)
     jobs = []
@@ -132,11 +133,11 @@ def run_check(names: list[str], tier: str, against: Path, out: Path, seeds: list
         group = [SeedJob.of(config.replace(seed=s), folder / f"seed_{s}", start="overwrite") for s in fresh]
         jobs += batched(group, rule.seed_batch)
     atomic_write_json(out / MARKER, {"status": "running", "experiments": names})
-    outcome = run_jobs(jobs, backend_for(workers, len(jobs), address), progress=progress)
+    outcome = run_jobs(jobs, backend_for(options.workers, len(jobs), options.address), progress=options.progress)
     if outcome.interrupted:
         raise KeyboardInterrupt
     results = []
-    for experiment, rule, fresh, config, baseline, baseline_rows in plan:
+    for experiment, rule, fresh, _config, baseline, baseline_rows in plan:
         new, new_rows = {}, {}
         for s in fresh:
             summary = RunSummary.read(out / experiment.name / f"seed_{s}")
@@ -147,7 +148,7 @@ def run_check(names: list[str], tier: str, against: Path, out: Path, seeds: list
             new[s] = _statistic(experiment, rule, rows) if summary.status == "completed" else float("nan")
             new_rows[s] = rows
         decision = decide(list(baseline.values()), list(new.values()), rule.statistic, rule.alpha)
-        result = CheckResult(experiment.name, rule, baseline, new, decision, list(overrides), error_rates(rule))
+        result = CheckResult(experiment.name, rule, baseline, new, decision, list(options.overrides), error_rates(rule))
         results.append(result)
         _plot(out / experiment.name / "check.png", experiment, result, baseline_rows, new_rows)
     write_report(out, results, tier)

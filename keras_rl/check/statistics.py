@@ -20,8 +20,9 @@ faithful reproduction, learning faster is a change in fidelity too).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 

@@ -22,8 +22,15 @@ import tensorflow as tf
 
 from keras_rl.buffers import Batch, Layout
 from keras_rl.envs import EnvSpec
-from keras_rl.learners.common import (compile_step, load_variables_state, load_weights, numpy_weights, save_weights,
-                                      soft_update, variables_state)
+from keras_rl.learners.common import (
+    compile_step,
+    load_variables_state,
+    load_weights,
+    numpy_weights,
+    save_weights,
+    soft_update,
+    variables_state,
+)
 from keras_rl.learners.networks import Actor, Critic, MountainCarActor, MountainCarCritic, build
 from keras_rl.learners.protocol import ActorUpdate, check_actor_update, four_networks
 
@@ -35,7 +42,7 @@ class DDPGLearner:
 
     def __init__(self, actor: keras.Model, critic: keras.Model, target_actor: keras.Model,
                  target_critic: keras.Model, actor_optimizer: keras.optimizers.Optimizer,
-                 critic_optimizer: keras.optimizers.Optimizer, gamma: float, tau: float,
+                 critic_optimizer: keras.optimizers.Optimizer, *, gamma: float, tau: float,
                  broadcast_target: bool, layout: Layout, xla: bool = True, actor_update: ActorUpdate = "mean_q",
                  dqda_at_buffer_actions: bool = False):
         self.actor_update = check_actor_update(actor_update)
@@ -80,7 +87,7 @@ class DDPGLearner:
 
     @classmethod
     def with_adam(cls, networks: tuple[keras.Model, keras.Model, keras.Model, keras.Model], actor_lr: float,
-                  critic_lr: float, **kwargs) -> "DDPGLearner":
+                  critic_lr: float, **kwargs) -> DDPGLearner:
         """The posts' set-up: (actor, critic, target actor, target critic), each network with
         its own Keras Adam (Keras 2's Adam of post 001 has the same epsilon and update rule)."""
         return cls(*networks, keras.optimizers.Adam(learning_rate=actor_lr),

@@ -10,8 +10,15 @@ import tensorflow as tf
 
 from keras_rl.buffers import Batch, Layout
 from keras_rl.envs import EnvSpec
-from keras_rl.learners.common import (compile_step, load_variables_state, load_weights, numpy_weights, save_weights,
-                                      soft_update, variables_state)
+from keras_rl.learners.common import (
+    compile_step,
+    load_variables_state,
+    load_weights,
+    numpy_weights,
+    save_weights,
+    soft_update,
+    variables_state,
+)
 from keras_rl.learners.networks import QNetwork, build
 from keras_rl.learners.optimizers import TorchAdamW
 
@@ -29,7 +36,7 @@ class DQNLearner:
 
     loss_names = ("loss",)
 
-    def __init__(self, q_network: keras.Model, target_network: keras.Model, optimizer: keras.optimizers.Optimizer,
+    def __init__(self, q_network: keras.Model, target_network: keras.Model, optimizer: keras.optimizers.Optimizer, *,
                  gamma: float, tau: float, grad_clip_value: float, layout: Layout, xla: bool = True):
         self.q_network, self.target_network, self.optimizer = q_network, target_network, optimizer
         self.gamma, self.tau, self.grad_clip_value = float(gamma), float(tau), float(grad_clip_value)
@@ -138,5 +145,5 @@ def post003_optimizer(config) -> TorchAdamW:
 def post003_learner(config, spec: EnvSpec, xla: bool = True, dtype: str | None = None) -> DQNLearner:
     """The tutorial's ``policy_net``, ``target_net`` and AdamW."""
     c = config
-    return DQNLearner(*post003_networks(c, spec, dtype), post003_optimizer(c), c.gamma, c.tau, c.grad_clip_value,
-                      Layout(spec.obs_dim, 1), xla=xla)
+    return DQNLearner(*post003_networks(c, spec, dtype), post003_optimizer(c), gamma=c.gamma, tau=c.tau,
+                      grad_clip_value=c.grad_clip_value, layout=Layout(spec.obs_dim, 1), xla=xla)

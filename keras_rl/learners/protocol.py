@@ -9,8 +9,9 @@ the result files are shared, and a difference in outcome comes from the framewor
 from __future__ import annotations
 
 import typing
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, Callable, Literal, Mapping, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 

@@ -20,8 +20,8 @@ The episode loop over a seed axis is ``runs/loop.py``; the equivalence tests are
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, Sequence
 
 import keras
 import numpy as np
@@ -31,11 +31,10 @@ from keras_rl.buffers import Layout
 from keras_rl.config import check_same_but_seed
 from keras_rl.envs import EnvSpec
 from keras_rl.learners.common import save_weights
-from keras_rl.learners.optimizers import SeedAdam
 from keras_rl.learners.ddpg import DDPGLearner, post000_networks, post001_networks
 from keras_rl.learners.dqn import DQNLearner, post003_networks, post003_optimizer
+from keras_rl.learners.optimizers import SeedAdam
 from keras_rl.seeding import seed_everything
-
 
 NETWORKS = ("actor", "critic", "target_actor", "target_critic")
 """Post 000's networks, as ``slice_weights`` names them."""
@@ -217,7 +216,7 @@ class StackedDDPGLearner(SliceState, DDPGLearner):
     takes_masks = True
     """``train(rows, mask)``: the loop may train some seeds and not others on one call."""
 
-    def __init__(self, networks, actor_lr: float, critic_lr: float, seeds: int, xla: bool = True, **kwargs):
+    def __init__(self, networks, *, actor_lr: float, critic_lr: float, seeds: int, xla: bool = True, **kwargs):
         actor, critic = networks[0], networks[1]
         self.seeds = seeds
         self._mask = tf.Variable(tf.ones([seeds], tf.bool), trainable=False, name="mask")
@@ -326,11 +325,10 @@ class StackedDQNLearner(SliceState, DQNLearner):
     and its every-step soft update, for S seeds in one call: ``DQNLearner``'s own update on
     [S, B, ...] batches, its gradient taken of the sum of the seeds' losses."""
 
-    def __init__(self, q_network, target_network, optimizer, gamma: float, tau: float, grad_clip_value: float,
-                 layout: Layout, seeds: int, xla: bool = True):
+    def __init__(self, q_network, target_network, optimizer, *, seeds: int, **kwargs):
         self.seeds = seeds
         self.solo_networks: list[keras.Model] = []  # seed k's solo policy net, for saving
-        super().__init__(q_network, target_network, optimizer, gamma, tau, grad_clip_value, layout, xla=xla)
+        super().__init__(q_network, target_network, optimizer, **kwargs)
 
     def input_specs(self) -> tuple[tf.TensorSpec, tf.TensorSpec]:
         return (tf.TensorSpec([self.seeds, None, self.layout.width], tf.float32),
@@ -431,7 +429,7 @@ def _stack_ddpg(configs: Sequence, spec: EnvSpec, networks, stacked_actor, stack
     solos = _per_seed(configs, lambda config: networks(config, spec))
     nets = [stacked_actor([s[i] for s in solos]) if i in (0, 2) else stacked_critic([s[i] for s in solos])
             for i in range(4)]
-    learner = StackedDDPGLearner(nets, c.actor_lr, c.critic_lr, seeds=len(configs), xla=xla, gamma=c.gamma, tau=c.tau,
+    learner = StackedDDPGLearner(nets, actor_lr=c.actor_lr, critic_lr=c.critic_lr, seeds=len(configs), xla=xla, gamma=c.gamma, tau=c.tau,
                                  layout=Layout(spec.obs_dim, spec.action_dim), **kwargs)
     learner.solo_policies = [(s[0], s[1]) for s in solos]
     return learner
@@ -481,7 +479,7 @@ def stack_post003(configs: Sequence, spec: EnvSpec, xla: bool = True):
         return SoloAsStack(post003_learner(c, spec, xla=xla))
     solos = _per_seed(configs, lambda config: post003_networks(config, spec))
     learner = StackedDQNLearner(StackedQNetwork([q for q, _ in solos]), StackedQNetwork([t for _, t in solos]),
-                                post003_optimizer(c), c.gamma, c.tau, c.grad_clip_value, Layout(spec.obs_dim, 1),
-                                seeds=len(configs), xla=xla)
+                                post003_optimizer(c), gamma=c.gamma, tau=c.tau, grad_clip_value=c.grad_clip_value,
+                                layout=Layout(spec.obs_dim, 1), seeds=len(configs), xla=xla)
     learner.solo_networks = [q for q, _ in solos]
     return learner

@@ -13,8 +13,9 @@ Adding a framework, or a seed-batched learner, is one module plus one line here.
 from __future__ import annotations
 
 import importlib
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 
 @dataclass(frozen=True)

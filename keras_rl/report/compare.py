@@ -19,9 +19,10 @@ from keras_rl.learners.table import frameworks
 from keras_rl.registry import get_experiment
 from keras_rl.report.plots import plt, save_figure
 from keras_rl.report.stats import episodes_to_threshold_stats, fisher_exact, iqm_ci, mann_whitney, median_difference_ci
-from keras_rl.runs.files import atomic_write_json, atomic_write_text, finite_or_none, read_episodes, run_folder
 from keras_rl.runs.backends import backend_for
+from keras_rl.runs.files import atomic_write_json, atomic_write_text, finite_or_none, read_episodes, run_folder
 from keras_rl.runs.jobs import SeedJob, batched, run_jobs
+from keras_rl.runs.options import RunOptions
 from keras_rl.runs.provenance import code_version
 from keras_rl.runs.reuse import check_reusable
 from keras_rl.runs.summary import RunSummary
@@ -212,10 +213,9 @@ class CompareResult:
     analysis: dict[str, Any]
 
 
-def compare(name: str, seeds: list[int], variant: str = "faithful", workers: int = 1, runs_root: Path = Path("results"),
-            out_root: Path = Path("results/compare"), rerun: bool = False, reuse_only: bool = False,
-            episodes: int | None = None, progress: bool = True, command: str = "",
-            matched_init: bool = False, address: str | None = None, seed_batch: int = 1) -> CompareResult:
+def compare(name: str, seeds: list[int], options: RunOptions | None = None, *, variant: str = "faithful",
+            runs_root: Path = Path("results"), out_root: Path = Path("results/compare"), rerun: bool = False,
+            reuse_only: bool = False, matched_init: bool = False, command: str = "") -> CompareResult:
     """Write ``<out_root>/<name>/report.md`` (``<out_root>/<name>/matched-init/`` with
     ``matched_init``: the torch runs start from the Keras runs' initial weights).
 
@@ -227,10 +227,11 @@ def compare(name: str, seeds: list[int], variant: str = "faithful", workers: int
     from keras_rl.torch import require_torch
 
     require_torch()
-    overrides = {} if episodes is None else {"episodes": episodes}
+    options = options or RunOptions()
+    overrides = options.config_changes()
     jobs = batched(gather(experiment, variant, seeds, runs_root, rerun, reuse_only, overrides, matched_init),
-                   seed_batch)  # the Keras runs still to make, S seeds at a time
-    if run_jobs(jobs, backend_for(workers, len(jobs), address), progress).interrupted:
+                   options.seed_batch)  # the Keras runs still to make, S seeds at a time
+    if run_jobs(jobs, backend_for(options.workers, len(jobs), options.address), options.progress).interrupted:
         raise KeyboardInterrupt
     runs = {fw: load_runs(run_folder(runs_root, name, variant, fw, matched_init), seeds) for fw in FRAMEWORKS}
     for fw, rs in runs.items():
@@ -240,5 +241,5 @@ def compare(name: str, seeds: list[int], variant: str = "faithful", workers: int
     config = experiment.config_cls.for_variant(variant, **overrides)
     result = analyse(runs, config.episodes)
     out_dir = Path(out_root) / name / ("matched-init" if matched_init else "")
-    write_report(out_dir, experiment, variant, runs, result, config.threshold, command, matched_init, workers)
+    write_report(out_dir, experiment, variant, runs, result, config.threshold, command, matched_init, options.workers)
     return CompareResult(out_dir, verdict(result, len(seeds)), result)

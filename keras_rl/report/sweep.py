@@ -17,9 +17,14 @@ import numpy as np
 
 from keras_rl.errors import ConfigError
 from keras_rl.report.aggregate import write_aggregate
-from keras_rl.report.stats import (episodes_to_threshold_stats, fisher_exact, mann_whitney, median_difference_ci,
-                                   success_difference_ci)
 from keras_rl.report.plots import plot_sweep
+from keras_rl.report.stats import (
+    episodes_to_threshold_stats,
+    fisher_exact,
+    mann_whitney,
+    median_difference_ci,
+    success_difference_ci,
+)
 from keras_rl.runs.files import atomic_write_json, atomic_write_text, read_episodes
 from keras_rl.runs.summary import RunSummary
 

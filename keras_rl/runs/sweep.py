@@ -10,11 +10,11 @@ sweep again finishes in seconds and an interrupted sweep resumes where it stoppe
 from __future__ import annotations
 
 import itertools
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from keras_rl.config import overrides_name, value_text
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.runs.jobs import SeedJob
 from keras_rl.runs.provenance import code_version
@@ -30,43 +30,20 @@ class GridPoint:
     overrides: dict[str, Any]
 
 
-def _text(value: Any) -> str:
-    if isinstance(value, bool):
-        return str(value).lower()
-    if isinstance(value, tuple):
-        return ",".join(str(v) for v in value)
-    return f"{value:g}" if isinstance(value, float) else str(value)
-
-
 def point_name(overrides: dict[str, Any]) -> str:
-    return ",".join(f"{k}={_text(v)}" for k, v in sorted(overrides.items())) or BASE
+    return overrides_name(overrides) or BASE
 
 
 def parse_grid(config_cls, items: list[str]) -> list[GridPoint]:
     """``["tau=0.001,0.005", "gamma=0.9,0.99"]`` -> the cross product, each value parsed by
-    its field's type (a ConfigError names a bad field, value or an empty one)."""
-    axes: list[tuple[str, list[Any]]] = []
-    for item in items:
-        name, sep, values = item.partition("=")
-        name = name.strip().replace("-", "_")
-        if not sep or not name:
-            raise ConfigError(f"--grid expects FIELD=V1,V2,..., got {item!r}")
-        if name in config_cls.RUN_FIELDS:
-            raise ConfigError(f"--grid {name}=... is not a config field; use {config_cls.RUN_FIELDS[name]}")
-        if name in (a for a, _ in axes):
-            raise ConfigError(f"--grid names {name} twice")
-        texts = values.split(",")
-        if any(not t.strip() for t in texts):
-            raise ConfigError(f"--grid {item!r} has an empty value")
-        if "hidden_units" in name:  # widths are themselves comma lists: separate grid values with ';'
-            texts = values.split(";")
-        parsed = [config_cls.parse_field(name, t) for t in texts]
-        repeated = sorted({_text(v) for v in parsed if parsed.count(v) > 1})
+    its field's type (``config.parse_assignments``; a ConfigError names a bad field or value)."""
+    axes = config_cls.parse_assignments(items, flag="--grid", many=True)
+    for name, parsed in axes.items():
+        repeated = sorted({value_text(v) for v in parsed if parsed.count(v) > 1})
         if repeated:  # 0.1, 0.10 and 1e-1 are one grid point: as three they would count its seeds thrice
-            raise ConfigError(f"--grid {item!r} gives {name}={' and '.join(repeated)} more than once (values are "
+            raise ConfigError(f"--grid {name}= gives {name}={' and '.join(repeated)} more than once (values are "
                               "compared after parsing); give each value once")
-        axes.append((name, parsed))
-    points = [dict(zip((a for a, _ in axes), combo)) for combo in itertools.product(*(v for _, v in axes))]
+    points = [dict(zip(axes, combo)) for combo in itertools.product(*axes.values())]
     return [GridPoint(point_name(p), p) for p in points]
 
 
@@ -114,6 +91,3 @@ def record_grid(out: Path, points: list[GridPoint]) -> None:
 
     atomic_write_json(Path(out) / "grid.json", [{"name": p.name, "overrides": p.overrides} for p in points])
 
-
-def read_grid(out: Path) -> list[GridPoint]:
-    return [GridPoint(p["name"], p["overrides"]) for p in json.loads((Path(out) / "grid.json").read_text())]

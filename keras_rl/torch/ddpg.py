@@ -26,9 +26,7 @@ moving statistics with Keras' epsilon 1e-3) and the literal second-order actor s
 from __future__ import annotations
 
 import copy
-import math
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -36,190 +34,11 @@ from keras_rl.buffers import Batch, Layout
 from keras_rl.envs import EnvSpec
 from keras_rl.learners.protocol import ActorUpdate, check_actor_update, four_networks
 from keras_rl.torch import load_state, require_torch, save_state, single_threaded
+from keras_rl.torch.networks import Actor, Critic, MountainCarActor, MountainCarCritic
+from keras_rl.torch.optimizers import KerasAdam
+from keras_rl.torch.weights import hard_copy, match_keras, soft_update, variables
 
 torch = require_torch()
-nn = torch.nn
-F = torch.nn.functional
-
-
-class KerasAdam(torch.optim.Adam):
-    """``torch.optim.Adam`` stepping as ``keras.optimizers.Adam`` does.
-
-    Keras: ``p -= lr * sqrt(1-b2^t)/(1-b1^t) * m / (sqrt(v) + eps)``. torch:
-    ``p -= lr/(1-b1^t) * m / (sqrt(v)/sqrt(1-b2^t) + eps_t)``. The two are equal when
-    ``eps_t = eps / sqrt(1-b2^t)``, so that is the ``eps`` each step gets.
-    """
-
-    def __init__(self, params, lr: float, epsilon: float = 1e-7, betas=(0.9, 0.999)):
-        if not lr > 0:
-            raise ValueError(f"learning rate must be positive, got {lr}")
-        super().__init__(params, lr=lr, betas=betas, eps=epsilon)
-        self.epsilon = float(epsilon)
-        self.iterations = 0
-
-    @torch.no_grad()
-    def step(self, closure=None):
-        self.iterations += 1
-        for group in self.param_groups:
-            group["eps"] = self.epsilon / math.sqrt(1.0 - group["betas"][1] ** self.iterations)
-        return super().step(closure)
-
-
-# -- networks --------------------------------------------------------------------------------
-class Actor(nn.Module):
-    """Post 000 §2.2: Linear 64 relu, Linear 64 relu, Linear(action_dim) tanh, times the bound."""
-
-    def __init__(self, obs_dim: int, action_dim: int, action_bound: float, hidden_units: Sequence[int] = (64, 64)):
-        super().__init__()
-        widths = [obs_dim, *hidden_units]
-        self.hidden = nn.ModuleList(nn.Linear(a, b) for a, b in zip(widths, widths[1:]))
-        self.out = nn.Linear(widths[-1], action_dim)
-        self.action_bound = float(action_bound)
-
-    def forward(self, state):  # [B, obs] -> [B, act]
-        x = state
-        for layer in self.hidden:
-            x = F.relu(layer(x))
-        return torch.tanh(self.out(x)) * self.action_bound
-
-    def keras_pairs(self, model) -> list:
-        return dense_pairs([*self.hidden, self.out], [*model.hidden, model.out])
-
-
-class Critic(nn.Module):
-    """Post 000 §2.2: concat(state, action), Linear 64 relu, Linear 64 relu, Linear 1."""
-
-    def __init__(self, obs_dim: int, action_dim: int, hidden_units: Sequence[int] = (64, 64)):
-        super().__init__()
-        widths = [obs_dim + action_dim, *hidden_units]
-        self.hidden = nn.ModuleList(nn.Linear(a, b) for a, b in zip(widths, widths[1:]))
-        self.out = nn.Linear(widths[-1], 1)
-
-    def forward(self, state, action):  # -> [B, 1]
-        x = torch.cat([state, action], dim=-1)
-        for layer in self.hidden:
-            x = F.relu(layer(x))
-        return self.out(x)
-
-    def keras_pairs(self, model) -> list:
-        return dense_pairs([*self.hidden, self.out], [*model.hidden, model.out])
-
-
-class KerasBatchNorm(nn.Module):
-    """Keras' ``BatchNormalization`` on the last axis: epsilon 1e-3, momentum 0.99, the
-    moving variance updated with the *biased* batch variance (``nn.BatchNorm1d`` uses the
-    unbiased one). ``training`` is the Keras learning phase (post 001 ran with 0)."""
-
-    def __init__(self, features: int, training: bool = False, epsilon: float = 1e-3, momentum: float = 0.99):
-        super().__init__()
-        self.weight = nn.Parameter(torch.ones(features))  # gamma
-        self.bias = nn.Parameter(torch.zeros(features))  # beta
-        self.register_buffer("running_mean", torch.zeros(features))
-        self.register_buffer("running_var", torch.ones(features))
-        self.learning_phase, self.epsilon, self.momentum = bool(training), float(epsilon), float(momentum)
-
-    def forward(self, x):
-        if self.learning_phase:
-            mean, var = x.mean(0), x.var(0, unbiased=False)
-            with torch.no_grad():
-                self.running_mean.copy_(self.running_mean * self.momentum + mean * (1 - self.momentum))
-                self.running_var.copy_(self.running_var * self.momentum + var * (1 - self.momentum))
-        else:
-            mean, var = self.running_mean, self.running_var
-        return (x - mean) * torch.rsqrt(var + self.epsilon) * self.weight + self.bias
-
-    def keras_pairs(self, layer) -> list:
-        return [(self.weight, layer.gamma, False), (self.bias, layer.beta, False),
-                (self.running_mean, layer.moving_mean, False), (self.running_var, layer.moving_variance, False)]
-
-
-class MountainCarActor(nn.Module):
-    """Post 001 ``Actor.__make_model``: GaussianNoise(1.0) -> BatchNormalization ->
-    3 x Linear 32 selu -> Linear(action_dim) tanh; ``training`` is the learning phase."""
-
-    def __init__(self, obs_dim: int, action_dim: int = 1, hidden_units: Sequence[int] = (32, 32, 32),
-                 noise_std: float = 1.0, training: bool = False):
-        super().__init__()
-        self.learning_phase, self.noise_std = bool(training), float(noise_std)
-        self.norm = KerasBatchNorm(obs_dim, training)
-        widths = [obs_dim, *hidden_units]
-        self.hidden = nn.ModuleList(nn.Linear(a, b) for a, b in zip(widths, widths[1:]))
-        self.out = nn.Linear(widths[-1], action_dim)
-
-    def forward(self, state):
-        x = state + self.noise_std * torch.randn_like(state) if self.learning_phase else state
-        x = self.norm(x)
-        for layer in self.hidden:
-            x = F.selu(layer(x))
-        return torch.tanh(self.out(x))
-
-    def keras_pairs(self, model) -> list:
-        return self.norm.keras_pairs(model.norm) + dense_pairs([*self.hidden, self.out], [*model.hidden, model.out])
-
-
-class MountainCarCritic(nn.Module):
-    """Post 001 ``Critic.__make_model``: BatchNormalization -> Linear 32 selu -> concat the
-    action -> Linear 32 selu -> Linear 1."""
-
-    def __init__(self, obs_dim: int, action_dim: int = 1, hidden_units: Sequence[int] = (32, 32),
-                 training: bool = False):
-        super().__init__()
-        self.norm = KerasBatchNorm(obs_dim, training)
-        self.fc1 = nn.Linear(obs_dim, hidden_units[0])
-        self.fc2 = nn.Linear(hidden_units[0] + action_dim, hidden_units[1])
-        self.out = nn.Linear(hidden_units[1], 1)
-
-    def forward(self, state, action):
-        x = F.selu(self.fc1(self.norm(state)))
-        x = F.selu(self.fc2(torch.cat([x, action], dim=-1)))
-        return self.out(x)
-
-    def keras_pairs(self, model) -> list:
-        return self.norm.keras_pairs(model.norm) + dense_pairs(
-            [self.fc1, self.fc2, self.out], [model.fc1, model.fc2, model.out])
-
-
-def dense_pairs(linears, denses) -> list:
-    """(torch tensor, Keras variable, transpose?) for each Linear/Dense pair."""
-    if len(linears) != len(denses):
-        raise ValueError(f"{len(linears)} torch layers vs {len(denses)} Keras layers")
-    pairs = []
-    for linear, dense in zip(linears, denses):
-        pairs += [(linear.weight, dense.kernel, True), (linear.bias, dense.bias, False)]
-    return pairs
-
-
-def copy_from_keras(module, keras_model, pairs: list | None = None) -> None:
-    """Overwrite ``module``'s weights (and BatchNorm statistics) with ``keras_model``'s.
-
-    ``pairs`` defaults to ``module.keras_pairs(keras_model)``: (tensor, variable, transpose?)."""
-    with torch.no_grad():
-        for tensor, variable, transpose in pairs if pairs is not None else module.keras_pairs(keras_model):
-            value = np.asarray(variable.numpy())
-            value = value.T if transpose else value
-            if tuple(tensor.shape) != value.shape:
-                raise ValueError(f"shape mismatch copying Keras {variable.path} {value.shape} "
-                                 f"into torch {tuple(tensor.shape)}")
-            tensor.copy_(torch.from_numpy(np.ascontiguousarray(value)))
-
-
-def max_abs_difference(module, keras_model) -> float:
-    """The largest |torch - Keras| over every paired weight (for parity tests)."""
-    worst = 0.0
-    for tensor, variable, transpose in module.keras_pairs(keras_model):
-        value = np.asarray(variable.numpy())
-        value = value.T if transpose else value
-        worst = max(worst, float(np.max(np.abs(tensor.detach().numpy() - value))))
-    return worst
-
-
-# -- the learner -----------------------------------------------------------------------------
-def soft_update(target: Sequence, source: Sequence, tau: float) -> None:
-    """``theta' <- tau * theta + (1 - tau) * theta'`` on torch tensors in place (call under
-    ``torch.no_grad()``): the same float32 expression as the Keras learners' ``soft_update``,
-    so the two frameworks' targets agree bit for bit given equal inputs."""
-    for t, s in zip(target, source, strict=True):
-        t.copy_(tau * s + (1.0 - tau) * t)
 
 
 class TorchDDPGLearner:
@@ -229,7 +48,7 @@ class TorchDDPGLearner:
 
     loss_names = ("critic_loss", "actor_loss")
 
-    def __init__(self, actor, critic, target_actor, target_critic, actor_lr: float, critic_lr: float,
+    def __init__(self, actor, critic, target_actor, target_critic, *, actor_lr: float, critic_lr: float,
                  gamma: float, tau: float, broadcast_target: bool, layout: Layout, actor_update: ActorUpdate = "mean_q",
                  dqda_at_buffer_actions: bool = False):
         check_actor_update(actor_update)
@@ -242,8 +61,8 @@ class TorchDDPGLearner:
         self.actor_update, self.dqda_at_buffer_actions = actor_update, bool(dqda_at_buffer_actions)
         self._actor_params = list(actor.parameters())
         # (target, source) lists for the soft updates, built once, not per update
-        self._soft_pairs = [(_variables(target_actor), _variables(actor)),
-                            (_variables(target_critic), _variables(critic))]
+        self._soft_pairs = [(variables(target_actor), variables(actor)),
+                            (variables(target_critic), variables(critic))]
 
     def train(self, rows: np.ndarray) -> dict:
         return self.update(self.layout.split(torch.from_numpy(np.ascontiguousarray(rows, np.float32))))
@@ -260,7 +79,7 @@ class TorchDDPGLearner:
         return self.act(state) if want_action else None
 
     def weights(self) -> dict[str, list[np.ndarray]]:
-        return {name: [t.detach().numpy().copy() for t in _variables(getattr(self, name))]
+        return {name: [t.detach().numpy().copy() for t in variables(getattr(self, name))]
                 for name in ("actor", "critic", "target_actor", "target_critic")}
 
     def state_dict(self) -> dict:
@@ -348,20 +167,6 @@ class TorchDDPGLearner:
         load_state(self.actor, Path(run_dir) / "actor.pt")
 
 
-def _variables(module) -> list:
-    """Parameters, then buffers: Keras variables include BatchNormalization's moving statistics."""
-    return [*module.parameters(), *module.buffers()]
-
-
-def _hard_copy(target, source) -> None:
-    with torch.no_grad():
-        soft_update(_variables(target), _variables(source), 1.0)
-
-
-def _match(nets: Sequence, keras_nets: Sequence) -> None:
-    for net, keras_net in zip(nets, keras_nets, strict=True):
-        copy_from_keras(net, keras_net)
-
 
 def post000_learner(config, spec: EnvSpec) -> TorchDDPGLearner:
     """Post 000's learner in PyTorch (the agent is ``keras_rl.posts.pendulum.assemble``'s)."""
@@ -370,13 +175,13 @@ def post000_learner(config, spec: EnvSpec) -> TorchDDPGLearner:
     torch.manual_seed(c.seed)
     nets = four_networks(lambda: Actor(spec.obs_dim, spec.action_dim, spec.action_bound, c.actor_hidden_units),
                          lambda: Critic(spec.obs_dim, spec.action_dim, c.critic_hidden_units),
-                         None if c.matched_init or c.target_copy_is_noop else _hard_copy)
+                         None if c.matched_init or c.target_copy_is_noop else hard_copy)
     if c.matched_init:
         from keras_rl.learners.ddpg import post000_networks  # the Keras learner's draws, same seed and order
 
-        _match(nets, post000_networks(c, spec))
-    return TorchDDPGLearner(*nets, c.actor_lr, c.critic_lr, c.gamma, c.tau, c.broadcast_target,
-                            Layout(spec.obs_dim, spec.action_dim))
+        match_keras(nets, post000_networks(c, spec))
+    return TorchDDPGLearner(*nets, actor_lr=c.actor_lr, critic_lr=c.critic_lr, gamma=c.gamma, tau=c.tau,
+                            broadcast_target=c.broadcast_target, layout=Layout(spec.obs_dim, spec.action_dim))
 
 
 def post001_learner(config, spec: EnvSpec) -> TorchDDPGLearner:
@@ -388,10 +193,11 @@ def post001_learner(config, spec: EnvSpec) -> TorchDDPGLearner:
                                                   c.actor_input_noise, c.learning_phase_training),
                          lambda: MountainCarCritic(spec.obs_dim, spec.action_dim, c.critic_hidden_units,
                                                    c.learning_phase_training),
-                         None if c.matched_init else _hard_copy)  # Agent.__init__'s set_weights copy
+                         None if c.matched_init else hard_copy)  # Agent.__init__'s set_weights copy
     if c.matched_init:
         from keras_rl.learners.ddpg import post001_networks
 
-        _match(nets, post001_networks(c, spec))
-    return TorchDDPGLearner(*nets, c.actor_lr, c.critic_lr, c.gamma, c.tau, False, Layout(spec.obs_dim, spec.action_dim),
+        match_keras(nets, post001_networks(c, spec))
+    return TorchDDPGLearner(*nets, actor_lr=c.actor_lr, critic_lr=c.critic_lr, gamma=c.gamma, tau=c.tau,
+                            broadcast_target=False, layout=Layout(spec.obs_dim, spec.action_dim),
                             actor_update=c.actor_gradient, dqda_at_buffer_actions=c.dqda_at_buffer_actions)

@@ -70,7 +70,7 @@ class TutorialDQNAgent:
         self.target_net = DQN(n_observations, n_actions, c.q_hidden_units)
         if c.matched_init:  # the Keras agent's first network, same seed (the target copies it)
             from keras_rl.learners.networks import QNetwork, build
-            from keras_rl.torch.ddpg import copy_from_keras, dense_pairs
+            from keras_rl.torch.weights import copy_from_keras, dense_pairs
 
             q_network = build(QNetwork(n_observations, n_actions, c.q_hidden_units, c.init), n_observations)
             net = self.policy_net

@@ -14,8 +14,8 @@ then the solo builder). The tests: ``tests/test_torch_stacked.py``.
 from __future__ import annotations
 
 import copy
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -111,11 +111,10 @@ class StackedTorchDDPGLearner(TorchDDPGLearner):
     takes_masks = True
     """``train(rows, mask)``: the loop may train some seeds and not others on one call."""
 
-    def __init__(self, solos: Sequence[tuple], actor_lr: float, critic_lr: float, gamma: float, tau: float,
-                 broadcast_target: bool, layout: Layout, **kwargs):
+    def __init__(self, solos: Sequence[tuple], *, actor_lr: float, critic_lr: float, **kwargs):
         self.seeds = len(solos)
         nets = [Vmapped([s[i] for s in solos]) for i in range(4)]
-        super().__init__(*nets, actor_lr, critic_lr, gamma, tau, broadcast_target, layout, **kwargs)
+        super().__init__(*nets, actor_lr=actor_lr, critic_lr=critic_lr, **kwargs)
         self.actor_optimizer = SeedKerasAdam(nets[0].parameters(), self.seeds, actor_lr)
         self.critic_optimizer = SeedKerasAdam(nets[1].parameters(), self.seeds, critic_lr)
         self.solo_policies = [(s[0], s[1]) for s in solos]  # seed k's modules, for saving its slice
@@ -199,8 +198,9 @@ def stack_post000(configs: Sequence, spec: EnvSpec):
         from keras_rl.learners.stacked import SoloAsStack
 
         return SoloAsStack(post000_learner(c, spec))
-    return StackedTorchDDPGLearner(_solo_networks(post000_learner, configs, spec), c.actor_lr, c.critic_lr, c.gamma,
-                                   c.tau, c.broadcast_target, Layout(spec.obs_dim, spec.action_dim))
+    return StackedTorchDDPGLearner(_solo_networks(post000_learner, configs, spec), actor_lr=c.actor_lr,
+                                   critic_lr=c.critic_lr, gamma=c.gamma, tau=c.tau, broadcast_target=c.broadcast_target,
+                                   layout=Layout(spec.obs_dim, spec.action_dim))
 
 
 def stack_post001(configs: Sequence, spec: EnvSpec):
@@ -213,6 +213,7 @@ def stack_post001(configs: Sequence, spec: EnvSpec):
     if c.learning_phase_training:
         raise ConfigError("--seed-batch does not cover learning_phase_training=true (its BatchNormalization updates "
                           "its statistics in place and its noise draws from one generator); run it without")
-    return StackedTorchDDPGLearner(_solo_networks(post001_learner, configs, spec), c.actor_lr, c.critic_lr, c.gamma,
-                                   c.tau, False, Layout(spec.obs_dim, spec.action_dim), actor_update=c.actor_gradient,
+    return StackedTorchDDPGLearner(_solo_networks(post001_learner, configs, spec), actor_lr=c.actor_lr,
+                                   critic_lr=c.critic_lr, gamma=c.gamma, tau=c.tau, broadcast_target=False,
+                                   layout=Layout(spec.obs_dim, spec.action_dim), actor_update=c.actor_gradient,
                                    dqda_at_buffer_actions=c.dqda_at_buffer_actions)
