@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 SEED ?= 13
 
-.PHONY: reproduce test test-fast install install-test benchmark clean
+.PHONY: reproduce test test-fast lint docs install install-test benchmark clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -20,12 +20,21 @@ install-test: $(BIN)/python
 reproduce: install
 	$(BIN)/keras-rl reproduce pendulum --variant faithful --seeds $(SEED) --out results/make-reproduce --overwrite
 
-## The whole suite, slow threshold tests included.
-test: install-test
-	$(BIN)/python -m pytest -ra --durations=40
+## The whole suite: lint, then every test (slow training checks included) in two processes.
+test: install-test lint
+	$(BIN)/python -m pytest -ra --durations=40 -n 2 --dist loadgroup
 
-test-fast: install-test
-	$(BIN)/python -m pytest -ra -m "not slow"
+## The quick tier for day-to-day work (under 2 minutes): no training runs, no Ray, no subprocess CLI runs.
+test-fast: install-test lint
+	$(BIN)/python -m pytest -ra -m "not slow" -n 2 --dist loadgroup
+
+lint: install-test
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+
+## These pages, built strictly (a broken link or a missing page fails) into site/.
+docs: install-test
+	$(BIN)/mkdocs build --strict
 
 benchmark: install
 	/usr/bin/time -v $(BIN)/python benchmarks/step_time.py

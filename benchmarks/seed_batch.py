@@ -3,6 +3,7 @@
     python benchmarks/seed_batch.py                          # post 000, 8 episodes per seed
     python benchmarks/seed_batch.py --experiment cartpole    # post 003, 250 episodes per seed
     python benchmarks/seed_batch.py --experiment mountaincar # post 001, 4 episodes (999 steps) per seed
+    python benchmarks/seed_batch.py --table                  # the targets table of issue #18, all posts
 
 Part 1 (one process, one TensorFlow thread): one solo seed, then S = 2, 4, 8, 10 and 16
 seeds in one ``--seed-batch`` run, every seed playing its own episodes. The ratio is the
@@ -14,6 +15,10 @@ at S = 1 .. 16, for what a finished seed costs while it is masked. Part 3 (the 1
 study as users run it): ``keras-rl reproduce ... --seeds 0-9`` with ``--workers 2`` (Ray,
 one seed per task) and with ``--workers 2 --seed-batch 5``, as subprocesses, start-up
 included.
+
+``--table`` measures, for every post and PyTorch port that batches, 10 seeds in one process
+against one solo seed (part 1 at S=10 only) and a 30-seed study as commands (``--workers 2``
+against ``--workers 2 --seed-batch 15``), and prints them beside the targets.
 
 Only ratios within one run mean much on a shared machine.
 """
@@ -47,8 +52,12 @@ def _configs(experiment: str, seeds, episodes: int):
     from keras_rl.registry import get_experiment
 
     exp = get_experiment(experiment)
-    return exp, [exp.config_cls.for_variant("faithful", seed=s, episodes=episodes, framework=FRAMEWORK[0],
-                                            **OVERRIDES[experiment]) for s in seeds]
+    return exp, [
+        exp.config_cls.for_variant(
+            "faithful", seed=s, episodes=episodes, framework=FRAMEWORK[0], **OVERRIDES[experiment]
+        )
+        for s in seeds
+    ]
 
 
 def solo_seconds(experiment: str, episodes: int) -> tuple[float, int]:
@@ -91,7 +100,7 @@ def learner_call_ms(experiment: str, seeds: int, calls: int = 300) -> float:
     rows = np.random.default_rng(0).uniform(0, 1, (seeds, batch, layout.width)).astype(np.float32)
     if experiment == "cartpole":
         rows[..., layout.obs_dim] = rows[..., layout.obs_dim] > 0.5  # valid actions
-    states = rows[:, 0, :layout.obs_dim]
+    states = rows[:, 0, : layout.obs_dim]
     for _ in range(5):
         learner.train_and_act(rows, states)
     start = time.perf_counter()
@@ -100,13 +109,34 @@ def learner_call_ms(experiment: str, seeds: int, calls: int = 300) -> float:
     return (time.perf_counter() - start) / calls * 1000
 
 
-def study_seconds(experiment: str, episodes: int, *extra: str) -> float:
+def study_seconds(experiment: str, episodes: int, *extra: str, seeds: int = 10) -> float:
     sets = [a for k, v in OVERRIDES[experiment].items() for a in ("--set", f"{k}={json.dumps(v)}")]
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
-        proc = subprocess.run([sys.executable, "-m", "keras_rl", "reproduce", experiment, "--framework", FRAMEWORK[0],
-                               "--seeds", "0-9", "--episodes", str(episodes), "--no-progress", *sets, "--out", tmp,
-                               "--min-success-rate", "0", *extra], capture_output=True, text=True)
+        proc = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "keras_rl",
+                "reproduce",
+                experiment,
+                "--framework",
+                FRAMEWORK[0],
+                "--seeds",
+                f"0-{seeds - 1}",
+                "--episodes",
+                str(episodes),
+                "--no-progress",
+                *sets,
+                "--out",
+                tmp,
+                "--min-success-rate",
+                "0",
+                *extra,
+            ],
+            capture_output=True,
+            text=True,
+        )
         if proc.returncode != 0:
             raise SystemExit(proc.stderr[-2000:])
         return time.perf_counter() - start
@@ -115,15 +145,32 @@ def study_seconds(experiment: str, episodes: int, *extra: str) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--experiment", choices=sorted(OVERRIDES), default="pendulum")
-    parser.add_argument("--episodes", type=int, default=None, help="episodes per seed in part 1 (default 8 for "
-                                                                   "pendulum, 250 for cartpole)")
-    parser.add_argument("--study-episodes", type=int, default=None, help="episodes per seed in part 3 "
-                                                                         "(default: as --episodes)")
-    parser.add_argument("--framework", choices=("keras", "torch"), default="keras",
-                        help="torch: the PyTorch ports (pendulum, mountaincar)")
+    parser.add_argument(
+        "--episodes",
+        type=int,
+        default=None,
+        help="episodes per seed in part 1 (default 8 for pendulum, 250 for cartpole)",
+    )
+    parser.add_argument(
+        "--study-episodes", type=int, default=None, help="episodes per seed in part 3 (default: as --episodes)"
+    )
+    parser.add_argument(
+        "--framework",
+        choices=("keras", "torch"),
+        default="keras",
+        help="torch: the PyTorch ports (pendulum, mountaincar)",
+    )
     parser.add_argument("--skip-study", action="store_true", help="parts 1 and 2 only")
     parser.add_argument("--study-only", action="store_true", help="part 3 only")
+    parser.add_argument(
+        "--table", action="store_true", help="the targets table for every batching post (ignores the other options)"
+    )
     args = parser.parse_args()
+    if args.table:
+        from keras_rl.seeding import configure_tensorflow
+
+        configure_tensorflow(1)
+        return targets_table()
     name = args.experiment
     FRAMEWORK[0] = args.framework
     episodes = args.episodes or DEFAULT_EPISODES[name]
@@ -143,11 +190,70 @@ def main() -> None:
     print(f"| --workers 2 --seed-batch 5 | {batched:.1f} s | {today / batched:.2f}x faster |")
 
 
+TARGETS = [  # (experiment, framework, 10 seeds in one process against one solo seed: before #18, target)
+    ("pendulum", "keras", "2.18x", 2.2),
+    ("cartpole", "keras", "5.75x", 4.0),
+    ("mountaincar", "keras", "not batched", 3.0),
+    ("pendulum", "torch", "not batched", 4.0),
+    ("mountaincar", "torch", "not batched", None),
+]
+STUDY_SEEDS, STUDY_BATCH, STUDY_TARGET = 30, 15, 2.0
+
+
+def targets_table() -> None:
+    """Issue #18's speed table: every row measured in this run, beside its target."""
+    rows = []
+    for name, framework, before, target in TARGETS:
+        FRAMEWORK[0] = framework
+        episodes = DEFAULT_EPISODES[name]
+        solo, solo_steps = solo_seconds(name, episodes)
+        wall, steps = batch_seconds(name, 10, episodes)
+        ratio = wall / (solo / solo_steps * steps)
+        today = study_seconds(name, episodes, "--workers", "2", seeds=STUDY_SEEDS)
+        batched = study_seconds(name, episodes, "--workers", "2", "--seed-batch", str(STUDY_BATCH), seeds=STUDY_SEEDS)
+        rows.append((name, framework, before, target, ratio, today, batched))
+        print(
+            f"measured {name} ({framework}): 10 seeds {ratio:.2f}x one solo seed; {STUDY_SEEDS}-seed study "
+            f"{today:.0f} s solo, {batched:.0f} s batched",
+            flush=True,
+        )
+    post = {"pendulum": "post 000", "cartpole": "post 003", "mountaincar": "post 001"}
+    print(f"\n{episodes_note()}")
+    print("| what | before | target | measured | met |")
+    print("|---|---|---|---|---|")
+    for name, framework, before, target, ratio, _, _ in rows:
+        port = " (PyTorch port)" if framework == "torch" else ""
+        what = f"{post[name]}{port}, 10 seeds in one process against one solo seed"
+        met = "n/a" if target is None else "yes" if ratio <= target else "no"
+        print(f"| {what} | {before} | {'-' if target is None else f'at most {target:g}x'} | {ratio:.2f}x | {met} |")
+    for name, framework, _, _, _, today, batched in rows:
+        what = (
+            f"{post[name]}{' (PyTorch port)' if framework == 'torch' else ''}, a {STUDY_SEEDS}-seed study, "
+            f"`--workers 2 --seed-batch {STUDY_BATCH}` against `--workers 2`"
+        )
+        speedup = today / batched
+        print(
+            f"| {what} | - | at least {STUDY_TARGET:g}x faster | {speedup:.2f}x faster ({today:.0f} s -> "
+            f"{batched:.0f} s) | {'yes' if speedup >= STUDY_TARGET else 'no'} |"
+        )
+
+
+def episodes_note() -> str:
+    return (
+        "Episodes per seed: "
+        + ", ".join(f"{n} {e}" for n, e in DEFAULT_EPISODES.items())
+        + " (post 000 trains from step 200 on here, and never stops at its threshold). Study times are whole "
+        "commands, start-up included."
+    )
+
+
 def parts_1_and_2(name: str, episodes: int) -> None:
     solo, solo_steps = solo_seconds(name, episodes)
     per_step = solo / solo_steps
-    print(f"{name} (post {POST[name]}, {FRAMEWORK[0]}), {episodes} episodes per seed, 1 thread; "
-          f"one solo seed: {solo:.2f} s for {solo_steps} env steps ({per_step * 1000:.2f} ms per step)")
+    print(
+        f"{name} (post {POST[name]}, {FRAMEWORK[0]}), {episodes} episodes per seed, 1 thread; "
+        f"one solo seed: {solo:.2f} s for {solo_steps} env steps ({per_step * 1000:.2f} ms per step)"
+    )
     print("| seeds | how | wall s | vector steps | wall / one solo seed over as many steps |")
     print("|---|---|---|---|---|")
     print(f"| 1 | solo | {solo:.2f} | {solo_steps} | 1.00x |")

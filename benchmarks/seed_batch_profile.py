@@ -31,8 +31,11 @@ import keras_rl  # noqa: E402,F401
 PARTS = {  # part -> (file suffix, function name) whose cumulative time counts for it
     "learner call (compiled train + act)": [("atomic_function.py", "call_flat")],
     "env steps": [],  # the outermost wrapper's step, found at run time
-    "replay buffer (store, sample)": [("buffers.py", "add_rows"), ("buffers.py", "sample_rows"),
-                                      ("transitions.py", "rows")],
+    "replay buffer (store, sample)": [
+        ("buffers.py", "add_rows"),
+        ("buffers.py", "sample_rows"),
+        ("transitions.py", "rows"),
+    ],
     "exploration": [("explorers.py", "__call__")],
     "episode records (CSV, summary.json)": [("loop.py", "record_episode"), ("summary.py", "write")],
     "tensor conversion in and out": [("constant_op.py", "constant"), ("tensor.py", "numpy")],
@@ -75,15 +78,20 @@ def main() -> None:
     env.close()
     stats = pstats.Stats(profile).stats  # {(file, line, name): (cc, nc, tt, ct, callers)}
     total = sum(v[2] for v in stats.values())
-    print(f"{args.experiment}, {args.seeds} seed(s), {args.episodes} episodes each: {wall:.2f} s wall "
-          f"({total:.2f} s under cProfile), {vector_steps} vector steps")
+    print(
+        f"{args.experiment}, {args.seeds} seed(s), {args.episodes} episodes each: {wall:.2f} s wall "
+        f"({total:.2f} s under cProfile), {vector_steps} vector steps"
+    )
     print("| part | share | ms per vector step |")
     print("|---|---|---|")
     counted = 0.0
     for part, keys in PARTS.items():
-        seconds = sum(v[3] for (file, line, name), v in stats.items()
-                      if any(file.endswith(f) and name == n for f, n in keys)
-                      or (part == "env steps" and (file, line) == (outer.co_filename, outer.co_firstlineno)))
+        seconds = sum(
+            v[3]
+            for (file, line, name), v in stats.items()
+            if any(file.endswith(f) and name == n for f, n in keys)
+            or (part == "env steps" and (file, line) == (outer.co_filename, outer.co_firstlineno))
+        )
         counted += seconds
         print(f"| {part} | {seconds / total:.0%} | {seconds / vector_steps * 1000:.3f} |")
     rest = total - counted

@@ -102,8 +102,9 @@ def time_post001_updates(batches_wanted: int, with_torch: bool) -> tuple[float, 
     rows = rng.normal(size=(n, 2 * 2 + 1 + 2)).astype(np.float32)  # [state 2 | action | reward | next 2 | done]
 
     def ours(framework: str) -> float:
-        spec = EnvSpec(2, 1, 1.0, obs_low=np.array([-1.2, -0.07]), obs_high=np.array([0.6, 0.07]),
-                       max_episode_steps=999)
+        spec = EnvSpec(
+            2, 1, 1.0, obs_low=np.array([-1.2, -0.07]), obs_high=np.array([0.6, 0.07]), max_episode_steps=999
+        )
         agent = agent_for(MountainCarDDPGConfig(framework=framework), spec)
         buffer = PoppingBuffer(n + 1, agent.buffer.layout, random.Random(0))
         buffer.add_rows(rows)
@@ -141,29 +142,59 @@ def main() -> None:
     keras_ms = time_agent("pendulum", args.steps, args.warmup)
     torch_ms = time_agent("pendulum", args.steps, args.warmup, framework="torch") if has_torch else None
     post_ms = time_post000_eager(args.steps, args.warmup)
-    rows.append(("pendulum (post 000)", "env step", "the post's eager Keras loop (get/set_weights)",
-                 post_ms, keras_ms, torch_ms))
+    rows.append(
+        (
+            "pendulum (post 000)",
+            "env step",
+            "the post's eager Keras loop (get/set_weights)",
+            post_ms,
+            keras_ms,
+            torch_ms,
+        )
+    )
     if has_torch:
         keras_ms = time_agent("cartpole", args.steps, args.warmup)
         tutorial = time_agent("cartpole", args.steps, args.warmup, framework="torch")
         # the post *is* PyTorch: our PyTorch version is the tutorial's own code path
-        rows.append(("cartpole (post 003)", "env step", "the PyTorch tutorial's code (= our PyTorch)",
-                     tutorial, keras_ms, tutorial))
+        rows.append(
+            (
+                "cartpole (post 003)",
+                "env step",
+                "the PyTorch tutorial's code (= our PyTorch)",
+                tutorial,
+                keras_ms,
+                tutorial,
+            )
+        )
     post_ms, keras_ms, torch_ms = time_post001_updates(max(20, args.steps // 4), has_torch)
-    rows.append(("mountaincar (post 001)", "train batch", "the post's Agent.train, eager mirror",
-                 post_ms, keras_ms, torch_ms))
+    rows.append(
+        ("mountaincar (post 001)", "train batch", "the post's Agent.train, eager mirror", post_ms, keras_ms, torch_ms)
+    )
 
     fmt = lambda v: f"{v:8.3f}" if v is not None else f"{'n/a':>8s}"  # noqa: E731
-    print(f"{'experiment':23s} {'per':11s} {'original code path':46s} {'orig ms':>8s} {'Keras ms':>8s} "
-          f"{'torch ms':>8s} {'orig/Keras':>10s} {'torch/Keras':>11s}")
+    print(
+        f"{'experiment':23s} {'per':11s} {'original code path':46s} {'orig ms':>8s} {'Keras ms':>8s} "
+        f"{'torch ms':>8s} {'orig/Keras':>10s} {'torch/Keras':>11s}"
+    )
     result = {"steps": args.steps, "threads": args.threads, "rows": []}
     for name, unit, original, orig, mine, theirs in rows:
         torch_ratio = f"{theirs / mine:10.1f}x" if theirs is not None else f"{'n/a':>11s}"
-        print(f"{name:23s} {unit:11s} {original:46s} {fmt(orig)} {fmt(mine)} {fmt(theirs)} "
-              f"{orig / mine:9.1f}x {torch_ratio}")
-        result["rows"].append({"experiment": name, "per": unit, "original": original, "original_ms": orig,
-                               "keras_ms": mine, "torch_ms": theirs, "original_over_keras": orig / mine,
-                               "torch_over_keras": theirs / mine if theirs is not None else None})
+        print(
+            f"{name:23s} {unit:11s} {original:46s} {fmt(orig)} {fmt(mine)} {fmt(theirs)} "
+            f"{orig / mine:9.1f}x {torch_ratio}"
+        )
+        result["rows"].append(
+            {
+                "experiment": name,
+                "per": unit,
+                "original": original,
+                "original_ms": orig,
+                "keras_ms": mine,
+                "torch_ms": theirs,
+                "original_over_keras": orig / mine,
+                "torch_over_keras": theirs / mine if theirs is not None else None,
+            }
+        )
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak RSS of this process: {peak_mb:.0f} MB")
     result["peak_rss_mb"] = peak_mb

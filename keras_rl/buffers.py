@@ -37,19 +37,27 @@ class Layout(NamedTuple):
         """Views of a packed [..., width] array (numpy or tf: [B, width], or [S, B, width]
         for seed-batched learners) as a Batch."""
         o, a = self.obs_dim, self.action_dim
-        return Batch(rows[..., :o], rows[..., o:o + a], rows[..., o + a],
-                     rows[..., o + a + 1:2 * o + a + 1], rows[..., 2 * o + a + 1])
+        return Batch(
+            rows[..., :o],
+            rows[..., o : o + a],
+            rows[..., o + a],
+            rows[..., o + a + 1 : 2 * o + a + 1],
+            rows[..., 2 * o + a + 1],
+        )
 
     def pack(self, batch) -> np.ndarray:
         """The inverse of ``split`` for numpy batches (any 5-tuple in Batch order)."""
         batch = Batch(*batch)
-        return np.concatenate([
-            np.asarray(batch.states, np.float32).reshape(len(batch.rewards), -1),
-            np.asarray(batch.actions, np.float32).reshape(len(batch.rewards), -1),
-            np.asarray(batch.rewards, np.float32).reshape(-1, 1),
-            np.asarray(batch.next_states, np.float32).reshape(len(batch.rewards), -1),
-            np.asarray(batch.dones, np.float32).reshape(-1, 1),
-        ], axis=1)
+        return np.concatenate(
+            [
+                np.asarray(batch.states, np.float32).reshape(len(batch.rewards), -1),
+                np.asarray(batch.actions, np.float32).reshape(len(batch.rewards), -1),
+                np.asarray(batch.rewards, np.float32).reshape(-1, 1),
+                np.asarray(batch.next_states, np.float32).reshape(len(batch.rewards), -1),
+                np.asarray(batch.dones, np.float32).reshape(-1, 1),
+            ],
+            axis=1,
+        )
 
 
 class ReplayBuffer:
@@ -76,9 +84,9 @@ class ReplayBuffer:
         o, a = self.layout.obs_dim, self.layout.action_dim
         row = self.data[self._next]
         row[:o] = np.ravel(state)
-        row[o:o + a] = np.ravel(action)
+        row[o : o + a] = np.ravel(action)
         row[o + a] = reward
-        row[o + a + 1:2 * o + a + 1] = np.ravel(next_state)
+        row[o + a + 1 : 2 * o + a + 1] = np.ravel(next_state)
         row[2 * o + a + 1] = float(done)
         self._next = (self._next + 1) % self.capacity
         self._size = min(self._size + 1, self.capacity)
@@ -100,11 +108,15 @@ class ReplayBuffer:
         return self.data[idx]
 
     def state_dict(self) -> dict[str, Any]:
-        return {"data": self.data[:self._size].copy() if self._size < self.capacity else self.data.copy(),
-                "next": self._next, "size": self._size, "rng": rng_state(self.rng)}
+        return {
+            "data": self.data[: self._size].copy() if self._size < self.capacity else self.data.copy(),
+            "next": self._next,
+            "size": self._size,
+            "rng": rng_state(self.rng),
+        }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.data[:len(state["data"])] = state["data"]
+        self.data[: len(state["data"])] = state["data"]
         self._next, self._size = int(state["next"]), int(state["size"])
         set_rng_state(self.rng, state["rng"])
 
@@ -143,16 +155,22 @@ class PoppingBuffer:
 
     def add_rows(self, rows: np.ndarray) -> None:
         if len(rows) > len(self._free):
-            raise ValueError(f"PoppingBuffer capacity {self.capacity} exceeded: {len(self.order)} held, "
-                             f"{len(rows)} more; size it for train_start + the longest episode")
+            raise ValueError(
+                f"PoppingBuffer capacity {self.capacity} exceeded: {len(self.order)} held, "
+                f"{len(rows)} more; size it for train_start + the longest episode"
+            )
         for row in rows:
             i = self._free.pop()
             self.data[i] = row
             self.order.append(i)
 
     def state_dict(self) -> dict[str, Any]:
-        return {"data": self.data.copy(), "order": list(self.order), "free": list(self._free),
-                "rng": rng_state(self.rng)}
+        return {
+            "data": self.data.copy(),
+            "order": list(self.order),
+            "free": list(self._free),
+            "rng": rng_state(self.rng),
+        }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.data[:] = state["data"]

@@ -1,12 +1,12 @@
 """``keras-rl``: reproduce a post over seeds, compare frameworks, or evaluate a saved run.
 
-    keras-rl reproduce pendulum --variant faithful --seeds 0-9 --workers 2 --out runs/pendulum
-    keras-rl compare pendulum --seeds 0-9 --workers 2 --runs runs --out runs/compare
-    keras-rl sweep pendulum --grid tau=0.001,0.005 --seeds 0-3 --workers 2 --out runs/s
-    keras-rl evaluate runs/pendulum/seed_0 --episodes 5 --gif pendulum.gif
-    keras-rl aggregate results/pendulum/faithful
-    keras-rl check pendulum cartpole mountaincar --tier smoke
-    keras-rl list
+keras-rl reproduce pendulum --variant faithful --seeds 0-9 --workers 2 --out runs/pendulum
+keras-rl compare pendulum --seeds 0-9 --workers 2 --runs runs --out runs/compare
+keras-rl sweep pendulum --grid tau=0.001,0.005 --seeds 0-3 --workers 2 --out runs/s
+keras-rl evaluate runs/pendulum/seed_0 --episodes 5 --gif pendulum.gif
+keras-rl aggregate results/pendulum/faithful
+keras-rl check pendulum cartpole mountaincar --tier smoke
+keras-rl list
 """
 
 from __future__ import annotations
@@ -68,72 +68,135 @@ def _path_arg(text: str) -> Path:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="keras-rl", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        prog="keras-rl", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--version", action="version", version=f"keras-rl {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    rep = sub.add_parser("reproduce", help="train one experiment over one or more seeds",
-                         parents=[run_options_parser()])
+    rep = sub.add_parser(
+        "reproduce", help="train one experiment over one or more seeds", parents=[run_options_parser()]
+    )
     rep.add_argument("experiment", help="experiment name (see `keras-rl list`)")
-    rep.add_argument("--variant", default=None,
-                     help="the variant: faithful (the default), fixed; mountaincar also has faithful-intended "
-                          "(all: `keras-rl list`)")
-    rep.add_argument("--framework", default=None,
-                     help="keras (ours; the default) or torch (where the experiment has one)")
-    rep.add_argument("--config", type=Path, default=None, metavar="RUN/config.json",
-                     help="rerun a recorded run: its config.json gives every field (its seed too, unless --seeds "
-                          "is given); --set and --episodes still apply on top")
-    rep.add_argument("--dry-run", action="store_true",
-                     help="print the resolved config and each seed folder with how it would start; train nothing")
-    rep.add_argument("--matched-init", action="store_true",
-                     help="torch only: start from the Keras networks' initial weights for the same seed")
+    rep.add_argument(
+        "--variant",
+        default=None,
+        help="the variant: faithful (the default), fixed; mountaincar also has faithful-intended "
+        "(all: `keras-rl list`)",
+    )
+    rep.add_argument(
+        "--framework", default=None, help="keras (ours; the default) or torch (where the experiment has one)"
+    )
+    rep.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        metavar="RUN/config.json",
+        help="rerun a recorded run: its config.json gives every field (its seed too, unless --seeds "
+        "is given); --set and --episodes still apply on top",
+    )
+    rep.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="print the resolved config and each seed folder with how it would start; train nothing",
+    )
+    rep.add_argument(
+        "--matched-init",
+        action="store_true",
+        help="torch only: start from the Keras networks' initial weights for the same seed",
+    )
     rep.add_argument("--seeds", default=None, help="seed list or range: 13, 0-9, 0,3,5 (default 0, or --config's)")
-    rep.add_argument("--out", type=_path_arg, default=None,
-                     help="output folder (default results/<experiment>/<variant>); one seed_<n>/ per seed")
-    rep.add_argument("--min-success-rate", type=float, default=1.0,
-                     help="exit 0 only if at least this share of seeds succeed (default 1.0: all)")
-    rep.add_argument("--overwrite", action="store_true",
-                     help="replace seed folders that already hold a run (each is cleared whole first)")
-    rep.add_argument("--resume", action="store_true",
-                     help="continue interrupted or killed runs from their checkpoint.pkl, keeping seeds that already "
-                          "completed (same options as before)")
-    rep.add_argument("--checkpoint-every", type=int, default=10, metavar="N",
-                     help="write checkpoint.pkl every N episodes, and when stopped (default 10; 0: only when stopped)")
-    rep.add_argument("--tensorboard", type=_path_arg, default=None, metavar="DIR",
-                     help="also log per-episode score, metric and losses as TensorBoard scalars under DIR")
+    rep.add_argument(
+        "--out",
+        type=_path_arg,
+        default=None,
+        help="output folder (default results/<experiment>/<variant>); one seed_<n>/ per seed",
+    )
+    rep.add_argument(
+        "--min-success-rate",
+        type=float,
+        default=1.0,
+        help="exit 0 only if at least this share of seeds succeed (default 1.0: all)",
+    )
+    rep.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace seed folders that already hold a run (each is cleared whole first)",
+    )
+    rep.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue interrupted or killed runs from their checkpoint.pkl, keeping seeds that already "
+        "completed (same options as before)",
+    )
+    rep.add_argument(
+        "--checkpoint-every",
+        type=int,
+        default=10,
+        metavar="N",
+        help="write checkpoint.pkl every N episodes, and when stopped (default 10; 0: only when stopped)",
+    )
+    rep.add_argument(
+        "--tensorboard",
+        type=_path_arg,
+        default=None,
+        metavar="DIR",
+        help="also log per-episode score, metric and losses as TensorBoard scalars under DIR",
+    )
 
     ev = sub.add_parser("evaluate", help="reload a run's saved policy and play greedy episodes")
-    ev.add_argument("run_dir", type=Path, help="a seed's run folder with its weights, e.g. runs/pendulum/seed_0 "
-                                               "(committed runs hold none: reproduce the seed first)")
+    ev.add_argument(
+        "run_dir",
+        type=Path,
+        help="a seed's run folder with its weights, e.g. runs/pendulum/seed_0 "
+        "(committed runs hold none: reproduce the seed first)",
+    )
     ev.add_argument("--episodes", type=int, default=5, help="greedy episodes to play (default 5)")
     ev.add_argument("--seed", type=int, default=None, help="env seed (default: the run's seed + 10000)")
     ev.add_argument("--gif", type=_path_arg, default=None, help="record the first episode to this .gif file")
-    ev.add_argument("--overwrite", action="store_true",
-                    help="replace an evaluation.json of more episodes than this one plays")
+    ev.add_argument(
+        "--overwrite", action="store_true", help="replace an evaluation.json of more episodes than this one plays"
+    )
 
-    cp = sub.add_parser("compare", help="run or reuse the same seeds in Keras and PyTorch and report the difference",
-                        parents=[run_options_parser("workers", "address", "seed_batch", "episodes", "no_progress")])
+    cp = sub.add_parser(
+        "compare",
+        help="run or reuse the same seeds in Keras and PyTorch and report the difference",
+        parents=[run_options_parser("workers", "address", "seed_batch", "episodes", "no_progress")],
+    )
     cp.add_argument("experiment", help="experiment name (see `keras-rl list`)")
     cp.add_argument("--seeds", default="0-9", help="seed list or range, the same for both frameworks (default 0-9)")
     cp.add_argument("--variant", default="faithful", help="the variant to compare (default faithful)")
-    cp.add_argument("--matched-init", action="store_true",
-                    help="torch runs start from the Keras runs' initial weights (report in <out>/<experiment>/matched-init)")
+    cp.add_argument(
+        "--matched-init",
+        action="store_true",
+        help="torch runs start from the Keras runs' initial weights (report in <out>/<experiment>/matched-init)",
+    )
     cp.add_argument("--runs", type=Path, default=Path("results"), help="where run folders are found and made")
     cp.add_argument("--out", type=Path, default=Path("results/compare"), help="report folder root")
     cp.add_argument("--rerun", action="store_true", help="replace existing run folders instead of reusing them")
     cp.add_argument("--reuse-only", action="store_true", help="run nothing; fail if a seed is missing")
 
-    sw = sub.add_parser("sweep", help="a grid of config values x seeds, resumable, with a report per grid point",
-                        parents=[run_options_parser()])
+    sw = sub.add_parser(
+        "sweep",
+        help="a grid of config values x seeds, resumable, with a report per grid point",
+        parents=[run_options_parser()],
+    )
     sw.add_argument("experiment", help="experiment name (see `keras-rl list`)")
     sw.add_argument("--seeds", default="0-9", help="seed list or range for every grid point (default 0-9)")
-    sw.add_argument("--grid", action="append", default=[], metavar="FIELD=V1,V2",
-                    help="values of a config field to sweep (repeatable: the cross product); layer widths "
-                         "separate their values with ';'")
-    sw.add_argument("--ablate", action="store_true",
-                    help="one grid point per quirk switch of the variant (that switch off, the rest at their "
-                         "defaults), plus the unmodified variant")
+    sw.add_argument(
+        "--grid",
+        action="append",
+        default=[],
+        metavar="FIELD=V1,V2",
+        help="values of a config field to sweep (repeatable: the cross product); layer widths "
+        "separate their values with ';'",
+    )
+    sw.add_argument(
+        "--ablate",
+        action="store_true",
+        help="one grid point per quirk switch of the variant (that switch off, the rest at their "
+        "defaults), plus the unmodified variant",
+    )
     sw.add_argument("--baseline", default=None, help="the grid point the others are compared with (default: the first)")
     sw.add_argument("--variant", default="faithful", help="the variant the grid modifies (default faithful)")
     sw.add_argument("--framework", default="keras", help="keras (ours) or torch")
@@ -142,23 +205,43 @@ def build_parser() -> argparse.ArgumentParser:
 
     ag = sub.add_parser("aggregate", help="rebuild summary.md and curves.png of a multi-seed folder")
     ag.add_argument("parent", type=Path, help="a folder of seed_<n>/ run folders, e.g. results/pendulum/faithful")
-    ag.add_argument("--x-axis", choices=("episode", "steps"), default="episode",
-                    help="what each seed's curve.png counts along x: episodes (default) or env steps")
+    ag.add_argument(
+        "--x-axis",
+        choices=("episode", "steps"),
+        default="episode",
+        help="what each seed's curve.png counts along x: episodes (default) or env steps",
+    )
 
-    ck = sub.add_parser("check", help="regression-test the reproductions: fresh seeds against the committed "
-                                      "baseline, by each post's pre-registered rule (exit 0 consistent, 1 changed)",
-                        parents=[run_options_parser("workers", "address", "set", "no_progress", workers_default=2)])
-    ck.add_argument("experiments", nargs="*", default=None,
-                    help="experiments to check (default: pendulum cartpole mountaincar)")
+    ck = sub.add_parser(
+        "check",
+        help="regression-test the reproductions: fresh seeds against the committed "
+        "baseline, by each post's pre-registered rule (exit 0 consistent, 1 changed)",
+        parents=[run_options_parser("workers", "address", "set", "no_progress", workers_default=2)],
+    )
+    ck.add_argument(
+        "experiments", nargs="*", default=None, help="experiments to check (default: pendulum cartpole mountaincar)"
+    )
     ck.add_argument("--tier", default="smoke", help="smoke (minutes, in `make test`) or full (default smoke)")
-    ck.add_argument("--against", type=Path, default=None,
-                    help="the folder holding <experiment>/baseline/seed_<n> (default results/checks of this "
-                         "checkout; copy it outside the tree for `git bisect run`)")
-    ck.add_argument("--seeds", default=None, help="fresh seeds instead of the rule's (never the baseline's); "
-                                                  "the rule's error rates are for its own number of seeds")
-    ck.add_argument("--out", type=_path_arg, default=Path("check-runs"),
-                    help="where the fresh runs, check.md, check.json and the plots go (default check-runs; "
-                         "an earlier check's output there is replaced, anything else is refused)")
+    ck.add_argument(
+        "--against",
+        type=Path,
+        default=None,
+        help="the folder holding <experiment>/baseline/seed_<n> (default results/checks of this "
+        "checkout; copy it outside the tree for `git bisect run`)",
+    )
+    ck.add_argument(
+        "--seeds",
+        default=None,
+        help="fresh seeds instead of the rule's (never the baseline's); "
+        "the rule's error rates are for its own number of seeds",
+    )
+    ck.add_argument(
+        "--out",
+        type=_path_arg,
+        default=Path("check-runs"),
+        help="where the fresh runs, check.md, check.json and the plots go (default check-runs; "
+        "an earlier check's output there is replaced, anything else is refused)",
+    )
 
     sub.add_parser("list", help="list the experiments and their variants")
     return parser
@@ -220,17 +303,22 @@ def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool) -> list[s
             elif status == "completed":
                 modes.append("keep")  # finishing an interrupted set: its finished seeds stay as they are
             else:
-                raise ConfigError(f"--resume: {seed_dir} holds {held} but no {CHECKPOINT}, so it cannot be "
-                                  "continued (use --overwrite to run it again)")
+                raise ConfigError(
+                    f"--resume: {seed_dir} holds {held} but no {CHECKPOINT}, so it cannot be "
+                    "continued (use --overwrite to run it again)"
+                )
         elif held is not None and not overwrite:
             occupied.append(f"{seed_dir} ({held})")
         else:
             modes.append("overwrite" if held is not None else "new")
     if occupied:
-        raise ConfigError("these seed folders already hold a run and are left untouched: " + "; ".join(occupied[:5])
-                          + (f" and {len(occupied) - 5} more" if len(occupied) > 5 else "")
-                          + ". Pass --overwrite to replace them, --resume to continue unfinished ones, "
-                          "or --out for another folder")
+        raise ConfigError(
+            "these seed folders already hold a run and are left untouched: "
+            + "; ".join(occupied[:5])
+            + (f" and {len(occupied) - 5} more" if len(occupied) > 5 else "")
+            + ". Pass --overwrite to replace them, --resume to continue unfinished ones, "
+            "or --out for another folder"
+        )
     return modes
 
 
@@ -247,8 +335,10 @@ def _kept_runs(base, seeds_and_dirs: list) -> list:
         try:
             check_reusable(seed_dir, base.replace(seed=seed), version)
         except RunFolderError as exc:
-            raise ConfigError(f"--resume keeps completed seeds, but {str(exc).split('; ')[0]}; "
-                              "use --overwrite to run it again, or --out for another folder") from None
+            raise ConfigError(
+                f"--resume keeps completed seeds, but {str(exc).split('; ')[0]}; "
+                "use --overwrite to run it again, or --out for another folder"
+            ) from None
         print(f"seed {seed}: already completed in {seed_dir}, kept", file=sys.stderr)
         kept.append(RunSummary.read(seed_dir))
     return kept
@@ -303,8 +393,9 @@ def reproduce(args: argparse.Namespace) -> int:
     if recorded is not None:
         base = recorded.replace(**options.config_changes()).with_text_overrides(options.overrides)
     else:
-        base = experiment.config_cls.for_variant(args.variant, framework=args.framework, matched_init=args.matched_init,
-                                                 **options.config_changes()).with_text_overrides(options.overrides)
+        base = experiment.config_cls.for_variant(
+            args.variant, framework=args.framework, matched_init=args.matched_init, **options.config_changes()
+        ).with_text_overrides(options.overrides)
     if args.framework == "torch":
         from keras_rl.torch import require_torch
 
@@ -325,8 +416,12 @@ def reproduce(args: argparse.Namespace) -> int:
         import json
 
         print(json.dumps({k: v for k, v in base.to_dict().items() if k != "seed"}, indent=2, sort_keys=True))
-        how = {"new": "new", "overwrite": "cleared, then new", "resume": "resumed from its checkpoint",
-               "keep": "completed, kept"}
+        how = {
+            "new": "new",
+            "overwrite": "cleared, then new",
+            "resume": "resumed from its checkpoint",
+            "keep": "completed, kept",
+        }
         for s, d, m in zip(seeds, seed_dirs, modes):
             print(f"seed {s}: {d} ({how[m]})")
         return EXIT_OK
@@ -336,25 +431,40 @@ def reproduce(args: argparse.Namespace) -> int:
     from keras_rl.runs.jobs import SeedJob, batched, run_jobs
 
     kept = _kept_runs(base, [(s, d) for s, d, m in zip(seeds, seed_dirs, modes) if m == "keep"])
-    jobs = batched([SeedJob.of(base.replace(seed=s), d, start=m, checkpoint_every=args.checkpoint_every,
-                               tensorboard=args.tensorboard) for s, d, m in zip(seeds, seed_dirs, modes) if m != "keep"],
-                   options.seed_batch)
+    jobs = batched(
+        [
+            SeedJob.of(
+                base.replace(seed=s), d, start=m, checkpoint_every=args.checkpoint_every, tensorboard=args.tensorboard
+            )
+            for s, d, m in zip(seeds, seed_dirs, modes)
+            if m != "keep"
+        ],
+        options.seed_batch,
+    )
     outcome = run_jobs(jobs, backend_for(options.workers, len(jobs), options.address), progress=options.progress)
     summaries = sorted(kept + outcome.summaries, key=lambda s: seeds.index(s.seed))
     failures = [s for s in summaries if s.status in ("non_finite_loss", "error")]
     for s in failures:
         print(f"error: seed {s.seed}: {s.message}", file=sys.stderr)
     if summaries and len(seeds) > 1:
-        write_aggregate(out, summaries, base.threshold, f"{experiment.name} ({args.variant}, {args.framework}), "
-                        f"{len(summaries)} seeds", experiment.metric_label(base), experiment.post_reference)
+        write_aggregate(
+            out,
+            summaries,
+            base.threshold,
+            f"{experiment.name} ({args.variant}, {args.framework}), {len(summaries)} seeds",
+            experiment.metric_label(base),
+            experiment.post_reference,
+        )
     for s in summaries:
         verdict = "PASS" if s.success else "FAIL" if s.status == "completed" else "no verdict"
         where = f"reached at episode {s.reached_at_episode}" if s.reached_at_episode else "not reached"
         seed_dir = out / f"seed_{s.seed}"
         files = ", ".join(sorted(p.name for p in seed_dir.iterdir() if not p.name.startswith(".")))
-        print(f"{experiment.name}/{args.variant}/{args.framework} seed {s.seed}: {s.status}, {verdict} "
-              f"({s.criterion}: {where}; {s.episodes_run} episodes, {s.total_steps} steps, {s.wall_seconds:.1f} s)"
-              f"\n  {seed_dir}/: {files}")
+        print(
+            f"{experiment.name}/{args.variant}/{args.framework} seed {s.seed}: {s.status}, {verdict} "
+            f"({s.criterion}: {where}; {s.episodes_run} episodes, {s.total_steps} steps, {s.wall_seconds:.1f} s)"
+            f"\n  {seed_dir}/: {files}"
+        )
     if experiment.post_reference:
         print(experiment.post_reference)
     if outcome.interrupted:
@@ -366,8 +476,11 @@ def reproduce(args: argparse.Namespace) -> int:
     successes = sum(s.success for s in summaries)
     if successes / len(seeds) >= args.min_success_rate:
         return EXIT_OK
-    print(f"exit 1: criterion not met: {successes}/{len(seeds)} seeds succeeded, need "
-          f"{args.min_success_rate:.0%} (--min-success-rate {args.min_success_rate:g})", file=sys.stderr)
+    print(
+        f"exit 1: criterion not met: {successes}/{len(seeds)} seeds succeeded, need "
+        f"{args.min_success_rate:.0%} (--min-success-rate {args.min_success_rate:g})",
+        file=sys.stderr,
+    )
     return EXIT_CRITERION
 
 
@@ -382,20 +495,24 @@ def evaluate(args: argparse.Namespace) -> int:
             raise ConfigError(f"--gif writes a GIF; name it *.gif, not {args.gif.name!r}")
     from keras_rl.runs.evaluate import evaluate_run
 
-    result = evaluate_run(args.run_dir, episodes=args.episodes, gif=args.gif, seed=args.seed, progress=True,
-                          overwrite=args.overwrite)
+    result = evaluate_run(
+        args.run_dir, episodes=args.episodes, gif=args.gif, seed=args.seed, progress=True, overwrite=args.overwrite
+    )
     if result.get("interrupted"):
         print(f"interrupted: {len(result['scores'])} episodes kept in {result['written']}", file=sys.stderr)
         return _stopped()
-    print(f"mean score over {result['episodes']} greedy episodes: {result['mean']:.2f} "
-          f"(std {result['std']:.2f})" + (f"; GIF: {result['gif']}" if "gif" in result else ""))
+    print(
+        f"mean score over {result['episodes']} greedy episodes: {result['mean']:.2f} "
+        f"(std {result['std']:.2f})" + (f"; GIF: {result['gif']}" if "gif" in result else "")
+    )
     return EXIT_OK
 
 
 def compare(args: argparse.Namespace) -> int:
     if args.rerun and args.reuse_only:
-        raise ConfigError("--rerun and --reuse-only contradict each other (one reruns every seed, the other runs "
-                          "none); pick one")
+        raise ConfigError(
+            "--rerun and --reuse-only contradict each other (one reruns every seed, the other runs none); pick one"
+        )
     seeds = parse_seeds(args.seeds)
     options = RunOptions.from_args(args)
     options.check_address()
@@ -404,9 +521,18 @@ def compare(args: argparse.Namespace) -> int:
     from keras_rl.runs.provenance import command_line
 
     try:
-        result = run_compare(args.experiment, seeds, options, variant=args.variant, runs_root=args.runs,
-                             out_root=args.out, rerun=args.rerun, reuse_only=args.reuse_only,
-                             matched_init=args.matched_init, command=command_line())
+        result = run_compare(
+            args.experiment,
+            seeds,
+            options,
+            variant=args.variant,
+            runs_root=args.runs,
+            out_root=args.out,
+            rerun=args.rerun,
+            reuse_only=args.reuse_only,
+            matched_init=args.matched_init,
+            command=command_line(),
+        )
     except KeyboardInterrupt:
         print("interrupted: the runs so far are on disk; run compare again to reuse them", file=sys.stderr)
         return _stopped()
@@ -441,8 +567,9 @@ def sweep(args: argparse.Namespace) -> int:
         base.replace(**point.overrides)
     baseline = args.baseline or points[0].name
     if baseline not in [p.name for p in points]:
-        raise ConfigError(f"--baseline {baseline!r} is not a grid point; the points are "
-                          f"{', '.join(p.name for p in points)}")
+        raise ConfigError(
+            f"--baseline {baseline!r} is not a grid point; the points are {', '.join(p.name for p in points)}"
+        )
     _check_writable_dir(args.out, "--out")
     options.check_address()
     _check_seed_batch(options.seed_batch, experiment.name, args.framework)
@@ -451,8 +578,11 @@ def sweep(args: argparse.Namespace) -> int:
         from keras_rl.torch import require_torch
 
         require_torch()
-    print(f"sweep: {len(points)} grid points x {len(seeds)} seeds = {len(every)} jobs; "
-          f"{len(every) - len(todo)} already done, {len(todo)} to run", file=sys.stderr)
+    print(
+        f"sweep: {len(points)} grid points x {len(seeds)} seeds = {len(every)} jobs; "
+        f"{len(every) - len(todo)} already done, {len(todo)} to run",
+        file=sys.stderr,
+    )
     from keras_rl.report.sweep import write_sweep_report
     from keras_rl.runs.backends import backend_for
     from keras_rl.runs.jobs import batched, run_jobs
@@ -462,9 +592,14 @@ def sweep(args: argparse.Namespace) -> int:
     record_grid(args.out, points)
     todo = batched(todo, options.seed_batch)
     outcome = run_jobs(todo, backend_for(options.workers, len(todo), options.address), progress=options.progress)
-    summaries = {p.name: [RunSummary.read(j.out_dir) for j in every
-                          if Path(j.out_dir).parent.name == p.name and (Path(j.out_dir) / "summary.json").is_file()]
-                 for p in points}
+    summaries = {
+        p.name: [
+            RunSummary.read(j.out_dir)
+            for j in every
+            if Path(j.out_dir).parent.name == p.name and (Path(j.out_dir) / "summary.json").is_file()
+        ]
+        for p in points
+    }
     result = write_sweep_report(args.out, experiment, base, summaries, baseline, command_line())
     print(f"report: {args.out / 'sweep.md'}")
     for row in result["points"]:
@@ -491,8 +626,10 @@ def list_experiments(args: argparse.Namespace) -> int:
 
     for name, exp in sorted(EXPERIMENTS.items()):
         batching = [fw for fw in frameworks(name) if (name, fw) in STACKED]
-        print(f"{name:12s} {exp.description}; variants: {', '.join(exp.config_cls.VARIANTS)}; "
-              f"frameworks: {', '.join(frameworks(name))}; --seed-batch: {', '.join(batching) or 'none'}")
+        print(
+            f"{name:12s} {exp.description}; variants: {', '.join(exp.config_cls.VARIANTS)}; "
+            f"frameworks: {', '.join(frameworks(name))}; --seed-batch: {', '.join(batching) or 'none'}"
+        )
     return EXIT_OK
 
 
@@ -520,14 +657,23 @@ def check(args: argparse.Namespace) -> int:
         print("interrupted: no verdict", file=sys.stderr)
         return _stopped()
     for r in results:
-        print(f"{r.experiment}: {r.verdict} ({r.rule.statistic}, {r.decision.test}, p = {r.decision.p:.3g}, "
-              f"alpha {r.rule.alpha}; baseline {len(r.baseline)} seeds, new {len(r.new)})")
+        print(
+            f"{r.experiment}: {r.verdict} ({r.rule.statistic}, {r.decision.test}, p = {r.decision.p:.3g}, "
+            f"alpha {r.rule.alpha}; baseline {len(r.baseline)} seeds, new {len(r.new)})"
+        )
     print(f"report: {args.out / 'check.md'}")
     return EXIT_CRITERION if any(r.decision.changed for r in results) else EXIT_OK
 
 
-COMMANDS = {"check": check, "reproduce": reproduce, "evaluate": evaluate, "compare": compare, "sweep": sweep, "aggregate": aggregate,
-            "list": list_experiments}
+COMMANDS = {
+    "check": check,
+    "reproduce": reproduce,
+    "evaluate": evaluate,
+    "compare": compare,
+    "sweep": sweep,
+    "aggregate": aggregate,
+    "list": list_experiments,
+}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

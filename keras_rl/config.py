@@ -41,8 +41,12 @@ class ExperimentConfig:
     """Old field name -> the new fields its value becomes (for ``config.json`` of older runs)."""
     QUIRKS: ClassVar[dict[str, tuple[str, Any]]] = {}
     """Quirk switch -> (ledger ID, the value that turns it off): what ``sweep --ablate`` flips."""
-    RUN_FIELDS: ClassVar[dict[str, str]] = {"variant": "--variant", "seed": "--seeds", "framework": "--framework",
-                                            "matched_init": "--matched-init"}
+    RUN_FIELDS: ClassVar[dict[str, str]] = {
+        "variant": "--variant",
+        "seed": "--seeds",
+        "framework": "--framework",
+        "matched_init": "--matched-init",
+    }
     """Fields that have their own command-line flag; ``--set`` refuses them."""
 
     variant: str = "faithful"
@@ -63,8 +67,7 @@ class ExperimentConfig:
         """The config of a named variant, with further field overrides on top."""
         if variant not in cls.VARIANTS:
             raise ConfigError(
-                f"unknown variant {variant!r} for {cls.experiment}; "
-                f"choose one of {', '.join(cls.VARIANTS)}"
+                f"unknown variant {variant!r} for {cls.experiment}; choose one of {', '.join(cls.VARIANTS)}"
             )
         values = {**cls.VARIANTS[variant], **overrides, "variant": variant}
         return cls.from_dict(values)
@@ -99,8 +102,10 @@ class ExperimentConfig:
             for new, value in convert(values.pop(old)).items():
                 value = tuple(value) if isinstance(value, list) else value
                 if new in values and (tuple(values[new]) if isinstance(values[new], list) else values[new]) != value:
-                    raise ConfigError(f"old field {old!r} maps to {new}={value!r}, which contradicts "
-                                      f"{new}={values[new]!r} given beside it")
+                    raise ConfigError(
+                        f"old field {old!r} maps to {new}={value!r}, which contradicts "
+                        f"{new}={values[new]!r} given beside it"
+                    )
                 values[new] = value
         return values
 
@@ -119,12 +124,20 @@ class ExperimentConfig:
         """Apply ``--set FIELD=VALUE`` texts, each parsed by its field's type."""
         return self.replace(**self.parse_assignments(assignments))
 
-    NOT_FIELDS: ClassVar[tuple[str, ...]] = ("experiment", "post", "VARIANTS", "RENAMED", "RUN_FIELDS", "QUIRKS",
-                                             "NOT_FIELDS")
+    NOT_FIELDS: ClassVar[tuple[str, ...]] = (
+        "experiment",
+        "post",
+        "VARIANTS",
+        "RENAMED",
+        "RUN_FIELDS",
+        "QUIRKS",
+        "NOT_FIELDS",
+    )
 
     @classmethod
-    def parse_assignments(cls, items: list[str] | tuple[str, ...], flag: str = "--set",
-                          many: bool = False) -> dict[str, Any]:
+    def parse_assignments(
+        cls, items: list[str] | tuple[str, ...], flag: str = "--set", many: bool = False
+    ) -> dict[str, Any]:
         """The one parser of ``FIELD=VALUE`` texts (``--set``; ``--grid`` with ``many``, whose
         values are comma lists, ``;`` between layer widths). Each value is parsed by its
         field's type, so ``tau=5e-3`` and ``tau=0.005`` are the same assignment. A
@@ -140,8 +153,9 @@ class ExperimentConfig:
             if name in cls.RUN_FIELDS:
                 raise ConfigError(f"{flag} {name}=... is not a config field; use {cls.RUN_FIELDS[name]}")
             if name in cls.RENAMED:
-                raise ConfigError(f"{cls.experiment} config field {name!r} was renamed; use "
-                                  f"{', '.join(cls.RENAMED[name](0))}")
+                raise ConfigError(
+                    f"{cls.experiment} config field {name!r} was renamed; use {', '.join(cls.RENAMED[name](0))}"
+                )
             if name not in hints or name in cls.NOT_FIELDS:
                 raise ConfigError(f"unknown {cls.experiment} config field {name!r}")
             if name in parsed:
@@ -168,8 +182,7 @@ class ExperimentConfig:
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
             if typing.get_origin(hints[f.name]) is Literal and value not in typing.get_args(hints[f.name]):
-                raise ConfigError(f"{f.name} must be one of {', '.join(typing.get_args(hints[f.name]))}, "
-                                  f"got {value!r}")
+                raise ConfigError(f"{f.name} must be one of {', '.join(typing.get_args(hints[f.name]))}, got {value!r}")
             kind = f.metadata.get("check")
             if kind is None:
                 continue
@@ -192,14 +205,17 @@ class ExperimentConfig:
         if not 0 <= self.seed < 2**32:
             raise ConfigError(f"seed must be in [0, 2**32), got {self.seed}")
         if self.framework not in frameworks(self.experiment):
-            raise ConfigError(f"{self.experiment} has no {self.framework!r} version; "
-                              f"choose one of {', '.join(frameworks(self.experiment))}")
+            raise ConfigError(
+                f"{self.experiment} has no {self.framework!r} version; "
+                f"choose one of {', '.join(frameworks(self.experiment))}"
+            )
         if self.uses_ring_buffer():
             self._check_warmup()
         if self.matched_init and self.framework != "torch":
-            raise ConfigError("matched_init copies Keras' initial weights into the PyTorch networks; "
-                              f"it needs framework 'torch', not {self.framework!r}")
-
+            raise ConfigError(
+                "matched_init copies Keras' initial weights into the PyTorch networks; "
+                f"it needs framework 'torch', not {self.framework!r}"
+            )
 
     def uses_ring_buffer(self) -> bool:
         """Whether training samples a ring buffer of ``buffer_size`` from ``train_start`` on."""
@@ -208,11 +224,15 @@ class ExperimentConfig:
     def _check_warmup(self) -> None:
         """Catch a run that would never train, or fail at its first update, before it starts."""
         if self.buffer_size < self.train_start:
-            raise ConfigError(f"buffer_size {self.buffer_size} is below train_start {self.train_start}: the buffer "
-                              "never holds enough transitions, so the run would never train")
+            raise ConfigError(
+                f"buffer_size {self.buffer_size} is below train_start {self.train_start}: the buffer "
+                "never holds enough transitions, so the run would never train"
+            )
         if self.batch_size > self.train_start:
-            raise ConfigError(f"batch_size {self.batch_size} is larger than train_start {self.train_start}: the "
-                              "first update samples without replacement from train_start transitions")
+            raise ConfigError(
+                f"batch_size {self.batch_size} is larger than train_start {self.train_start}: the "
+                "first update samples without replacement from train_start transitions"
+            )
 
 
 def positive(default: Any) -> Any:
@@ -254,8 +274,9 @@ def _parse_value(name: str, hint: Any, text: str) -> Any:
             raise ConfigError(f"{name} must be one of {', '.join(typing.get_args(hint))}, got {text!r}")
         return text
     except ValueError:
-        kind = getattr(hint, "__name__", None) or ("comma-separated list of ints"
-                                                   if typing.get_origin(hint) is tuple else str(hint))
+        kind = getattr(hint, "__name__", None) or (
+            "comma-separated list of ints" if typing.get_origin(hint) is tuple else str(hint)
+        )
         article = "an" if kind[0] in "aeiou" else "a"
         raise ConfigError(f"{name} expects {article} {kind}, got {text!r}") from None
 

@@ -45,19 +45,24 @@ def box_spec(env: gym.Env, algorithm: str) -> EnvSpec:
     space = env.action_space
     env_id = _env_id(env)
     if not isinstance(space, gym.spaces.Box):
-        raise EnvironmentMismatchError(
-            f"{algorithm} needs a continuous Box action space, but {env_id} has {space}")
+        raise EnvironmentMismatchError(f"{algorithm} needs a continuous Box action space, but {env_id} has {space}")
     if len(space.shape) != 1 or len(env.observation_space.shape) != 1:
         raise EnvironmentMismatchError(
             f"{algorithm} needs flat observations and actions; {env_id} has observation shape "
-            f"{env.observation_space.shape} and action shape {space.shape}")
+            f"{env.observation_space.shape} and action shape {space.shape}"
+        )
     if not (space.high == -space.low).all():
         raise EnvironmentMismatchError(
-            f"{algorithm} scales tanh by one symmetric bound; {env_id}'s action bounds are "
-            f"{space.low}..{space.high}")
-    return EnvSpec(env.observation_space.shape[0], space.shape[0], float(space.high[0]),
-                   obs_low=env.observation_space.low, obs_high=env.observation_space.high,
-                   max_episode_steps=env.spec.max_episode_steps if env.spec else None)
+            f"{algorithm} scales tanh by one symmetric bound; {env_id}'s action bounds are {space.low}..{space.high}"
+        )
+    return EnvSpec(
+        env.observation_space.shape[0],
+        space.shape[0],
+        float(space.high[0]),
+        obs_low=env.observation_space.low,
+        obs_high=env.observation_space.high,
+        max_episode_steps=env.spec.max_episode_steps if env.spec else None,
+    )
 
 
 def discrete_spec(env: gym.Env, algorithm: str) -> EnvSpec:
@@ -65,9 +70,15 @@ def discrete_spec(env: gym.Env, algorithm: str) -> EnvSpec:
     env_id = _env_id(env)
     if not isinstance(env.action_space, gym.spaces.Discrete):
         raise EnvironmentMismatchError(
-            f"{algorithm} needs a Discrete action space, but {env_id} has {env.action_space}")
+            f"{algorithm} needs a Discrete action space, but {env_id} has {env.action_space}"
+        )
     if len(env.observation_space.shape) != 1:
-        raise EnvironmentMismatchError(f"{algorithm} needs flat observations; {env_id} has "
-                                       f"shape {env.observation_space.shape}")
-    return EnvSpec(env.observation_space.shape[0], 1, n_actions=int(env.action_space.n),
-                   max_episode_steps=env.spec.max_episode_steps if env.spec else None)
+        raise EnvironmentMismatchError(
+            f"{algorithm} needs flat observations; {env_id} has shape {env.observation_space.shape}"
+        )
+    return EnvSpec(
+        env.observation_space.shape[0],
+        1,
+        n_actions=int(env.action_space.n),
+        max_episode_steps=env.spec.max_episode_steps if env.spec else None,
+    )

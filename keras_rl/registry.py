@@ -18,8 +18,7 @@ def get_experiment(name: str) -> Experiment:
     try:
         return EXPERIMENTS[name]
     except KeyError:
-        raise ConfigError(
-            f"unknown experiment {name!r}; choose one of {', '.join(sorted(EXPERIMENTS))}") from None
+        raise ConfigError(f"unknown experiment {name!r}; choose one of {', '.join(sorted(EXPERIMENTS))}") from None
 
 
 def build_agent(experiment: Experiment, config, env, **learner_options: Any):

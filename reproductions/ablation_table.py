@@ -15,7 +15,8 @@ with that switch flipped alone, seeds 0-9 at the post's budget. Every number com
 
 The reading is mechanical: "changes the success rate" when that interval excludes 0; else
 "faster"/"slower" when both the Mann-Whitney test (p < 0.05) and the interval of the median
-difference say so, with a caveat when only one does; else "no measurable effect at 10 seeds". An interval that includes 0 is no evidence of no effect; the interval
+difference say so, with a caveat when only one does; else "no measurable effect at 10 seeds".
+An interval that includes 0 is no evidence of no effect; the interval
 says how large an effect the 10 seeds leave room for.
 """
 
@@ -35,14 +36,25 @@ FIDELITY = ROOT / "reproductions" / "FIDELITY.md"
 SWEEP = "keras-rl sweep {exp} --ablate --seeds 0-9 --workers 2{batch} --no-progress --out results/{exp}/ablations"
 SOURCES = {
     # post 000's ablations predate `sweep`: one `reproduce --set SWITCH=false` folder each
-    "pendulum": {"base": "results/pendulum/faithful", "points": "results/pendulum/ablations",
-                 "also": {"fixed (all four off)": "results/pendulum/fixed"},
-                 "command": "keras-rl reproduce pendulum --seeds 0-9 --workers 2 --no-progress --min-success-rate 0 "
-                            "--set SWITCH=false --out results/pendulum/ablations/SWITCH=false"},
-    "cartpole": {"base": "results/cartpole/ablations/base", "points": "results/cartpole/ablations", "also": {},
-                 "command": SWEEP.format(exp="cartpole", batch=" --seed-batch 10")},
-    "mountaincar": {"base": "results/mountaincar/ablations/base", "points": "results/mountaincar/ablations", "also": {},
-                    "command": SWEEP.format(exp="mountaincar", batch="")},
+    "pendulum": {
+        "base": "results/pendulum/faithful",
+        "points": "results/pendulum/ablations",
+        "also": {"fixed (all four off)": "results/pendulum/fixed"},
+        "command": "keras-rl reproduce pendulum --seeds 0-9 --workers 2 --no-progress --min-success-rate 0 "
+        "--set SWITCH=false --out results/pendulum/ablations/SWITCH=false",
+    },
+    "cartpole": {
+        "base": "results/cartpole/ablations/base",
+        "points": "results/cartpole/ablations",
+        "also": {},
+        "command": SWEEP.format(exp="cartpole", batch=" --seed-batch 10"),
+    },
+    "mountaincar": {
+        "base": "results/mountaincar/ablations/base",
+        "points": "results/mountaincar/ablations",
+        "also": {},
+        "command": SWEEP.format(exp="mountaincar", batch=""),
+    },
 }
 
 
@@ -66,9 +78,15 @@ def _reading(row: dict, statuses: list[str]) -> str:
     excluded = diff is not None and (diff["low"] > 0 or diff["high"] < 0)
     if diff is not None and (tested or excluded):
         direction = "slower" if diff["estimate"] > 0 else "faster"
-        return direction if tested and excluded else (
-            f"{direction} by Mann-Whitney (p < 0.05), but the median's interval includes 0" if tested else
-            f"{direction} by the median's interval, but Mann-Whitney p >= 0.05")
+        return (
+            direction
+            if tested and excluded
+            else (
+                f"{direction} by Mann-Whitney (p < 0.05), but the median's interval includes 0"
+                if tested
+                else f"{direction} by the median's interval, but Mann-Whitney p >= 0.05"
+            )
+        )
     return "no measurable effect at 10 seeds"
 
 
@@ -83,15 +101,24 @@ def table(experiment: str) -> str:
     rows = [("-", "faithful", ROOT / source["base"])]
     for field, (ledger_id, off) in config_cls.QUIRKS.items():
         flipped = point_name({field: off})
-        rows.append((ledger_id, f"`{field}`: `{point_name({field: getattr(defaults, field)}).split('=', 1)[1]}` -> "
-                     f"`{flipped.split('=', 1)[1]}`", ROOT / source["points"] / flipped))
+        rows.append(
+            (
+                ledger_id,
+                f"`{field}`: `{point_name({field: getattr(defaults, field)}).split('=', 1)[1]}` -> "
+                f"`{flipped.split('=', 1)[1]}`",
+                ROOT / source["points"] / flipped,
+            )
+        )
     rows += [("-", name, ROOT / folder) for name, folder in source["also"].items()]
 
-    lines = [f"Regenerate the runs with `{source['command']}` and this table with "
-             "`python reproductions/ablation_table.py --write`.", "",
-             "| id | runs (seeds 0-9) | success | minus faithful [95% CI] | Fisher p | episodes to threshold: "
-             "median (IQR) | minus faithful [95% CI] | Mann-Whitney p | reading |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"Regenerate the runs with `{source['command']}` and this table with "
+        "`python reproductions/ablation_table.py --write`.",
+        "",
+        "| id | runs (seeds 0-9) | success | minus faithful [95% CI] | Fisher p | episodes to threshold: "
+        "median (IQR) | minus faithful [95% CI] | Mann-Whitney p | reading |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     summaries = {label: _summaries(folder) for _, label, folder in rows if folder.is_dir()}
     if "faithful" not in summaries:
         return "\n".join(lines[:2] + ["Not run yet: no faithful runs in " + source["base"] + "."])
@@ -106,14 +133,18 @@ def table(experiment: str) -> str:
         stopped = f" ({len(r['unfinished'])} stopped early)" if r["unfinished"] else ""
         spread = "n/a" if r["median"] is None else f"{g(r['median'])} ({g(r['q25'])}-{g(r['q75'])})"
         if label == "faithful":
-            lines.append(f"| {ledger_id} | {label} | {r['successes']}/{r['seeds']}{stopped} | - | - | {spread} | - | - | - |")
+            lines.append(
+                f"| {ledger_id} | {label} | {r['successes']}/{r['seeds']}{stopped} | - | - | {spread} | - | - | - |"
+            )
             continue
         rate, diff = r["success_difference"], r.get("median_difference")
         diff_text = "n/a" if diff is None else f"{diff['estimate']:+g} [{diff['low']:+g}, {diff['high']:+g}]"
-        lines.append(f"| {ledger_id} | {label} | {r['successes']}/{r['seeds']}{stopped} "
-                     f"| {rate['estimate']:+.2f} [{rate['low']:+.2f}, {rate['high']:+.2f}] | {p(r['fisher_p'])} "
-                     f"| {spread} | {diff_text} | {p(r.get('mann_whitney_p'))} "
-                     f"| {_reading(r, [x.status for x in summaries[label]])} |")
+        lines.append(
+            f"| {ledger_id} | {label} | {r['successes']}/{r['seeds']}{stopped} "
+            f"| {rate['estimate']:+.2f} [{rate['low']:+.2f}, {rate['high']:+.2f}] | {p(r['fisher_p'])} "
+            f"| {spread} | {diff_text} | {p(r.get('mann_whitney_p'))} "
+            f"| {_reading(r, [x.status for x in summaries[label]])} |"
+        )
     return "\n".join(lines)
 
 

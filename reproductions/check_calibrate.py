@@ -57,14 +57,41 @@ def make_commands(name: str) -> list[list[str]]:
         common += ["--seed-batch", "10"]
     out = []
     if not (CHECKS / name / "baseline").is_dir():
-        out.append(["keras-rl", "reproduce", name, "--seeds", "0-29", *(["--seed-batch", "15"] if batch > 1 else []),
-                    "--no-progress", "--min-success-rate", "0", "--workers", "2",
-                    "--out", f"results/checks/{name}/baseline"])
+        out.append(
+            [
+                "keras-rl",
+                "reproduce",
+                name,
+                "--seeds",
+                "0-29",
+                *(["--seed-batch", "15"] if batch > 1 else []),
+                "--no-progress",
+                "--min-success-rate",
+                "0",
+                "--workers",
+                "2",
+                "--out",
+                f"results/checks/{name}/baseline",
+            ]
+        )
     for m in MUTANTS[name]:
         if not (CHECKS / name / "mutants" / m.name).is_dir():
             sets = [a for k, v in m.overrides.items() for a in ("--set", f"{k}={v}")]
-            out.append(["keras-rl", "reproduce", name, "--seeds", MUTANT_SEEDS, "--episodes", str(episodes), *sets,
-                        *common, "--out", f"results/checks/{name}/mutants/{m.name}"])
+            out.append(
+                [
+                    "keras-rl",
+                    "reproduce",
+                    name,
+                    "--seeds",
+                    MUTANT_SEEDS,
+                    "--episodes",
+                    str(episodes),
+                    *sets,
+                    *common,
+                    "--out",
+                    f"results/checks/{name}/mutants/{m.name}",
+                ]
+            )
     return out
 
 
@@ -95,8 +122,9 @@ def values(name: str, statistic: str, episodes: int, runs: list, delay: int = 0)
         if rows is None:
             return float("nan")
         rows = [rows[0]] * delay + rows if delay else rows
-        return seed_statistic(statistic, rows, episodes, lambda m: metric.passes(m, config.threshold),
-                              experiment.success_at_end)
+        return seed_statistic(
+            statistic, rows, episodes, lambda m: metric.passes(m, config.threshold), experiment.success_at_end
+        )
 
     return np.asarray([one(r) for r in runs], float)
 
@@ -106,8 +134,17 @@ def smallest_delay(name: str, rule, baseline_runs: list, target: float = 0.8) ->
     base = values(name, rule.statistic, rule.episodes, baseline_runs)
 
     def flagged(d: int) -> bool:
-        return power(base, values(name, rule.statistic, rule.episodes, baseline_runs, d), rule.seeds, rule.statistic,
-                     rule.alpha, repeats=500) >= target
+        return (
+            power(
+                base,
+                values(name, rule.statistic, rule.episodes, baseline_runs, d),
+                rule.seeds,
+                rule.statistic,
+                rule.alpha,
+                repeats=500,
+            )
+            >= target
+        )
 
     hi = rule.episodes
     if not flagged(hi):
@@ -120,12 +157,30 @@ def smallest_delay(name: str, rule, baseline_runs: list, target: float = 0.8) ->
 
 
 OLD_TESTS = {  # the k-of-n threshold tests the smoke tier replaces: (passes k of n seeds, per-seed pass on rows)
-    "pendulum": ("2 of 3 seeds reach EMA > -300 within 300 episodes", 2, 3, "episodes_to_threshold", 300,
-                 lambda value: value <= 300),
-    "cartpole": ("1 of 4 seeds reaches a 100-episode mean of 475 within 600 episodes", 1, 4, "success", 600,
-                 lambda value: value == 1.0),
-    "mountaincar": ("2 of 3 seeds meet post 001's criterion after 100 episodes", 2, 3, "success", 100,
-                    lambda value: value == 1.0),
+    "pendulum": (
+        "2 of 3 seeds reach EMA > -300 within 300 episodes",
+        2,
+        3,
+        "episodes_to_threshold",
+        300,
+        lambda value: value <= 300,
+    ),
+    "cartpole": (
+        "1 of 4 seeds reaches a 100-episode mean of 475 within 600 episodes",
+        1,
+        4,
+        "success",
+        600,
+        lambda value: value == 1.0,
+    ),
+    "mountaincar": (
+        "2 of 3 seeds meet post 001's criterion after 100 episodes",
+        2,
+        3,
+        "success",
+        100,
+        lambda value: value == 1.0,
+    ),
 }
 
 
@@ -144,8 +199,9 @@ def old_test(name: str, baseline: list, mutants: dict | None, repeats: int = 10_
     if mutants:
         per_mutant = {m.name: fail_rate(runs) for m, runs in mutants.values()}
         gross = [per_mutant[m.name] for m, _ in mutants.values() if m.gross]
-        out.update(power=per_mutant, power_gross=float(np.mean(gross)),
-                   power_all=float(np.mean(list(per_mutant.values()))))
+        out.update(
+            power=per_mutant, power_gross=float(np.mean(gross)), power_all=float(np.mean(list(per_mutant.values())))
+        )
     return out
 
 
@@ -156,10 +212,20 @@ def calibrate(name: str) -> dict:
         out = {}
         for tier in TIERS:
             rule = RULES[(name, tier)]
-            out[tier] = {"not_calibrated": f"no mutant runs yet ({', '.join(missing)})",
-                         "false_alarm_rates": [{"statistic": st, "alpha": a, "false_alarm_rate": false_alarm_rate(
-                             values(name, st, rule.episodes, baseline), rule.seeds, st, a)}
-                             for st in rule.candidates for a in ALPHAS]}
+            out[tier] = {
+                "not_calibrated": f"no mutant runs yet ({', '.join(missing)})",
+                "false_alarm_rates": [
+                    {
+                        "statistic": st,
+                        "alpha": a,
+                        "false_alarm_rate": false_alarm_rate(
+                            values(name, st, rule.episodes, baseline), rule.seeds, st, a
+                        ),
+                    }
+                    for st in rule.candidates
+                    for a in ALPHAS
+                ],
+            }
         out["smoke"]["old_k_of_n_test"] = old_test(name, baseline, None)
         return out
     mutants = {m.name: (m, load(CHECKS / name / "mutants" / m.name)) for m in MUTANTS[name]}
@@ -174,18 +240,32 @@ def calibrate(name: str) -> dict:
         for statistic in rule.candidates:
             base = values(name, statistic, rule.episodes, baseline)
             for alpha in ALPHAS:
-                per_mutant = {m.name: power(base, values(name, statistic, rule.episodes, runs), rule.seeds, statistic,
-                                            alpha) for m, runs in mutants.values()}
+                per_mutant = {
+                    m.name: power(base, values(name, statistic, rule.episodes, runs), rule.seeds, statistic, alpha)
+                    for m, runs in mutants.values()
+                }
                 gross = [per_mutant[m.name] for m, _ in mutants.values() if m.gross]
-                rows.append({"statistic": statistic, "alpha": alpha, "seeds": rule.seeds, "episodes": rule.episodes,
-                             "false_alarm_rate": false_alarm_rate(base, rule.seeds, statistic, alpha),
-                             "power": per_mutant, "power_gross": float(np.mean(gross)),
-                             "power_all": float(np.mean(list(per_mutant.values())))})
+                rows.append(
+                    {
+                        "statistic": statistic,
+                        "alpha": alpha,
+                        "seeds": rule.seeds,
+                        "episodes": rule.episodes,
+                        "false_alarm_rate": false_alarm_rate(base, rule.seeds, statistic, alpha),
+                        "power": per_mutant,
+                        "power_gross": float(np.mean(gross)),
+                        "power_all": float(np.mean(list(per_mutant.values()))),
+                    }
+                )
         eligible = [r for r in rows if r["false_alarm_rate"] <= 0.01]
         chosen = max(eligible, key=lambda r: (r["power_gross"], r["power_all"], -rows.index(r))) if eligible else None
-        entry = {"baseline_seeds": len(baseline), "mutant_seeds": {k: len(v[1]) for k, v in mutants.items()},
-                 "candidates": rows, "chosen": chosen and {"statistic": chosen["statistic"], "alpha": chosen["alpha"]},
-                 "rule": {"statistic": rule.statistic, "alpha": rule.alpha}}
+        entry = {
+            "baseline_seeds": len(baseline),
+            "mutant_seeds": {k: len(v[1]) for k, v in mutants.items()},
+            "candidates": rows,
+            "chosen": chosen and {"statistic": chosen["statistic"], "alpha": chosen["alpha"]},
+            "rule": {"statistic": rule.statistic, "alpha": rule.alpha},
+        }
         if chosen and (chosen["statistic"], chosen["alpha"]) == (rule.statistic, rule.alpha):
             entry["detectable_delay_80"] = smallest_delay(name, rule, baseline)
         out[tier] = entry
@@ -202,62 +282,100 @@ def criterion_by_seeds(name: str) -> dict:
     summaries = [RunSummary.read(d) for d in (CHECKS / name / "baseline").glob("seed_*")]
     first = [s.success for s in summaries if s.seed < 10]
     rest = [s.success for s in summaries if s.seed >= 10]
-    return {"criterion": summaries[0].criterion, "0-9": f"{sum(first)}/{len(first)}", "10-29": f"{sum(rest)}/{len(rest)}",
-            "fisher_p": fisher_exact(sum(first), len(first), sum(rest), len(rest))}
+    return {
+        "criterion": summaries[0].criterion,
+        "0-9": f"{sum(first)}/{len(first)}",
+        "10-29": f"{sum(rest)}/{len(rest)}",
+        "fisher_p": fisher_exact(sum(first), len(first), sum(rest), len(rest)),
+    }
 
 
 def markdown(results: dict) -> str:
-    lines = ["# Error rates of `keras-rl check`'s rules", "",
-             "False alarms: the tier's n seeds drawn from the 30-seed baseline and tested against the other "
-             "30 - n, 10,000 times. Power: n seeds drawn with replacement from a mutant's 10 seeds, tested against "
-             "the whole baseline, 2,000 times. Delay: the smallest delay of every baseline curve (in episodes) "
-             "the rule flags 80% of the time.", ""]
+    lines = [
+        "# Error rates of `keras-rl check`'s rules",
+        "",
+        "False alarms: the tier's n seeds drawn from the 30-seed baseline and tested against the other "
+        "30 - n, 10,000 times. Power: n seeds drawn with replacement from a mutant's 10 seeds, tested against "
+        "the whole baseline, 2,000 times. Delay: the smallest delay of every baseline curve (in episodes) "
+        "the rule flags 80% of the time.",
+        "",
+    ]
     for name, measured in results.items():
         lines += [f"Command for {name}: `{measured['command']}`", ""]
         split = measured.get("criterion_by_seeds")
         if split:
-            lines += [f"The post's own criterion on the baseline ({split['criterion']}): seeds 0-9 "
-                      f"{split['0-9']}, seeds 10-29 {split['10-29']} (Fisher p = {split['fisher_p']:.3g}).", ""]
+            lines += [
+                f"The post's own criterion on the baseline ({split['criterion']}): seeds 0-9 "
+                f"{split['0-9']}, seeds 10-29 {split['10-29']} (Fisher p = {split['fisher_p']:.3g}).",
+                "",
+            ]
         for tier, entry in measured["tiers"].items():
             rule = RULES[(name, tier)]
             if "not_calibrated" in entry:
                 lines += [f"## {name}, {tier} tier: not calibrated ({entry['not_calibrated']})", ""]
                 if entry.get("false_alarm_rates"):
-                    lines += ["False alarms alone (power needs the mutants):", "",
-                              "| statistic | alpha | false alarms |", "|---|---|---|"]
-                    lines += [f"| {r['statistic']}"
-                              + (" **(rule)**" if (r["statistic"], r["alpha"]) == (rule.statistic, rule.alpha) else "")
-                              + f" | {r['alpha']} | {r['false_alarm_rate']:.2%} |" for r in entry["false_alarm_rates"]]
+                    lines += [
+                        "False alarms alone (power needs the mutants):",
+                        "",
+                        "| statistic | alpha | false alarms |",
+                        "|---|---|---|",
+                    ]
+                    lines += [
+                        f"| {r['statistic']}"
+                        + (" **(rule)**" if (r["statistic"], r["alpha"]) == (rule.statistic, rule.alpha) else "")
+                        + f" | {r['alpha']} | {r['false_alarm_rate']:.2%} |"
+                        for r in entry["false_alarm_rates"]
+                    ]
                     lines.append("")
                 old = entry.get("old_k_of_n_test")
                 if old:
-                    lines += [f"The old slow test ({old['test']}) fails on baseline seeds "
-                              f"{old['false_alarm_rate']:.2%} of the time.", ""]
+                    lines += [
+                        f"The old slow test ({old['test']}) fails on baseline seeds "
+                        f"{old['false_alarm_rate']:.2%} of the time.",
+                        "",
+                    ]
                 continue
             mutants = list(entry["mutant_seeds"])
-            lines += [f"## {name}, {tier} tier ({rule.seeds} fresh seeds, {rule.episodes} episodes)", "",
-                      "| statistic | alpha | false alarms | gross | all | " + " | ".join(mutants) + " |",
-                      "|---|---|---|---|---|" + "---|" * len(mutants)]
+            lines += [
+                f"## {name}, {tier} tier ({rule.seeds} fresh seeds, {rule.episodes} episodes)",
+                "",
+                "| statistic | alpha | false alarms | gross | all | " + " | ".join(mutants) + " |",
+                "|---|---|---|---|---|" + "---|" * len(mutants),
+            ]
             for r in entry["candidates"]:
                 mark = " **(rule)**" if (r["statistic"], r["alpha"]) == (rule.statistic, rule.alpha) else ""
-                lines.append(f"| {r['statistic']}{mark} | {r['alpha']} | {r['false_alarm_rate']:.2%} | "
-                             f"{r['power_gross']:.0%} | {r['power_all']:.0%} | "
-                             + " | ".join(f"{r['power'][m]:.0%}" for m in mutants) + " |")
+                lines.append(
+                    f"| {r['statistic']}{mark} | {r['alpha']} | {r['false_alarm_rate']:.2%} | "
+                    f"{r['power_gross']:.0%} | {r['power_all']:.0%} | "
+                    + " | ".join(f"{r['power'][m]:.0%}" for m in mutants)
+                    + " |"
+                )
             old = entry.get("old_k_of_n_test")
             if old and "power" in old:
-                lines.append(f"| the old slow test: {old['test']} | - | {old['false_alarm_rate']:.2%} | "
-                             f"{old['power_gross']:.0%} | {old['power_all']:.0%} | "
-                             + " | ".join(f"{old['power'][m]:.0%}" for m in mutants) + " |")
+                lines.append(
+                    f"| the old slow test: {old['test']} | - | {old['false_alarm_rate']:.2%} | "
+                    f"{old['power_gross']:.0%} | {old['power_all']:.0%} | "
+                    + " | ".join(f"{old['power'][m]:.0%}" for m in mutants)
+                    + " |"
+                )
             elif old:
-                lines.append(f"| the old slow test: {old['test']} | - | {old['false_alarm_rate']:.2%} | "
-                             "(mutants too short) | | " + " | ".join("" for _ in mutants) + " |")
+                lines.append(
+                    f"| the old slow test: {old['test']} | - | {old['false_alarm_rate']:.2%} | "
+                    "(mutants too short) | | " + " | ".join("" for _ in mutants) + " |"
+                )
             chosen = entry["chosen"]
-            lines += ["", f"The criterion picks: {chosen['statistic']} at alpha {chosen['alpha']}" if chosen
-                      else "No candidate keeps false alarms at or below 1%."]
+            lines += [
+                "",
+                f"The criterion picks: {chosen['statistic']} at alpha {chosen['alpha']}"
+                if chosen
+                else "No candidate keeps false alarms at or below 1%.",
+            ]
             if "detectable_delay_80" in entry:
                 d = entry["detectable_delay_80"]
-                lines.append("Smallest delay detected 80% of the time: "
-                             + (f"{d} episodes." if d is not None else f"none up to {rule.episodes} episodes."))
+                lines.append(
+                    "Smallest delay detected 80% of the time: "
+                    + (f"{d} episodes." if d is not None else f"none up to {rule.episodes} episodes.")
+                )
             lines.append("")
     return "\n".join(lines)
 
@@ -267,24 +385,53 @@ RULES_BEGIN, RULES_END = "<!-- check-rules:begin -->", "<!-- check-rules:end -->
 
 def rules_table(merged: dict) -> str:
     """results/README.md's table of the rules and their measured error rates (from calibration.json)."""
-    lines = ["| post | tier | rule: statistic, test, alpha | fresh seeds x episodes | false alarms | power: gross | "
-             "power: all mutants | smallest delay flagged 80% |", "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| post | tier | rule: statistic, test, alpha | fresh seeds x episodes | false alarms | power: gross | "
+        "power: all mutants | smallest delay flagged 80% |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for (name, tier), rule in RULES.items():
         entry = merged.get(name, {}).get("tiers", {}).get(tier)
-        mine = entry and "candidates" in entry and next((c for c in entry["candidates"]
-                               if (c["statistic"], c["alpha"]) == (rule.statistic, rule.alpha)), None)
+        mine = (
+            entry
+            and "candidates" in entry
+            and next(
+                (c for c in entry["candidates"] if (c["statistic"], c["alpha"]) == (rule.statistic, rule.alpha)), None
+            )
+        )
         test = "Fisher" if rule.statistic == "success" else "Mann-Whitney U"
         head = f"| {name} | {tier} | {rule.statistic}, {test}, {rule.alpha} | {rule.seeds} x {rule.episodes} |"
         if not mine:
-            alone = entry and next((c for c in entry.get("false_alarm_rates", [])
-                                    if (c["statistic"], c["alpha"]) == (rule.statistic, rule.alpha)), None)
-            lines.append(head + (f" {alone['false_alarm_rate']:.2%} | no mutants yet | | |" if alone
-                                 else " not calibrated yet | | | |"))
+            alone = entry and next(
+                (
+                    c
+                    for c in entry.get("false_alarm_rates", [])
+                    if (c["statistic"], c["alpha"]) == (rule.statistic, rule.alpha)
+                ),
+                None,
+            )
+            lines.append(
+                head
+                + (
+                    f" {alone['false_alarm_rate']:.2%} | no mutants yet | | |"
+                    if alone
+                    else " not calibrated yet | | | |"
+                )
+            )
             continue
         delay = entry.get("detectable_delay_80", "not measured")
-        lines.append(head + f" {mine['false_alarm_rate']:.2%} | {mine['power_gross']:.0%} | {mine['power_all']:.0%} | "
-                     + (f"{delay} episodes" if isinstance(delay, int) else
-                        "none within the tier's episodes" if delay is None else delay) + " |")
+        lines.append(
+            head
+            + f" {mine['false_alarm_rate']:.2%} | {mine['power_gross']:.0%} | {mine['power_all']:.0%} | "
+            + (
+                f"{delay} episodes"
+                if isinstance(delay, int)
+                else "none within the tier's episodes"
+                if delay is None
+                else delay
+            )
+            + " |"
+        )
     return "\n".join(lines)
 
 
@@ -302,8 +449,10 @@ def main() -> None:
         if not (CHECKS / name / "baseline").is_dir():
             raise SystemExit(2)
     command = "python reproductions/check_calibrate.py " + " ".join(sys.argv[1:])
-    results = {name: {"command": command, "criterion_by_seeds": criterion_by_seeds(name), "tiers": calibrate(name)}
-               for name in args.experiments}
+    results = {
+        name: {"command": command, "criterion_by_seeds": criterion_by_seeds(name), "tiers": calibrate(name)}
+        for name in args.experiments
+    }
     path = CHECKS / "calibration.json"
     merged = json.loads(path.read_text()) if path.is_file() else {}
     merged.update(results)

@@ -38,22 +38,31 @@ def main(folders: list[str]) -> None:
     base_hits = [s["reached_at_episode"] for s in base if s["success"] and s["reached_at_episode"]]
     base_ok = sum(bool(s["success"]) for s in base)
     base_final = [s["final_metric"] for s in base]
-    print("| runs | seeds | success | Fisher p | episodes to threshold: median (IQR) | Mann-Whitney p "
-          "| final metric: median | Mann-Whitney p |")
+    print(
+        "| runs | seeds | success | Fisher p | episodes to threshold: median (IQR) | Mann-Whitney p "
+        "| final metric: median | Mann-Whitney p |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for folder in folders:
         summaries = load(Path(folder))
-        st = episodes_to_threshold_stats([s["reached_at_episode"] for s in summaries],
-                                         [bool(s["success"]) for s in summaries])
+        st = episodes_to_threshold_stats(
+            [s["reached_at_episode"] for s in summaries], [bool(s["success"]) for s in summaries]
+        )
         hits = [s["reached_at_episode"] for s in summaries if s["success"] and s["reached_at_episode"]]
         final = [s["final_metric"] for s in summaries]
         first = folder == folders[0]
         p_hits = "-" if first or not hits or not base_hits else f"{mannwhitneyu(hits, base_hits).pvalue:.3f}"
-        p_ok = "-" if first else f"{fisher_exact([[st['successes'], st['seeds'] - st['successes']], [base_ok, len(base) - base_ok]]).pvalue:.3f}"
+        p_ok = (
+            "-"
+            if first
+            else f"{fisher_exact([[st['successes'], st['seeds'] - st['successes']], [base_ok, len(base) - base_ok]]).pvalue:.3f}"  # noqa: E501
+        )
         p_final = "-" if first else f"{mannwhitneyu(final, base_final).pvalue:.3f}"
         med = "n/a" if st["median"] is None else f"{st['median']:g} ({st['q25']:g}-{st['q75']:g})"
-        print(f"| `{folder}` | {st['seeds']} | {st['successes']}/{st['seeds']} | {p_ok} | {med} | {p_hits} "
-              f"| {np.median(final):.4g} | {p_final} |")
+        print(
+            f"| `{folder}` | {st['seeds']} | {st['successes']}/{st['seeds']} | {p_ok} | {med} | {p_hits} "
+            f"| {np.median(final):.4g} | {p_final} |"
+        )
 
 
 if __name__ == "__main__":

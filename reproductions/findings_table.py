@@ -1,7 +1,7 @@
 """The findings table of results/README.md, computed from the committed run folders.
 
     python reproductions/findings_table.py            # print the table
-    python reproductions/findings_table.py --write    # replace it in results/README.md
+    python reproductions/findings_table.py --write    # replace it in results/README.md and README.md
 
 and the Keras-vs-PyTorch summary, one row per ``results/compare/**/result.json``.
 
@@ -25,7 +25,11 @@ sys.path.insert(0, str(ROOT))
 
 BEGIN, END = "<!-- findings-table:begin -->", "<!-- findings-table:end -->"
 COMPARE_BEGIN, COMPARE_END = "<!-- compare-table:begin -->", "<!-- compare-table:end -->"
-REPRODUCE = "keras-rl reproduce {exp} --variant {variant} --framework {fw}{matched} --seeds 0-9 --workers 2 --no-progress --min-success-rate 0"
+SHORT_BEGIN, SHORT_END = "<!-- findings-short:begin -->", "<!-- findings-short:end -->"
+REPRODUCE = (
+    "keras-rl reproduce {exp} --variant {variant} --framework {fw}{matched} --seeds 0-9 --workers 2 --no-progress "
+    "--min-success-rate 0"
+)
 
 # (post, experiment, variant, framework, matched init, success criterion, the post's own number)
 ROWS = [
@@ -33,11 +37,51 @@ ROWS = [
     ("000 Pendulum DDPG", "pendulum", "faithful", "torch", False, "EMA > -300", "153 (one run)"),
     ("000 Pendulum DDPG", "pendulum", "faithful", "torch", True, "EMA > -300", "153 (one run)"),
     ("000 Pendulum DDPG", "pendulum", "fixed", "keras", False, "EMA > -300", "-"),
-    ("003 CartPole DQN", "cartpole", "faithful", "keras", False, "100-ep. mean >= 475 in 600", "\"500 within 600\" (no number)"),
-    ("003 CartPole DQN", "cartpole", "faithful", "torch", False, "100-ep. mean >= 475 in 600", "\"500 within 600\" (no number)"),
-    ("001 MountainCar DDPG", "mountaincar", "faithful", "keras", False, "last-10 spread <= 2.0", "\"roughly converged within 100\""),
-    ("001 MountainCar DDPG", "mountaincar", "faithful", "torch", False, "last-10 spread <= 2.0", "\"roughly converged within 100\""),
-    ("001 MountainCar DDPG", "mountaincar", "faithful", "torch", True, "last-10 spread <= 2.0", "\"roughly converged within 100\""),
+    (
+        "003 CartPole DQN",
+        "cartpole",
+        "faithful",
+        "keras",
+        False,
+        "100-ep. mean >= 475 in 600",
+        '"500 within 600" (no number)',
+    ),
+    (
+        "003 CartPole DQN",
+        "cartpole",
+        "faithful",
+        "torch",
+        False,
+        "100-ep. mean >= 475 in 600",
+        '"500 within 600" (no number)',
+    ),
+    (
+        "001 MountainCar DDPG",
+        "mountaincar",
+        "faithful",
+        "keras",
+        False,
+        "last-10 spread <= 2.0",
+        '"roughly converged within 100"',
+    ),
+    (
+        "001 MountainCar DDPG",
+        "mountaincar",
+        "faithful",
+        "torch",
+        False,
+        "last-10 spread <= 2.0",
+        '"roughly converged within 100"',
+    ),
+    (
+        "001 MountainCar DDPG",
+        "mountaincar",
+        "faithful",
+        "torch",
+        True,
+        "last-10 spread <= 2.0",
+        '"roughly converged within 100"',
+    ),
     ("001 MountainCar DDPG", "mountaincar", "faithful-intended", "keras", False, "last-10 spread <= 2.0", "-"),
     ("001 MountainCar DDPG", "mountaincar", "fixed", "keras", False, "goal in >= 50% of last 50", "-"),
 ]
@@ -50,37 +94,83 @@ def row_numbers(folder: Path) -> dict | None:
     hits = [s["reached_at_episode"] for s in summaries if s["success"]]
     ms = [s["wall_seconds"] / s["total_steps"] * 1e3 for s in summaries if s["total_steps"]]
     q25, q50, q75 = np.percentile(hits, [25, 50, 75]) if hits else (np.nan,) * 3
-    return {"seeds": sorted(s["seed"] for s in summaries), "successes": len(hits), "n": len(summaries),
-            "median": q50, "q25": q25, "q75": q75, "ms": float(np.median(ms)) if ms else np.nan,
-            "unfinished": sum(s["status"] != "completed" for s in summaries)}
+    return {
+        "seeds": sorted(s["seed"] for s in summaries),
+        "successes": len(hits),
+        "n": len(summaries),
+        "median": q50,
+        "q25": q25,
+        "q75": q75,
+        "ms": float(np.median(ms)) if ms else np.nan,
+        "unfinished": sum(s["status"] != "completed" for s in summaries),
+    }
 
 
 def table() -> str:
     from keras_rl.runs.files import run_folder
 
-    lines = ["| post | variant | framework | success | criterion | episodes to threshold: median (IQR) | the post | ms/step | command |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| post | variant | framework | success | criterion | episodes to threshold: median (IQR) | the post | ms/step "
+        "| command |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for post, exp, variant, fw, matched, criterion, theirs in ROWS:
         folder = run_folder(ROOT / "results", exp, variant, fw, matched)
         numbers = row_numbers(folder)
         framework = fw + (" (matched init)" if matched else "")
         command = REPRODUCE.format(exp=exp, variant=variant, fw=fw, matched=" --matched-init" if matched else "")
         if numbers is None:
-            lines.append(f"| {post} | {variant} | {framework} | not run | {criterion} | - | {theirs} | - | `{command}` |")
+            lines.append(
+                f"| {post} | {variant} | {framework} | not run | {criterion} | - | {theirs} | - | `{command}` |"
+            )
             continue
         g = lambda v: "-" if not np.isfinite(v) else f"{v:g}"  # noqa: E731
-        success = f"{numbers['successes']}/{numbers['n']}" + (f" ({numbers['unfinished']} unfinished)"
-                                                               if numbers["unfinished"] else "")
-        lines.append(f"| {post} | {variant} | {framework} | {success} | {criterion} | "
-                     f"{g(numbers['median'])} ({g(numbers['q25'])}-{g(numbers['q75'])}) | {theirs} | "
-                     f"{numbers['ms']:.2f} | `{command}` |")
+        success = f"{numbers['successes']}/{numbers['n']}" + (
+            f" ({numbers['unfinished']} unfinished)" if numbers["unfinished"] else ""
+        )
+        lines.append(
+            f"| {post} | {variant} | {framework} | {success} | {criterion} | "
+            f"{g(numbers['median'])} ({g(numbers['q25'])}-{g(numbers['q75'])}) | {theirs} | "
+            f"{numbers['ms']:.2f} | `{command}` |"
+        )
+    return "\n".join(lines)
+
+
+def short_table() -> str:
+    """The README's version: success and median episodes to threshold per row, with the seeds."""
+    from scipy.stats import binomtest
+
+    from keras_rl.runs.files import run_folder
+
+    lines = [
+        "| post | variant | framework | seeds | success (95% Wilson interval) | median episodes to threshold "
+        "| the post |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for post, exp, variant, fw, matched, _criterion, theirs in ROWS:
+        numbers = row_numbers(run_folder(ROOT / "results", exp, variant, fw, matched))
+        framework = fw + (" (matched init)" if matched else "")
+        if numbers is None:
+            lines.append(f"| {post} | {variant} | {framework} | - | not run | - | {theirs} |")
+            continue
+        seeds = numbers["seeds"]
+        span = f"{seeds[0]}-{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else f"{len(seeds)} seeds"
+        median = "-" if not np.isfinite(numbers["median"]) else f"{numbers['median']:g}"
+        ci = binomtest(numbers["successes"], numbers["n"]).proportion_ci(method="wilson")
+        lines.append(
+            f"| {post} | {variant} | {framework} | {span} | {numbers['successes']}/{numbers['n']} "
+            f"({ci.low:.2f}-{ci.high:.2f}) | {median} | {theirs} |"
+        )
     return "\n".join(lines)
 
 
 def compare_table() -> str:
     """One row per committed ``results/compare/**/result.json``."""
-    lines = ["| experiment | torch init | success keras / torch (Fisher p) | episodes to threshold, median keras / torch | keras - torch [95% CI] | Mann-Whitney p | report |",
-             "|---|---|---|---|---|---|---|"]
+    lines = [
+        "| experiment | torch init | success keras / torch (Fisher p) | episodes to threshold, median keras / torch "
+        "| keras - torch [95% CI] | Mann-Whitney p | report |",
+        "|---|---|---|---|---|---|---|",
+    ]
     g = lambda v: "-" if v is None else f"{v:.2g}"  # noqa: E731  (p-values)
     m = lambda v: "-" if v is None else f"{v:g}"  # noqa: E731  (medians, exact)
     for path in sorted((ROOT / "results" / "compare").glob("**/result.json")):
@@ -89,9 +179,11 @@ def compare_table() -> str:
         d = r["median_difference"]
         diff = "-" if d is None else f"{d['estimate']:g} [{d['low']:g}, {d['high']:g}]"
         link = path.parent.relative_to(ROOT / "results") / "report.md"
-        lines.append(f"| {r['experiment']} ({r['variant']}) | {'matched to Keras' if r['matched_init'] else 'torch default'} "
-                     f"| {k['successes']}/{len(k['seeds'])} / {t['successes']}/{len(t['seeds'])} ({g(r['fisher_p'])}) "
-                     f"| {m(k['median'])} / {m(t['median'])} | {diff} | {g(r['mann_whitney'][1])} | [{link}]({link}) |")
+        lines.append(
+            f"| {r['experiment']} ({r['variant']}) | {'matched to Keras' if r['matched_init'] else 'torch default'} "
+            f"| {k['successes']}/{len(k['seeds'])} / {t['successes']}/{len(t['seeds'])} ({g(r['fisher_p'])}) "
+            f"| {m(k['median'])} / {m(t['median'])} | {diff} | {g(r['mann_whitney'][1])} | [{link}]({link}) |"
+        )
     return "\n".join(lines)
 
 
@@ -116,7 +208,9 @@ def main() -> None:
     readme = ROOT / "results" / "README.md"
     content = replace_block(readme.read_text(), BEGIN, END, text)
     atomic_write_text(readme, replace_block(content, COMPARE_BEGIN, COMPARE_END, compared))
-    print(f"updated {readme}")
+    main_readme = ROOT / "README.md"
+    atomic_write_text(main_readme, replace_block(main_readme.read_text(), SHORT_BEGIN, SHORT_END, short_table()))
+    print(f"updated {readme} and {main_readme}")
 
 
 if __name__ == "__main__":

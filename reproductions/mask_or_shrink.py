@@ -51,7 +51,7 @@ def rebuild_seconds(experiment: str, seeds: int) -> float:
     learner = stacked_implementation(experiment, "keras").load()(configs, spec)
     layout = learner.layout if hasattr(learner, "layout") else learner.learner.layout
     rows = np.zeros((seeds, configs[0].batch_size, layout.width), np.float32)
-    states = rows[:, 0, :layout.obs_dim]
+    states = rows[:, 0, : layout.obs_dim]
     learner.train_and_act(rows, states)
     learner.act(states)
     learner.act_without_update(states)
@@ -82,17 +82,24 @@ def main() -> None:
     def rebuild_cost(k: int) -> float:  # nearest measured size
         return rebuild[min(rebuild, key=lambda m: abs(m - k))]
 
-    lines = [f"# Mask or shrink: `{args.batched}` (batches of {size})", "",
-             f"Command: `python reproductions/mask_or_shrink.py {args.batched} --batch-size {size}"
-             + (f" --write {args.write}`" if args.write else "`"), "",
-             "Measured here: the compiled train-and-act call per vector step, "
-             + ", ".join(f"{k} seeds {call[k] * 1000:.2f} ms" for k in call)
-             + "; a rebuild (stack and compile) " + ", ".join(f"{k} seeds {v:.1f} s" for k, v in rebuild.items())
-             + ".", "",
-             "| batch (seeds) | vector steps | seed steps run | learner s, mask | learner s, shrink at every finish "
-             "| learner s, shrink once at half | best |", "|---|---|---|---|---|---|---|"]
+    lines = [
+        f"# Mask or shrink: `{args.batched}` (batches of {size})",
+        "",
+        f"Command: `python reproductions/mask_or_shrink.py {args.batched} --batch-size {size}"
+        + (f" --write {args.write}`" if args.write else "`"),
+        "",
+        "Measured here: the compiled train-and-act call per vector step, "
+        + ", ".join(f"{k} seeds {call[k] * 1000:.2f} ms" for k in call)
+        + "; a rebuild (stack and compile) "
+        + ", ".join(f"{k} seeds {v:.1f} s" for k, v in rebuild.items())
+        + ".",
+        "",
+        "| batch (seeds) | vector steps | seed steps run | learner s, mask | learner s, shrink at every finish "
+        "| learner s, shrink once at half | best |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for i in range(0, len(summaries), size):
-        group = summaries[i:i + size]
+        group = summaries[i : i + size]
         ends = sorted(s.total_steps for s in group)
         mask = ends[-1] * call[len(group)]
         shrink, previous, running = 0.0, 0, len(group)
@@ -103,11 +110,14 @@ def main() -> None:
                 shrink += rebuild_cost(running)
         half = ends[len(group) // 2 - 1] if len(group) > 1 else ends[-1]  # when half the seeds have finished
         kept = len(group) - len(group) // 2
-        once = half * call[len(group)] + (rebuild_cost(kept) + (ends[-1] - half) * call[kept] if kept < len(group)
-                                          else 0.0)
+        once = half * call[len(group)] + (
+            rebuild_cost(kept) + (ends[-1] - half) * call[kept] if kept < len(group) else 0.0
+        )
         best = min((mask, "mask"), (shrink, "shrink at every finish"), (once, "shrink once"))[1]
-        lines.append(f"| {group[0].seed}..{group[-1].seed} | {ends[-1]} | {sum(ends)} | {mask:.0f} | {shrink:.0f} "
-                     f"| {once:.0f} | {best} |")
+        lines.append(
+            f"| {group[0].seed}..{group[-1].seed} | {ends[-1]} | {sum(ends)} | {mask:.0f} | {shrink:.0f} "
+            f"| {once:.0f} | {best} |"
+        )
     text = "\n".join(lines) + "\n"
     print(text)
     if args.write:

@@ -4,7 +4,7 @@ Same as ``keras-rl reproduce mountaincar ...``:
 
     python reproductions/mountaincar_ddpg.py --seeds 31                        # faithful, literal gradient
     python reproductions/mountaincar_ddpg.py --variant faithful-intended --seeds 0-9 --workers 2
-    python reproductions/mountaincar_ddpg.py --variant fixed --seeds 31        # then: keras-rl evaluate ... --episodes 100
+    python reproductions/mountaincar_ddpg.py --variant fixed --seeds 31   # then: keras-rl evaluate ... --episodes 100
 
 See reproductions/FIDELITY.md (P001-*) for every switch and how the Keras 2 semantics were settled.
 """

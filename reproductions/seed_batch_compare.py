@@ -5,7 +5,8 @@
 
 For each seed: the first episode whose row differs (every column but ``wall_seconds``: a
 loss rounded differently in the 8th digit counts), the first episode whose score differs (the
-seed played a different episode), and episodes to threshold both ways. Over the seeds: success counts with Fisher's exact test,
+seed played a different episode), and episodes to threshold both ways. Over the seeds: success
+counts with Fisher's exact test,
 the difference of median episodes-to-threshold with a 95% percentile-bootstrap CI, and the
 Mann-Whitney U p (``keras_rl/report/stats.py``).
 """
@@ -43,9 +44,12 @@ def _batch_walls(summaries: list[RunSummary], size: int) -> str:
     seeds, the batches being ``size`` consecutive seeds of the batched folder (all of them,
     also those without a solo twin)."""
     ordered = sorted(summaries, key=lambda s: s.seed)
-    walls = [max(s.wall_seconds for s in ordered[i:i + size]) for i in range(0, len(ordered), size)]
-    return (f"the {len(walls)} batches of {size} took " + ", ".join(f"{w:.0f} s" for w in walls)
-            + " (each as long as its slowest seed)")
+    walls = [max(s.wall_seconds for s in ordered[i : i + size]) for i in range(0, len(ordered), size)]
+    return (
+        f"the {len(walls)} batches of {size} took "
+        + ", ".join(f"{w:.0f} s" for w in walls)
+        + " (each as long as its slowest seed)"
+    )
 
 
 def main() -> None:
@@ -56,12 +60,15 @@ def main() -> None:
     parser.add_argument("--write", type=Path, default=None, help="also write the report here (markdown)")
     args = parser.parse_args()
     seeds = sorted(int(p.name.split("_")[1]) for p in args.solo.glob("seed_*"))
-    lines = [f"# Seed-batched vs solo: `{args.batched}` against `{args.solo}`", "",
-             f"Command: `python reproductions/seed_batch_compare.py {args.solo} {args.batched} "
-             f"--batch-size {args.batch_size}"
-             + (f" --write {args.write}`" if args.write else "`"), "",
-             "| seed | first differing row | first differing score | solo: reached at | batched: reached at |",
-             "|---|---|---|---|---|"]
+    lines = [
+        f"# Seed-batched vs solo: `{args.batched}` against `{args.solo}`",
+        "",
+        f"Command: `python reproductions/seed_batch_compare.py {args.solo} {args.batched} "
+        f"--batch-size {args.batch_size}" + (f" --write {args.write}`" if args.write else "`"),
+        "",
+        "| seed | first differing row | first differing score | solo: reached at | batched: reached at |",
+        "|---|---|---|---|---|",
+    ]
     solo_s, batch_s = [], []
     for seed in seeds:
         a, b = RunSummary.read(args.solo / f"seed_{seed}"), RunSummary.read(args.batched / f"seed_{seed}")
@@ -70,21 +77,28 @@ def main() -> None:
         ra, rb = rows(args.solo / f"seed_{seed}" / "episodes.csv"), rows(args.batched / f"seed_{seed}" / "episodes.csv")
         first = _first_difference(ra, rb, lambda r: r)
         first_score = _first_difference(ra, rb, lambda r: (r["steps"], r["score"]))
-        lines.append(f"| {seed} | {first or 'none (identical)'} | {first_score or 'none'} | {a.reached_at_episode} "
-                     f"| {b.reached_at_episode} |")
+        lines.append(
+            f"| {seed} | {first or 'none (identical)'} | {first_score or 'none'} | {a.reached_at_episode} "
+            f"| {b.reached_at_episode} |"
+        )
     hits_a = [s.reached_at_episode for s in solo_s if s.success]
     hits_b = [s.reached_at_episode for s in batch_s if s.success]
     n = len(seeds)
     diff = median_difference_ci(hits_b, hits_a, np.random.default_rng(0)) if hits_a and hits_b else None
     _, p = mann_whitney(hits_b, hits_a)
     fisher = fisher_exact(len(hits_b), n, len(hits_a), n)
-    lines += ["", f"- Success: batched {len(hits_b)}/{n}, solo {len(hits_a)}/{n} (Fisher p = {fisher:.3g}).",
-              f"- Median episodes to threshold: batched {np.median(hits_b) if hits_b else 'n/a'}, solo "
-              f"{np.median(hits_a) if hits_a else 'n/a'}; batched minus solo {diff} (95% percentile bootstrap, "
-              f"10000 resamples).",
-              f"- Mann-Whitney U (two-sided) p = {p:.3g}.",
-              f"- Wall time: the solo seeds took {sum(s.wall_seconds for s in solo_s):.0f} s of seed time in all; "
-              + _batch_walls([RunSummary.read(d) for d in args.batched.glob("seed_*")], args.batch_size) + ".", ""]
+    lines += [
+        "",
+        f"- Success: batched {len(hits_b)}/{n}, solo {len(hits_a)}/{n} (Fisher p = {fisher:.3g}).",
+        f"- Median episodes to threshold: batched {np.median(hits_b) if hits_b else 'n/a'}, solo "
+        f"{np.median(hits_a) if hits_a else 'n/a'}; batched minus solo {diff} (95% percentile bootstrap, "
+        f"10000 resamples).",
+        f"- Mann-Whitney U (two-sided) p = {p:.3g}.",
+        f"- Wall time: the solo seeds took {sum(s.wall_seconds for s in solo_s):.0f} s of seed time in all; "
+        + _batch_walls([RunSummary.read(d) for d in args.batched.glob("seed_*")], args.batch_size)
+        + ".",
+        "",
+    ]
     text = "\n".join(lines)
     print(text)
     if args.write:

@@ -25,7 +25,8 @@ def unsettled(folder: Path, first: int, last: int, threshold: float) -> dict[int
     for seed_dir in sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1])):
         rows = read_episodes(seed_dir / "episodes.csv")
         counts[int(seed_dir.name.split("_")[1])] = sum(
-            row["metric"] > threshold for row in rows if first <= row["episode"] <= last)
+            row["metric"] > threshold for row in rows if first <= row["episode"] <= last
+        )
     return counts
 
 

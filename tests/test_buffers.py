@@ -60,8 +60,13 @@ def test_sampling_is_uniform_over_stored_rows(rng):
 
 
 def test_layout_pack_split_roundtrip(rng):
-    batch = Batch(rng.normal(size=(4, 3)), rng.normal(size=(4, 1)), rng.normal(size=4),
-                  rng.normal(size=(4, 3)), np.array([0, 1, 0, 0]))
+    batch = Batch(
+        rng.normal(size=(4, 3)),
+        rng.normal(size=(4, 1)),
+        rng.normal(size=4),
+        rng.normal(size=(4, 3)),
+        np.array([0, 1, 0, 0]),
+    )
     back = LAYOUT.split(LAYOUT.pack(batch))
     for a, b in zip(batch, back):
         np.testing.assert_allclose(np.asarray(a, np.float32).reshape(np.shape(b)), b)

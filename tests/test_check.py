@@ -65,8 +65,10 @@ def test_the_false_alarm_rate_of_a_resampled_sample_is_about_alpha():
 
 def test_power_grows_with_the_shift_and_the_detectable_shift_is_found():
     base = np.random.default_rng(2).normal(130, 25, 30).round()
-    small, large = power(base, base + 5, 10, "episodes_to_threshold", 0.01, repeats=300), \
-        power(base, base + 60, 10, "episodes_to_threshold", 0.01, repeats=300)
+    small, large = (
+        power(base, base + 5, 10, "episodes_to_threshold", 0.01, repeats=300),
+        power(base, base + 60, 10, "episodes_to_threshold", 0.01, repeats=300),
+    )
     assert small < 0.3 and large > 0.95
     shift = detectable_shift(base, 10, 0.01, budget=1000, repeats=200)
     assert shift is not None and 5 < shift < 60
@@ -90,8 +92,9 @@ def test_every_rule_is_well_formed_and_every_post_has_five_mutants_some_gross():
 
 
 def _cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "keras_rl", "check", *args], capture_output=True, text=True,
-                          timeout=300, cwd=cwd)
+    return subprocess.run(
+        [sys.executable, "-m", "keras_rl", "check", *args], capture_output=True, text=True, timeout=300, cwd=cwd
+    )
 
 
 def test_check_refuses_bad_input_with_exit_2_and_touches_nothing(tmp_path):
@@ -146,7 +149,11 @@ def test_each_calibrated_rule_is_the_one_the_pre_registered_criterion_picks():
             if "not_calibrated" in result:
                 continue
             rule = RULES[(name, tier)]
-            assert result["chosen"] == {"statistic": rule.statistic, "alpha": rule.alpha}, (name, tier, result["chosen"])
+            assert result["chosen"] == {"statistic": rule.statistic, "alpha": rule.alpha}, (
+                name,
+                tier,
+                result["chosen"],
+            )
             mine = next(c for c in result["candidates"] if (c["statistic"], c["alpha"]) == (rule.statistic, rule.alpha))
             assert mine["false_alarm_rate"] <= 0.01 and (mine["seeds"], mine["episodes"]) == (rule.seeds, rule.episodes)
 
@@ -159,8 +166,12 @@ def test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline(
     code bases, and on a grossly broken one (the smoke tier's measured power) nearly always.
     It replaces the k-of-n threshold tests of posts 000, 001 and 003 (Keras)."""
     out = tmp_path / "check"
-    proc = subprocess.run([sys.executable, "-m", "keras_rl", "check", "--tier", "smoke", "--no-progress",
-                           "--out", str(out)], capture_output=True, text=True, timeout=1500)
+    proc = subprocess.run(
+        [sys.executable, "-m", "keras_rl", "check", "--tier", "smoke", "--no-progress", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=1500,
+    )
     report = json.loads((out / "check.json").read_text())
     assert proc.returncode == 0, (proc.stdout, proc.stderr[-3000:])
     assert [e["experiment"] for e in report["experiments"]] == ["pendulum", "cartpole", "mountaincar"]
@@ -183,8 +194,9 @@ def test_results_readme_states_the_calibrated_error_rates():
     spec.loader.exec_module(module)
     readme = (root / "results" / "README.md").read_text()
     stated = readme.split(module.RULES_BEGIN, 1)[1].split(module.RULES_END, 1)[0].strip()
-    assert stated == module.rules_table(json.loads(CALIBRATION.read_text())), \
+    assert stated == module.rules_table(json.loads(CALIBRATION.read_text())), (
         "results/README.md is stale: run python reproductions/check_calibrate.py ... --write"
+    )
 
 
 def test_check_names_an_unknown_experiment_before_tensorflow_loads():
@@ -192,8 +204,10 @@ def test_check_names_an_unknown_experiment_before_tensorflow_loads():
     import subprocess
     import sys
 
-    code = ("import sys; from keras_rl.cli import main; rc = main(['check', 'cartpool']); "
-            "print(rc, 'tensorflow' in sys.modules)")
+    code = (
+        "import sys; from keras_rl.cli import main; rc = main(['check', 'cartpool']); "
+        "print(rc, 'tensorflow' in sys.modules)"
+    )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.stdout.split() == ["2", "False"], proc.stderr
     assert "unknown experiment 'cartpool'; check knows pendulum, cartpole, mountaincar" in proc.stderr

@@ -28,8 +28,21 @@ def run_cli(*args, **kwargs):
 @pytest.fixture(scope="module")
 def short_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("runs") / "p"
-    proc = run_cli("reproduce", "pendulum", "--seeds", "3", "--episodes", "7", "--no-progress",
-                   "--set", "stop_at_threshold=false", "--set", "train_start=600", "--out", str(out))
+    proc = run_cli(
+        "reproduce",
+        "pendulum",
+        "--seeds",
+        "3",
+        "--episodes",
+        "7",
+        "--no-progress",
+        "--set",
+        "stop_at_threshold=false",
+        "--set",
+        "train_start=600",
+        "--out",
+        str(out),
+    )
     assert proc.returncode == 1, proc.stderr  # 7 episodes cannot reach -300: criterion fails
     return out / "seed_3"
 
@@ -40,23 +53,29 @@ def test_parse_seeds():
     assert parse_seeds("13") == [13]
 
 
-@pytest.mark.parametrize("argv,message", [
-    (["reproduce", "cartpool"], "unknown experiment 'cartpool'"),
-    (["reproduce", "pendulum", "--seeds", "5-2"], "runs backwards"),
-    (["reproduce", "pendulum", "--seeds", "a-b"], "cannot read seeds"),
-    (["reproduce", "pendulum", "--episodes", "0"], "--episodes must be positive"),
-    (["reproduce", "pendulum", "--episodes", "-3"], "--episodes must be positive"),
-    (["reproduce", "pendulum", "--variant", "fastest"], "unknown variant 'fastest'"),
-    (["reproduce", "pendulum", "--set", "actor_lr=-0.001"], "actor_lr must be positive"),
-    (["reproduce", "pendulum", "--set", "tau=2"], "tau must be in (0, 1]"),
-    (["reproduce", "pendulum", "--set", "gamma=nan"], "gamma must be finite"),
-    (["reproduce", "pendulum", "--set", "batch_size=lots"], "batch_size expects an int"),
-    (["reproduce", "pendulum", "--set", "warp=9"], "unknown pendulum config field 'warp'"),
-    (["reproduce", "pendulum", "--workers", "0"], "--workers must be at least 1"),
-    (["reproduce", "pendulum", "--set", "env_id=NoSuchEnv-v9"], "unknown environment 'NoSuchEnv-v9'"),
-    (["reproduce", "pendulum", "--set", "env_id=CartPole-v1", "--no-progress"], "needs a continuous Box action space"),
-    (["evaluate", "/no/such/run"], "does not exist"),
-])
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["reproduce", "cartpool"], "unknown experiment 'cartpool'"),
+        (["reproduce", "pendulum", "--seeds", "5-2"], "runs backwards"),
+        (["reproduce", "pendulum", "--seeds", "a-b"], "cannot read seeds"),
+        (["reproduce", "pendulum", "--episodes", "0"], "--episodes must be positive"),
+        (["reproduce", "pendulum", "--episodes", "-3"], "--episodes must be positive"),
+        (["reproduce", "pendulum", "--variant", "fastest"], "unknown variant 'fastest'"),
+        (["reproduce", "pendulum", "--set", "actor_lr=-0.001"], "actor_lr must be positive"),
+        (["reproduce", "pendulum", "--set", "tau=2"], "tau must be in (0, 1]"),
+        (["reproduce", "pendulum", "--set", "gamma=nan"], "gamma must be finite"),
+        (["reproduce", "pendulum", "--set", "batch_size=lots"], "batch_size expects an int"),
+        (["reproduce", "pendulum", "--set", "warp=9"], "unknown pendulum config field 'warp'"),
+        (["reproduce", "pendulum", "--workers", "0"], "--workers must be at least 1"),
+        (["reproduce", "pendulum", "--set", "env_id=NoSuchEnv-v9"], "unknown environment 'NoSuchEnv-v9'"),
+        (
+            ["reproduce", "pendulum", "--set", "env_id=CartPole-v1", "--no-progress"],
+            "needs a continuous Box action space",
+        ),
+        (["evaluate", "/no/such/run"], "does not exist"),
+    ],
+)
 def test_bad_input_is_named_and_exits_non_zero(argv, message, capsys, tmp_path):
     if argv[0] == "reproduce":
         argv = [*argv, "--out", str(tmp_path / "out")]
@@ -221,11 +240,28 @@ def test_ctrl_c_leaves_valid_files_marked_unfinished(tmp_path, seeds, workers):
     # A new session, so that SIGINT can go to the whole group as a terminal's Ctrl-C does.
     # SIGINT back to its default in the child: a test run launched in the background (`cmd &`
     # in a script) inherits SIGINT as ignored, and Python then never raises KeyboardInterrupt.
-    proc = subprocess.Popen([*CLI, "reproduce", "pendulum", "--seeds", seeds, "--workers", str(workers),
-                             "--no-progress", "--set", "stop_at_threshold=false", "--out", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                            start_new_session=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = subprocess.Popen(
+        [
+            *CLI,
+            "reproduce",
+            "pendulum",
+            "--seeds",
+            seeds,
+            "--workers",
+            str(workers),
+            "--no-progress",
+            "--set",
+            "stop_at_threshold=false",
+            "--out",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     csv = out / "seed_0" / "episodes.csv"
     deadline = time.time() + 300
     while time.time() < deadline:
@@ -262,8 +298,20 @@ def test_framework_the_experiment_does_not_have(capsys, tmp_path):
 def test_torch_ddpg_run_folder_evaluate_and_corrupt_checkpoint(tmp_path, experiment, episodes):
     pytest.importorskip("torch", reason="needs the torch extra")
     out = tmp_path / "t"
-    proc = run_cli("reproduce", experiment, "--framework", "torch", "--matched-init", "--seeds", "1",
-                   "--episodes", str(episodes), "--no-progress", "--out", str(out))
+    proc = run_cli(
+        "reproduce",
+        experiment,
+        "--framework",
+        "torch",
+        "--matched-init",
+        "--seeds",
+        "1",
+        "--episodes",
+        str(episodes),
+        "--no-progress",
+        "--out",
+        str(out),
+    )
     assert proc.returncode == 1, proc.stderr  # too few episodes for either criterion
     run_dir = out / "seed_1"
     for name in ("config.json", "episodes.csv", "summary.json", "curve.png", "actor.pt", "critic.pt"):
@@ -288,8 +336,19 @@ def test_cartpole_run_folder_and_evaluate_with_gif(tmp_path, framework, weights)
     if framework == "torch":
         pytest.importorskip("torch", reason="needs the torch extra")
     out = tmp_path / "c"
-    proc = run_cli("reproduce", "cartpole", "--framework", framework, "--seeds", "2", "--episodes", "20",
-                   "--no-progress", "--out", str(out))
+    proc = run_cli(
+        "reproduce",
+        "cartpole",
+        "--framework",
+        framework,
+        "--seeds",
+        "2",
+        "--episodes",
+        "20",
+        "--no-progress",
+        "--out",
+        str(out),
+    )
     assert proc.returncode == 1, proc.stderr  # 20 episodes cannot reach a 100-episode mean of 475
     run_dir = out / "seed_2"
     for name in ("config.json", "episodes.csv", "summary.json", "curve.png", weights):
@@ -346,9 +405,24 @@ def test_a_second_command_writing_the_same_run_folder_is_refused(tmp_path):
     cleared the first's folder under it). The second now exits 2 naming the folder, and the
     first finishes as if alone."""
     out = tmp_path / "out"
-    argv = [*CLI, "reproduce", "pendulum", "--seeds", "4", "--episodes", "60", "--no-progress",
-            "--set", "stop_at_threshold=false", "--set", "train_start=64", "--min-success-rate", "0",
-            "--out", str(out)]
+    argv = [
+        *CLI,
+        "reproduce",
+        "pendulum",
+        "--seeds",
+        "4",
+        "--episodes",
+        "60",
+        "--no-progress",
+        "--set",
+        "stop_at_threshold=false",
+        "--set",
+        "train_start=64",
+        "--min-success-rate",
+        "0",
+        "--out",
+        str(out),
+    ]
     first = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     csv_path = out / "seed_4" / "episodes.csv"
     deadline = time.monotonic() + 300
@@ -366,14 +440,20 @@ def test_a_second_command_writing_the_same_run_folder_is_refused(tmp_path):
     assert again.returncode == 0, again.stderr  # the lock went with the first command
 
 
-@pytest.mark.parametrize("damage, message", [
-    (lambda p: p.write_text("garbage\n"), "is not an episodes.csv (no header with 'score')"),
-    (lambda p: p.write_text(""), "is not an episodes.csv"),
-    (lambda p: p.write_text(p.read_text()[:p.read_text().rindex(",-") + 2]), "line 8"),  # cut after a minus sign
-    (lambda p: p.write_bytes(b"\xff\xfe\x00garbage"), "is not text"),
-    (lambda p: p.write_text("".join(p.read_text().splitlines(keepends=True)[:4])), "holds 3 episodes, but its "
-                                                                                   "summary.json counts 7"),
-], ids=["garbage", "empty", "cut-mid-number", "binary", "truncated-rows"])
+@pytest.mark.parametrize(
+    "damage, message",
+    [
+        (lambda p: p.write_text("garbage\n"), "is not an episodes.csv (no header with 'score')"),
+        (lambda p: p.write_text(""), "is not an episodes.csv"),
+        (lambda p: p.write_text(p.read_text()[: p.read_text().rindex(",-") + 2]), "line 8"),  # cut after a minus sign
+        (lambda p: p.write_bytes(b"\xff\xfe\x00garbage"), "is not text"),
+        (
+            lambda p: p.write_text("".join(p.read_text().splitlines(keepends=True)[:4])),
+            "holds 3 episodes, but its summary.json counts 7",
+        ),
+    ],
+    ids=["garbage", "empty", "cut-mid-number", "binary", "truncated-rows"],
+)
 def test_aggregate_names_a_damaged_episodes_csv_and_exits_2(short_run, tmp_path, damage, message, capsys):
     """#23.6 and #23.7: a damaged episodes.csv gave a raw traceback (exit 1); a truncated one
     was accepted silently. Now exit 2, naming the file, and nothing is written."""
@@ -408,13 +488,25 @@ def test_reproduce_reruns_a_recorded_config_and_dry_run_trains_nothing(tmp_path)
     import csv
 
     committed = Path(__file__).resolve().parent.parent / "results" / "cartpole" / "faithful" / "seed_0"
-    dry = run_cli("reproduce", "cartpole", "--config", str(committed / "config.json"), "--dry-run",
-                  "--out", str(tmp_path / "dry"))
+    dry = run_cli(
+        "reproduce", "cartpole", "--config", str(committed / "config.json"), "--dry-run", "--out", str(tmp_path / "dry")
+    )
     assert dry.returncode == 0, dry.stderr
     assert '"q_lr":' in dry.stdout and f"seed 0: {tmp_path / 'dry' / 'seed_0'} (new)" in dry.stdout
     assert not (tmp_path / "dry").exists()
-    proc = run_cli("reproduce", "cartpole", "--config", str(committed), "--episodes", "20", "--no-progress",
-                   "--min-success-rate", "0", "--out", str(tmp_path / "again"))
+    proc = run_cli(
+        "reproduce",
+        "cartpole",
+        "--config",
+        str(committed),
+        "--episodes",
+        "20",
+        "--no-progress",
+        "--min-success-rate",
+        "0",
+        "--out",
+        str(tmp_path / "again"),
+    )
     assert proc.returncode == 0, proc.stderr
 
     def rows(path):

@@ -32,8 +32,9 @@ CASES = [
     # (committed seed folder, experiment, extra CLI args, episodes to rerun or None for the whole run)
     pytest.param("pendulum/faithful/seed_0", "pendulum", (), None, id="post000-faithful-seed0"),
     pytest.param("mountaincar/faithful/seed_0", "mountaincar", (), None, id="post001-faithful-seed0"),
-    pytest.param("pendulum/faithful-torch/seed_0", "pendulum", ("--framework", "torch"), 12,
-                 id="post000-torch-seed0-first12"),
+    pytest.param(
+        "pendulum/faithful-torch/seed_0", "pendulum", ("--framework", "torch"), 12, id="post000-torch-seed0-first12"
+    ),
     pytest.param("cartpole/faithful/seed_0", "cartpole", (), 60, id="post003-seed0-first60"),
 ]
 
@@ -55,16 +56,40 @@ def test_committed_run_reproduces_bit_for_bit(tmp_path, folder, experiment, extr
         expected = expected[:episodes]
     theirs = summary.get("provenance", {}).get("cpu_model")
     if theirs is not None and theirs != cpu_model():
-        warnings.warn(f"{folder} was made on {theirs!r}, this is {cpu_model()!r}: TensorFlow does not promise "
-                      "bit-exactness across CPUs, so only the first 5 episodes are compared", stacklevel=2)
+        warnings.warn(
+            f"{folder} was made on {theirs!r}, this is {cpu_model()!r}: TensorFlow does not promise "
+            "bit-exactness across CPUs, so only the first 5 episodes are compared",
+            stacklevel=2,
+        )
         expected = expected[:5]
-    budget = len(expected) if episodes is not None or len(expected) < len(read_rows(committed / "episodes.csv")) \
+    budget = (
+        len(expected)
+        if episodes is not None or len(expected) < len(read_rows(committed / "episodes.csv"))
         else config["episodes"]
+    )
     out = tmp_path / "run"
     proc = subprocess.run(
-        [sys.executable, "-m", "keras_rl", "reproduce", experiment, "--variant", config["variant"],
-         "--seeds", str(config["seed"]), "--episodes", str(budget), "--no-progress", "--out", str(out), *extra],
-        capture_output=True, text=True, timeout=900)
+        [
+            sys.executable,
+            "-m",
+            "keras_rl",
+            "reproduce",
+            experiment,
+            "--variant",
+            config["variant"],
+            "--seeds",
+            str(config["seed"]),
+            "--episodes",
+            str(budget),
+            "--no-progress",
+            "--out",
+            str(out),
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert proc.returncode in (0, 1), proc.stderr
     got = read_rows(out / f"seed_{config['seed']}" / "episodes.csv")
     assert len(got) == len(expected)
@@ -89,13 +114,34 @@ def test_committed_seed_batch_reproduces_bit_for_bit(tmp_path, folder, experimen
     assert f"--seeds 0-29 --workers 2 --seed-batch {last - first + 1}" in summary["command"]  # batches 0-14, 15-29
     theirs = summary.get("provenance", {}).get("cpu_model")
     if theirs is not None and theirs != cpu_model():
-        warnings.warn(f"{folder} was made on {theirs!r}, this is {cpu_model()!r}: only 5 episodes are compared", stacklevel=2)
+        warnings.warn(
+            f"{folder} was made on {theirs!r}, this is {cpu_model()!r}: only 5 episodes are compared", stacklevel=2
+        )
         episodes = 5
     out = tmp_path / "run"
     proc = subprocess.run(
-        [sys.executable, "-m", "keras_rl", "reproduce", experiment, "--seeds", seeds, "--seed-batch",
-         str(last - first + 1), "--episodes", str(episodes), "--no-progress", "--min-success-rate", "0",
-         "--out", str(out)], capture_output=True, text=True, timeout=900)
+        [
+            sys.executable,
+            "-m",
+            "keras_rl",
+            "reproduce",
+            experiment,
+            "--seeds",
+            seeds,
+            "--seed-batch",
+            str(last - first + 1),
+            "--episodes",
+            str(episodes),
+            "--no-progress",
+            "--min-success-rate",
+            "0",
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert proc.returncode == 0, proc.stderr
     for seed in range(first, last + 1):
         expected = read_rows(committed / f"seed_{seed}" / "episodes.csv")[:episodes]

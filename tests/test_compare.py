@@ -52,8 +52,9 @@ def test_iqm_is_the_mean_of_the_middle_half():
 def test_bootstrap_intervals_with_a_fixed_rng_are_scipys_percentile_intervals():
     x = np.array([3.0, 7, 1, 9, 4, 4, 8, 2, 6, 5])
     ci = iqm_ci(x, np.random.default_rng(42), n_resamples=2000)
-    ref = stats.bootstrap((x,), iqm, n_resamples=2000, method="percentile", vectorized=False,
-                          random_state=np.random.default_rng(42)).confidence_interval
+    ref = stats.bootstrap(
+        (x,), iqm, n_resamples=2000, method="percentile", vectorized=False, random_state=np.random.default_rng(42)
+    ).confidence_interval
     assert (ci.low, ci.high) == (ref.low, ref.high)
     assert ci.low <= ci.estimate <= ci.high and x.min() <= ci.low and ci.high <= x.max()
     assert iqm_ci(x, np.random.default_rng(42), n_resamples=2000) == ci  # same RNG, same interval
@@ -71,9 +72,29 @@ def test_median_difference_interval_of_separated_samples_excludes_zero():
 def compared(tmp_path_factory):
     pytest.importorskip("torch", reason="compare needs the torch extra")
     root = tmp_path_factory.mktemp("cmp")
-    proc = subprocess.run([sys.executable, "-m", "keras_rl", "compare", "cartpole", "--seeds", "0-1", "--episodes", "20",
-                           "--runs", str(root / "runs"), "--out", str(root / "out"), "--workers", "2", "--no-progress"],
-                          capture_output=True, text=True, timeout=900)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "keras_rl",
+            "compare",
+            "cartpole",
+            "--seeds",
+            "0-1",
+            "--episodes",
+            "20",
+            "--runs",
+            str(root / "runs"),
+            "--out",
+            str(root / "out"),
+            "--workers",
+            "2",
+            "--no-progress",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     return root
 
@@ -110,8 +131,20 @@ def test_compare_writes_a_well_formed_report_whose_numbers_the_csvs_reproduce(co
 
 def test_compare_reuses_matching_runs_and_refuses_mismatched_ones(compared, capsys):
     runs, out = compared / "runs", compared / "out2"
-    args = ["compare", "cartpole", "--seeds", "0-1", "--episodes", "20", "--runs", str(runs), "--out", str(out),
-            "--no-progress", "--reuse-only"]
+    args = [
+        "compare",
+        "cartpole",
+        "--seeds",
+        "0-1",
+        "--episodes",
+        "20",
+        "--runs",
+        str(runs),
+        "--out",
+        str(out),
+        "--no-progress",
+        "--reuse-only",
+    ]
     assert main(args) == 0  # everything reusable: nothing runs
     assert (out / "cartpole" / "report.md").is_file()
     # a different config: refuse to mix, name the field
@@ -127,8 +160,9 @@ def test_compare_reuses_matching_runs_and_refuses_mismatched_ones(compared, caps
     summary["provenance"]["code_tree"] = "0" * 40  # made from other package files
     summary_path.write_text(json.dumps(summary))
     assert main(args) == 2
-    assert re.search(r"made by code version 0{40}\S*, this is \S+; refusing to mix code versions",
-                     capsys.readouterr().err)
+    assert re.search(
+        r"made by code version 0{40}\S*, this is \S+; refusing to mix code versions", capsys.readouterr().err
+    )
     del summary["provenance"]  # a run from before commits were recorded
     summary_path.write_text(json.dumps(summary))
     assert main(args) == 2
@@ -145,8 +179,19 @@ def test_compare_without_torch_is_a_clear_error(monkeypatch, capsys, tmp_path, e
 
 def test_compare_pendulum_with_matched_init_keeps_its_runs_and_report_apart(tmp_path):
     pytest.importorskip("torch", reason="compare needs the torch extra")
-    args = ["compare", "pendulum", "--seeds", "0-1", "--episodes", "6", "--runs", str(tmp_path / "runs"),
-            "--out", str(tmp_path / "out"), "--no-progress"]
+    args = [
+        "compare",
+        "pendulum",
+        "--seeds",
+        "0-1",
+        "--episodes",
+        "6",
+        "--runs",
+        str(tmp_path / "runs"),
+        "--out",
+        str(tmp_path / "out"),
+        "--no-progress",
+    ]
     assert main([*args, "--matched-init"]) == 0
     report = (tmp_path / "out" / "pendulum" / "matched-init" / "report.md").read_text()
     assert "Initialisation: matched init" in report and "| torch | 0/2 |" in report

@@ -52,20 +52,24 @@ def post_mirror(agent, broadcast):
     for name, model in [("critic", agent.learner.critic), ("target_critic", agent.learner.target_critic)]:
         nets[name] = build(Critic(), 3, 1)
         nets[name].set_weights(model.get_weights())
-    return PostAgent(nets["actor"], nets["critic"], nets["target_actor"], nets["target_critic"],
-                     batch_size=B, broadcast=broadcast)
+    return PostAgent(
+        nets["actor"], nets["critic"], nets["target_actor"], nets["target_critic"], batch_size=B, broadcast=broadcast
+    )
 
 
 def post_minibatch(states, actions, rewards, next_states, dones):
     # the post's memory holds (state (1,3), action (1,), reward (1,), next_state (1,3), done)
-    return [(states[i:i + 1], actions[i], np.array([rewards[i]]), next_states[i:i + 1], bool(dones[i]))
-            for i in range(B)]
+    return [
+        (states[i : i + 1], actions[i], np.array([rewards[i]]), next_states[i : i + 1], bool(dones[i]))
+        for i in range(B)
+    ]
 
 
 def hand_target(agent, rewards, next_states, dones, broadcast):
     next_a = mlp(next_states, agent.learner.target_actor.get_weights(), np.tanh) * 2.0  # [B,1]
-    next_q = mlp(np.concatenate([next_states, next_a], 1), agent.learner.target_critic.get_weights(),
-                 lambda z: z)  # [B,1]
+    next_q = mlp(
+        np.concatenate([next_states, next_a], 1), agent.learner.target_critic.get_weights(), lambda z: z
+    )  # [B,1]
     r = rewards.reshape(-1, 1)
     if broadcast:
         return r + 0.99 * next_q * (1 - dones.astype(float))[None, :]  # [B,B]: T[i,j] uses d_j
@@ -111,8 +115,12 @@ def test_one_update_matches_the_posts_eager_code(variant, broadcast, xla):
     assert theirs["targets"].shape == ((B, B) if broadcast else (B, 1))
     assert ours["critic_loss"] == pytest.approx(theirs["critic_loss"], rel=1e-5)
     assert ours["actor_loss"] == pytest.approx(theirs["actor_loss"], rel=1e-5, abs=1e-6)
-    pairs = [(agent.learner.actor, post.actor), (agent.learner.critic, post.critic),
-             (agent.learner.target_actor, post.target_actor), (agent.learner.target_critic, post.target_critic)]
+    pairs = [
+        (agent.learner.actor, post.actor),
+        (agent.learner.critic, post.critic),
+        (agent.learner.target_actor, post.target_actor),
+        (agent.learner.target_critic, post.target_critic),
+    ]
     for mine, reference in pairs:
         for a, b in zip(mine.get_weights(), reference.get_weights(), strict=True):
             np.testing.assert_allclose(a, b, atol=1e-5)

@@ -8,9 +8,28 @@ import pytest
 
 
 def run(out, experiment, seed, episodes, *extra):
-    proc = subprocess.run([sys.executable, "-m", "keras_rl", "reproduce", experiment, "--seeds", str(seed),
-                           "--episodes", str(episodes), "--no-progress", "--set", "stop_at_threshold=false",
-                           "--out", str(out), *extra], capture_output=True, text=True, timeout=900)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "keras_rl",
+            "reproduce",
+            experiment,
+            "--seeds",
+            str(seed),
+            "--episodes",
+            str(episodes),
+            "--no-progress",
+            "--set",
+            "stop_at_threshold=false",
+            "--out",
+            str(out),
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert proc.returncode in (0, 1), proc.stderr
     with open(out / f"seed_{seed}" / "episodes.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
@@ -29,8 +48,9 @@ CASES = [  # experiment, framework, seed, episodes, loss column, least episodes 
 ]
 
 
-@pytest.mark.parametrize("experiment, framework, seed, episodes, loss, trained", CASES,
-                         ids=[f"{c[0]}-{c[1]}" for c in CASES])
+@pytest.mark.parametrize(
+    "experiment, framework, seed, episodes, loss, trained", CASES, ids=[f"{c[0]}-{c[1]}" for c in CASES]
+)
 def test_same_seed_gives_an_identical_episodes_csv(tmp_path, experiment, framework, seed, episodes, loss, trained):
     if framework == "torch":
         pytest.importorskip("torch", reason="needs the torch extra")

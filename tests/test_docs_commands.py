@@ -1,5 +1,6 @@
-"""Every `keras-rl ...` command in the README's CLI block runs as shown on a fresh clone
-(#23.11: the first examples exited 2 because their default folders are committed).
+"""The docs: every `keras-rl ...` command shown in README.md and docs/*.md runs as shown on
+a fresh clone, the pages build with `mkdocs build --strict`, and the README stays short.
+
 `reproduce` commands run with `--dry-run`, which makes every check a real run makes
 (folders, options, seeds) and trains nothing; the others are parsed by the real parser."""
 
@@ -7,6 +8,8 @@ from __future__ import annotations
 
 import re
 import shlex
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -14,28 +17,32 @@ import pytest
 from keras_rl.cli import build_parser, main
 
 ROOT = Path(__file__).resolve().parent.parent
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 
 
-def readme_commands() -> list[list[str]]:
-    text = (ROOT / "README.md").read_text()
-    block = re.search(r"## The CLI\s+```\n(.*?)```", text, re.S).group(1)
+def shown_commands() -> list[tuple[str, list[str]]]:
+    """(page, argv) for each `keras-rl ...` line of a fenced block in the README or the docs."""
     commands = []
-    for line in block.splitlines():
-        for part in line.split(" && "):
-            part = part.split("  #")[0].strip()
-            if part.startswith("keras-rl "):
-                commands.append(shlex.split(part)[1:])
+    for page in PAGES:
+        for block in re.findall(r"```[a-z]*\n(.*?)```", page.read_text(), re.S):
+            for line in block.splitlines():
+                for part in line.split(" && "):
+                    part = part.split("  #")[0].strip()
+                    if part.startswith("keras-rl "):
+                        commands.append((page.name, shlex.split(part)[1:]))
     return commands
 
 
-def test_the_readme_shows_commands():
-    assert len(readme_commands()) >= 15
+def test_the_docs_show_commands_and_the_readme_is_short():
+    pages = {page for page, _ in shown_commands()}
+    assert {"README.md", "cli.md"} <= pages and len(shown_commands()) >= 20
+    assert len((ROOT / "README.md").read_text().splitlines()) <= 150
 
 
-@pytest.mark.parametrize("argv", readme_commands(), ids=lambda argv: " ".join(argv)[:60])
-def test_each_readme_command_runs_on_a_fresh_clone(argv, monkeypatch, capsys):
+@pytest.mark.parametrize("page,argv", shown_commands(), ids=lambda x: " ".join(x)[:60] if isinstance(x, list) else x)
+def test_each_shown_command_runs_on_a_fresh_clone(page, argv, monkeypatch, capsys):
     if (ROOT / "runs").exists() or (ROOT / "tb").exists():
-        pytest.skip("runs/ or tb/ exists in this checkout; the README's commands are for a fresh clone")
+        pytest.skip("runs/ or tb/ exists in this checkout; the docs' commands are for a fresh clone")
     monkeypatch.chdir(ROOT)  # where a reader runs them: the committed results/ is there
     monkeypatch.delenv("RAY_ADDRESS", raising=False)
     if argv[:1] == ["--version"]:
@@ -49,3 +56,17 @@ def test_each_readme_command_runs_on_a_fresh_clone(argv, monkeypatch, capsys):
         assert main(argv) == 0
     else:
         build_parser().parse_args(argv)  # every flag exists and takes what it is given
+
+
+def test_the_docs_build_strictly(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    built = {p.relative_to(tmp_path / "site").as_posix() for p in (tmp_path / "site").rglob("index.html")}
+    for page in (ROOT / "docs").glob("*.md"):
+        assert (page.stem == "index" and "index.html" in built) or f"{page.stem}/index.html" in built, page.name

@@ -28,7 +28,10 @@ def make_pair(xla=True, seed=0, float64=False):
         theirs.policy_net.double()
         theirs.target_net.double()
     # nn.Linear stores weight [out, in]; Dense stores kernel [in, out]: transpose
-    for net, keras_net in ((theirs.policy_net, ours.learner.q_network), (theirs.target_net, ours.learner.target_network)):
+    for net, keras_net in (
+        (theirs.policy_net, ours.learner.q_network),
+        (theirs.target_net, ours.learner.target_network),
+    ):
         values = []
         for layer in (net.layer1, net.layer2, net.layer3):
             values += [layer.weight.detach().numpy().T, layer.bias.detach().numpy()]
@@ -47,10 +50,15 @@ def random_batch(rng, terminal_share=0.1):
 
 def as_transitions(states, actions, rewards, next_states, dones, dtype=None):
     dtype = dtype or torch.float32
-    return [Transition(torch.tensor(states[i:i + 1], dtype=dtype), torch.tensor([[int(actions[i])]]),
-                       None if dones[i] else torch.tensor(next_states[i:i + 1], dtype=dtype),
-                       torch.tensor([float(rewards[i])], dtype=dtype))
-            for i in range(B)]
+    return [
+        Transition(
+            torch.tensor(states[i : i + 1], dtype=dtype),
+            torch.tensor([[int(actions[i])]]),
+            None if dones[i] else torch.tensor(next_states[i : i + 1], dtype=dtype),
+            torch.tensor([float(rewards[i])], dtype=dtype),
+        )
+        for i in range(B)
+    ]
 
 
 def torch_weights(net):
@@ -61,7 +69,10 @@ def torch_weights(net):
 
 
 def assert_same_weights(ours, theirs, atol):
-    for mine, reference in ((ours.learner.q_network, theirs.policy_net), (ours.learner.target_network, theirs.target_net)):
+    for mine, reference in (
+        (ours.learner.q_network, theirs.policy_net),
+        (ours.learner.target_network, theirs.target_net),
+    ):
         for a, b in zip(mine.get_weights(), torch_weights(reference), strict=True):
             np.testing.assert_allclose(a, b, atol=atol, rtol=0)
 
@@ -128,7 +139,10 @@ def test_float32_one_update_agrees_within_1e_5_and_100_updates_stay_bounded(xla)
     for _ in range(99):
         our_loss, their_loss = update_both(ours, theirs, random_batch(rng))
         assert our_loss == pytest.approx(their_loss, rel=1e-4, abs=1e-6)
-    for mine, reference in ((ours.learner.q_network, theirs.policy_net), (ours.learner.target_network, theirs.target_net)):
+    for mine, reference in (
+        (ours.learner.q_network, theirs.policy_net),
+        (ours.learner.target_network, theirs.target_net),
+    ):
         for a, b in zip(mine.get_weights(), torch_weights(reference), strict=True):
             diff = np.abs(a - b)
             assert (diff <= 1e-5).mean() >= 0.99
@@ -158,7 +172,9 @@ def test_action_selection_agrees_for_the_same_random_draws():
         reference = theirs.select_action(torch.tensor(state).unsqueeze(0), sample=draws[i]).item()
         assert mine == reference, i
     assert ours.explorer.steps_done == theirs.steps_done == 400
-    assert epsilon(CartPoleDQNConfig(), 0) == pytest.approx(0.9) and epsilon(CartPoleDQNConfig(), 10**9) == pytest.approx(0.05)
+    assert epsilon(CartPoleDQNConfig(), 0) == pytest.approx(0.9) and epsilon(
+        CartPoleDQNConfig(), 10**9
+    ) == pytest.approx(0.05)
 
 
 class iter_rng:

@@ -65,12 +65,19 @@ def test_the_address_falls_back_to_ray_address(monkeypatch):
 
 
 def test_one_parser_reads_set_and_grid_by_the_fields_type():
-    assert PendulumConfig.parse_assignments(["tau=5e-3", "broadcast-target=off"]) == {"tau": 0.005,
-                                                                                      "broadcast_target": False}
+    assert PendulumConfig.parse_assignments(["tau=5e-3", "broadcast-target=off"]) == {
+        "tau": 0.005,
+        "broadcast_target": False,
+    }
     assert PendulumConfig.parse_assignments(["tau=0.1,0.2"], flag="--grid", many=True) == {"tau": [0.1, 0.2]}
-    for bad, message in [(["tau"], "--set expects FIELD=VALUE"), (["tau="], "has an empty value"),
-                         (["tau=0.1", "tau=0.2"], "names tau twice"), (["nope=1"], "unknown pendulum config field"),
-                         (["seed=3"], "not a config field; use --seeds"), (["tau=fast"], "tau")]:
+    for bad, message in [
+        (["tau"], "--set expects FIELD=VALUE"),
+        (["tau="], "has an empty value"),
+        (["tau=0.1", "tau=0.2"], "names tau twice"),
+        (["nope=1"], "unknown pendulum config field"),
+        (["seed=3"], "not a config field; use --seeds"),
+        (["tau=fast"], "tau"),
+    ]:
         with pytest.raises(ConfigError, match=message):
             PendulumConfig.parse_assignments(bad)
     assert [p.name for p in parse_grid(PendulumConfig, ["tau=5e-3,0.01"])] == ["tau=0.005", "tau=0.01"]

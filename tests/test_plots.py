@@ -10,8 +10,10 @@ from keras_rl.report import plots
 
 
 def rows(n: int, steps: int = 200) -> list[dict]:
-    return [{"episode": e, "steps": steps, "total_steps": e * steps, "score": -1000.0 + 10 * e,
-             "metric": -1000.0 + 8 * e} for e in range(1, n + 1)]
+    return [
+        {"episode": e, "steps": steps, "total_steps": e * steps, "score": -1000.0 + 10 * e, "metric": -1000.0 + 8 * e}
+        for e in range(1, n + 1)
+    ]
 
 
 @pytest.fixture

@@ -43,8 +43,9 @@ def test_P001_PHASE_learning_phase_0_noise_off_and_bn_on_initial_moving_stats():
 def test_P001_PHASE_updates_train_gamma_beta_but_never_move_the_moving_stats():
     agent = make_agent()
     rng = np.random.default_rng(1)
-    rows = agent.buffer.layout.pack((rng.random((32, 2)), rng.uniform(-1, 1, (32, 1)), rng.normal(size=32),
-                              rng.normal(size=(32, 2)), np.zeros(32)))
+    rows = agent.buffer.layout.pack(
+        (rng.random((32, 2)), rng.uniform(-1, 1, (32, 1)), rng.normal(size=32), rng.normal(size=(32, 2)), np.zeros(32))
+    )
     actor_bn, critic_bn = agent.learner.actor.norm, agent.learner.critic.norm
     before = [v.numpy().copy() for v in (actor_bn.gamma, critic_bn.gamma, critic_bn.beta)]
     for _ in range(5):
@@ -119,7 +120,7 @@ def test_P001_TRIGGER_trains_in_bursts_down_to_100_after_episode_end():
 def test_discounted_return_normalisation_against_a_hand_computed_example():
     # returns with discount 0.5 of [1, 0, 2]: [1 + 0.5*1, 0 + 0.5*2, 2] = [1.5, 1, 2]
     out = standardised_discounted_returns([1.0, 0.0, 2.0], 0.5)
-    expected = (np.array([1.5, 1.0, 2.0]) - 1.5) / np.sqrt(((0 ** 2) + 0.5 ** 2 + 0.5 ** 2) / 3)
+    expected = (np.array([1.5, 1.0, 2.0]) - 1.5) / np.sqrt(((0**2) + 0.5**2 + 0.5**2) / 3)
     np.testing.assert_allclose(out, expected, rtol=1e-6)
     np.testing.assert_allclose(out, [0.0, -1.2247449, 1.2247449], rtol=1e-6)
 
@@ -183,9 +184,21 @@ def tiny_learner(mode, w=0.7, b=-0.2, k=1.5, at_buffer=True):
     actor, critic = build(TinyActor(), 1), build(LinearCritic(k), 1, 1)
     actor.set_weights([np.array([[w]], np.float32), np.array([b], np.float32)])
     targets = build(TinyActor(), 1), build(LinearCritic(k), 1, 1)
-    return DDPGLearner(actor, critic, targets[0], targets[1], keras.optimizers.Adam(1e-3), keras.optimizers.Adam(1e-3),
-                       gamma=0.99, tau=0.001, broadcast_target=False, layout=Layout(1, 1), xla=False,
-                       actor_update=mode, dqda_at_buffer_actions=at_buffer)
+    return DDPGLearner(
+        actor,
+        critic,
+        targets[0],
+        targets[1],
+        keras.optimizers.Adam(1e-3),
+        keras.optimizers.Adam(1e-3),
+        gamma=0.99,
+        tau=0.001,
+        broadcast_target=False,
+        layout=Layout(1, 1),
+        xla=False,
+        actor_update=mode,
+        dqda_at_buffer_actions=at_buffer,
+    )
 
 
 S = np.array([[0.2], [-0.5], [1.0]], np.float32)
@@ -199,8 +212,8 @@ def test_P001_ACTORGRAD_intended_is_the_first_order_dpg():
     mu = np.tanh(w * s + b)
     q = k * (s + 1)  # dQ/da
     # tf.gradients(mu, theta, -dQ/da) = -sum_i q_i * dmu_i/dtheta
-    np.testing.assert_allclose(grads[0].numpy()[0, 0], -np.sum(q * (1 - mu ** 2) * s), rtol=1e-5)
-    np.testing.assert_allclose(grads[1].numpy()[0], -np.sum(q * (1 - mu ** 2)), rtol=1e-5)
+    np.testing.assert_allclose(grads[0].numpy()[0, 0], -np.sum(q * (1 - mu**2) * s), rtol=1e-5)
+    np.testing.assert_allclose(grads[1].numpy()[0], -np.sum(q * (1 - mu**2)), rtol=1e-5)
 
 
 def test_P001_ACTORGRAD_literal_differentiates_the_sum_of_the_first_order_gradients():
@@ -210,7 +223,7 @@ def test_P001_ACTORGRAD_literal_differentiates_the_sum_of_the_first_order_gradie
     mu = np.tanh(w * s + b)
     q = k * (s + 1)
     # F(w, b) = g_w + g_b = -sum_i q_i (1 - mu_i^2)(s_i + 1); d(1 - mu^2)/dz = -2 mu (1 - mu^2)
-    inner = 2 * q * mu * (1 - mu ** 2) * (s + 1)
+    inner = 2 * q * mu * (1 - mu**2) * (s + 1)
     np.testing.assert_allclose(grads[0].numpy()[0, 0], np.sum(inner * s), rtol=1e-5)
     np.testing.assert_allclose(grads[1].numpy()[0], np.sum(inner), rtol=1e-5)
     intended, _ = tiny_learner("dpg_intended").actor_gradients(tf.constant(S), tf.constant(A))
@@ -230,8 +243,8 @@ def test_P001_DQDA_at_buffer_actions_or_at_the_policy():
     g_buffer, _ = learner(True).actor_gradients(tf.constant(S), tf.constant(A))
     g_policy, _ = learner(False).actor_gradients(tf.constant(S), tf.constant(A))
     mu = np.tanh(0.7 * S[:, 0] - 0.2)
-    np.testing.assert_allclose(g_buffer[1].numpy()[0], -np.sum(-2 * A[:, 0] * (1 - mu ** 2)), rtol=1e-5)
-    np.testing.assert_allclose(g_policy[1].numpy()[0], -np.sum(-2 * mu * (1 - mu ** 2)), rtol=1e-5)
+    np.testing.assert_allclose(g_buffer[1].numpy()[0], -np.sum(-2 * A[:, 0] * (1 - mu**2)), rtol=1e-5)
+    np.testing.assert_allclose(g_policy[1].numpy()[0], -np.sum(-2 * mu * (1 - mu**2)), rtol=1e-5)
 
 
 def test_fixed_keeps_only_the_learning_phase():
@@ -239,8 +252,16 @@ def test_fixed_keeps_only_the_learning_phase():
     from pathlib import Path
 
     faithful, fixed = MountainCarDDPGConfig.for_variant("faithful"), MountainCarDDPGConfig.for_variant("fixed")
-    quirks = {"learning_phase_training", "actor_gradient", "dqda_at_buffer_actions", "store_raw_next_state",
-              "episode_returns_as_rewards", "done_includes_truncation", "popping_buffer", "exploration"}
+    quirks = {
+        "learning_phase_training",
+        "actor_gradient",
+        "dqda_at_buffer_actions",
+        "store_raw_next_state",
+        "episode_returns_as_rewards",
+        "done_includes_truncation",
+        "popping_buffer",
+        "exploration",
+    }
     kept = {q for q in quirks if getattr(fixed, q) == getattr(faithful, q)}
     assert kept == {"learning_phase_training"}
     ledger = (Path(__file__).resolve().parents[1] / "reproductions" / "FIDELITY.md").read_text()

@@ -59,7 +59,10 @@ def test_P000_TARGETINIT_unbuilt_subclassed_models_have_no_weights():
 def test_P000_TARGETINIT_faithful_targets_start_independent_fixed_start_equal():
     faithful, fixed = make_agent("faithful"), make_agent("fixed")
     for agent, same in ((faithful, False), (fixed, True)):
-        for online, target in ((agent.learner.actor, agent.learner.target_actor), (agent.learner.critic, agent.learner.target_critic)):
+        for online, target in (
+            (agent.learner.actor, agent.learner.target_actor),
+            (agent.learner.critic, agent.learner.target_critic),
+        ):
             equal = all(np.array_equal(a, b) for a, b in zip(online.get_weights(), target.get_weights()))
             assert equal is same
 

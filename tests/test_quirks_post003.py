@@ -57,8 +57,9 @@ def test_P003_TRUNCATION_bootstraps_only_termination_is_terminal():
 
 def test_P003_WEIGHT_DECAY_adamw_default_shrinks_weights_even_without_gradient():
     decayed, plain = make_agent(), make_agent(weight_decay=0.0)
-    rows = decayed.learner.layout.pack((np.zeros((128, 4)), np.zeros((128, 1)), np.zeros(128),
-                                        np.zeros((128, 4)), np.ones(128)))
+    rows = decayed.learner.layout.pack(
+        (np.zeros((128, 4)), np.zeros((128, 1)), np.zeros(128), np.zeros((128, 4)), np.ones(128))
+    )
     w0 = decayed.learner.q_network.get_weights()[0].copy()
     decayed.learner.train(rows)
     plain.learner.train(rows)
@@ -87,6 +88,6 @@ def test_P003_BUDGET_the_gpu_branch_of_the_tutorials_rule():
     assert tutorial_num_episodes(cuda_available=True) == 600 and tutorial_num_episodes(cuda_available=False) == 50
     # the notebook printed `cuda`: its budget is the GPU branch, whatever machine reruns it
     assert CartPoleDQNConfig().episodes == tutorial_num_episodes(cuda_available=True)
-    post = (Path(__file__).resolve().parents[2] / "shared" / "seeds" / "003_57d1feb4b7fdd940.txt")
+    post = Path(__file__).resolve().parents[2] / "shared" / "seeds" / "003_57d1feb4b7fdd940.txt"
     if post.is_file():
         assert "cuda" in post.read_text()

@@ -23,8 +23,21 @@ from keras_rl.runs.files import read_episodes  # noqa: E402
 CLI = [sys.executable, "-m", "keras_rl"]
 # Pendulum for 3 episodes trains nothing (train_start is 1000 steps), so a job costs seconds;
 # with the EMA threshold at -1300 some seeds pass and some do not, so the statistics have work.
-SWEEP = ["sweep", "pendulum", "--grid", "noise_sigma=0.2,0.6", "--seeds", "0-1", "--episodes", "3",
-         "--set", "threshold=-1300", "--set", "stop_at_threshold=false", "--no-progress"]
+SWEEP = [
+    "sweep",
+    "pendulum",
+    "--grid",
+    "noise_sigma=0.2,0.6",
+    "--seeds",
+    "0-1",
+    "--episodes",
+    "3",
+    "--set",
+    "threshold=-1300",
+    "--set",
+    "stop_at_threshold=false",
+    "--no-progress",
+]
 
 
 def rows(path: Path) -> list[dict[str, str]]:
@@ -35,8 +48,9 @@ def rows(path: Path) -> list[dict[str, str]]:
 @pytest.fixture(scope="module")
 def sweep_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("sweep") / "s"
-    proc = subprocess.run([*CLI, *SWEEP, "--workers", "2", "--out", str(out)], capture_output=True, text=True,
-                          timeout=900)
+    proc = subprocess.run(
+        [*CLI, *SWEEP, "--workers", "2", "--out", str(out)], capture_output=True, text=True, timeout=900
+    )
     assert proc.returncode == 0, proc.stderr
     assert "4 jobs; 0 already done, 4 to run" in proc.stderr
     assert "median episodes to threshold" in proc.stdout and "None" not in proc.stdout  # #23.9: it printed None
@@ -71,7 +85,8 @@ def test_sweep_folders_are_well_formed_and_its_numbers_recompute_from_the_csvs(s
     assert other["fisher_p"] == pytest.approx(fisher_exact(other["successes"], 2, base["successes"], 2))
     rate = success_difference_ci(other["successes"], 2, base["successes"], 2)
     assert [other["success_difference"][k] for k in ("estimate", "low", "high")] == pytest.approx(
-        [rate.estimate, rate.low, rate.high])
+        [rate.estimate, rate.low, rate.high]
+    )
     a, b = other["episodes_to_threshold"], base["episodes_to_threshold"]
     if a and b:
         diff = median_difference_ci(a, b, np.random.default_rng(0))
@@ -85,8 +100,9 @@ def test_sweep_folders_are_well_formed_and_its_numbers_recompute_from_the_csvs(s
 
 def test_a_second_run_of_the_same_sweep_skips_every_job(sweep_dir):
     before = {p: p.stat().st_mtime_ns for p in sweep_dir.rglob("episodes.csv")}
-    proc = subprocess.run([*CLI, *SWEEP, "--workers", "2", "--out", str(sweep_dir)], capture_output=True, text=True,
-                          timeout=600)
+    proc = subprocess.run(
+        [*CLI, *SWEEP, "--workers", "2", "--out", str(sweep_dir)], capture_output=True, text=True, timeout=600
+    )
     assert proc.returncode == 0, proc.stderr
     assert "4 jobs; 4 already done, 0 to run" in proc.stderr
     assert "Started a local Ray instance" not in proc.stderr  # nothing to run: no Ray started
@@ -94,13 +110,34 @@ def test_a_second_run_of_the_same_sweep_skips_every_job(sweep_dir):
 
 
 def test_seeds_run_through_ray_equal_the_same_seeds_run_in_process(sweep_dir, tmp_path):
-    proc = subprocess.run([*CLI, "reproduce", "pendulum", "--seeds", "0-1", "--episodes", "3", "--set",
-                           "noise_sigma=0.6", "--set", "threshold=-1300", "--set", "stop_at_threshold=false",
-                           "--no-progress", "--out", str(tmp_path)], capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [
+            *CLI,
+            "reproduce",
+            "pendulum",
+            "--seeds",
+            "0-1",
+            "--episodes",
+            "3",
+            "--set",
+            "noise_sigma=0.6",
+            "--set",
+            "threshold=-1300",
+            "--set",
+            "stop_at_threshold=false",
+            "--no-progress",
+            "--out",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode in (0, 1), proc.stderr
     for seed in (0, 1):
-        assert rows(tmp_path / f"seed_{seed}" / "episodes.csv") == \
-            rows(sweep_dir / "noise_sigma=0.6" / f"seed_{seed}" / "episodes.csv")
+        assert rows(tmp_path / f"seed_{seed}" / "episodes.csv") == rows(
+            sweep_dir / "noise_sigma=0.6" / f"seed_{seed}" / "episodes.csv"
+        )
     summary = json.loads((sweep_dir / "noise_sigma=0.6" / "seed_0" / "summary.json").read_text())
     assert summary["provenance"]["ray_node_id"]
     assert summary["command"].startswith("keras-rl sweep pendulum --grid")  # the driver's, not the worker's argv
@@ -148,8 +185,10 @@ def test_two_node_cluster_runs_jobs_on_both_nodes_and_files_land_in_the_drivers_
     from keras_rl.runs.ray_backend import RayBackend
 
     os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
-    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False,
-                                                            "object_store_memory": 80 * 1024 * 1024})
+    cluster = Cluster(
+        initialize_head=True,
+        head_node_args={"num_cpus": 1, "include_dashboard": False, "object_store_memory": 80 * 1024 * 1024},
+    )
     cluster.add_node(num_cpus=1, object_store_memory=80 * 1024 * 1024)
     cluster.wait_for_nodes()
     try:
@@ -177,10 +216,29 @@ def _default_signals():
 
 def test_ctrl_c_during_a_ray_sweep_keeps_episodes_marks_interrupted_and_starts_no_queued_seed(tmp_path):
     out = tmp_path / "s"
-    proc = subprocess.Popen([*CLI, "sweep", "pendulum", "--grid", "tau=0.001", "--seeds", "0-2", "--workers", "2",
-                             "--set", "stop_at_threshold=false", "--no-progress", "--out", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
-                            preexec_fn=_default_signals)
+    proc = subprocess.Popen(
+        [
+            *CLI,
+            "sweep",
+            "pendulum",
+            "--grid",
+            "tau=0.001",
+            "--seeds",
+            "0-2",
+            "--workers",
+            "2",
+            "--set",
+            "stop_at_threshold=false",
+            "--no-progress",
+            "--out",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=_default_signals,
+    )
     csv_path = out / "tau=0.001" / "seed_0" / "episodes.csv"
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and proc.poll() is None:
@@ -198,13 +256,32 @@ def test_ctrl_c_during_a_ray_sweep_keeps_episodes_marks_interrupted_and_starts_n
 
 
 def test_a_killed_ray_worker_is_retried_and_its_seed_reruns_to_the_same_csv(tmp_path):
-    args = ["reproduce", "pendulum", "--seeds", "0-1", "--workers", "2", "--episodes", "8", "--set",
-            "train_start=400", "--set", "stop_at_threshold=false", "--no-progress"]
-    straight = subprocess.run([*CLI, *args, "--out", str(tmp_path / "straight")], capture_output=True, text=True,
-                              timeout=900)
+    args = [
+        "reproduce",
+        "pendulum",
+        "--seeds",
+        "0-1",
+        "--workers",
+        "2",
+        "--episodes",
+        "8",
+        "--set",
+        "train_start=400",
+        "--set",
+        "stop_at_threshold=false",
+        "--no-progress",
+    ]
+    straight = subprocess.run(
+        [*CLI, *args, "--out", str(tmp_path / "straight")], capture_output=True, text=True, timeout=900
+    )
     assert straight.returncode in (0, 1), straight.stderr
-    proc = subprocess.Popen([*CLI, *args, "--out", str(tmp_path / "killed")], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals)
+    proc = subprocess.Popen(
+        [*CLI, *args, "--out", str(tmp_path / "killed")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_default_signals,
+    )
     csv_path = tmp_path / "killed" / "seed_0" / "episodes.csv"
     deadline, killed = time.monotonic() + 300, None
     while time.monotonic() < deadline and proc.poll() is None and killed is None:
@@ -220,23 +297,29 @@ def test_a_killed_ray_worker_is_retried_and_its_seed_reruns_to_the_same_csv(tmp_
     assert killed is not None, "no Ray worker was found running a seed"
     assert proc.returncode in (0, 1), stderr
     for seed in (0, 1):
-        assert rows(tmp_path / "killed" / f"seed_{seed}" / "episodes.csv") == \
-            rows(tmp_path / "straight" / f"seed_{seed}" / "episodes.csv")
+        assert rows(tmp_path / "killed" / f"seed_{seed}" / "episodes.csv") == rows(
+            tmp_path / "straight" / f"seed_{seed}" / "episodes.csv"
+        )
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["--grid", "warp=1,2"], "unknown pendulum config field 'warp'"),
-    (["--grid", "tau=fast"], "tau expects a float, got 'fast'"),
-    (["--grid", "tau=0.1,"], "has an empty value"),
-    (["--grid", "tau=0.1,0.10,1e-1"], "gives tau=0.1 more than once"),  # #23.2: it counted one seed as 3
-    (["--grid", "tau=5"], "tau must be in (0, 1]"),
-    (["--grid", "seed=1,2"], "use --seeds"),
-    ([], "needs --grid"),
-    (["--grid", "tau=0.1", "--ablate"], "--ablate makes its own grid"),
-    (["--grid", "tau=0.1", "--address", "127.0.0.1:1"], "no Ray cluster answers at 127.0.0.1:1"),
-    (["--grid", "tau=" + ",".join(f"0.{i:04d}1" for i in range(1, 1002)), "--seeds", "0-9999"],
-     "more than 10000; pass --yes"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--grid", "warp=1,2"], "unknown pendulum config field 'warp'"),
+        (["--grid", "tau=fast"], "tau expects a float, got 'fast'"),
+        (["--grid", "tau=0.1,"], "has an empty value"),
+        (["--grid", "tau=0.1,0.10,1e-1"], "gives tau=0.1 more than once"),  # #23.2: it counted one seed as 3
+        (["--grid", "tau=5"], "tau must be in (0, 1]"),
+        (["--grid", "seed=1,2"], "use --seeds"),
+        ([], "needs --grid"),
+        (["--grid", "tau=0.1", "--ablate"], "--ablate makes its own grid"),
+        (["--grid", "tau=0.1", "--address", "127.0.0.1:1"], "no Ray cluster answers at 127.0.0.1:1"),
+        (
+            ["--grid", "tau=" + ",".join(f"0.{i:04d}1" for i in range(1, 1002)), "--seeds", "0-9999"],
+            "more than 10000; pass --yes",
+        ),
+    ],
+)
 def test_bad_sweep_input_exits_2_and_names_the_problem(argv, message, capsys, tmp_path):
     started = time.monotonic()
     assert main(["sweep", "pendulum", *argv, "--out", str(tmp_path / "s")]) == 2

@@ -33,14 +33,29 @@ def rows(path: Path) -> list[dict[str, str]]:
 
 def args(experiment, framework, episodes, out, seed=2):
     quick = ["--set", "train_start=200"] if experiment == "pendulum" else []
-    return [*CLI, experiment, "--framework", framework, "--seeds", str(seed), "--episodes", str(episodes),
-            "--no-progress", "--checkpoint-every", "3", *quick, "--out", str(out)]
+    return [
+        *CLI,
+        experiment,
+        "--framework",
+        framework,
+        "--seeds",
+        str(seed),
+        "--episodes",
+        str(episodes),
+        "--no-progress",
+        "--checkpoint-every",
+        "3",
+        *quick,
+        "--out",
+        str(out),
+    ]
 
 
 def kill_when_on_disk(command: list[str], csv_path: Path, episodes: int, timeout: float = 600) -> int:
     """Start ``command``, SIGKILL it once ``csv_path`` holds ``episodes`` rows; the rows it kept."""
-    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env_for_child(),
-                            preexec_fn=_default_signals)
+    proc = subprocess.Popen(
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env_for_child(), preexec_fn=_default_signals
+    )
     deadline = time.monotonic() + timeout
     try:
         while time.monotonic() < deadline and proc.poll() is None:
@@ -59,20 +74,24 @@ def env_for_child():
     return {**os.environ, "PYTHONUNBUFFERED": "1"}
 
 
-@pytest.mark.parametrize("experiment, framework, episodes, kill_after", CASES,
-                         ids=[f"{c[0]}-{c[1]}" for c in CASES])
+@pytest.mark.parametrize("experiment, framework, episodes, kill_after", CASES, ids=[f"{c[0]}-{c[1]}" for c in CASES])
 def test_killed_and_resumed_run_equals_an_uninterrupted_one(tmp_path, experiment, framework, episodes, kill_after):
     if framework == "torch":
         pytest.importorskip("torch", reason="needs the torch extra")
-    straight = subprocess.run(args(experiment, framework, episodes, tmp_path / "straight"), capture_output=True,
-                              text=True, timeout=600)
+    straight = subprocess.run(
+        args(experiment, framework, episodes, tmp_path / "straight"), capture_output=True, text=True, timeout=600
+    )
     assert straight.returncode in (0, 1), straight.stderr
     csv_path = tmp_path / "killed" / "seed_2" / "episodes.csv"
     kept = kill_when_on_disk(args(experiment, framework, episodes, tmp_path / "killed"), csv_path, kill_after)
     assert kept < episodes, "the run finished before it could be killed"
     assert (tmp_path / "killed" / "seed_2" / "checkpoint.pkl").is_file()
-    resumed = subprocess.run([*args(experiment, framework, episodes, tmp_path / "killed"), "--resume"],
-                             capture_output=True, text=True, timeout=600)
+    resumed = subprocess.run(
+        [*args(experiment, framework, episodes, tmp_path / "killed"), "--resume"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert resumed.returncode in (0, 1), resumed.stderr
     expected = rows(tmp_path / "straight" / "seed_2" / "episodes.csv")
     assert len(expected) == episodes
@@ -87,19 +106,28 @@ BATCH_CASES = [  # experiment, seeds, episodes, kill after this many episodes ar
 
 
 @pytest.mark.parametrize("experiment, seeds, episodes, kill_after", BATCH_CASES, ids=[c[0] for c in BATCH_CASES])
-def test_a_killed_and_resumed_batch_equals_an_uninterrupted_batch_for_every_seed(tmp_path, experiment, seeds, episodes,
-                                                                                 kill_after):
+def test_a_killed_and_resumed_batch_equals_an_uninterrupted_batch_for_every_seed(
+    tmp_path, experiment, seeds, episodes, kill_after
+):
     def batch_args(out):
-        return [*args(experiment, "keras", episodes, out)[:-2], "--seeds", seeds, "--seed-batch", "4",
-                "--out", str(out)]
+        return [
+            *args(experiment, "keras", episodes, out)[:-2],
+            "--seeds",
+            seeds,
+            "--seed-batch",
+            "4",
+            "--out",
+            str(out),
+        ]
 
     first, last = (int(x) for x in seeds.split("-"))
     straight = subprocess.run(batch_args(tmp_path / "straight"), capture_output=True, text=True, timeout=600)
     assert straight.returncode in (0, 1), straight.stderr
     csv_path = tmp_path / "killed" / f"seed_{first}" / "episodes.csv"
     assert kill_when_on_disk(batch_args(tmp_path / "killed"), csv_path, kill_after) < episodes, "finished first"
-    resumed = subprocess.run([*batch_args(tmp_path / "killed"), "--resume"], capture_output=True, text=True,
-                             timeout=600)
+    resumed = subprocess.run(
+        [*batch_args(tmp_path / "killed"), "--resume"], capture_output=True, text=True, timeout=600
+    )
     assert resumed.returncode in (0, 1), resumed.stderr
     for seed in range(first, last + 1):
         expected = rows(tmp_path / "straight" / f"seed_{seed}" / "episodes.csv")
@@ -162,21 +190,23 @@ def test_a_corrupt_checkpoint_is_refused_and_the_folder_left_alone(tmp_path):
     ckpt = seed_dir / "checkpoint.pkl"
     ckpt.write_bytes(ckpt.read_bytes()[:-3])
     before = {p.name: p.read_bytes() for p in seed_dir.iterdir()}
-    proc = subprocess.run([*args("cartpole", "keras", 7, out), "--resume"], capture_output=True, text=True,
-                          timeout=300)
+    proc = subprocess.run([*args("cartpole", "keras", 7, out), "--resume"], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 2
     assert "checkpoint.pkl is corrupt (checksum mismatch" in proc.stderr
     assert {p.name: p.read_bytes() for p in seed_dir.iterdir()} == before
     ckpt.write_bytes(b"not a checkpoint at all")
-    proc = subprocess.run([*args("cartpole", "keras", 7, out), "--resume"], capture_output=True, text=True,
-                          timeout=300)
+    proc = subprocess.run([*args("cartpole", "keras", 7, out), "--resume"], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 2 and "is not a keras-rl checkpoint" in proc.stderr
 
 
 def test_resume_with_other_options_is_refused(tmp_path):
     out = tmp_path / "run"
-    proc = subprocess.Popen(args("pendulum", "keras", 30, out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                            preexec_fn=_default_signals)
+    proc = subprocess.Popen(
+        args("pendulum", "keras", 30, out),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        preexec_fn=_default_signals,
+    )
     csv_path = out / "seed_2" / "episodes.csv"
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and proc.poll() is None and not (csv_path.is_file() and len(rows(csv_path)) >= 4):
@@ -184,8 +214,12 @@ def test_resume_with_other_options_is_refused(tmp_path):
     proc.send_signal(signal.SIGTERM)  # handled like Ctrl-C: the checkpoint is written on the way out
     assert proc.wait(timeout=120) == 143  # 128 + SIGTERM, as timeout, Slurm and Kubernetes expect (#23.10)
     assert (out / "seed_2" / "checkpoint.pkl").is_file()
-    other = subprocess.run([*args("pendulum", "keras", 30, out)[:-2], "--out", str(out), "--resume", "--set",
-                            "tau=0.01"], capture_output=True, text=True, timeout=300)
+    other = subprocess.run(
+        [*args("pendulum", "keras", 30, out)[:-2], "--out", str(out), "--resume", "--set", "tau=0.01"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert other.returncode == 2 and "was made with tau=0.001" in other.stderr
 
 
@@ -196,8 +230,9 @@ def test_resume_finishes_a_set_keeping_its_completed_seeds_and_refuses_ones_of_a
     assert first.returncode == 0, first.stderr
     done = out / "seed_0" / "episodes.csv"
     before = (done.stat().st_mtime_ns, done.read_bytes())
-    other = subprocess.run([*CLI, *quick, "--seeds", "0-1", "--resume", "--set", "tau=0.01"], capture_output=True,
-                           text=True, timeout=300)
+    other = subprocess.run(
+        [*CLI, *quick, "--seeds", "0-1", "--resume", "--set", "tau=0.01"], capture_output=True, text=True, timeout=300
+    )
     assert other.returncode == 2 and "different config" in other.stderr and "tau=" in other.stderr, other.stderr
     assert not (out / "seed_1").exists()  # refused before anything ran
     finish = subprocess.run([*CLI, *quick, "--seeds", "0-1", "--resume"], capture_output=True, text=True, timeout=300)

@@ -32,10 +32,33 @@ def pendulum_2_of_3(tmp_path, framework: str) -> list[dict]:
     10/10 succeeded, episodes-to-threshold median 130, range 95-155; 300 episodes is about
     twice the slowest seed, and one of three may miss."""
     out = tmp_path / "runs"
-    proc = subprocess.run([sys.executable, "-m", "keras_rl", "reproduce", "pendulum", "--variant", "faithful",
-                           "--framework", framework, "--seeds", "0-2", "--episodes", "300", "--workers", "2",
-                           "--no-progress", "--min-success-rate", "0.66", "--out", str(out)],
-                          capture_output=True, text=True, timeout=1800)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "keras_rl",
+            "reproduce",
+            "pendulum",
+            "--variant",
+            "faithful",
+            "--framework",
+            framework,
+            "--seeds",
+            "0-2",
+            "--episodes",
+            "300",
+            "--workers",
+            "2",
+            "--no-progress",
+            "--min-success-rate",
+            "0.66",
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=1800,
+    )
     summaries = [json.loads((out / f"seed_{s}" / "summary.json").read_text()) for s in range(3)]
     reached = [s["reached_at_episode"] for s in summaries]
     assert sum(r is not None and r <= 300 for r in reached) >= 2, (reached, proc.stderr[-2000:])

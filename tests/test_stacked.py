@@ -26,8 +26,9 @@ def rows_for(seed: int, dones_share: float = 0.05) -> np.ndarray:
     theta = rng.uniform(-np.pi, np.pi, B)
     states = np.stack([np.cos(theta), np.sin(theta), rng.uniform(-8, 8, B)], 1)
     next_states = np.stack([np.cos(theta + 0.05), np.sin(theta + 0.05), rng.uniform(-8, 8, B)], 1)
-    return LAYOUT.pack((states, rng.uniform(-2, 2, (B, 1)), -rng.uniform(0, 16, B), next_states,
-                        rng.uniform(size=B) < dones_share))
+    return LAYOUT.pack(
+        (states, rng.uniform(-2, 2, (B, 1)), -rng.uniform(0, 16, B), next_states, rng.uniform(size=B) < dones_share)
+    )
 
 
 def solo(seed: int, variant: str = "faithful"):
@@ -121,9 +122,25 @@ def test_one_seed_through_the_batched_loop_writes_the_solo_runs_episodes_csv(tmp
     import subprocess
     import sys
 
-    proc = subprocess.run([sys.executable, "-m", "keras_rl", "reproduce", "pendulum", "--seeds", "3", "--episodes",
-                           "12", "--no-progress", "--out", str(tmp_path / "solo")], capture_output=True, text=True,
-                          timeout=600)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "keras_rl",
+            "reproduce",
+            "pendulum",
+            "--seeds",
+            "3",
+            "--episodes",
+            "12",
+            "--no-progress",
+            "--out",
+            str(tmp_path / "solo"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode == 1, proc.stderr
     summaries = _batch(tmp_path, "batch", [3], episodes=12)
     assert summaries[0].status == "completed"
@@ -134,7 +151,10 @@ def test_batched_seeds_are_independent_of_their_neighbours_and_of_each_other(tmp
     first = _batch(tmp_path, "a", [0, 1, 2, 3], episodes=7)
     second = _batch(tmp_path, "b", [3, 4, 5, 6], episodes=7)
     assert all(s.status == "completed" for s in first + second)
-    seed3_a, seed3_b = _csv(tmp_path / "a" / "seed_3" / "episodes.csv"), _csv(tmp_path / "b" / "seed_3" / "episodes.csv")
+    seed3_a, seed3_b = (
+        _csv(tmp_path / "a" / "seed_3" / "episodes.csv"),
+        _csv(tmp_path / "b" / "seed_3" / "episodes.csv"),
+    )
     assert seed3_a == seed3_b  # the same seed in another batch of the same size: the same run
     scores = {s: [r["score"] for r in _csv(tmp_path / "a" / f"seed_{s}" / "episodes.csv")] for s in range(4)}
     assert len({tuple(v) for v in scores.values()}) == 4  # every seed its own env, noise and weights
@@ -194,8 +214,13 @@ def test_ctrl_c_stops_every_seed_of_a_batch_and_keeps_their_episodes(tmp_path):
     configs = [exp.config_cls.for_variant("faithful", seed=s, episodes=10, train_start=64) for s in seeds]
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        summaries = run_seed_batch(exp, configs, [tmp_path / f"seed_{s}" for s in seeds], progress=False,
-                                   envs=_envs(seeds, wrap=lambda e: SigintAt(e, at=450)))
+        summaries = run_seed_batch(
+            exp,
+            configs,
+            [tmp_path / f"seed_{s}" for s in seeds],
+            progress=False,
+            envs=_envs(seeds, wrap=lambda e: SigintAt(e, at=450)),
+        )
     finally:
         signal.signal(signal.SIGINT, previous)
     for s in summaries:
@@ -242,8 +267,15 @@ def _cartpole_rows(seed: int) -> np.ndarray:
     rng = np.random.default_rng(2000 + seed)
     n = 128
     states = rng.normal(0, [1.0, 1.0, 0.1, 1.0], (n, 4))
-    return Layout(4, 1).pack((states, rng.integers(0, 2, (n, 1)), np.ones(n), states + rng.normal(0, 0.05, (n, 4)),
-                              rng.uniform(size=n) < 0.1))
+    return Layout(4, 1).pack(
+        (
+            states,
+            rng.integers(0, 2, (n, 1)),
+            np.ones(n),
+            states + rng.normal(0, 0.05, (n, 4)),
+            rng.uniform(size=n) < 0.1,
+        )
+    )
 
 
 def test_dqn_slices_start_from_their_solo_runs_weights_and_seeds_differ():
@@ -307,8 +339,9 @@ def test_cartpole_seeds_batched_play_their_solo_episodes(tmp_path):
     for s in seeds:
         batched = _csv(tmp_path / "four" / f"seed_{s}" / "episodes.csv")
         alone = _csv(tmp_path / "solo" / f"seed_{s}" / "episodes.csv")
-        assert [(r["steps"], r["score"], r["total_steps"]) for r in batched] == \
-               [(r["steps"], r["score"], r["total_steps"]) for r in alone]
+        assert [(r["steps"], r["score"], r["total_steps"]) for r in batched] == [
+            (r["steps"], r["score"], r["total_steps"]) for r in alone
+        ]
         for b, a in zip(batched, alone):
             if a["loss"]:
                 assert float(b["loss"]) == pytest.approx(float(a["loss"]), rel=1e-6)
@@ -331,8 +364,9 @@ def test_only_jobs_that_differ_in_the_seed_share_a_batch(tmp_path):
     packed = batched(jobs, 2)
     batches = [[j.config["seed"] for j in b.jobs] for b in packed if isinstance(b, SeedBatchJob)]
     assert batches == [[0, 1], [0, 1]]  # one per grid point; seed 2 of each point alone
-    alone = [(j.config["framework"], j.config["gamma"], j.config["seed"]) for j in packed
-             if not isinstance(j, SeedBatchJob)]
+    alone = [
+        (j.config["framework"], j.config["gamma"], j.config["seed"]) for j in packed if not isinstance(j, SeedBatchJob)
+    ]
     assert sorted(alone) == [("keras", 0.9, 2), ("keras", 0.99, 2), ("keras", 0.99, 7), ("torch", 0.99, 0)]
     assert batched(jobs, 1) == jobs
 
@@ -345,17 +379,54 @@ def test_seed_batch_on_sweep_runs_each_grid_point_as_a_batch_and_refuses_what_it
     def cli(*args):
         return subprocess.run([sys.executable, "-m", "keras_rl", *args], capture_output=True, text=True, timeout=600)
 
-    bad = cli("reproduce", "cartpole", "--framework", "torch", "--seeds", "0-1", "--seed-batch", "2", "--dry-run",
-              "--out", str(tmp_path / "tutorial"))
+    bad = cli(
+        "reproduce",
+        "cartpole",
+        "--framework",
+        "torch",
+        "--seeds",
+        "0-1",
+        "--seed-batch",
+        "2",
+        "--dry-run",
+        "--out",
+        str(tmp_path / "tutorial"),
+    )
     assert bad.returncode == 2 and "--seed-batch has no torch learner for cartpole" in bad.stderr, bad.stderr
     out = tmp_path / "sweep"
-    proc = cli("sweep", "cartpole", "--grid", "gamma=0.99,0.9", "--seeds", "0-1", "--episodes", "3",
-               "--seed-batch", "2", "--no-progress", "--out", str(out))
+    proc = cli(
+        "sweep",
+        "cartpole",
+        "--grid",
+        "gamma=0.99,0.9",
+        "--seeds",
+        "0-1",
+        "--episodes",
+        "3",
+        "--seed-batch",
+        "2",
+        "--no-progress",
+        "--out",
+        str(out),
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     for point in ("gamma=0.99", "gamma=0.9"):
         for seed in (0, 1):
             summary = json.loads((out / point / f"seed_{seed}" / "summary.json").read_text())
             assert summary["status"] == "completed" and summary["episodes_run"] == 3
-    again = cli("sweep", "cartpole", "--grid", "gamma=0.99,0.9", "--seeds", "0-1", "--episodes", "3",
-                "--seed-batch", "2", "--no-progress", "--out", str(out))
+    again = cli(
+        "sweep",
+        "cartpole",
+        "--grid",
+        "gamma=0.99,0.9",
+        "--seeds",
+        "0-1",
+        "--episodes",
+        "3",
+        "--seed-batch",
+        "2",
+        "--no-progress",
+        "--out",
+        str(out),
+    )
     assert again.returncode == 0 and "4 already done, 0 to run" in again.stderr, again.stderr[-2000:]

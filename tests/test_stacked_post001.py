@@ -15,8 +15,14 @@ from keras_rl.learners.stacked import NETWORKS, model_variables, stack_post001
 from keras_rl.posts.mountaincar import MountainCarDDPGConfig
 from keras_rl.seeding import seed_everything
 
-SPEC = EnvSpec(2, 1, 1.0, obs_low=np.array([-1.2, -0.07], np.float32), obs_high=np.array([0.6, 0.07], np.float32),
-               max_episode_steps=999)
+SPEC = EnvSpec(
+    2,
+    1,
+    1.0,
+    obs_low=np.array([-1.2, -0.07], np.float32),
+    obs_high=np.array([0.6, 0.07], np.float32),
+    max_episode_steps=999,
+)
 LAYOUT = Layout(2, 1)
 B = 32
 ACTOR_UPDATES = [
@@ -30,8 +36,15 @@ def rows_for(seed: int, salt: int = 0) -> np.ndarray:
     """A batch [B, width] of post 001's kind: normalised states, standardised returns."""
     rng = np.random.default_rng(2000 + 17 * seed + salt)
     states = rng.uniform(0, 1, (B, 2))
-    return LAYOUT.pack((states, rng.uniform(-1, 1, (B, 1)), rng.normal(size=B), states + rng.normal(0, 0.01, (B, 2)),
-                        rng.uniform(size=B) < 0.01))
+    return LAYOUT.pack(
+        (
+            states,
+            rng.uniform(-1, 1, (B, 1)),
+            rng.normal(size=B),
+            states + rng.normal(0, 0.01, (B, 2)),
+            rng.uniform(size=B) < 0.01,
+        )
+    )
 
 
 def config(seed: int, **changes) -> MountainCarDDPGConfig:

@@ -80,8 +80,12 @@ def test_no_import_cycles_among_keras_rl_modules():
 
 
 def test_only_the_torch_folder_imports_torch():
-    offenders = sorted(name for name, path in MODULES.items() if not name.startswith("keras_rl.torch")
-                       and any(t == "torch" or t.startswith("torch.") for t in imports_of(path)))
+    offenders = sorted(
+        name
+        for name, path in MODULES.items()
+        if not name.startswith("keras_rl.torch")
+        and any(t == "torch" or t.startswith("torch.") for t in imports_of(path))
+    )
     assert offenders == []
 
 
@@ -90,8 +94,17 @@ def test_keras_learners_never_import_the_torch_side():
     assert learners and not [n for n in learners if any(m.startswith("keras_rl.torch") for m in reachable(n))]
 
 
-@pytest.mark.parametrize("prefix", ["keras_rl.learners", "keras_rl.agents", "keras_rl.posts", "keras_rl.torch",
-                                    "keras_rl.runs.loop", "keras_rl.registry"])
+@pytest.mark.parametrize(
+    "prefix",
+    [
+        "keras_rl.learners",
+        "keras_rl.agents",
+        "keras_rl.posts",
+        "keras_rl.torch",
+        "keras_rl.runs.loop",
+        "keras_rl.registry",
+    ],
+)
 def test_training_code_never_reaches_plotting_or_reports(prefix):
     for name in (n for n in MODULES if n.startswith(prefix)):
         bad = sorted(m for m in reachable(name) | {name} if m.startswith("keras_rl.report"))
@@ -107,7 +120,14 @@ def test_one_learner_table_covers_every_experiment_and_imports_nothing_heavy():
     for name in EXPERIMENTS:
         assert frameworks(name) == ("keras", "torch")
     table_imports = imports_of(MODULES["keras_rl.learners.table"])
-    assert {t.split(".")[0] for t in table_imports} <= {"__future__", "importlib", "dataclasses", "typing", "keras_rl"}
+    assert {t.split(".")[0] for t in table_imports} <= {
+        "__future__",
+        "importlib",
+        "dataclasses",
+        "typing",
+        "collections",
+        "keras_rl",
+    }
     assert {t for t in table_imports if t.startswith("keras_rl")} <= {"keras_rl.errors", "keras_rl.errors.ConfigError"}
 
 
@@ -125,15 +145,22 @@ def test_committed_config_json_loads_under_todays_field_names(path):
     values = json.loads(path.read_text())
     config = get_experiment(values["experiment"]).config_cls.from_dict(values)
     new = config.to_dict()
-    for old, new_names in {"hidden_units": ("actor_hidden_units", "critic_hidden_units", "q_hidden_units"),
-                           "actor_hidden": ("actor_hidden_units",), "train_above": ("train_start",),
-                           "ou_sigma": ("noise_sigma",), "ou_theta": ("noise_theta",), "ou_dt": ("noise_dt",),
-                           "lr": ("q_lr",)}.items():
+    for old, new_names in {
+        "hidden_units": ("actor_hidden_units", "critic_hidden_units", "q_hidden_units"),
+        "actor_hidden": ("actor_hidden_units",),
+        "train_above": ("train_start",),
+        "ou_sigma": ("noise_sigma",),
+        "ou_theta": ("noise_theta",),
+        "ou_dt": ("noise_dt",),
+        "lr": ("q_lr",),
+    }.items():
         if old in values:
-            assert [tuple(new[n]) if isinstance(new[n], tuple) else new[n] for n in new_names if n in new] \
-                   and all((tuple(new[n]) if isinstance(new[n], tuple) else new[n]) ==
-                           (tuple(values[old]) if isinstance(values[old], list) else values[old])
-                           for n in new_names if n in new)
+            assert [tuple(new[n]) if isinstance(new[n], tuple) else new[n] for n in new_names if n in new] and all(
+                (tuple(new[n]) if isinstance(new[n], tuple) else new[n])
+                == (tuple(values[old]) if isinstance(values[old], list) else values[old])
+                for n in new_names
+                if n in new
+            )
     if "critic_hidden" in values:
         assert new["critic_hidden_units"] == (values["critic_hidden"],) * 2
     # every value that kept its name is unchanged, and today's dict round-trips

@@ -51,15 +51,24 @@ def twins(make, config):
 
 
 def networks(keras_learner, torch_learner):
-    return {name: (getattr(torch_learner, name), getattr(keras_learner, name))
-            for name in ("actor", "critic", "target_actor", "target_critic")}
+    return {
+        name: (getattr(torch_learner, name), getattr(keras_learner, name))
+        for name in ("actor", "critic", "target_actor", "target_critic")
+    }
 
 
 def random_rows(batch, obs_dim, seed=0, done_share=0.3):
     rng = np.random.default_rng(seed)
-    return np.concatenate([rng.normal(size=(batch, obs_dim)), rng.uniform(-1, 1, (batch, 1)),
-                           rng.normal(size=(batch, 1)), rng.normal(size=(batch, obs_dim)),
-                           rng.uniform(size=(batch, 1)) < done_share], axis=1).astype(np.float32)
+    return np.concatenate(
+        [
+            rng.normal(size=(batch, obs_dim)),
+            rng.uniform(-1, 1, (batch, 1)),
+            rng.normal(size=(batch, 1)),
+            rng.normal(size=(batch, obs_dim)),
+            rng.uniform(size=(batch, 1)) < done_share,
+        ],
+        axis=1,
+    ).astype(np.float32)
 
 
 CASES = [
@@ -71,8 +80,9 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("config_cls,variant,make,batch,obs_dim", CASES,
-                         ids=[f"{c.experiment}-{v}" for c, v, *_ in CASES])
+@pytest.mark.parametrize(
+    "config_cls,variant,make,batch,obs_dim", CASES, ids=[f"{c.experiment}-{v}" for c, v, *_ in CASES]
+)
 def test_one_update_agrees_with_keras(config_cls, variant, make, batch, obs_dim):
     keras_learner, torch_learner = twins(make, config_cls.for_variant(variant, seed=3))
     nets = networks(keras_learner, torch_learner)
@@ -154,8 +164,9 @@ def test_learning_phase_zero_means_no_input_noise_in_torch_too():
     state = np.array([0.3, 0.5], np.float32)
     assert np.array_equal(learner.act(state), learner.act(state))  # GaussianNoise(1.0) is off
     noisy = mountaincar(config.replace(learning_phase_training=True)).learner
-    assert not np.array_equal(noisy.actor(torch.ones(8, 2)).detach().numpy(),
-                              noisy.actor(torch.ones(8, 2)).detach().numpy())
+    assert not np.array_equal(
+        noisy.actor(torch.ones(8, 2)).detach().numpy(), noisy.actor(torch.ones(8, 2)).detach().numpy()
+    )
 
 
 def test_default_init_is_each_frameworks_own():
@@ -170,8 +181,9 @@ def test_default_init_is_each_frameworks_own():
     assert np.all(np.abs(bias) <= bound) and np.any(bias != 0)  # nn.Linear: U(-1/sqrt(fan_in), ..)
     # faithful P000-TARGETINIT: the target is not a copy in torch either; fixed: it is
     faithful_gap = max_abs_difference(torch_learner.target_actor, keras_learner.target_actor)
-    fixed = pendulum(PendulumDDPGConfig(seed=0, framework="torch", variant="fixed",
-                                        **PendulumDDPGConfig.VARIANTS["fixed"])).learner
+    fixed = pendulum(
+        PendulumDDPGConfig(seed=0, framework="torch", variant="fixed", **PendulumDDPGConfig.VARIANTS["fixed"])
+    ).learner
     assert faithful_gap > 0.01
     assert all(torch.equal(a, b) for a, b in zip(fixed.actor.parameters(), fixed.target_actor.parameters()))
     seed_everything(0)
@@ -186,7 +198,9 @@ def test_cartpole_matched_init_copies_the_keras_q_network():
     seed_everything(4)
     k = agent_for(CartPoleDQNConfig(seed=4), EnvSpec(4, 1, n_actions=2), space).learner.q_network
     seed_everything(4)
-    t = TutorialDQNAgent(CartPoleDQNConfig(seed=4, framework="torch", matched_init=True), EnvSpec(4, 1, n_actions=2), space)
+    t = TutorialDQNAgent(
+        CartPoleDQNConfig(seed=4, framework="torch", matched_init=True), EnvSpec(4, 1, n_actions=2), space
+    )
     np.testing.assert_array_equal(t.policy_net.layer1.weight.detach().numpy(), k.dense[0].kernel.numpy().T)
     np.testing.assert_array_equal(t.target_net.layer3.bias.detach().numpy(), k.dense[2].bias.numpy())
 

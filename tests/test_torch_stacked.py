@@ -33,8 +33,15 @@ def rows_for(post: str, seed: int, salt: int = 0) -> np.ndarray:
     spec = POSTS[post][1]
     rng = np.random.default_rng(3000 + 31 * seed + salt)
     states = rng.uniform(-1, 1, (B, spec.obs_dim))
-    return Layout(spec.obs_dim, 1).pack((states, rng.uniform(-1, 1, (B, 1)), rng.normal(size=B),
-                                         states + rng.normal(0, 0.05, states.shape), rng.uniform(size=B) < 0.05))
+    return Layout(spec.obs_dim, 1).pack(
+        (
+            states,
+            rng.uniform(-1, 1, (B, 1)),
+            rng.normal(size=B),
+            states + rng.normal(0, 0.05, states.shape),
+            rng.uniform(size=B) < 0.05,
+        )
+    )
 
 
 def configs(post: str, seeds, **changes):
@@ -142,6 +149,7 @@ def test_a_torch_batch_runs_through_the_loop_and_resumes_to_the_same_files(tmp_p
     for c in cs:
         got = read_episodes(tmp_path / "cut" / f"seed_{c.seed}" / "episodes.csv")
         want = read_episodes(tmp_path / "straight" / f"seed_{c.seed}" / "episodes.csv")
-        assert [{k: v for k, v in r.items() if k != "wall_seconds"} for r in got] == \
-            [{k: v for k, v in r.items() if k != "wall_seconds"} for r in want]
+        assert [{k: v for k, v in r.items() if k != "wall_seconds"} for r in got] == [
+            {k: v for k, v in r.items() if k != "wall_seconds"} for r in want
+        ]
         assert (tmp_path / "cut" / f"seed_{c.seed}" / "actor.pt").is_file()

@@ -29,8 +29,10 @@ def run_cli(*args, **kwargs):
 
 def strict_json(path: Path):
     """JSON as the standard has it: NaN and Infinity are refused."""
+
     def refuse(name):
         raise ValueError(f"{path} holds {name}, which is not JSON")
+
     return json.loads(path.read_text(), parse_constant=refuse)
 
 
@@ -54,24 +56,44 @@ def test_a_folder_holding_a_run_is_refused_then_replaced_whole_with_overwrite(ti
     assert proc.returncode == 2
     assert f"{seed_dir} (a completed run, 2 episodes)" in proc.stderr and "--overwrite" in proc.stderr
     assert {p.name: p.read_bytes() for p in seed_dir.iterdir()} == before  # nothing touched
-    proc = run_cli("reproduce", "cartpole", "--seeds", "1", "--episodes", "3", "--no-progress", "--out", str(out),
-                   "--overwrite")
+    proc = run_cli(
+        "reproduce", "cartpole", "--seeds", "1", "--episodes", "3", "--no-progress", "--out", str(out), "--overwrite"
+    )
     assert proc.returncode == 1, proc.stderr
     assert not (seed_dir / "evaluation.json").exists()  # cleared whole: no stale file survives
     assert len(read_episodes(seed_dir / "episodes.csv")) == 3
 
 
 def test_set_never_writes_into_the_variants_own_folder(tmp_path):
-    proc = run_cli("reproduce", "cartpole", "--seeds", "0", "--episodes", "1", "--no-progress", "--set", "tau=0.01",
-                   "--set", "gamma=0.9", cwd=tmp_path)
+    proc = run_cli(
+        "reproduce",
+        "cartpole",
+        "--seeds",
+        "0",
+        "--episodes",
+        "1",
+        "--no-progress",
+        "--set",
+        "tau=0.01",
+        "--set",
+        "gamma=0.9",
+        cwd=tmp_path,
+    )
     assert proc.returncode == 1, proc.stderr
     assert not (tmp_path / "results" / "cartpole" / "faithful").exists()
     folder = tmp_path / "results" / "cartpole" / "faithful-set-gamma=0.9,tau=0.01" / "seed_0"
     assert json.loads((folder / "config.json").read_text())["tau"] == 0.01
 
 
-@pytest.mark.parametrize("field, flag", [("variant=fixed", "--variant"), ("seed=7", "--seeds"),
-                                         ("framework=torch", "--framework"), ("matched_init=true", "--matched-init")])
+@pytest.mark.parametrize(
+    "field, flag",
+    [
+        ("variant=fixed", "--variant"),
+        ("seed=7", "--seeds"),
+        ("framework=torch", "--framework"),
+        ("matched_init=true", "--matched-init"),
+    ],
+)
 def test_set_of_a_run_field_is_refused_and_points_to_the_flag(field, flag, capsys, tmp_path):
     assert main(["reproduce", "pendulum", "--set", field, "--out", str(tmp_path)]) == 2
     assert f"use {flag}" in capsys.readouterr().err
@@ -85,9 +107,26 @@ def _default_signals():
 @pytest.mark.parametrize("workers", [1, 2])
 def test_sigterm_is_handled_like_ctrl_c(tmp_path, workers):
     out = tmp_path / "run"
-    proc = subprocess.Popen([*CLI, "reproduce", "pendulum", "--seeds", "0-2", "--workers", str(workers),
-                             "--no-progress", "--set", "stop_at_threshold=false", "--out", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals)
+    proc = subprocess.Popen(
+        [
+            *CLI,
+            "reproduce",
+            "pendulum",
+            "--seeds",
+            "0-2",
+            "--workers",
+            str(workers),
+            "--no-progress",
+            "--set",
+            "stop_at_threshold=false",
+            "--out",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_default_signals,
+    )
     csv = out / "seed_0" / "episodes.csv"
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and proc.poll() is None:
@@ -109,8 +148,9 @@ def test_sigterm_is_handled_like_ctrl_c(tmp_path, workers):
 def tiny_disk(folder, size: str):
     """A tmpfs of ``size`` mounted at ``folder`` for the block (skips where it cannot mount)."""
     folder.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(folder)],
-                      capture_output=True).returncode:
+    if subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(folder)], capture_output=True
+    ).returncode:
         pytest.skip("cannot mount a tmpfs here (needs root)")
     try:
         yield folder
@@ -120,8 +160,19 @@ def tiny_disk(folder, size: str):
 
 def test_disk_full_is_an_error_naming_the_file_and_nothing_claims_success(tmp_path):
     with tiny_disk(tmp_path / "tiny", "40k") as mount:
-        proc = run_cli("reproduce", "pendulum", "--seeds", "0", "--episodes", "3", "--no-progress",
-                       "--set", "train_start=200", "--out", str(mount / "run"))
+        proc = run_cli(
+            "reproduce",
+            "pendulum",
+            "--seeds",
+            "0",
+            "--episodes",
+            "3",
+            "--no-progress",
+            "--set",
+            "train_start=200",
+            "--out",
+            str(mount / "run"),
+        )
         assert proc.returncode != 0
         summary_path = mount / "run" / "seed_0" / "summary.json"
         if summary_path.is_file():
@@ -133,13 +184,25 @@ def test_disk_full_is_an_error_naming_the_file_and_nothing_claims_success(tmp_pa
 def test_disk_full_under_ray_is_one_line_per_seed_naming_the_file(tmp_path):
     """#23.8: with --workers 2 a full disk printed a Ray stack trace with colour codes."""
     with tiny_disk(tmp_path / "tiny", "200k") as mount:
-        proc = run_cli("reproduce", "pendulum", "--seeds", "0-1", "--episodes", "20", "--workers", "2",
-                       "--no-progress", "--out", str(mount / "r"))
+        proc = run_cli(
+            "reproduce",
+            "pendulum",
+            "--seeds",
+            "0-1",
+            "--episodes",
+            "20",
+            "--workers",
+            "2",
+            "--no-progress",
+            "--out",
+            str(mount / "r"),
+        )
         assert proc.returncode == 1
         assert "Traceback" not in proc.stderr and "\x1b[" not in proc.stderr, proc.stderr
         for seed in (0, 1):
-            assert re.search(rf"error: seed {seed}\b.*could not write {mount / 'r' / f'seed_{seed}'}/\S+: No space left",
-                             proc.stderr), proc.stderr
+            assert re.search(
+                rf"error: seed {seed}\b.*could not write {mount / 'r' / f'seed_{seed}'}/\S+: No space left", proc.stderr
+            ), proc.stderr
 
 
 # -- checks before anything heavy loads ----------------------------------------------------------------
@@ -163,8 +226,10 @@ BEFORE_TF = [
 
 @pytest.mark.parametrize("argv, message", BEFORE_TF, ids=[" ".join(a[:3]) + " " + m for a, m in BEFORE_TF])
 def test_bad_input_exits_2_before_tensorflow_is_imported(argv, message):
-    code = ("import sys; from keras_rl.cli import main; rc = main(sys.argv[1:]); "
-            "sys.exit(rc + 10 if 'tensorflow' in sys.modules else rc)")
+    code = (
+        "import sys; from keras_rl.cli import main; rc = main(sys.argv[1:]); "
+        "sys.exit(rc + 10 if 'tensorflow' in sys.modules else rc)"
+    )
     proc = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2, (proc.returncode, proc.stderr)  # 12: right error, but TensorFlow was loaded
     assert message in proc.stderr
@@ -194,8 +259,13 @@ def test_aggregate_refuses_mixed_configs_and_names_a_corrupt_seed(tiny, tmp_path
 
 def test_ctrl_c_during_evaluate_keeps_the_episodes_played(tiny):
     run_dir = tiny[0] / "seed_1"
-    proc = subprocess.Popen([*CLI, "evaluate", str(run_dir), "--episodes", "100000"], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals)
+    proc = subprocess.Popen(
+        [*CLI, "evaluate", str(run_dir), "--episodes", "100000"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_default_signals,
+    )
     deadline = time.monotonic() + 120
     lines = []
     while time.monotonic() < deadline and len(lines) < 3:
@@ -223,8 +293,19 @@ def test_summary_records_provenance_and_is_valid_json_with_usual_permissions(tin
 
 
 def test_lower_is_better_metrics_keep_their_best_and_json_has_no_infinity(tmp_path):
-    proc = run_cli("reproduce", "mountaincar", "--seeds", "0", "--episodes", "12", "--no-progress",
-                   "--set", "converge_window=3", "--out", str(tmp_path))
+    proc = run_cli(
+        "reproduce",
+        "mountaincar",
+        "--seeds",
+        "0",
+        "--episodes",
+        "12",
+        "--no-progress",
+        "--set",
+        "converge_window=3",
+        "--out",
+        str(tmp_path),
+    )
     assert proc.returncode in (0, 1), proc.stderr
     summary = strict_json(tmp_path / "seed_0" / "summary.json")  # the spread is inf for 2 episodes
     spreads = [r["metric"] for r in read_episodes(tmp_path / "seed_0" / "episodes.csv") if math.isfinite(r["metric"])]
@@ -233,8 +314,19 @@ def test_lower_is_better_metrics_keep_their_best_and_json_has_no_infinity(tmp_pa
 
 def test_torch_runs_record_the_torch_version(tmp_path):
     pytest.importorskip("torch")
-    proc = run_cli("reproduce", "cartpole", "--framework", "torch", "--seeds", "0", "--episodes", "1",
-                   "--no-progress", "--out", str(tmp_path))
+    proc = run_cli(
+        "reproduce",
+        "cartpole",
+        "--framework",
+        "torch",
+        "--seeds",
+        "0",
+        "--episodes",
+        "1",
+        "--no-progress",
+        "--out",
+        str(tmp_path),
+    )
     assert proc.returncode == 1, proc.stderr
     import torch
 
@@ -259,9 +351,12 @@ def test_version_flag(capsys):
 def test_every_option_has_help_text():
     parser = build_parser()
     subparsers = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
-    missing = [f"{name} {action.option_strings or action.dest}"
-               for name, sub in subparsers.choices.items() for action in sub._actions
-               if action.dest != "help" and not action.help]
+    missing = [
+        f"{name} {action.option_strings or action.dest}"
+        for name, sub in subparsers.choices.items()
+        for action in sub._actions
+        if action.dest != "help" and not action.help
+    ]
     assert missing == []
     assert "faithful-intended" in subparsers.choices["reproduce"].format_help()
 
@@ -270,9 +365,21 @@ def test_every_option_has_help_text():
 def test_tensorboard_scalars_read_back(tmp_path, seed_batch):
     import tensorflow as tf
 
-    proc = run_cli("reproduce", "cartpole", "--seeds", "0-1", "--episodes", "3", "--no-progress",
-                   "--out", str(tmp_path / "runs"), "--tensorboard", str(tmp_path / "tb"),
-                   "--seed-batch", str(seed_batch))
+    proc = run_cli(
+        "reproduce",
+        "cartpole",
+        "--seeds",
+        "0-1",
+        "--episodes",
+        "3",
+        "--no-progress",
+        "--out",
+        str(tmp_path / "runs"),
+        "--tensorboard",
+        str(tmp_path / "tb"),
+        "--seed-batch",
+        str(seed_batch),
+    )
     assert proc.returncode == 1, proc.stderr
     runs = sorted(p.name for p in (tmp_path / "tb").iterdir())
     assert runs == ["cartpole-faithful-keras-seed0", "cartpole-faithful-keras-seed1"]

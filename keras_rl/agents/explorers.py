@@ -30,8 +30,16 @@ class OUNoise:
     ``N(theta*mu*dt, (sigma*sqrt(dt))^2)``.
     """
 
-    def __init__(self, dim: int, rng: np.random.Generator, theta: float = 0.15, mu: float = 0.0,
-                 dt: float = 0.1, sigma: float = 0.2, carry_state: bool = True):
+    def __init__(
+        self,
+        dim: int,
+        rng: np.random.Generator,
+        theta: float = 0.15,
+        mu: float = 0.0,
+        dt: float = 0.1,
+        sigma: float = 0.2,
+        carry_state: bool = True,
+    ):
         self.dim = int(dim)
         self.rng = rng
         self.theta, self.mu, self.dt, self.sigma = float(theta), float(mu), float(dt), float(sigma)

@@ -51,8 +51,10 @@ class LossTally:
         for name, value in losses.items():
             value = float(value)
             if not math.isfinite(value):
-                raise NonFiniteLossError(f"{name} became {value} at update {self.total_updates} ({where}); "
-                                         "the run stops here and keeps the episodes already written")
+                raise NonFiniteLossError(
+                    f"{name} became {value} at update {self.total_updates} ({where}); "
+                    "the run stops here and keeps the episodes already written"
+                )
             self.sums[name] += value
 
     def stats(self) -> EpisodeStats:
@@ -141,11 +143,19 @@ class Agent:
     def parts_state(self) -> dict[str, Any]:
         """Everything but the learner that the agent carries between env steps, mid-episode
         included (``--resume``; a seed axis checkpoints its learner slice apart)."""
-        return {"buffer": self.buffer.state_dict(), "transitions": self.transitions.state_dict(),
-                "explorer": self.explorer.state_dict(), "total_steps": self.total_steps,
-                "tally": {"sums": dict(self.tally.sums), "updates": self.tally.updates,
-                          "total_updates": self.tally.total_updates},
-                "state": None if self.state is None else self.state.copy(), "action": self._action}
+        return {
+            "buffer": self.buffer.state_dict(),
+            "transitions": self.transitions.state_dict(),
+            "explorer": self.explorer.state_dict(),
+            "total_steps": self.total_steps,
+            "tally": {
+                "sums": dict(self.tally.sums),
+                "updates": self.tally.updates,
+                "total_updates": self.tally.total_updates,
+            },
+            "state": None if self.state is None else self.state.copy(),
+            "action": self._action,
+        }
 
     def load_parts_state(self, state: dict[str, Any]) -> None:
         self.buffer.load_state_dict(state["buffer"])

@@ -56,8 +56,9 @@ class TransitionRule:
     def rows(self, state: np.ndarray, action, reward: float, obs, terminated: bool, truncated: bool) -> np.ndarray:
         """The packed rows ``[k, width]`` to store after this step (``k`` may be 0)."""
         done = {"terminated": terminated, "truncated": truncated, "either": terminated or truncated}[self.done_flag]
-        next_state = (np.asarray(obs, np.float32) if self.obs_low is None or self.store_raw_next_state
-                      else self.observe(obs))
+        next_state = (
+            np.asarray(obs, np.float32) if self.obs_low is None or self.store_raw_next_state else self.observe(obs)
+        )
         row = np.concatenate([state, np.ravel(action), [reward], next_state, [float(done)]]).astype(np.float32)
         if self.episode_rewards is None:
             return row[None, :]

@@ -54,20 +54,26 @@ def baseline_values(experiment, rule: CheckRule, folder: Path) -> tuple[dict[int
     folder is not a finished faithful baseline."""
     seed_dirs = sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1]))
     if not seed_dirs:
-        raise RunFolderError(f"no baseline at {folder} (expected seed_<n>/ folders); --against names the folder "
-                             "that holds <experiment>/baseline")
+        raise RunFolderError(
+            f"no baseline at {folder} (expected seed_<n>/ folders); --against names the folder "
+            "that holds <experiment>/baseline"
+        )
     faithful = experiment.config_cls.for_variant("faithful").to_dict()
     values, rows_of = {}, {}
     for seed_dir in seed_dirs:
         summary = RunSummary.read(seed_dir)
         if summary.experiment != experiment.name:
-            raise RunFolderError(f"{seed_dir} is a baseline of {summary.experiment}, not of {experiment.name}: "
-                                 f"--against names the folder that holds {experiment.name}/baseline")
+            raise RunFolderError(
+                f"{seed_dir} is a baseline of {summary.experiment}, not of {experiment.name}: "
+                f"--against names the folder that holds {experiment.name}/baseline"
+            )
         made = experiment.config_cls.from_dict(json.loads((seed_dir / "config.json").read_text())).to_dict()
         differing = sorted(k for k in faithful if k not in ("seed",) and made.get(k) != faithful[k])
         if differing:
-            raise RunFolderError(f"{seed_dir} is not a faithful run ({', '.join(differing[:3])} differ); "
-                                 "a baseline must be the faithful variant")
+            raise RunFolderError(
+                f"{seed_dir} is not a faithful run ({', '.join(differing[:3])} differ); "
+                "a baseline must be the faithful variant"
+            )
         if summary.status != "completed":
             raise RunFolderError(f"{seed_dir} did not finish ({summary.status}); a baseline needs finished runs")
         rows = read_episodes(seed_dir / "episodes.csv", expected_rows=summary.rows_expected)
@@ -78,8 +84,9 @@ def baseline_values(experiment, rule: CheckRule, folder: Path) -> tuple[dict[int
 def _statistic(experiment, rule: CheckRule, rows: list[dict[str, Any]]) -> float:
     config = experiment.config_cls.for_variant("faithful")
     metric = experiment.make_metric(config)
-    return seed_statistic(rule.statistic, rows, rule.episodes, lambda m: metric.passes(m, config.threshold),
-                          experiment.success_at_end)
+    return seed_statistic(
+        rule.statistic, rows, rule.episodes, lambda m: metric.passes(m, config.threshold), experiment.success_at_end
+    )
 
 
 def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, Any] | None:
@@ -89,9 +96,17 @@ def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, A
     entry = json.loads(calibration.read_text()).get(rule.experiment, {}).get("tiers", {}).get(rule.tier)
     if not entry or "candidates" not in entry:
         return None
-    measured = next((c for c in entry.get("candidates", []) if c["statistic"] == rule.statistic
-                     and c["alpha"] == rule.alpha and c["seeds"] == rule.seeds and c["episodes"] == rule.episodes),
-                    None)
+    measured = next(
+        (
+            c
+            for c in entry.get("candidates", [])
+            if c["statistic"] == rule.statistic
+            and c["alpha"] == rule.alpha
+            and c["seeds"] == rule.seeds
+            and c["episodes"] == rule.episodes
+        ),
+        None,
+    )
     return measured
 
 
@@ -100,12 +115,15 @@ def prepare_out(out: Path) -> None:
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out} is a file; check needs a folder")
     if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file():
-        raise ConfigError(f"--out {out} holds files that are not a check's output; refusing to touch them: "
-                          "pass an empty or new folder")
+        raise ConfigError(
+            f"--out {out} holds files that are not a check's output; refusing to touch them: "
+            "pass an empty or new folder"
+        )
 
 
-def run_check(names: list[str], tier: str, against: Path, out: Path, seeds: list[int] | None,
-              options: RunOptions) -> list[CheckResult]:
+def run_check(
+    names: list[str], tier: str, against: Path, out: Path, seeds: list[int] | None, options: RunOptions
+) -> list[CheckResult]:
     """Run the fresh seeds of every experiment at once, then test each against its baseline."""
     from keras_rl.runs.backends import backend_for
     from keras_rl.runs.jobs import SeedJob, batched, run_jobs
@@ -118,11 +136,15 @@ def run_check(names: list[str], tier: str, against: Path, out: Path, seeds: list
         baseline, baseline_rows = baseline_values(experiment, rule, Path(against) / name / "baseline")
         clash = sorted(set(fresh) & set(baseline))
         if clash:
-            raise ConfigError(f"{name}: seeds {clash} are the baseline's own; check runs fresh seeds "
-                              f"(the baseline has {min(baseline)}-{max(baseline)})")
+            raise ConfigError(
+                f"{name}: seeds {clash} are the baseline's own; check runs fresh seeds "
+                f"(the baseline has {min(baseline)}-{max(baseline)})"
+            )
         if len(fresh) < 2:
             raise ConfigError(f"{name}: a check needs at least 2 fresh seeds, got {len(fresh)}")
-        config = experiment.config_cls.for_variant("faithful", episodes=rule.episodes).with_text_overrides(options.overrides)
+        config = experiment.config_cls.for_variant("faithful", episodes=rule.episodes).with_text_overrides(
+            options.overrides
+        )
         plan.append((experiment, rule, fresh, config, baseline, baseline_rows))
     prepare_out(out)
     jobs = []
@@ -141,8 +163,11 @@ def run_check(names: list[str], tier: str, against: Path, out: Path, seeds: list
         new, new_rows = {}, {}
         for s in fresh:
             summary = RunSummary.read(out / experiment.name / f"seed_{s}")
-            rows = read_episodes(out / experiment.name / f"seed_{s}" / "episodes.csv") \
-                if (out / experiment.name / f"seed_{s}" / "episodes.csv").is_file() else []
+            rows = (
+                read_episodes(out / experiment.name / f"seed_{s}" / "episodes.csv")
+                if (out / experiment.name / f"seed_{s}" / "episodes.csv").is_file()
+                else []
+            )
             if summary.status not in ("completed", "non_finite_loss") or not rows:
                 raise RunFolderError(f"{experiment.name} seed {s} did not finish ({summary.status}: {summary.message})")
             new[s] = _statistic(experiment, rule, rows) if summary.status == "completed" else float("nan")
@@ -159,29 +184,53 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
     from keras_rl.runs.provenance import command_line
 
     command = command or command_line()
-    lines = [f"# keras-rl check, tier {tier}", "", f"Command: `{command}`", "",
-             "| experiment | statistic | test | baseline median (n) | new median (n) | p | alpha | verdict "
-             "| false-alarm rate | power (gross / all mutants) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"# keras-rl check, tier {tier}",
+        "",
+        f"Command: `{command}`",
+        "",
+        "| experiment | statistic | test | baseline median (n) | new median (n) | p | alpha | verdict "
+        "| false-alarm rate | power (gross / all mutants) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in results:
         rates = r.error_rates
         fa = f"{rates['false_alarm_rate']:.2%}" if rates else "not calibrated"
         pw = f"{rates['power_gross']:.0%} / {rates['power_all']:.0%}" if rates else "not calibrated"
-        lines.append(f"| {r.experiment} | {r.rule.statistic} (first {r.rule.episodes} episodes) | "
-                     f"{r.decision.test} | {_median(r.baseline)} ({len(r.baseline)}) | {_median(r.new)} "
-                     f"({len(r.new)}) | {r.decision.p:.3g} | {r.rule.alpha} | **{r.verdict}** | {fa} | {pw} |")
+        lines.append(
+            f"| {r.experiment} | {r.rule.statistic} (first {r.rule.episodes} episodes) | "
+            f"{r.decision.test} | {_median(r.baseline)} ({len(r.baseline)}) | {_median(r.new)} "
+            f"({len(r.new)}) | {r.decision.p:.3g} | {r.rule.alpha} | **{r.verdict}** | {fa} | {pw} |"
+        )
     if any(r.overrides for r in results):
         lines += ["", "New runs with: " + ", ".join(f"`--set {o}`" for o in results[0].overrides)]
-    lines += ["", "The fresh seeds are never the baseline's; `changed` means p < alpha in either direction "
-                  "(learning faster is a change in fidelity too). Error rates: "
-                  "`python reproductions/check_calibrate.py` (results/checks/calibration.md).", ""]
+    lines += [
+        "",
+        "The fresh seeds are never the baseline's; `changed` means p < alpha in either direction "
+        "(learning faster is a change in fidelity too). Error rates: "
+        "`python reproductions/check_calibrate.py` (results/checks/calibration.md).",
+        "",
+    ]
     atomic_write_text(out / "check.md", "\n".join(lines))
-    payload = {"tier": tier, "command": command, "status": "finished",
-               "changed": any(r.decision.changed for r in results),
-               "experiments": [{"experiment": r.experiment, "rule": asdict(r.rule), "verdict": r.verdict,
-                                "decision": asdict(r.decision), "overrides": r.overrides,
-                                "baseline": {str(k): v for k, v in r.baseline.items()},
-                                "new": {str(k): v for k, v in r.new.items()},
-                                "error_rates": r.error_rates} for r in results]}
+    payload = {
+        "tier": tier,
+        "command": command,
+        "status": "finished",
+        "changed": any(r.decision.changed for r in results),
+        "experiments": [
+            {
+                "experiment": r.experiment,
+                "rule": asdict(r.rule),
+                "verdict": r.verdict,
+                "decision": asdict(r.decision),
+                "overrides": r.overrides,
+                "baseline": {str(k): v for k, v in r.baseline.items()},
+                "new": {str(k): v for k, v in r.new.items()},
+                "error_rates": r.error_rates,
+            }
+            for r in results
+        ],
+    }
     atomic_write_json(out / MARKER, payload)
 
 

@@ -60,33 +60,84 @@ class CheckRule:
 
 RULES: dict[tuple[str, str], CheckRule] = {
     # post 000: EMA > -300; seeds stop at the threshold (median ~130 episodes).
-    ("pendulum", "smoke"): CheckRule("pendulum", "smoke", "episodes_to_threshold", 0.01, seeds=10, episodes=250,
-                                     first_seed=1000, seed_batch=10,
-                                     candidates=("episodes_to_threshold", "success", "auc", "final_metric")),
+    ("pendulum", "smoke"): CheckRule(
+        "pendulum",
+        "smoke",
+        "episodes_to_threshold",
+        0.01,
+        seeds=10,
+        episodes=250,
+        first_seed=1000,
+        seed_batch=10,
+        candidates=("episodes_to_threshold", "success", "auc", "final_metric"),
+    ),
     # Calibrated: auc edges out episodes_to_threshold here by a hair (both 100% against the
     # gross mutants and 85% against all; auc flags actor_lr x0.3 13% of the time, against 12%).
-    ("pendulum", "full"): CheckRule("pendulum", "full", "auc", 0.01, seeds=20, episodes=1000,
-                                    first_seed=2000, seed_batch=10,
-                                    candidates=("episodes_to_threshold", "success", "auc", "final_metric")),
+    ("pendulum", "full"): CheckRule(
+        "pendulum",
+        "full",
+        "auc",
+        0.01,
+        seeds=20,
+        episodes=1000,
+        first_seed=2000,
+        seed_batch=10,
+        candidates=("episodes_to_threshold", "success", "auc", "final_metric"),
+    ),
     # post 003: 100-episode mean >= 475 within 600 episodes; the smoke tier sees 250 episodes.
     # Calibrated: final_metric (the 100-episode mean at episode 250) has the most power, by a
     # hair over auc (84% against 83% over all mutants, both 100% against the gross ones).
-    ("cartpole", "smoke"): CheckRule("cartpole", "smoke", "final_metric", 0.01, seeds=10, episodes=250, first_seed=1000,
-                                     seed_batch=10, candidates=("auc", "final_metric")),
+    ("cartpole", "smoke"): CheckRule(
+        "cartpole",
+        "smoke",
+        "final_metric",
+        0.01,
+        seeds=10,
+        episodes=250,
+        first_seed=1000,
+        seed_batch=10,
+        candidates=("auc", "final_metric"),
+    ),
     # Calibrated on 600-episode mutants: episodes_to_threshold, success and final_metric tie
     # (100% gross, 83% all), and the first listed wins; auc misses gamma 0.9 at 600 episodes
     # (0%: it learns fast early, then stalls below 475, and the average hides both).
-    ("cartpole", "full"): CheckRule("cartpole", "full", "episodes_to_threshold", 0.01, seeds=20, episodes=600,
-                                    first_seed=2000, seed_batch=10,
-                                    candidates=("episodes_to_threshold", "success", "auc", "final_metric")),
+    ("cartpole", "full"): CheckRule(
+        "cartpole",
+        "full",
+        "episodes_to_threshold",
+        0.01,
+        seeds=20,
+        episodes=600,
+        first_seed=2000,
+        seed_batch=10,
+        candidates=("episodes_to_threshold", "success", "auc", "final_metric"),
+    ),
     # post 001: last-10 spread <= 2 after all 100 episodes (lower is better); no batching.
     # Calibrated: final_metric (the spread after episode 100), at both tiers: 100% against the
     # gross mutants, where auc misses exploration_ou (0%: noisy scores average out to the
     # baseline's wide range) and success misses actor_lr_x100 (a saturated actor settles too).
-    ("mountaincar", "smoke"): CheckRule("mountaincar", "smoke", "final_metric", 0.01, seeds=6, episodes=100,
-                                        first_seed=1000, seed_batch=1, candidates=("success", "auc", "final_metric")),
-    ("mountaincar", "full"): CheckRule("mountaincar", "full", "final_metric", 0.01, seeds=20, episodes=100,
-                                       first_seed=2000, seed_batch=1, candidates=("success", "auc", "final_metric")),
+    ("mountaincar", "smoke"): CheckRule(
+        "mountaincar",
+        "smoke",
+        "final_metric",
+        0.01,
+        seeds=6,
+        episodes=100,
+        first_seed=1000,
+        seed_batch=1,
+        candidates=("success", "auc", "final_metric"),
+    ),
+    ("mountaincar", "full"): CheckRule(
+        "mountaincar",
+        "full",
+        "final_metric",
+        0.01,
+        seeds=20,
+        episodes=100,
+        first_seed=2000,
+        seed_batch=1,
+        candidates=("success", "auc", "final_metric"),
+    ),
 }
 
 MUTANTS: dict[str, tuple[Mutant, ...]] = {
@@ -112,12 +163,20 @@ MUTANTS: dict[str, tuple[Mutant, ...]] = {
     # that undo the post's finding, a settled policy, in (nearly) every seed: noise in every
     # action, an actor driven to saturation, a blow-up. Frozen learners are subtle here.
     "mountaincar": (
-        Mutant("exploration_ou", {"exploration": "ou"}, True,
-               "quirk P001-NOEXPLORE off: OU noise on every action, so the scores never settle"),
+        Mutant(
+            "exploration_ou",
+            {"exploration": "ou"},
+            True,
+            "quirk P001-NOEXPLORE off: OU noise on every action, so the scores never settle",
+        ),
         Mutant("actor_lr_x100", {"actor_lr": "5e-3"}, True, "actor learning rate x100: the actor saturates"),
-        Mutant("learning_phase_on", {"learning_phase_training": "true"}, True,
-               "quirk P001-PHASE on: acting on one state in training-mode BatchNorm gives action 0, "
-               "so every return is 0, its std is 0 and the normalised returns are NaN"),
+        Mutant(
+            "learning_phase_on",
+            {"learning_phase_training": "true"},
+            True,
+            "quirk P001-PHASE on: acting on one state in training-mode BatchNorm gives action 0, "
+            "so every return is 0, its std is 0 and the normalised returns are NaN",
+        ),
         Mutant("actor_frozen", {"actor_lr": "1e-9"}, False, "the actor never learns (lr 1e-9)"),
         Mutant("critic_frozen", {"critic_lr": "1e-9"}, False, "the critic never learns (lr 1e-9)"),
         Mutant("gamma_0.9", {"gamma": "0.9"}, False, "gamma 0.999 -> 0.9"),

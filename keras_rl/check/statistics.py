@@ -38,15 +38,16 @@ def _metrics(rows: list[dict[str, Any]], episodes: int) -> list[float]:
     return out
 
 
-def seed_statistic(name: str, rows: list[dict[str, Any]], episodes: int, passes: Callable[[float], bool],
-                   success_at_end: bool = False) -> float:
+def seed_statistic(
+    name: str, rows: list[dict[str, Any]], episodes: int, passes: Callable[[float], bool], success_at_end: bool = False
+) -> float:
     """Statistic ``name`` of one seed's episode rows, cut to ``episodes``."""
     if name not in STATISTICS:
         raise ValueError(f"unknown statistic {name!r}; choose one of {', '.join(STATISTICS)}")
     if not rows:
         raise ValueError("a run with no episodes has no statistic")
     metrics = _metrics(rows, episodes)
-    reached = next((i + 1 for i, m in enumerate(metrics[:len(rows)]) if passes(m)), None)
+    reached = next((i + 1 for i, m in enumerate(metrics[: len(rows)]) if passes(m)), None)
     if name == "episodes_to_threshold":
         return float(reached if reached is not None else episodes + 1)
     if name == "success":
@@ -85,8 +86,14 @@ def decide(baseline: Sequence[float], new: Sequence[float], statistic: str, alph
     return Decision(p, p < alpha, "Mann-Whitney U (two-sided)", u)
 
 
-def false_alarm_rate(baseline: Sequence[float], n: int, statistic: str, alpha: float, repeats: int = 10_000,
-                     rng: np.random.Generator | None = None) -> float:
+def false_alarm_rate(
+    baseline: Sequence[float],
+    n: int,
+    statistic: str,
+    alpha: float,
+    repeats: int = 10_000,
+    rng: np.random.Generator | None = None,
+) -> float:
     """How often the rule cries "changed" when nothing changed: draw ``n`` of the baseline's
     seeds as the "new" runs, test them against the rest, ``repeats`` times."""
     rng = rng if rng is not None else np.random.default_rng(0)
@@ -100,8 +107,15 @@ def false_alarm_rate(baseline: Sequence[float], n: int, statistic: str, alpha: f
     return alarms / repeats
 
 
-def power(baseline: Sequence[float], changed: Sequence[float], n: int, statistic: str, alpha: float,
-          repeats: int = 2_000, rng: np.random.Generator | None = None) -> float:
+def power(
+    baseline: Sequence[float],
+    changed: Sequence[float],
+    n: int,
+    statistic: str,
+    alpha: float,
+    repeats: int = 2_000,
+    rng: np.random.Generator | None = None,
+) -> float:
     """How often the rule flags a changed learner: ``n`` seeds drawn (with replacement) from
     the changed runs, tested against the whole baseline, ``repeats`` times."""
     rng = rng if rng is not None else np.random.default_rng(1)
@@ -112,8 +126,15 @@ def power(baseline: Sequence[float], changed: Sequence[float], n: int, statistic
     return hits / repeats
 
 
-def detectable_shift(baseline: Sequence[float], n: int, alpha: float, target: float = 0.8, budget: int | None = None,
-                     repeats: int = 500, rng: np.random.Generator | None = None) -> int | None:
+def detectable_shift(
+    baseline: Sequence[float],
+    n: int,
+    alpha: float,
+    target: float = 0.8,
+    budget: int | None = None,
+    repeats: int = 500,
+    rng: np.random.Generator | None = None,
+) -> int | None:
     """The smallest shift d (in episodes) of episodes-to-threshold that the rule flags with
     probability ``target``: "new" runs are baseline seeds drawn with replacement, d episodes
     slower (capped at the censoring value ``budget + 1``). None if no shift up to the budget is."""

@@ -45,8 +45,10 @@ def load_weights(model, path: Path) -> None:
     """``model.load_weights`` with a RunFolderError that names a missing or damaged file."""
     path = Path(path)
     if not path.is_file():
-        raise RunFolderError(f"{path} is missing: weights are not committed, so run `keras-rl reproduce` "
-                             "for this seed first (it saves them)")
+        raise RunFolderError(
+            f"{path} is missing: weights are not committed, so run `keras-rl reproduce` "
+            "for this seed first (it saves them)"
+        )
     try:
         model.load_weights(str(path))
     except Exception as exc:  # h5py/keras raise many kinds for a damaged file

@@ -40,11 +40,23 @@ class DDPGLearner:
 
     loss_names = ("critic_loss", "actor_loss")
 
-    def __init__(self, actor: keras.Model, critic: keras.Model, target_actor: keras.Model,
-                 target_critic: keras.Model, actor_optimizer: keras.optimizers.Optimizer,
-                 critic_optimizer: keras.optimizers.Optimizer, *, gamma: float, tau: float,
-                 broadcast_target: bool, layout: Layout, xla: bool = True, actor_update: ActorUpdate = "mean_q",
-                 dqda_at_buffer_actions: bool = False):
+    def __init__(
+        self,
+        actor: keras.Model,
+        critic: keras.Model,
+        target_actor: keras.Model,
+        target_critic: keras.Model,
+        actor_optimizer: keras.optimizers.Optimizer,
+        critic_optimizer: keras.optimizers.Optimizer,
+        *,
+        gamma: float,
+        tau: float,
+        broadcast_target: bool,
+        layout: Layout,
+        xla: bool = True,
+        actor_update: ActorUpdate = "mean_q",
+        dqda_at_buffer_actions: bool = False,
+    ):
         self.actor_update = check_actor_update(actor_update)
         self.dqda_at_buffer_actions = bool(dqda_at_buffer_actions)
         self.actor, self.critic = actor, critic
@@ -86,12 +98,21 @@ class DDPGLearner:
         soft_update(self.target_critic.variables, self.critic.variables, self.tau)
 
     @classmethod
-    def with_adam(cls, networks: tuple[keras.Model, keras.Model, keras.Model, keras.Model], actor_lr: float,
-                  critic_lr: float, **kwargs) -> DDPGLearner:
+    def with_adam(
+        cls,
+        networks: tuple[keras.Model, keras.Model, keras.Model, keras.Model],
+        actor_lr: float,
+        critic_lr: float,
+        **kwargs,
+    ) -> DDPGLearner:
         """The posts' set-up: (actor, critic, target actor, target critic), each network with
         its own Keras Adam (Keras 2's Adam of post 001 has the same epsilon and update rule)."""
-        return cls(*networks, keras.optimizers.Adam(learning_rate=actor_lr),
-                   keras.optimizers.Adam(learning_rate=critic_lr), **kwargs)
+        return cls(
+            *networks,
+            keras.optimizers.Adam(learning_rate=actor_lr),
+            keras.optimizers.Adam(learning_rate=critic_lr),
+            **kwargs,
+        )
 
     # -- the Learner protocol --------------------------------------------------------------
     def train(self, rows: np.ndarray) -> dict[str, tf.Tensor]:
@@ -119,12 +140,16 @@ class DDPGLearner:
         load_weights(self.actor, Path(run_dir) / "actor.weights.h5")
 
     def weights(self) -> dict[str, list[np.ndarray]]:
-        return {name: numpy_weights(getattr(self, name))
-                for name in ("actor", "critic", "target_actor", "target_critic")}
+        return {
+            name: numpy_weights(getattr(self, name)) for name in ("actor", "critic", "target_actor", "target_critic")
+        }
 
     def _stateful(self) -> list:
-        return [*(v for m in (self.actor, self.critic, self.target_actor, self.target_critic) for v in m.variables),
-                *self.actor_optimizer.variables, *self.critic_optimizer.variables]
+        return [
+            *(v for m in (self.actor, self.critic, self.target_actor, self.target_critic) for v in m.variables),
+            *self.actor_optimizer.variables,
+            *self.critic_optimizer.variables,
+        ]
 
     def state_dict(self) -> dict:
         return {"variables": variables_state(self._stateful())}
@@ -212,16 +237,25 @@ def post000_networks(config, spec: EnvSpec):
     """Post 000's four Keras networks (``four_networks``'s order). The fixed variant does
     what §2.4's ``update_target_networks(1.0)`` meant to do: a real hard copy (P000-TARGETINIT)."""
     c = config
-    return four_networks(lambda: build(Actor(spec.action_dim, spec.action_bound, c.actor_hidden_units), spec.obs_dim),
-                         lambda: build(Critic(c.critic_hidden_units), spec.obs_dim, spec.action_dim),
-                         None if c.target_copy_is_noop else _hard_copy)
+    return four_networks(
+        lambda: build(Actor(spec.action_dim, spec.action_bound, c.actor_hidden_units), spec.obs_dim),
+        lambda: build(Critic(c.critic_hidden_units), spec.obs_dim, spec.action_dim),
+        None if c.target_copy_is_noop else _hard_copy,
+    )
 
 
 def post000_learner(config, spec: EnvSpec, xla: bool = True) -> DDPGLearner:
     c = config
-    return DDPGLearner.with_adam(post000_networks(c, spec), c.actor_lr, c.critic_lr, gamma=c.gamma, tau=c.tau,
-                                 broadcast_target=c.broadcast_target, layout=Layout(spec.obs_dim, spec.action_dim),
-                                 xla=xla)
+    return DDPGLearner.with_adam(
+        post000_networks(c, spec),
+        c.actor_lr,
+        c.critic_lr,
+        gamma=c.gamma,
+        tau=c.tau,
+        broadcast_target=c.broadcast_target,
+        layout=Layout(spec.obs_dim, spec.action_dim),
+        xla=xla,
+    )
 
 
 def post001_networks(config, spec: EnvSpec):
@@ -230,15 +264,28 @@ def post001_networks(config, spec: EnvSpec):
     so unlike post 000's this copy is real."""
     c = config
     return four_networks(
-        lambda: build(MountainCarActor(spec.action_dim, c.actor_hidden_units, c.actor_input_noise,
-                                       c.learning_phase_training), spec.obs_dim),
-        lambda: build(MountainCarCritic(c.critic_hidden_units, c.learning_phase_training), spec.obs_dim,
-                      spec.action_dim),
-        _hard_copy)
+        lambda: build(
+            MountainCarActor(spec.action_dim, c.actor_hidden_units, c.actor_input_noise, c.learning_phase_training),
+            spec.obs_dim,
+        ),
+        lambda: build(
+            MountainCarCritic(c.critic_hidden_units, c.learning_phase_training), spec.obs_dim, spec.action_dim
+        ),
+        _hard_copy,
+    )
 
 
 def post001_learner(config, spec: EnvSpec, xla: bool = True) -> DDPGLearner:
     c = config
-    return DDPGLearner.with_adam(post001_networks(c, spec), c.actor_lr, c.critic_lr, gamma=c.gamma, tau=c.tau,
-                                 broadcast_target=False, layout=Layout(spec.obs_dim, spec.action_dim), xla=xla,
-                                 actor_update=c.actor_gradient, dqda_at_buffer_actions=c.dqda_at_buffer_actions)
+    return DDPGLearner.with_adam(
+        post001_networks(c, spec),
+        c.actor_lr,
+        c.critic_lr,
+        gamma=c.gamma,
+        tau=c.tau,
+        broadcast_target=False,
+        layout=Layout(spec.obs_dim, spec.action_dim),
+        xla=xla,
+        actor_update=c.actor_gradient,
+        dqda_at_buffer_actions=c.dqda_at_buffer_actions,
+    )

@@ -36,8 +36,18 @@ class DQNLearner:
 
     loss_names = ("loss",)
 
-    def __init__(self, q_network: keras.Model, target_network: keras.Model, optimizer: keras.optimizers.Optimizer, *,
-                 gamma: float, tau: float, grad_clip_value: float, layout: Layout, xla: bool = True):
+    def __init__(
+        self,
+        q_network: keras.Model,
+        target_network: keras.Model,
+        optimizer: keras.optimizers.Optimizer,
+        *,
+        gamma: float,
+        tau: float,
+        grad_clip_value: float,
+        layout: Layout,
+        xla: bool = True,
+    ):
         self.q_network, self.target_network, self.optimizer = q_network, target_network, optimizer
         self.gamma, self.tau, self.grad_clip_value = float(gamma), float(tau), float(grad_clip_value)
         self.layout = layout
@@ -145,5 +155,12 @@ def post003_optimizer(config) -> TorchAdamW:
 def post003_learner(config, spec: EnvSpec, xla: bool = True, dtype: str | None = None) -> DQNLearner:
     """The tutorial's ``policy_net``, ``target_net`` and AdamW."""
     c = config
-    return DQNLearner(*post003_networks(c, spec, dtype), post003_optimizer(c), gamma=c.gamma, tau=c.tau,
-                      grad_clip_value=c.grad_clip_value, layout=Layout(spec.obs_dim, 1), xla=xla)
+    return DQNLearner(
+        *post003_networks(c, spec, dtype),
+        post003_optimizer(c),
+        gamma=c.gamma,
+        tau=c.tau,
+        grad_clip_value=c.grad_clip_value,
+        layout=Layout(spec.obs_dim, 1),
+        xla=xla,
+    )

@@ -52,7 +52,7 @@ def build(model: keras.Model, *input_dims: int) -> keras.Model:
 def torch_linear_init(fan_in: int) -> keras.initializers.Initializer:
     """``nn.Linear``'s default: kaiming_uniform(a=sqrt(5)) = U(-1/sqrt(fan_in), 1/sqrt(fan_in)),
     for weights and biases alike."""
-    bound = 1.0 / fan_in ** 0.5
+    bound = 1.0 / fan_in**0.5
     return keras.initializers.RandomUniform(-bound, bound)
 
 
@@ -63,15 +63,24 @@ class QNetwork(keras.Model):
     Dense's Glorot-uniform kernels and zero biases.
     """
 
-    def __init__(self, obs_dim: int, n_actions: int, hidden_units: Sequence[int] = (128, 128),
-                 init: str = "torch", dtype: str | None = None):
+    def __init__(
+        self,
+        obs_dim: int,
+        n_actions: int,
+        hidden_units: Sequence[int] = (128, 128),
+        init: str = "torch",
+        dtype: str | None = None,
+    ):
         super().__init__(dtype=dtype)
         fan_ins = [obs_dim, *hidden_units]
         widths = [*hidden_units, n_actions]
         self.dense = []
         for i, (fan_in, width) in enumerate(zip(fan_ins, widths)):
-            kwargs = ({"kernel_initializer": torch_linear_init(fan_in), "bias_initializer": torch_linear_init(fan_in)}
-                      if init == "torch" else {})
+            kwargs = (
+                {"kernel_initializer": torch_linear_init(fan_in), "bias_initializer": torch_linear_init(fan_in)}
+                if init == "torch"
+                else {}
+            )
             activation = "relu" if i < len(hidden_units) else None
             self.dense.append(keras.layers.Dense(width, activation=activation, dtype=dtype, **kwargs))
 
@@ -92,8 +101,13 @@ class MountainCarActor(keras.Model):
     initial moving statistics (mean 0, variance 1), which nothing ever updates.
     """
 
-    def __init__(self, action_dim: int = 1, hidden_units: Sequence[int] = (32, 32, 32), noise_std: float = 1.0,
-                 training: bool = False):
+    def __init__(
+        self,
+        action_dim: int = 1,
+        hidden_units: Sequence[int] = (32, 32, 32),
+        noise_std: float = 1.0,
+        training: bool = False,
+    ):
         super().__init__()
         self.learning_phase = training
         self.noise = keras.layers.GaussianNoise(noise_std)
@@ -115,8 +129,10 @@ class MountainCarCritic(keras.Model):
     def __init__(self, hidden_units: Sequence[int] = (32, 32), training: bool = False):
         super().__init__()
         if len(hidden_units) != 2:
-            raise ValueError(f"post 001's critic has two hidden layers (before and after the action joins), "
-                             f"got widths {tuple(hidden_units)}")
+            raise ValueError(
+                f"post 001's critic has two hidden layers (before and after the action joins), "
+                f"got widths {tuple(hidden_units)}"
+            )
         self.learning_phase = training
         self.norm = keras.layers.BatchNormalization()
         self.fc1 = keras.layers.Dense(hidden_units[0], activation="selu")

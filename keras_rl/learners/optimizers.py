@@ -27,9 +27,17 @@ class TorchAdamW(keras.optimizers.Optimizer):
     which runs before the update step, as torch's ``param.mul_`` does.
     """
 
-    def __init__(self, learning_rate: float = 1e-3, beta_1: float = 0.9, beta_2: float = 0.999,
-                 epsilon: float = 1e-8, weight_decay: float = 0.01, amsgrad: bool = False,
-                 name: str = "torch_adamw", **kwargs):
+    def __init__(
+        self,
+        learning_rate: float = 1e-3,
+        beta_1: float = 0.9,
+        beta_2: float = 0.999,
+        epsilon: float = 1e-8,
+        weight_decay: float = 0.01,
+        amsgrad: bool = False,
+        name: str = "torch_adamw",
+        **kwargs,
+    ):
         for label, value in (("learning_rate", learning_rate), ("epsilon", epsilon)):
             if not value > 0:
                 raise ValueError(f"{label} must be positive, got {value}")
@@ -84,8 +92,15 @@ class SeedAdam:
     step, P001-POP). With every mask True it computes what a Keras Adam per seed computes.
     """
 
-    def __init__(self, variables, seeds: int, learning_rate: float, beta_1: float = 0.9, beta_2: float = 0.999,
-                 epsilon: float = 1e-7):
+    def __init__(
+        self,
+        variables,
+        seeds: int,
+        learning_rate: float,
+        beta_1: float = 0.9,
+        beta_2: float = 0.999,
+        epsilon: float = 1e-7,
+    ):
         import tensorflow as tf
 
         self.learning_rate = tf.Variable(learning_rate, dtype=tf.float32, trainable=False, name="learning_rate")

@@ -60,13 +60,13 @@ ActorUpdate = Literal["mean_q", "dpg_intended", "dpg_literal"]
 
 def check_actor_update(actor_update: str) -> str:
     if actor_update not in typing.get_args(ActorUpdate):
-        raise ValueError(f"actor_update must be one of {', '.join(typing.get_args(ActorUpdate))}, "
-                         f"got {actor_update!r}")
+        raise ValueError(f"actor_update must be one of {', '.join(typing.get_args(ActorUpdate))}, got {actor_update!r}")
     return actor_update
 
 
-def four_networks(make_actor: Callable[[], Any], make_critic: Callable[[], Any],
-                  hard_copy: Callable[[Any, Any], None] | None) -> tuple[Any, Any, Any, Any]:
+def four_networks(
+    make_actor: Callable[[], Any], make_critic: Callable[[], Any], hard_copy: Callable[[Any, Any], None] | None
+) -> tuple[Any, Any, Any, Any]:
     """A DDPG post's four networks, built in the order both posts draw their initial
     weights (actor, target actor, critic, target critic), the targets hard-copied from
     their networks when ``hard_copy`` is given. Returned as (actor, critic, target actor,

@@ -111,19 +111,31 @@ class StackedBatchNorm(keras.layers.Layer):
         super().__init__()
         self.gamma = self.add_weight(shape=(seeds, features), initializer="ones", name="gamma")
         self.beta = self.add_weight(shape=(seeds, features), initializer="zeros", name="beta")
-        self.moving_mean = self.add_weight(shape=(seeds, features), initializer="zeros", name="moving_mean",
-                                           trainable=False)
-        self.moving_variance = self.add_weight(shape=(seeds, features), initializer="ones", name="moving_variance",
-                                               trainable=False)
+        self.moving_mean = self.add_weight(
+            shape=(seeds, features), initializer="zeros", name="moving_mean", trainable=False
+        )
+        self.moving_variance = self.add_weight(
+            shape=(seeds, features), initializer="ones", name="moving_variance", trainable=False
+        )
         self.epsilon = float(epsilon)
 
     def call(self, x: tf.Tensor) -> tf.Tensor:
-        return tf.nn.batch_normalization(x, self.moving_mean[:, None, :], self.moving_variance[:, None, :],
-                                         self.beta[:, None, :], self.gamma[:, None, :], self.epsilon)
+        return tf.nn.batch_normalization(
+            x,
+            self.moving_mean[:, None, :],
+            self.moving_variance[:, None, :],
+            self.beta[:, None, :],
+            self.gamma[:, None, :],
+            self.epsilon,
+        )
 
     def set_from(self, norms: Sequence[keras.layers.BatchNormalization]) -> None:
-        for mine, name in ((self.gamma, "gamma"), (self.beta, "beta"), (self.moving_mean, "moving_mean"),
-                           (self.moving_variance, "moving_variance")):
+        for mine, name in (
+            (self.gamma, "gamma"),
+            (self.beta, "beta"),
+            (self.moving_mean, "moving_mean"),
+            (self.moving_variance, "moving_variance"),
+        ):
             mine.assign(np.stack([getattr(n, name).numpy() for n in norms]))
 
 
@@ -222,16 +234,23 @@ class StackedDDPGLearner(SliceState, DDPGLearner):
         self._mask = tf.Variable(tf.ones([seeds], tf.bool), trainable=False, name="mask")
         self._mask_now = np.ones(seeds, bool)
         self.solo_policies: list[tuple[keras.Model, keras.Model]] = []  # (actor, critic) per seed, for saving
-        super().__init__(*networks, SeedAdam(actor.trainable_variables, seeds, actor_lr),
-                         SeedAdam(critic.trainable_variables, seeds, critic_lr), xla=xla, **kwargs)
+        super().__init__(
+            *networks,
+            SeedAdam(actor.trainable_variables, seeds, actor_lr),
+            SeedAdam(critic.trainable_variables, seeds, critic_lr),
+            xla=xla,
+            **kwargs,
+        )
 
     # -- DDPGLearner's hooks -----------------------------------------------------------------
     def build_optimizers(self) -> None:
         pass  # SeedAdam makes its moments when it is made
 
     def input_specs(self) -> tuple[tf.TensorSpec, tf.TensorSpec]:
-        return (tf.TensorSpec([self.seeds, None, self.layout.width], tf.float32),  # [S, B, width]
-                tf.TensorSpec([self.seeds, self.layout.obs_dim], tf.float32))  # [S, obs]
+        return (
+            tf.TensorSpec([self.seeds, None, self.layout.width], tf.float32),  # [S, B, width]
+            tf.TensorSpec([self.seeds, self.layout.obs_dim], tf.float32),
+        )  # [S, obs]
 
     def seed_mean(self, x: tf.Tensor) -> tf.Tensor:
         return tf.reduce_mean(x, axis=list(range(1, len(x.shape))))  # [S]: each seed's own loss
@@ -252,8 +271,11 @@ class StackedDDPGLearner(SliceState, DDPGLearner):
         return self.actor(states[:, None, :])[:, 0]  # [S, act]
 
     def _stateful(self) -> list:
-        return [*(v for name in NETWORKS for v in getattr(self, name).variables),
-                *self.actor_optimizer.variables, *self.critic_optimizer.variables]
+        return [
+            *(v for name in NETWORKS for v in getattr(self, name).variables),
+            *self.actor_optimizer.variables,
+            *self.critic_optimizer.variables,
+        ]
 
     # -- the stacked interface ---------------------------------------------------------------
     def train(self, rows: np.ndarray, mask: np.ndarray | None = None) -> dict[str, tf.Tensor]:
@@ -308,8 +330,10 @@ class StackedQNetwork(keras.Model):
     def __init__(self, solos: Sequence[keras.Model]):
         super().__init__()
         s, n = len(solos), len(solos[0].dense)
-        self.dense = [StackedDense(s, d.kernel.shape[0], d.units, "relu" if i < n - 1 else None)
-                      for i, d in enumerate(solos[0].dense)]
+        self.dense = [
+            StackedDense(s, d.kernel.shape[0], d.units, "relu" if i < n - 1 else None)
+            for i, d in enumerate(solos[0].dense)
+        ]
         for i, layer in enumerate(self.dense):
             layer.set_from([m.dense[i] for m in solos])
 
@@ -331,8 +355,10 @@ class StackedDQNLearner(SliceState, DQNLearner):
         super().__init__(q_network, target_network, optimizer, **kwargs)
 
     def input_specs(self) -> tuple[tf.TensorSpec, tf.TensorSpec]:
-        return (tf.TensorSpec([self.seeds, None, self.layout.width], tf.float32),
-                tf.TensorSpec([self.seeds, self.layout.obs_dim], tf.float32))
+        return (
+            tf.TensorSpec([self.seeds, None, self.layout.width], tf.float32),
+            tf.TensorSpec([self.seeds, self.layout.obs_dim], tf.float32),
+        )
 
     def total_loss(self, loss: tf.Tensor) -> tf.Tensor:
         return tf.reduce_sum(loss)  # each slice gets its solo gradient
@@ -427,10 +453,20 @@ def _stack_ddpg(configs: Sequence, spec: EnvSpec, networks, stacked_actor, stack
     solo builder ``networks``)."""
     c = configs[0]
     solos = _per_seed(configs, lambda config: networks(config, spec))
-    nets = [stacked_actor([s[i] for s in solos]) if i in (0, 2) else stacked_critic([s[i] for s in solos])
-            for i in range(4)]
-    learner = StackedDDPGLearner(nets, actor_lr=c.actor_lr, critic_lr=c.critic_lr, seeds=len(configs), xla=xla, gamma=c.gamma, tau=c.tau,
-                                 layout=Layout(spec.obs_dim, spec.action_dim), **kwargs)
+    nets = [
+        stacked_actor([s[i] for s in solos]) if i in (0, 2) else stacked_critic([s[i] for s in solos]) for i in range(4)
+    ]
+    learner = StackedDDPGLearner(
+        nets,
+        actor_lr=c.actor_lr,
+        critic_lr=c.critic_lr,
+        seeds=len(configs),
+        xla=xla,
+        gamma=c.gamma,
+        tau=c.tau,
+        layout=Layout(spec.obs_dim, spec.action_dim),
+        **kwargs,
+    )
     learner.solo_policies = [(s[0], s[1]) for s in solos]
     return learner
 
@@ -444,8 +480,15 @@ def stack_post000(configs: Sequence, spec: EnvSpec, xla: bool = True):
         seed_everything(c.seed)
         return SoloAsStack(post000_learner(c, spec, xla=xla))
     obs, act = spec.obs_dim, spec.action_dim
-    return _stack_ddpg(configs, spec, post000_networks, lambda m: StackedActor(m, obs),
-                       lambda m: StackedCritic(m, obs + act), xla, broadcast_target=c.broadcast_target)
+    return _stack_ddpg(
+        configs,
+        spec,
+        post000_networks,
+        lambda m: StackedActor(m, obs),
+        lambda m: StackedCritic(m, obs + act),
+        xla,
+        broadcast_target=c.broadcast_target,
+    )
 
 
 def stack_post001(configs: Sequence, spec: EnvSpec, xla: bool = True):
@@ -461,12 +504,22 @@ def stack_post001(configs: Sequence, spec: EnvSpec, xla: bool = True):
     if c.learning_phase_training:
         from keras_rl.errors import ConfigError
 
-        raise ConfigError("--seed-batch does not cover learning_phase_training=true (its noise layer draws from "
-                          "TensorFlow's one generator, so seeds could not keep their own draws); run it without")
+        raise ConfigError(
+            "--seed-batch does not cover learning_phase_training=true (its noise layer draws from "
+            "TensorFlow's one generator, so seeds could not keep their own draws); run it without"
+        )
     obs, act = spec.obs_dim, spec.action_dim
-    return _stack_ddpg(configs, spec, post001_networks, lambda m: StackedMountainCarActor(m, obs),
-                       lambda m: StackedMountainCarCritic(m, obs, act), xla, broadcast_target=False,
-                       actor_update=c.actor_gradient, dqda_at_buffer_actions=c.dqda_at_buffer_actions)
+    return _stack_ddpg(
+        configs,
+        spec,
+        post001_networks,
+        lambda m: StackedMountainCarActor(m, obs),
+        lambda m: StackedMountainCarCritic(m, obs, act),
+        xla,
+        broadcast_target=False,
+        actor_update=c.actor_gradient,
+        dqda_at_buffer_actions=c.dqda_at_buffer_actions,
+    )
 
 
 def stack_post003(configs: Sequence, spec: EnvSpec, xla: bool = True):
@@ -478,8 +531,16 @@ def stack_post003(configs: Sequence, spec: EnvSpec, xla: bool = True):
         seed_everything(c.seed)
         return SoloAsStack(post003_learner(c, spec, xla=xla))
     solos = _per_seed(configs, lambda config: post003_networks(config, spec))
-    learner = StackedDQNLearner(StackedQNetwork([q for q, _ in solos]), StackedQNetwork([t for _, t in solos]),
-                                post003_optimizer(c), gamma=c.gamma, tau=c.tau, grad_clip_value=c.grad_clip_value,
-                                layout=Layout(spec.obs_dim, 1), seeds=len(configs), xla=xla)
+    learner = StackedDQNLearner(
+        StackedQNetwork([q for q, _ in solos]),
+        StackedQNetwork([t for _, t in solos]),
+        post003_optimizer(c),
+        gamma=c.gamma,
+        tau=c.tau,
+        grad_clip_value=c.grad_clip_value,
+        layout=Layout(spec.obs_dim, 1),
+        seeds=len(configs),
+        xla=xla,
+    )
     learner.solo_networks = [q for q, _ in solos]
     return learner

@@ -71,5 +71,6 @@ def implementation(experiment: str, framework: str) -> Implementation:
     try:
         return IMPLEMENTATIONS[(experiment, framework)]
     except KeyError:
-        raise ConfigError(f"{experiment} has no {framework!r} version; choose one of "
-                          f"{', '.join(frameworks(experiment))}") from None
+        raise ConfigError(
+            f"{experiment} has no {framework!r} version; choose one of {', '.join(frameworks(experiment))}"
+        ) from None

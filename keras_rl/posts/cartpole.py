@@ -94,17 +94,21 @@ def assemble(config: CartPoleDQNConfig, spec: EnvSpec, learner, action_space) ->
     c = config
     layout = Layout(spec.obs_dim, 1)
     buffer_rng, explore_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(c.seed).spawn(2))
-    return Agent(learner,
-                 ReplayBuffer(c.buffer_size, layout, buffer_rng),
-                 TransitionRule(layout, done_flag="terminated"),
-                 EveryStep(c.train_start, c.batch_size, fuse_act=True),
-                 EpsilonGreedy(decaying_epsilon(c.eps_start, c.eps_end, c.eps_decay), explore_rng, action_space))
+    return Agent(
+        learner,
+        ReplayBuffer(c.buffer_size, layout, buffer_rng),
+        TransitionRule(layout, done_flag="terminated"),
+        EveryStep(c.train_start, c.batch_size, fuse_act=True),
+        EpsilonGreedy(decaying_epsilon(c.eps_start, c.eps_end, c.eps_decay), explore_rng, action_space),
+    )
 
 
 def _extras(rows: list[dict[str, Any]], config: CartPoleDQNConfig) -> dict[str, Any]:
-    last = [r["score"] for r in rows[-config.mean_window:]]
-    return {"last_100_mean": sum(last) / len(last) if last else None,
-            "last_100_share_at_500": sum(s >= 500 for s in last) / len(last) if last else None}
+    last = [r["score"] for r in rows[-config.mean_window :]]
+    return {
+        "last_100_mean": sum(last) / len(last) if last else None,
+        "last_100_share_at_500": sum(s >= 500 for s in last) / len(last) if last else None,
+    }
 
 
 EXPERIMENT = Experiment(
@@ -116,8 +120,10 @@ EXPERIMENT = Experiment(
     make_metric=lambda c: RollingMean(c.mean_window),
     metric_label=lambda c: "100-episode mean duration",
     description="post 003: the PyTorch DQN tutorial on CartPole-v1 (keras or torch), "
-                "success = 100-episode mean >= 475 within 600 episodes",
+    "success = 100-episode mean >= 475 within 600 episodes",
     summary_extras=_extras,
-    post_reference=("The tutorial claims the model \"constantly achieves 500 steps within 600 training "
-                    "episodes\"; CartPole-v1's reward threshold is 475."),
+    post_reference=(
+        'The tutorial claims the model "constantly achieves 500 steps within 600 training '
+        "episodes\"; CartPole-v1's reward threshold is 475."
+    ),
 )

@@ -58,11 +58,16 @@ class MountainCarDDPGConfig(ExperimentConfig):
             "threshold": 0.5,
         },
     }
-    QUIRKS: ClassVar = {"learning_phase_training": ("P001-PHASE", True), "actor_gradient": ("P001-ACTORGRAD", "dpg_intended"),
-                         "dqda_at_buffer_actions": ("P001-DQDA", False), "store_raw_next_state": ("P001-NEXTSTATE", False),
-                         "episode_returns_as_rewards": ("P001-RETURNS", False),
-                         "done_includes_truncation": ("P001-DONE", False), "popping_buffer": ("P001-POP", False),
-                         "exploration": ("P001-NOEXPLORE", "ou")}
+    QUIRKS: ClassVar = {
+        "learning_phase_training": ("P001-PHASE", True),
+        "actor_gradient": ("P001-ACTORGRAD", "dpg_intended"),
+        "dqda_at_buffer_actions": ("P001-DQDA", False),
+        "store_raw_next_state": ("P001-NEXTSTATE", False),
+        "episode_returns_as_rewards": ("P001-RETURNS", False),
+        "done_includes_truncation": ("P001-DONE", False),
+        "popping_buffer": ("P001-POP", False),
+        "exploration": ("P001-NOEXPLORE", "ou"),
+    }
     RENAMED: ClassVar = {
         "critic_hidden": lambda v: {"critic_hidden_units": (int(v), int(v))},
         "actor_hidden": lambda v: {"actor_hidden_units": v},
@@ -159,12 +164,16 @@ class MountainCarDDPGConfig(ExperimentConfig):
         if self.train_down_to >= self.train_start:
             raise ConfigError("train_down_to must be below train_start")
         if self.popping_buffer and self.batch_size > self.train_down_to + 1:
-            raise ConfigError(f"batch_size {self.batch_size} is larger than train_down_to + 1 = "
-                              f"{self.train_down_to + 1}: a burst pops batches while more than train_down_to "
-                              "transitions remain, so the last pop would come up short")
+            raise ConfigError(
+                f"batch_size {self.batch_size} is larger than train_down_to + 1 = "
+                f"{self.train_down_to + 1}: a burst pops batches while more than train_down_to "
+                "transitions remain, so the last pop would come up short"
+            )
         if len(self.critic_hidden_units) != 2:
-            raise ConfigError("critic_hidden_units takes two widths (before and after the action joins), "
-                              f"got {self.critic_hidden_units}")
+            raise ConfigError(
+                "critic_hidden_units takes two widths (before and after the action joins), "
+                f"got {self.critic_hidden_units}"
+            )
 
 
 def standardised_discounted_returns(rewards, discount: float = 0.999) -> np.ndarray:
@@ -189,10 +198,15 @@ def assemble(config: MountainCarDDPGConfig, spec: EnvSpec, learner, action_space
     transitions = TransitionRule(
         layout,
         done_flag="either" if c.done_includes_truncation else "terminated",  # P001-DONE
-        obs_low=obs_low, obs_span=np.asarray(spec.obs_high, np.float32) - obs_low,  # (s - low) / (high - low)
+        obs_low=obs_low,
+        obs_span=np.asarray(spec.obs_high, np.float32) - obs_low,  # (s - low) / (high - low)
         store_raw_next_state=c.store_raw_next_state,  # P001-NEXTSTATE
-        episode_rewards=((lambda rewards: standardised_discounted_returns(rewards, c.return_discount))
-                         if c.episode_returns_as_rewards else None))  # P001-RETURNS
+        episode_rewards=(
+            (lambda rewards: standardised_discounted_returns(rewards, c.return_discount))
+            if c.episode_returns_as_rewards
+            else None
+        ),
+    )  # P001-RETURNS
     if c.popping_buffer:  # P001-POP, P001-TRIGGER
         capacity = c.train_start + (spec.max_episode_steps or 999) + 1  # the most it can ever hold
         buffer = PoppingBuffer(capacity, layout, random.Random(int(seeds[0].generate_state(1)[0])))
@@ -201,19 +215,30 @@ def assemble(config: MountainCarDDPGConfig, spec: EnvSpec, learner, action_space
         buffer = ReplayBuffer(c.buffer_size, layout, np.random.default_rng(seeds[0]))
         schedule = EveryStep(c.train_start, c.batch_size, fuse_act=False)  # agent.get_action is its own predict
     if c.exploration == "ou":
-        explorer = AdditiveNoise(OUNoise(spec.action_dim, np.random.default_rng(seeds[1]), theta=c.noise_theta,
-                                         mu=c.noise_mu, dt=c.noise_dt, sigma=c.noise_sigma), 1.0)
+        explorer = AdditiveNoise(
+            OUNoise(
+                spec.action_dim,
+                np.random.default_rng(seeds[1]),
+                theta=c.noise_theta,
+                mu=c.noise_mu,
+                dt=c.noise_dt,
+                sigma=c.noise_sigma,
+            ),
+            1.0,
+        )
     else:
         explorer = NoExploration()  # P001-NOEXPLORE
     return Agent(learner, buffer, transitions, schedule, explorer)
 
 
 def _extras(rows: list[dict[str, Any]], config: MountainCarDDPGConfig) -> dict[str, Any]:
-    last = rows[-config.goal_window:]
-    return {"goal_hits_last_window": sum(r["score"] > 0 for r in last),
-            "goal_hits_total": sum(r["score"] > 0 for r in rows),
-            "first_goal_episode": next((r["episode"] for r in rows if r["score"] > 0), None),
-            "last_window_mean_return": sum(r["score"] for r in last) / len(last) if last else None}
+    last = rows[-config.goal_window :]
+    return {
+        "goal_hits_last_window": sum(r["score"] > 0 for r in last),
+        "goal_hits_total": sum(r["score"] > 0 for r in rows),
+        "first_goal_episode": next((r["episode"] for r in rows if r["score"] > 0), None),
+        "last_window_mean_return": sum(r["score"] for r in last) / len(last) if last else None,
+    }
 
 
 EXPERIMENT = Experiment(
@@ -223,12 +248,15 @@ EXPERIMENT = Experiment(
     env_spec=lambda env: box_spec(env, "DDPG (post 001)"),
     assemble=assemble,
     make_metric=lambda c: ReturnSpread(c.converge_window) if c.criterion == "converged" else GoalShare(c.goal_window),
-    metric_label=lambda c: (f"spread of the last {c.converge_window} returns" if c.criterion == "converged"
-                            else f"share of the last {c.goal_window} episodes at the goal"),
+    metric_label=lambda c: (
+        f"spread of the last {c.converge_window} returns"
+        if c.criterion == "converged"
+        else f"share of the last {c.goal_window} episodes at the goal"
+    ),
     description="post 001: DDPG on MountainCarContinuous-v0 from Keras 2 graph code; "
-                "success = converged (faithful) or the goal in half the last 50 episodes (fixed)",
+    "success = converged (faithful) or the goal in half the last 50 episodes (fixed)",
     summary_extras=_extras,
-    post_reference="The post says it \"roughly converged within 100 trials\" and gives no number.",
+    post_reference='The post says it "roughly converged within 100 trials" and gives no number.',
     success_at_end=True,
     metric_in_score_units=False,
 )

@@ -40,9 +40,12 @@ class PendulumDDPGConfig(ExperimentConfig):
             "target_copy_is_noop": False,
         },
     }
-    QUIRKS: ClassVar = {"noise_restarts_from_zero": ("P000-NOISE", False), "done_from_truncated": ("P000-DONE", False),
-                         "broadcast_target": ("P000-BROADCAST", False),
-                         "target_copy_is_noop": ("P000-TARGETINIT", False)}
+    QUIRKS: ClassVar = {
+        "noise_restarts_from_zero": ("P000-NOISE", False),
+        "done_from_truncated": ("P000-DONE", False),
+        "broadcast_target": ("P000-BROADCAST", False),
+        "target_copy_is_noop": ("P000-TARGETINIT", False),
+    }
     RENAMED: ClassVar = {"hidden_units": lambda v: {"actor_hidden_units": v, "critic_hidden_units": v}}
 
     # -- environment (§2.4 Main) --------------------------------------------------------
@@ -125,13 +128,22 @@ def assemble(config: PendulumDDPGConfig, spec: EnvSpec, learner, action_space=No
     c = config
     layout = Layout(spec.obs_dim, spec.action_dim)
     buffer_rng, noise_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(c.seed).spawn(2))
-    noise = OUNoise(spec.action_dim, noise_rng, theta=c.noise_theta, mu=c.noise_mu, dt=c.noise_dt,
-                    sigma=c.noise_sigma, carry_state=not c.noise_restarts_from_zero)  # P000-NOISE
-    return Agent(learner,
-                 ReplayBuffer(c.buffer_size, layout, buffer_rng),
-                 TransitionRule(layout, done_flag="truncated" if c.done_from_truncated else "terminated"),  # P000-DONE
-                 EveryStep(c.train_start, c.batch_size, c.train_every, fuse_act=True),
-                 AdditiveNoise(noise, c.action_clip))
+    noise = OUNoise(
+        spec.action_dim,
+        noise_rng,
+        theta=c.noise_theta,
+        mu=c.noise_mu,
+        dt=c.noise_dt,
+        sigma=c.noise_sigma,
+        carry_state=not c.noise_restarts_from_zero,
+    )  # P000-NOISE
+    return Agent(
+        learner,
+        ReplayBuffer(c.buffer_size, layout, buffer_rng),
+        TransitionRule(layout, done_flag="truncated" if c.done_from_truncated else "terminated"),  # P000-DONE
+        EveryStep(c.train_start, c.batch_size, c.train_every, fuse_act=True),
+        AdditiveNoise(noise, c.action_clip),
+    )
 
 
 EXPERIMENT = Experiment(

@@ -35,9 +35,22 @@ class PostActor(keras.Model):
 
 
 class PostAgent:
-    def __init__(self, actor, critic, target_actor, target_critic, actor_lr=1e-3, critic_lr=1e-3,
-                 gamma=0.99, tau=0.001, buffer_size=2000, batch_size=64, train_start=1000,
-                 broadcast=True, seed=0):
+    def __init__(
+        self,
+        actor,
+        critic,
+        target_actor,
+        target_critic,
+        actor_lr=1e-3,
+        critic_lr=1e-3,
+        gamma=0.99,
+        tau=0.001,
+        buffer_size=2000,
+        batch_size=64,
+        train_start=1000,
+        broadcast=True,
+        seed=0,
+    ):
         self.actor, self.critic = actor, critic
         self.target_actor, self.target_critic = target_actor, target_critic
         self.actor_optimizer = keras.optimizers.Adam(learning_rate=actor_lr)

@@ -96,5 +96,12 @@ def functional_models():
 
 def fill(agent: PostAgent, n: int, rng: np.random.Generator) -> None:
     for _ in range(n):
-        agent.memory.append(Experience(rng.random((1, 2)).astype(np.float32), rng.uniform(-1, 1, (1, 1)),
-                                       float(rng.normal()), rng.normal(size=(1, 2)).astype(np.float32), False))
+        agent.memory.append(
+            Experience(
+                rng.random((1, 2)).astype(np.float32),
+                rng.uniform(-1, 1, (1, 1)),
+                float(rng.normal()),
+                rng.normal(size=(1, 2)).astype(np.float32),
+                False,
+            )
+        )

@@ -20,8 +20,14 @@ def _fmt(value: Any) -> str:
     return "n/a" if value is None else (f"{value:g}" if isinstance(value, float) else str(value))
 
 
-def write_aggregate(out_dir: Path, summaries: list[RunSummary], threshold: float, title: str,
-                    metric_label: str, post_reference: str = "") -> dict[str, Any]:
+def write_aggregate(
+    out_dir: Path,
+    summaries: list[RunSummary],
+    threshold: float,
+    title: str,
+    metric_label: str,
+    post_reference: str = "",
+) -> dict[str, Any]:
     """Write ``summary.md`` and ``curves.png`` for the seeds in ``summaries``."""
     out_dir = Path(out_dir)
     summaries = sorted(summaries, key=lambda s: s.seed)
@@ -46,12 +52,16 @@ def write_aggregate(out_dir: Path, summaries: list[RunSummary], threshold: float
     ]
     if post_reference:
         lines += [post_reference, ""]
-    lines += ["| seed | status | reached at episode | episodes run | env steps | final metric | wall s |",
-              "|---|---|---|---|---|---|---|"]
+    lines += [
+        "| seed | status | reached at episode | episodes run | env steps | final metric | wall s |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for s in summaries:
         final = None if s.final_metric is None else round(s.final_metric, 1)
-        lines.append(f"| {s.seed} | {s.status} | {_fmt(s.reached_at_episode)} | {s.episodes_run} "
-                     f"| {s.total_steps} | {_fmt(final)} | {s.wall_seconds:.1f} |")
+        lines.append(
+            f"| {s.seed} | {s.status} | {_fmt(s.reached_at_episode)} | {s.episodes_run} "
+            f"| {s.total_steps} | {_fmt(final)} | {s.wall_seconds:.1f} |"
+        )
     if summaries:
         lines += ["", f"Command: `{summaries[0].command}`", ""]
     atomic_write_text(out_dir / "summary.md", "\n".join(lines))
@@ -87,7 +97,7 @@ def rebuild(parent: Path, x_axis: str = "episode") -> dict[str, Any]:
     keys = {(c["experiment"], c["variant"], c.get("framework", "keras")) for c in configs}
     if len(keys) != 1:
         raise RunFolderError(f"{parent} mixes runs of different experiments/variants/frameworks: {sorted(keys)}")
-    (name, variant, framework), = keys
+    ((name, variant, framework),) = keys
     experiment = get_experiment(name)
     loaded = [experiment.config_cls.from_dict(c) for c in configs]
     first = loaded[0].to_dict()
@@ -96,10 +106,17 @@ def rebuild(parent: Path, x_axis: str = "episode") -> dict[str, Any]:
         differing = loaded[0].differs_from(config)
         if differing:
             k = differing[0]
-            raise RunFolderError(f"{seed_dir} was made with a different config than {seed_dirs[0]} "
-                                 f"({k}={other[k]!r} there, {first[k]!r} here); refusing to aggregate mixed runs")
+            raise RunFolderError(
+                f"{seed_dir} was made with a different config than {seed_dirs[0]} "
+                f"({k}={other[k]!r} there, {first[k]!r} here); refusing to aggregate mixed runs"
+            )
     for seed_dir, config in zip(seed_dirs, loaded):
         plot_seed_curve(seed_dir, experiment, config, x_axis=x_axis)
-    return write_aggregate(parent, summaries, loaded[0].threshold,
-                           f"{name} ({variant}, {framework}), {len(summaries)} seeds",
-                           experiment.metric_label(loaded[0]), experiment.post_reference)
+    return write_aggregate(
+        parent,
+        summaries,
+        loaded[0].threshold,
+        f"{name} ({variant}, {framework}), {len(summaries)} seeds",
+        experiment.metric_label(loaded[0]),
+        experiment.post_reference,
+    )

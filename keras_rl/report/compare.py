@@ -34,8 +34,16 @@ def framework_overrides(framework: str, matched_init: bool) -> dict[str, Any]:
     return {"framework": framework, "matched_init": matched_init and framework == "torch"}
 
 
-def gather(experiment: Experiment, variant: str, seeds: list[int], runs_root: Path, rerun: bool,
-           reuse_only: bool, overrides: dict[str, Any], matched_init: bool = False) -> list[SeedJob]:
+def gather(
+    experiment: Experiment,
+    variant: str,
+    seeds: list[int],
+    runs_root: Path,
+    rerun: bool,
+    reuse_only: bool,
+    overrides: dict[str, Any],
+    matched_init: bool = False,
+) -> list[SeedJob]:
     """The jobs still to run for each framework (the rest are reused)."""
     jobs: list[SeedJob] = []
     missing: dict[str, list[int]] = {}
@@ -50,8 +58,10 @@ def gather(experiment: Experiment, variant: str, seeds: list[int], runs_root: Pa
                 missing.setdefault(framework, []).append(seed)
     if reuse_only and missing:
         have = {fw: sorted(set(seeds) - set(missing.get(fw, []))) for fw in FRAMEWORKS}
-        raise RunFolderError(f"mismatched seed sets: {', '.join(f'{fw} lacks seeds {s}' for fw, s in missing.items())} "
-                             f"(reusable: {have}); run without --reuse-only to make them")
+        raise RunFolderError(
+            f"mismatched seed sets: {', '.join(f'{fw} lacks seeds {s}' for fw, s in missing.items())} "
+            f"(reusable: {have}); run without --reuse-only to make them"
+        )
     return jobs
 
 
@@ -64,8 +74,9 @@ def load_runs(folder: Path, seeds: list[int]) -> list[dict[str, Any]]:
         csv_path = seed_dir / "episodes.csv"
         if not csv_path.is_file():
             raise RunFolderError(f"seed {seed}: {csv_path} is missing (the run wrote no episode)")
-        runs.append({"seed": seed, "summary": summary,
-                     "rows": read_episodes(csv_path, expected_rows=summary.rows_expected)})
+        runs.append(
+            {"seed": seed, "summary": summary, "rows": read_episodes(csv_path, expected_rows=summary.rows_expected)}
+        )
     return runs
 
 
@@ -78,15 +89,17 @@ def analyse(runs: dict[str, list[dict[str, Any]]], budget: int) -> dict[str, Any
         final = [r["rows"][-1]["metric"] for r in rs]
         ms = [s.wall_seconds / max(s.total_steps, 1) * 1e3 for s in summaries]
         out["frameworks"][framework] = {
-            "seeds": [r["seed"] for r in rs], "successes": stats["successes"],
+            "seeds": [r["seed"] for r in rs],
+            "successes": stats["successes"],
             "episodes_to_threshold": stats["episodes_to_threshold"],
             **{k: (np.nan if stats[k] is None else stats[k]) for k in ("median", "q25", "q75")},
-            "final": final, "final_iqm": iqm_ci(final, np.random.default_rng(0)),
+            "final": final,
+            "final_iqm": iqm_ci(final, np.random.default_rng(0)),
             "wall_seconds_median": float(np.median([s.wall_seconds for s in summaries])),
             "ms_per_step_median": float(np.median(ms)),
         }
     a, b = (out["frameworks"][fw]["episodes_to_threshold"] for fw in FRAMEWORKS)
-    out["median_difference"] = (median_difference_ci(a, b, np.random.default_rng(0)) if a and b else None)
+    out["median_difference"] = median_difference_ci(a, b, np.random.default_rng(0)) if a and b else None
     out["mann_whitney"] = mann_whitney(a, b)
     k, t = out["frameworks"]["keras"], out["frameworks"]["torch"]
     out["fisher_p"] = fisher_exact(k["successes"], len(k["seeds"]), t["successes"], len(t["seeds"]))
@@ -97,21 +110,29 @@ def analyse(runs: dict[str, list[dict[str, Any]]], budget: int) -> dict[str, Any
 def verdict(result: dict[str, Any], n: int) -> str:
     diff, (_, p) = result["median_difference"], result["mann_whitney"]
     k, t = result["frameworks"]["keras"], result["frameworks"]["torch"]
-    rates = f"success {k['successes']}/{n} (Keras) vs {t['successes']}/{n} (PyTorch), Fisher p = {result['fisher_p']:.2f}"
+    rates = (
+        f"success {k['successes']}/{n} (Keras) vs {t['successes']}/{n} (PyTorch), Fisher p = {result['fisher_p']:.2f}"
+    )
     if result["fisher_p"] < 0.05:
         more = "Keras" if k["successes"] > t["successes"] else "PyTorch"
         return f"The frameworks differ: {more} succeeds more often ({rates}, {n} seeds each)."
     if diff is None or not np.isfinite(p):
-        return (f"No detectable difference in success ({rates}), and too few successes to compare "
-                "episodes-to-threshold: no verdict on speed of learning.")
+        return (
+            f"No detectable difference in success ({rates}), and too few successes to compare "
+            "episodes-to-threshold: no verdict on speed of learning."
+        )
     excludes_zero = diff.low > 0 or diff.high < 0
     if p < 0.05 and excludes_zero:
         faster = "Keras" if diff.estimate < 0 else "PyTorch"
-        return (f"The frameworks differ: {faster} reaches the threshold sooner (median difference {diff}, "
-                f"Mann-Whitney p = {p:.3f}, {n} seeds each; {rates}).")
-    return (f"No detectable difference between the frameworks at {n} seeds: {rates}; the median difference in "
-            f"episodes to threshold is {diff} (95% bootstrap CI includes 0) and Mann-Whitney p = {p:.2f}; "
-            f"a difference smaller than that interval could still exist.")
+        return (
+            f"The frameworks differ: {faster} reaches the threshold sooner (median difference {diff}, "
+            f"Mann-Whitney p = {p:.3f}, {n} seeds each; {rates})."
+        )
+    return (
+        f"No detectable difference between the frameworks at {n} seeds: {rates}; the median difference in "
+        f"episodes to threshold is {diff} (95% bootstrap CI includes 0) and Mann-Whitney p = {p:.2f}; "
+        f"a difference smaller than that interval could still exist."
+    )
 
 
 def _jsonable(value: Any) -> Any:
@@ -131,40 +152,76 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
-def write_report(out_dir: Path, experiment: Experiment, variant: str, runs: dict[str, list[dict[str, Any]]],
-                 result: dict[str, Any], threshold: float, command: str, matched_init: bool = False,
-                 workers: int | None = None) -> None:
+def write_report(
+    out_dir: Path,
+    experiment: Experiment,
+    variant: str,
+    runs: dict[str, list[dict[str, Any]]],
+    result: dict[str, Any],
+    threshold: float,
+    command: str,
+    matched_init: bool = False,
+    workers: int | None = None,
+) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     n = len(runs["keras"])
     fmt = lambda v: "n/a" if v is None or (isinstance(v, float) and not np.isfinite(v)) else f"{v:g}"  # noqa: E731
-    init = ("matched init: each torch run starts from its Keras twin's initial weights, so only the framework differs"
-            if matched_init else "default init: each framework initialises its networks its own way, as a user of it would get")
-    lines = [f"# {experiment.name} ({variant}): Keras vs PyTorch, {n} seeds", "", f"Initialisation: {init}.", "",
-             f"Seeds: {', '.join(str(r['seed']) for r in runs['keras'])}. "
-             f"Success: {runs['keras'][0]['summary'].criterion}. Command: `{command}`", "",
-             "| framework | success | episodes to threshold: median | IQR | final metric IQM [95% CI] | wall s per seed (median) | ms/step (median) |",
-             "|---|---|---|---|---|---|---|"]
+    init = (
+        "matched init: each torch run starts from its Keras twin's initial weights, so only the framework differs"
+        if matched_init
+        else "default init: each framework initialises its networks its own way, as a user of it would get"
+    )
+    lines = [
+        f"# {experiment.name} ({variant}): Keras vs PyTorch, {n} seeds",
+        "",
+        f"Initialisation: {init}.",
+        "",
+        f"Seeds: {', '.join(str(r['seed']) for r in runs['keras'])}. "
+        f"Success: {runs['keras'][0]['summary'].criterion}. Command: `{command}`",
+        "",
+        "| framework | success | episodes to threshold: median | IQR | final metric IQM [95% CI] "
+        "| wall s per seed (median) | ms/step (median) |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for fw in FRAMEWORKS:
         f = result["frameworks"][fw]
-        lines.append(f"| {fw} | {f['successes']}/{n} | {fmt(f['median'])} | {fmt(f['q25'])}-{fmt(f['q75'])} "
-                     f"| {f['final_iqm']} | {f['wall_seconds_median']:.1f} | {f['ms_per_step_median']:.3f} |")
+        lines.append(
+            f"| {fw} | {f['successes']}/{n} | {fmt(f['median'])} | {fmt(f['q25'])}-{fmt(f['q75'])} "
+            f"| {f['final_iqm']} | {f['wall_seconds_median']:.1f} | {f['ms_per_step_median']:.3f} |"
+        )
     u, p = result["mann_whitney"]
-    lines += ["", f"- Success rates, keras vs torch: Fisher exact test (two-sided) p = {fmt(result['fisher_p'])}.",
-              f"- Median episodes-to-threshold, keras minus torch: {result['median_difference'] or 'n/a'} "
-              "(percentile bootstrap, 10000 resamples, 95%).",
-              f"- Mann-Whitney U (keras vs torch episodes-to-threshold, two-sided): U = {fmt(u)}, p = {fmt(p)}.",
-              "- Final metric IQM: interquartile mean over seeds with a stratified-bootstrap 95% CI (rliable's method; "
-              "one task, so the strata are the one task).",
-              "- Wall time and ms/step come from each run's summary, as the runs ran"
-              + (f" (this invocation: --workers {workers}; reused folders ran as they were made)" if workers else "")
-              + ": often two seeds at a time on two cores, sometimes beside other work, and not always at the "
-              "same time for both frameworks. Read them loosely; `benchmarks/step_time.py` measures speed in one process.",
-              "", f"**Verdict.** {verdict(result, n)}", "",
-              "![curves](curves.png) ![episodes to threshold](episodes_to_threshold.png)", ""]
+    lines += [
+        "",
+        f"- Success rates, keras vs torch: Fisher exact test (two-sided) p = {fmt(result['fisher_p'])}.",
+        f"- Median episodes-to-threshold, keras minus torch: {result['median_difference'] or 'n/a'} "
+        "(percentile bootstrap, 10000 resamples, 95%).",
+        f"- Mann-Whitney U (keras vs torch episodes-to-threshold, two-sided): U = {fmt(u)}, p = {fmt(p)}.",
+        "- Final metric IQM: interquartile mean over seeds with a stratified-bootstrap 95% CI (rliable's method; "
+        "one task, so the strata are the one task).",
+        "- Wall time and ms/step come from each run's summary, as the runs ran"
+        + (f" (this invocation: --workers {workers}; reused folders ran as they were made)" if workers else "")
+        + ": often two seeds at a time on two cores, sometimes beside other work, and not always at the "
+        "same time for both frameworks. Read them loosely; `benchmarks/step_time.py` measures speed in one process.",
+        "",
+        f"**Verdict.** {verdict(result, n)}",
+        "",
+        "![curves](curves.png) ![episodes to threshold](episodes_to_threshold.png)",
+        "",
+    ]
     atomic_write_text(out_dir / "report.md", "\n".join(lines))
-    atomic_write_json(out_dir / "result.json", _jsonable({
-        "experiment": experiment.name, "variant": variant, "matched_init": matched_init, "command": command,
-        "verdict": verdict(result, n), **result}))
+    atomic_write_json(
+        out_dir / "result.json",
+        _jsonable(
+            {
+                "experiment": experiment.name,
+                "variant": variant,
+                "matched_init": matched_init,
+                "command": command,
+                "verdict": verdict(result, n),
+                **result,
+            }
+        ),
+    )
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
     for fw, color in zip(FRAMEWORKS, ("tab:blue", "tab:orange")):
@@ -172,7 +229,7 @@ def write_report(out_dir: Path, experiment: Experiment, variant: str, runs: dict
         curves = np.full((len(runs[fw]), length), np.nan)
         for i, r in enumerate(runs[fw]):
             values = [row["metric"] for row in r["rows"]]
-            curves[i, :len(values)] = values
+            curves[i, : len(values)] = values
         curves[~np.isfinite(curves)] = np.nan
         episodes = np.arange(1, length + 1)
         q25, q50, q75 = np.nanpercentile(curves, [25, 50, 75], axis=0)
@@ -213,24 +270,37 @@ class CompareResult:
     analysis: dict[str, Any]
 
 
-def compare(name: str, seeds: list[int], options: RunOptions | None = None, *, variant: str = "faithful",
-            runs_root: Path = Path("results"), out_root: Path = Path("results/compare"), rerun: bool = False,
-            reuse_only: bool = False, matched_init: bool = False, command: str = "") -> CompareResult:
+def compare(
+    name: str,
+    seeds: list[int],
+    options: RunOptions | None = None,
+    *,
+    variant: str = "faithful",
+    runs_root: Path = Path("results"),
+    out_root: Path = Path("results/compare"),
+    rerun: bool = False,
+    reuse_only: bool = False,
+    matched_init: bool = False,
+    command: str = "",
+) -> CompareResult:
     """Write ``<out_root>/<name>/report.md`` (``<out_root>/<name>/matched-init/`` with
     ``matched_init``: the torch runs start from the Keras runs' initial weights).
 
     Raises KeyboardInterrupt when Ctrl-C stopped the runs (what finished is on disk)."""
     experiment = get_experiment(name)
     if "torch" not in frameworks(name):
-        raise ConfigError(f"{name} has no PyTorch version yet, so there is nothing to compare it with "
-                          f"(frameworks: {', '.join(frameworks(name))})")
+        raise ConfigError(
+            f"{name} has no PyTorch version yet, so there is nothing to compare it with "
+            f"(frameworks: {', '.join(frameworks(name))})"
+        )
     from keras_rl.torch import require_torch
 
     require_torch()
     options = options or RunOptions()
     overrides = options.config_changes()
-    jobs = batched(gather(experiment, variant, seeds, runs_root, rerun, reuse_only, overrides, matched_init),
-                   options.seed_batch)  # the Keras runs still to make, S seeds at a time
+    jobs = batched(
+        gather(experiment, variant, seeds, runs_root, rerun, reuse_only, overrides, matched_init), options.seed_batch
+    )  # the Keras runs still to make, S seeds at a time
     if run_jobs(jobs, backend_for(options.workers, len(jobs), options.address), options.progress).interrupted:
         raise KeyboardInterrupt
     runs = {fw: load_runs(run_folder(runs_root, name, variant, fw, matched_init), seeds) for fw in FRAMEWORKS}

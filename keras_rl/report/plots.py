@@ -27,9 +27,17 @@ X_AXES = {"episode": "episode", "steps": "env steps"}
 """What a curve's x axis counts: episodes, or env steps (``total_steps`` at the episode's end)."""
 
 
-def plot_curve(path: Path, rows: list[dict[str, Any]], threshold: float, title: str,
-               metric_label: str, score_label: str = "score", metric_in_score_units: bool = True,
-               reached_at: int | None = None, x_axis: str = "episode") -> None:
+def plot_curve(
+    path: Path,
+    rows: list[dict[str, Any]],
+    threshold: float,
+    title: str,
+    metric_label: str,
+    score_label: str = "score",
+    metric_in_score_units: bool = True,
+    reached_at: int | None = None,
+    x_axis: str = "episode",
+) -> None:
     """Score and metric per episode with the threshold line, like the post's figure.
 
     A metric in other units than the score (post 001's goal share or return spread) gets
@@ -48,8 +56,13 @@ def plot_curve(path: Path, rows: list[dict[str, Any]], threshold: float, title: 
     metric_ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
     if reached_at is not None and 1 <= reached_at <= len(rows):
         at = episodes[reached_at - 1]
-        ax.axvline(at, color="tab:green", ls=":", lw=1.2,
-                   label=f"threshold reached (episode {reached_at}" + (f", step {at})" if x_axis == "steps" else ")"))
+        ax.axvline(
+            at,
+            color="tab:green",
+            ls=":",
+            lw=1.2,
+            label=f"threshold reached (episode {reached_at}" + (f", step {at})" if x_axis == "steps" else ")"),
+        )
     if not metric_in_score_units:
         metric_ax.set_ylabel(metric_label, color="tab:orange", fontsize=8)
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
@@ -78,14 +91,21 @@ def plot_seed_curve(run_dir: Path, experiment, config, x_axis: str = "episode") 
     except RunFolderError:
         reached = None
     if rows:
-        plot_curve(Path(run_dir) / "curve.png", rows, config.threshold,
-                   f"{experiment.name} ({config.variant}, {config.framework}), seed {config.seed}",
-                   experiment.metric_label(config), metric_in_score_units=experiment.metric_in_score_units,
-                   reached_at=reached, x_axis=x_axis)
+        plot_curve(
+            Path(run_dir) / "curve.png",
+            rows,
+            config.threshold,
+            f"{experiment.name} ({config.variant}, {config.framework}), seed {config.seed}",
+            experiment.metric_label(config),
+            metric_in_score_units=experiment.metric_in_score_units,
+            reached_at=reached,
+            x_axis=x_axis,
+        )
 
 
-def plot_sweep(path: Path, curves: dict[str, list[list[dict[str, Any]]]], threshold: float, metric_label: str,
-               title: str) -> None:
+def plot_sweep(
+    path: Path, curves: dict[str, list[list[dict[str, Any]]]], threshold: float, metric_label: str, title: str
+) -> None:
     """One figure for a sweep: per grid point, the median of its seeds' metric per episode
     with the interquartile band (episodes a seed did not play, after it stopped, are left
     out of that episode's quantiles)."""
@@ -104,7 +124,7 @@ def plot_sweep(path: Path, curves: dict[str, list[list[dict[str, Any]]]], thresh
         played = ~np.all(np.isnan(grid), axis=0)
         episodes = np.arange(1, length + 1)[played]
         q25, q50, q75 = (np.nanpercentile(grid[:, played], q, axis=0) for q in (25, 50, 75))
-        line, = ax.plot(episodes, q50, lw=1.4, label=f"{name} (median of {len(runs)} seeds)")
+        (line,) = ax.plot(episodes, q50, lw=1.4, label=f"{name} (median of {len(runs)} seeds)")
         ax.fill_between(episodes, q25, q75, color=line.get_color(), alpha=0.2, lw=0)
     ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))

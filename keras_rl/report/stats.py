@@ -39,8 +39,15 @@ def _bootstrap(samples: tuple, statistic, rng: np.random.Generator, n_resamples:
     if any(len(s) < 2 for s in samples) or all(np.ptp(s) == 0 for s in samples):
         value = statistic(*samples)  # a degenerate sample has a degenerate interval
         return float(value), float(value)
-    res = stats.bootstrap(samples, statistic, n_resamples=n_resamples, confidence_level=0.95,
-                          method="percentile", vectorized=False, random_state=rng)
+    res = stats.bootstrap(
+        samples,
+        statistic,
+        n_resamples=n_resamples,
+        confidence_level=0.95,
+        method="percentile",
+        vectorized=False,
+        random_state=rng,
+    )
     return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
@@ -107,8 +114,12 @@ def episodes_to_threshold_stats(reached: list[int | None], success: list[bool] |
     """
     success = [r is not None for r in reached] if success is None else list(success)
     hits = [r for r, ok in zip(reached, success) if ok and r is not None]
-    out: dict = {"seeds": len(reached), "successes": int(sum(success)),
-                 "success_rate": sum(success) / len(reached) if reached else 0.0, "episodes_to_threshold": hits}
+    out: dict = {
+        "seeds": len(reached),
+        "successes": int(sum(success)),
+        "success_rate": sum(success) / len(reached) if reached else 0.0,
+        "episodes_to_threshold": hits,
+    }
     if hits:
         q25, q50, q75 = np.percentile(np.asarray(hits, float), [25, 50, 75])
         out.update(median=float(q50), q25=float(q25), q75=float(q75), min=int(min(hits)), max=int(max(hits)))

@@ -33,24 +33,37 @@ def analyse_sweep(summaries: dict[str, list[RunSummary]], baseline: str) -> dict
     """Every number in ``sweep.md``, from the seeds' summaries."""
     if baseline not in summaries:
         raise ConfigError(f"--baseline {baseline!r} is not a grid point; the points are {', '.join(summaries)}")
-    stats = {name: episodes_to_threshold_stats([s.reached_at_episode for s in ss], [s.success for s in ss])
-             for name, ss in summaries.items()}
+    stats = {
+        name: episodes_to_threshold_stats([s.reached_at_episode for s in ss], [s.success for s in ss])
+        for name, ss in summaries.items()
+    }
     base = stats[baseline]
     rows = []
     for name, st in stats.items():
-        row = {"point": name, "seeds": st["seeds"], "successes": st["successes"], "success_rate": st["success_rate"],
-               "median": st["median"], "q25": st["q25"], "q75": st["q75"],
-               "episodes_to_threshold": st["episodes_to_threshold"], "unfinished": sorted(
-                   s.seed for s in summaries[name] if s.status != "completed")}
+        row = {
+            "point": name,
+            "seeds": st["seeds"],
+            "successes": st["successes"],
+            "success_rate": st["success_rate"],
+            "median": st["median"],
+            "q25": st["q25"],
+            "q75": st["q75"],
+            "episodes_to_threshold": st["episodes_to_threshold"],
+            "unfinished": sorted(s.seed for s in summaries[name] if s.status != "completed"),
+        }
         if name != baseline:
             a, b = st["episodes_to_threshold"], base["episodes_to_threshold"]
             diff = median_difference_ci(a, b, np.random.default_rng(0)) if a and b else None
-            row.update(median_difference=None if diff is None else
-                       {"estimate": diff.estimate, "low": diff.low, "high": diff.high},
-                       success_difference=dataclasses.asdict(success_difference_ci(
-                           st["successes"], st["seeds"], base["successes"], base["seeds"])),
-                       mann_whitney_p=mann_whitney(a, b)[1],
-                       fisher_p=fisher_exact(st["successes"], st["seeds"], base["successes"], base["seeds"]))
+            row.update(
+                median_difference=None
+                if diff is None
+                else {"estimate": diff.estimate, "low": diff.low, "high": diff.high},
+                success_difference=dataclasses.asdict(
+                    success_difference_ci(st["successes"], st["seeds"], base["successes"], base["seeds"])
+                ),
+                mann_whitney_p=mann_whitney(a, b)[1],
+                fisher_p=fisher_exact(st["successes"], st["seeds"], base["successes"], base["seeds"]),
+            )
         rows.append(row)
     return {"baseline": baseline, "points": rows}
 
@@ -61,48 +74,89 @@ def _fmt(value: Any, digits: str = "g") -> str:
     return f"{value:{digits}}"
 
 
-def write_sweep_report(out: Path, experiment, base_config, summaries: dict[str, list[RunSummary]], baseline: str,
-                       command: str) -> dict[str, Any]:
+def write_sweep_report(
+    out: Path, experiment, base_config, summaries: dict[str, list[RunSummary]], baseline: str, command: str
+) -> dict[str, Any]:
     out = Path(out)
     result = analyse_sweep(summaries, baseline)
     for name, ss in summaries.items():
         if ss:
-            write_aggregate(out / name, ss, base_config.threshold, f"{experiment.name} sweep: {name}, {len(ss)} seeds",
-                            experiment.metric_label(base_config), experiment.post_reference)
+            write_aggregate(
+                out / name,
+                ss,
+                base_config.threshold,
+                f"{experiment.name} sweep: {name}, {len(ss)} seeds",
+                experiment.metric_label(base_config),
+                experiment.post_reference,
+            )
     criterion = next((s.criterion for ss in summaries.values() for s in ss), "")
-    curves = {name: [read_episodes(out / name / f"seed_{s.seed}" / "episodes.csv", expected_rows=s.rows_expected)
-                     for s in ss if (out / name / f"seed_{s.seed}" / "episodes.csv").is_file()]
-              for name, ss in summaries.items()}
-    plot_sweep(out / "sweep.png", curves, base_config.threshold, experiment.metric_label(base_config),
-               f"{experiment.name} ({base_config.variant}, {base_config.framework}) sweep")
-    lines = [f"# {experiment.name} ({base_config.variant}, {base_config.framework}) sweep", "",
-             f"Criterion: {criterion}. Baseline: `{baseline}`. Command: `{command}`", "",
-             "![every grid point's median metric per episode, with its interquartile band](sweep.png)", "",
-             "| grid point | success | minus baseline [95% CI] | Fisher p | episodes to threshold: median (IQR) "
-             "| minus baseline [95% CI] | Mann-Whitney p | curves |",
-             "|---|---|---|---|---|---|---|---|"]
+    curves = {
+        name: [
+            read_episodes(out / name / f"seed_{s.seed}" / "episodes.csv", expected_rows=s.rows_expected)
+            for s in ss
+            if (out / name / f"seed_{s.seed}" / "episodes.csv").is_file()
+        ]
+        for name, ss in summaries.items()
+    }
+    plot_sweep(
+        out / "sweep.png",
+        curves,
+        base_config.threshold,
+        experiment.metric_label(base_config),
+        f"{experiment.name} ({base_config.variant}, {base_config.framework}) sweep",
+    )
+    lines = [
+        f"# {experiment.name} ({base_config.variant}, {base_config.framework}) sweep",
+        "",
+        f"Criterion: {criterion}. Baseline: `{baseline}`. Command: `{command}`",
+        "",
+        "![every grid point's median metric per episode, with its interquartile band](sweep.png)",
+        "",
+        "| grid point | success | minus baseline [95% CI] | Fisher p | episodes to threshold: median (IQR) "
+        "| minus baseline [95% CI] | Mann-Whitney p | curves |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for row in result["points"]:
         diff = row.get("median_difference")
-        diff_text = "(baseline)" if row["point"] == baseline else (
-            "n/a" if diff is None else f"{diff['estimate']:.4g} [{diff['low']:.4g}, {diff['high']:.4g}]")
+        diff_text = (
+            "(baseline)"
+            if row["point"] == baseline
+            else ("n/a" if diff is None else f"{diff['estimate']:.4g} [{diff['low']:.4g}, {diff['high']:.4g}]")
+        )
         rate = row.get("success_difference")
-        rate_text = "(baseline)" if rate is None else f"{rate['estimate']:+.2f} [{rate['low']:+.2f}, {rate['high']:+.2f}]"
+        rate_text = (
+            "(baseline)" if rate is None else f"{rate['estimate']:+.2f} [{rate['low']:+.2f}, {rate['high']:+.2f}]"
+        )
         unfinished = f" ({len(row['unfinished'])} unfinished)" if row["unfinished"] else ""
-        lines.append(f"| `{row['point']}` | {row['successes']}/{row['seeds']}{unfinished} | {rate_text} "
-                     f"| {_fmt(row.get('fisher_p'), '.3g') if row['point'] != baseline else '-'} "
-                     f"| {_fmt(row['median'])} ({_fmt(row['q25'])}-{_fmt(row['q75'])}) | {diff_text} "
-                     f"| {_fmt(row.get('mann_whitney_p'), '.3g') if row['point'] != baseline else '-'} "
-                     f"| [curves]({row['point']}/curves.png) |")
-    lines += ["", "The success difference is a point's success rate minus the baseline's, with Newcombe's hybrid "
-              "score interval; Fisher's exact test compares the success counts. Episodes to threshold are over the "
-              "seeds that succeeded; their difference is the median of a point minus the baseline's, with a "
-              "percentile bootstrap (10000 resamples); Mann-Whitney U is two-sided on the same samples. At "
-              f"{_seed_count(result)} seeds a point only effects large enough for these intervals to exclude 0 are "
-              "detectable: an interval that includes 0 is no evidence of no effect.", ""]
+        lines.append(
+            f"| `{row['point']}` | {row['successes']}/{row['seeds']}{unfinished} | {rate_text} "
+            f"| {_fmt(row.get('fisher_p'), '.3g') if row['point'] != baseline else '-'} "
+            f"| {_fmt(row['median'])} ({_fmt(row['q25'])}-{_fmt(row['q75'])}) | {diff_text} "
+            f"| {_fmt(row.get('mann_whitney_p'), '.3g') if row['point'] != baseline else '-'} "
+            f"| [curves]({row['point']}/curves.png) |"
+        )
+    lines += [
+        "",
+        "The success difference is a point's success rate minus the baseline's, with Newcombe's hybrid "
+        "score interval; Fisher's exact test compares the success counts. Episodes to threshold are over the "
+        "seeds that succeeded; their difference is the median of a point minus the baseline's, with a "
+        "percentile bootstrap (10000 resamples); Mann-Whitney U is two-sided on the same samples. At "
+        f"{_seed_count(result)} seeds a point only effects large enough for these intervals to exclude 0 are "
+        "detectable: an interval that includes 0 is no evidence of no effect.",
+        "",
+    ]
     atomic_write_text(out / "sweep.md", "\n".join(lines))
-    atomic_write_json(out / "sweep.json", {"experiment": experiment.name, "variant": base_config.variant,
-                                           "framework": base_config.framework, "criterion": criterion,
-                                           "command": command, **result})
+    atomic_write_json(
+        out / "sweep.json",
+        {
+            "experiment": experiment.name,
+            "variant": base_config.variant,
+            "framework": base_config.framework,
+            "criterion": criterion,
+            "command": command,
+            **result,
+        },
+    )
     return result
 
 

@@ -14,8 +14,10 @@ def require_torch():
     try:
         import torch
     except ImportError:
-        raise ConfigError("the torch framework needs PyTorch: pip install -e '.[torch]' "
-                          "(pinned torch==2.13.0, the CPU wheel on these machines)") from None
+        raise ConfigError(
+            "the torch framework needs PyTorch: pip install -e '.[torch]' "
+            "(pinned torch==2.13.0, the CPU wheel on these machines)"
+        ) from None
     return torch
 
 
@@ -44,8 +46,10 @@ def load_state(module, path: Path) -> None:
     torch = require_torch()
     path = Path(path)
     if not path.is_file():
-        raise RunFolderError(f"{path} is missing: weights are not committed, so run `keras-rl reproduce` "
-                             "for this seed first (it saves them)")
+        raise RunFolderError(
+            f"{path} is missing: weights are not committed, so run `keras-rl reproduce` "
+            "for this seed first (it saves them)"
+        )
     try:
         module.load_state_dict(torch.load(path, weights_only=True))
     except Exception as exc:  # pickle, zip and shape errors all mean a damaged file here

@@ -48,9 +48,22 @@ class TorchDDPGLearner:
 
     loss_names = ("critic_loss", "actor_loss")
 
-    def __init__(self, actor, critic, target_actor, target_critic, *, actor_lr: float, critic_lr: float,
-                 gamma: float, tau: float, broadcast_target: bool, layout: Layout, actor_update: ActorUpdate = "mean_q",
-                 dqda_at_buffer_actions: bool = False):
+    def __init__(
+        self,
+        actor,
+        critic,
+        target_actor,
+        target_critic,
+        *,
+        actor_lr: float,
+        critic_lr: float,
+        gamma: float,
+        tau: float,
+        broadcast_target: bool,
+        layout: Layout,
+        actor_update: ActorUpdate = "mean_q",
+        dqda_at_buffer_actions: bool = False,
+    ):
         check_actor_update(actor_update)
         self.actor, self.critic, self.target_actor, self.target_critic = actor, critic, target_actor, target_critic
         self.actor_optimizer = KerasAdam(actor.parameters(), lr=actor_lr)
@@ -61,8 +74,7 @@ class TorchDDPGLearner:
         self.actor_update, self.dqda_at_buffer_actions = actor_update, bool(dqda_at_buffer_actions)
         self._actor_params = list(actor.parameters())
         # (target, source) lists for the soft updates, built once, not per update
-        self._soft_pairs = [(variables(target_actor), variables(actor)),
-                            (variables(target_critic), variables(critic))]
+        self._soft_pairs = [(variables(target_actor), variables(actor)), (variables(target_critic), variables(critic))]
 
     def train(self, rows: np.ndarray) -> dict:
         return self.update(self.layout.split(torch.from_numpy(np.ascontiguousarray(rows, np.float32))))
@@ -79,16 +91,21 @@ class TorchDDPGLearner:
         return self.act(state) if want_action else None
 
     def weights(self) -> dict[str, list[np.ndarray]]:
-        return {name: [t.detach().numpy().copy() for t in variables(getattr(self, name))]
-                for name in ("actor", "critic", "target_actor", "target_critic")}
+        return {
+            name: [t.detach().numpy().copy() for t in variables(getattr(self, name))]
+            for name in ("actor", "critic", "target_actor", "target_critic")
+        }
 
     def state_dict(self) -> dict:
         nets = ("actor", "critic", "target_actor", "target_critic")
-        return {"nets": {n: {k: v.clone() for k, v in getattr(self, n).state_dict().items()} for n in nets},
-                "optimizers": {n: copy.deepcopy(getattr(self, n).state_dict())
-                               for n in ("actor_optimizer", "critic_optimizer")},
-                "iterations": {n: getattr(self, n).iterations for n in ("actor_optimizer", "critic_optimizer")},
-                "torch_rng": torch.get_rng_state()}
+        return {
+            "nets": {n: {k: v.clone() for k, v in getattr(self, n).state_dict().items()} for n in nets},
+            "optimizers": {
+                n: copy.deepcopy(getattr(self, n).state_dict()) for n in ("actor_optimizer", "critic_optimizer")
+            },
+            "iterations": {n: getattr(self, n).iterations for n in ("actor_optimizer", "critic_optimizer")},
+            "torch_rng": torch.get_rng_state(),
+        }
 
     def load_state_dict(self, state: dict) -> None:
         for name, values in state["nets"].items():
@@ -167,21 +184,29 @@ class TorchDDPGLearner:
         load_state(self.actor, Path(run_dir) / "actor.pt")
 
 
-
 def post000_learner(config, spec: EnvSpec) -> TorchDDPGLearner:
     """Post 000's learner in PyTorch (the agent is ``keras_rl.posts.pendulum.assemble``'s)."""
     c = config
     single_threaded()
     torch.manual_seed(c.seed)
-    nets = four_networks(lambda: Actor(spec.obs_dim, spec.action_dim, spec.action_bound, c.actor_hidden_units),
-                         lambda: Critic(spec.obs_dim, spec.action_dim, c.critic_hidden_units),
-                         None if c.matched_init or c.target_copy_is_noop else hard_copy)
+    nets = four_networks(
+        lambda: Actor(spec.obs_dim, spec.action_dim, spec.action_bound, c.actor_hidden_units),
+        lambda: Critic(spec.obs_dim, spec.action_dim, c.critic_hidden_units),
+        None if c.matched_init or c.target_copy_is_noop else hard_copy,
+    )
     if c.matched_init:
         from keras_rl.learners.ddpg import post000_networks  # the Keras learner's draws, same seed and order
 
         match_keras(nets, post000_networks(c, spec))
-    return TorchDDPGLearner(*nets, actor_lr=c.actor_lr, critic_lr=c.critic_lr, gamma=c.gamma, tau=c.tau,
-                            broadcast_target=c.broadcast_target, layout=Layout(spec.obs_dim, spec.action_dim))
+    return TorchDDPGLearner(
+        *nets,
+        actor_lr=c.actor_lr,
+        critic_lr=c.critic_lr,
+        gamma=c.gamma,
+        tau=c.tau,
+        broadcast_target=c.broadcast_target,
+        layout=Layout(spec.obs_dim, spec.action_dim),
+    )
 
 
 def post001_learner(config, spec: EnvSpec) -> TorchDDPGLearner:
@@ -189,15 +214,25 @@ def post001_learner(config, spec: EnvSpec) -> TorchDDPGLearner:
     c = config
     single_threaded()
     torch.manual_seed(c.seed)
-    nets = four_networks(lambda: MountainCarActor(spec.obs_dim, spec.action_dim, c.actor_hidden_units,
-                                                  c.actor_input_noise, c.learning_phase_training),
-                         lambda: MountainCarCritic(spec.obs_dim, spec.action_dim, c.critic_hidden_units,
-                                                   c.learning_phase_training),
-                         None if c.matched_init else hard_copy)  # Agent.__init__'s set_weights copy
+    nets = four_networks(
+        lambda: MountainCarActor(
+            spec.obs_dim, spec.action_dim, c.actor_hidden_units, c.actor_input_noise, c.learning_phase_training
+        ),
+        lambda: MountainCarCritic(spec.obs_dim, spec.action_dim, c.critic_hidden_units, c.learning_phase_training),
+        None if c.matched_init else hard_copy,
+    )  # Agent.__init__'s set_weights copy
     if c.matched_init:
         from keras_rl.learners.ddpg import post001_networks
 
         match_keras(nets, post001_networks(c, spec))
-    return TorchDDPGLearner(*nets, actor_lr=c.actor_lr, critic_lr=c.critic_lr, gamma=c.gamma, tau=c.tau,
-                            broadcast_target=False, layout=Layout(spec.obs_dim, spec.action_dim),
-                            actor_update=c.actor_gradient, dqda_at_buffer_actions=c.dqda_at_buffer_actions)
+    return TorchDDPGLearner(
+        *nets,
+        actor_lr=c.actor_lr,
+        critic_lr=c.critic_lr,
+        gamma=c.gamma,
+        tau=c.tau,
+        broadcast_target=False,
+        layout=Layout(spec.obs_dim, spec.action_dim),
+        actor_update=c.actor_gradient,
+        dqda_at_buffer_actions=c.dqda_at_buffer_actions,
+    )

@@ -76,8 +76,9 @@ class TutorialDQNAgent:
             net = self.policy_net
             copy_from_keras(net, q_network, dense_pairs([net.layer1, net.layer2, net.layer3], q_network.dense))
         self.target_net.load_state_dict(self.policy_net.state_dict())
-        self.optimizer = torch.optim.AdamW(self.policy_net.parameters(), lr=c.q_lr, amsgrad=c.amsgrad,
-                                           weight_decay=c.weight_decay, eps=c.adam_eps)
+        self.optimizer = torch.optim.AdamW(
+            self.policy_net.parameters(), lr=c.q_lr, amsgrad=c.amsgrad, weight_decay=c.weight_decay, eps=c.adam_eps
+        )
         self.criterion = nn.SmoothL1Loss()
         self.random = random.Random(c.seed)
         self.memory = ReplayMemory(c.buffer_size, self.random)
@@ -91,7 +92,7 @@ class TutorialDQNAgent:
     def select_action(self, state, sample: float | None = None):
         c = self.config
         sample = self.random.random() if sample is None else sample
-        eps_threshold = c.eps_end + (c.eps_start - c.eps_end) * math.exp(-1. * self.steps_done / c.eps_decay)
+        eps_threshold = c.eps_end + (c.eps_start - c.eps_end) * math.exp(-1.0 * self.steps_done / c.eps_decay)
         self.steps_done += 1
         if sample > eps_threshold:
             with torch.no_grad():
@@ -112,7 +113,9 @@ class TutorialDQNAgent:
         reward_batch = torch.cat(batch.reward)
 
         state_action_values = self.policy_net(state_batch).gather(1, action_batch)
-        next_state_values = torch.zeros(len(transitions), dtype=reward_batch.dtype)  # float32 as in the tutorial, float64 in a parity test
+        next_state_values = torch.zeros(
+            len(transitions), dtype=reward_batch.dtype
+        )  # float32 as in the tutorial, float64 in a parity test
         with torch.no_grad():
             if non_final_next_states:
                 next_state_values[non_final_mask] = self.target_net(torch.cat(non_final_next_states)).max(1)[0]
@@ -129,8 +132,9 @@ class TutorialDQNAgent:
         target_net_state_dict = self.target_net.state_dict()
         policy_net_state_dict = self.policy_net.state_dict()
         for key in policy_net_state_dict:
-            target_net_state_dict[key] = policy_net_state_dict[key] * self.config.tau + \
-                target_net_state_dict[key] * (1 - self.config.tau)
+            target_net_state_dict[key] = policy_net_state_dict[key] * self.config.tau + target_net_state_dict[key] * (
+                1 - self.config.tau
+            )
         self.target_net.load_state_dict(target_net_state_dict)
 
     # -- our agent verbs --------------------------------------------------------------------
@@ -158,11 +162,16 @@ class TutorialDQNAgent:
         return self.tally.stats()
 
     def state_dict(self) -> dict:
-        return {"policy_net": {k: v.clone() for k, v in self.policy_net.state_dict().items()},
-                "target_net": {k: v.clone() for k, v in self.target_net.state_dict().items()},
-                "optimizer": copy.deepcopy(self.optimizer.state_dict()), "random": self.random.getstate(),
-                "memory": list(self.memory.memory), "steps_done": self.steps_done,
-                "total_updates": self.tally.total_updates, "torch_rng": torch.get_rng_state()}
+        return {
+            "policy_net": {k: v.clone() for k, v in self.policy_net.state_dict().items()},
+            "target_net": {k: v.clone() for k, v in self.target_net.state_dict().items()},
+            "optimizer": copy.deepcopy(self.optimizer.state_dict()),
+            "random": self.random.getstate(),
+            "memory": list(self.memory.memory),
+            "steps_done": self.steps_done,
+            "total_updates": self.tally.total_updates,
+            "torch_rng": torch.get_rng_state(),
+        }
 
     def load_state_dict(self, state: dict) -> None:
         self.policy_net.load_state_dict(state["policy_net"])

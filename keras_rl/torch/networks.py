@@ -77,16 +77,26 @@ class KerasBatchNorm(nn.Module):
         return (x - mean) * torch.rsqrt(var + self.epsilon) * self.weight + self.bias
 
     def keras_pairs(self, layer) -> list:
-        return [(self.weight, layer.gamma, False), (self.bias, layer.beta, False),
-                (self.running_mean, layer.moving_mean, False), (self.running_var, layer.moving_variance, False)]
+        return [
+            (self.weight, layer.gamma, False),
+            (self.bias, layer.beta, False),
+            (self.running_mean, layer.moving_mean, False),
+            (self.running_var, layer.moving_variance, False),
+        ]
 
 
 class MountainCarActor(nn.Module):
     """Post 001 ``Actor.__make_model``: GaussianNoise(1.0) -> BatchNormalization ->
     3 x Linear 32 selu -> Linear(action_dim) tanh; ``training`` is the learning phase."""
 
-    def __init__(self, obs_dim: int, action_dim: int = 1, hidden_units: Sequence[int] = (32, 32, 32),
-                 noise_std: float = 1.0, training: bool = False):
+    def __init__(
+        self,
+        obs_dim: int,
+        action_dim: int = 1,
+        hidden_units: Sequence[int] = (32, 32, 32),
+        noise_std: float = 1.0,
+        training: bool = False,
+    ):
         super().__init__()
         self.learning_phase, self.noise_std = bool(training), float(noise_std)
         self.norm = KerasBatchNorm(obs_dim, training)
@@ -109,8 +119,9 @@ class MountainCarCritic(nn.Module):
     """Post 001 ``Critic.__make_model``: BatchNormalization -> Linear 32 selu -> concat the
     action -> Linear 32 selu -> Linear 1."""
 
-    def __init__(self, obs_dim: int, action_dim: int = 1, hidden_units: Sequence[int] = (32, 32),
-                 training: bool = False):
+    def __init__(
+        self, obs_dim: int, action_dim: int = 1, hidden_units: Sequence[int] = (32, 32), training: bool = False
+    ):
         super().__init__()
         self.norm = KerasBatchNorm(obs_dim, training)
         self.fc1 = nn.Linear(obs_dim, hidden_units[0])
@@ -124,5 +135,5 @@ class MountainCarCritic(nn.Module):
 
     def keras_pairs(self, model) -> list:
         return self.norm.keras_pairs(model.norm) + dense_pairs(
-            [self.fc1, self.fc2, self.out], [model.fc1, model.fc2, model.out])
-
+            [self.fc1, self.fc2, self.out], [model.fc1, model.fc2, model.out]
+        )

@@ -84,8 +84,8 @@ class SeedKerasAdam:
     @torch.no_grad()
     def step(self) -> None:
         t = (self.steps + 1).to(torch.float64)
-        bias_correction1 = 1 - self.beta_1 ** t
-        bias_correction2_sqrt = (1 - self.beta_2 ** t).sqrt()
+        bias_correction1 = 1 - self.beta_1**t
+        bias_correction2_sqrt = (1 - self.beta_2**t).sqrt()
         step_size = (self.lr / bias_correction1).to(torch.float32)
         eps = (self.epsilon / bias_correction2_sqrt).to(torch.float32)
         bc2 = bias_correction2_sqrt.to(torch.float32)
@@ -153,9 +153,13 @@ class StackedTorchDDPGLearner(TorchDDPGLearner):
 
     def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
         """Seed k's weights as its solo module holds them (parameters, then buffers)."""
-        return {name: [t[k].detach().numpy().copy() for t in (*getattr(self, name).parameters(),
-                                                               *getattr(self, name).buffers())]
-                for name in NETWORKS}
+        return {
+            name: [
+                t[k].detach().numpy().copy()
+                for t in (*getattr(self, name).parameters(), *getattr(self, name).buffers())
+            ]
+            for name in NETWORKS
+        }
 
     def save_slice(self, k: int, run_dir) -> None:
         """Seed k's ``actor.pt`` and ``critic.pt``, as a solo run saves them."""
@@ -169,8 +173,11 @@ class StackedTorchDDPGLearner(TorchDDPGLearner):
         save_state(critic, Path(run_dir) / "critic.pt")
 
     def _stateful(self) -> list:
-        return [*(t for name in NETWORKS for t in (*getattr(self, name).parameters(), *getattr(self, name).buffers())),
-                *self.actor_optimizer.tensors(), *self.critic_optimizer.tensors()]
+        return [
+            *(t for name in NETWORKS for t in (*getattr(self, name).parameters(), *getattr(self, name).buffers())),
+            *self.actor_optimizer.tensors(),
+            *self.critic_optimizer.tensors(),
+        ]
 
     def slice_state(self, k: int) -> dict:
         return {"tensors": [t[k].detach().clone() for t in self._stateful()]}
@@ -187,8 +194,9 @@ class StackedTorchDDPGLearner(TorchDDPGLearner):
 def _solo_networks(build, configs: Sequence, spec: EnvSpec) -> list[tuple]:
     """Each seed's four solo modules, drawn as its solo run draws them (its solo learner's)."""
     check_same_but_seed(configs)
-    return [(lambda solo: (solo.actor, solo.critic, solo.target_actor, solo.target_critic))(build(c, spec))
-            for c in configs]
+    return [
+        (lambda solo: (solo.actor, solo.critic, solo.target_actor, solo.target_critic))(build(c, spec)) for c in configs
+    ]
 
 
 def stack_post000(configs: Sequence, spec: EnvSpec):
@@ -198,9 +206,15 @@ def stack_post000(configs: Sequence, spec: EnvSpec):
         from keras_rl.learners.stacked import SoloAsStack
 
         return SoloAsStack(post000_learner(c, spec))
-    return StackedTorchDDPGLearner(_solo_networks(post000_learner, configs, spec), actor_lr=c.actor_lr,
-                                   critic_lr=c.critic_lr, gamma=c.gamma, tau=c.tau, broadcast_target=c.broadcast_target,
-                                   layout=Layout(spec.obs_dim, spec.action_dim))
+    return StackedTorchDDPGLearner(
+        _solo_networks(post000_learner, configs, spec),
+        actor_lr=c.actor_lr,
+        critic_lr=c.critic_lr,
+        gamma=c.gamma,
+        tau=c.tau,
+        broadcast_target=c.broadcast_target,
+        layout=Layout(spec.obs_dim, spec.action_dim),
+    )
 
 
 def stack_post001(configs: Sequence, spec: EnvSpec):
@@ -211,9 +225,18 @@ def stack_post001(configs: Sequence, spec: EnvSpec):
 
         return SoloAsStack(post001_learner(c, spec))
     if c.learning_phase_training:
-        raise ConfigError("--seed-batch does not cover learning_phase_training=true (its BatchNormalization updates "
-                          "its statistics in place and its noise draws from one generator); run it without")
-    return StackedTorchDDPGLearner(_solo_networks(post001_learner, configs, spec), actor_lr=c.actor_lr,
-                                   critic_lr=c.critic_lr, gamma=c.gamma, tau=c.tau, broadcast_target=False,
-                                   layout=Layout(spec.obs_dim, spec.action_dim), actor_update=c.actor_gradient,
-                                   dqda_at_buffer_actions=c.dqda_at_buffer_actions)
+        raise ConfigError(
+            "--seed-batch does not cover learning_phase_training=true (its BatchNormalization updates "
+            "its statistics in place and its noise draws from one generator); run it without"
+        )
+    return StackedTorchDDPGLearner(
+        _solo_networks(post001_learner, configs, spec),
+        actor_lr=c.actor_lr,
+        critic_lr=c.critic_lr,
+        gamma=c.gamma,
+        tau=c.tau,
+        broadcast_target=False,
+        layout=Layout(spec.obs_dim, spec.action_dim),
+        actor_update=c.actor_gradient,
+        dqda_at_buffer_actions=c.dqda_at_buffer_actions,
+    )

@@ -31,10 +31,10 @@ def copy_from_keras(module, keras_model, pairs: list | None = None) -> None:
             value = np.asarray(variable.numpy())
             value = value.T if transpose else value
             if tuple(tensor.shape) != value.shape:
-                raise ValueError(f"shape mismatch copying Keras {variable.path} {value.shape} "
-                                 f"into torch {tuple(tensor.shape)}")
+                raise ValueError(
+                    f"shape mismatch copying Keras {variable.path} {value.shape} into torch {tuple(tensor.shape)}"
+                )
             tensor.copy_(torch.from_numpy(np.ascontiguousarray(value)))
-
 
 
 def soft_update(target: Sequence, source: Sequence, tau: float) -> None:

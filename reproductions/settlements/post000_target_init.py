@@ -18,6 +18,7 @@ in reproductions/FIDELITY.md:
     keras 3.15.1: get_weights() of the unbuilt actor: [] (length 0); set_weights([]) raised nothing
     keras 3.15.1: after the first calls, target actor == actor: False; target critic == critic: False
 """
+
 import importlib
 
 import numpy as np
@@ -31,23 +32,23 @@ def settle(keras):
         def __init__(self, action_dim, action_bound):
             super(Actor, self).__init__()
             self.action_bound = action_bound
-            self.fc1 = Dense(64, activation='relu')
-            self.fc2 = Dense(64, activation='relu')
-            self.fc3 = Dense(action_dim, activation='tanh')
+            self.fc1 = Dense(64, activation="relu")
+            self.fc2 = Dense(64, activation="relu")
+            self.fc3 = Dense(action_dim, activation="tanh")
 
         def call(self, state):
             x = self.fc1(state)
             x = self.fc2(x)
             a = self.fc3(x)
-            a = Lambda(lambda x: x*self.action_bound)(a)
+            a = Lambda(lambda x: x * self.action_bound)(a)
             return a
 
     class Critic(keras.Model):  # §2.2, verbatim
         def __init__(self):
             super(Critic, self).__init__()
-            self.fc1 = Dense(64, activation='relu')
-            self.fc2 = Dense(64, activation='relu')
-            self.fc3 = Dense(1, activation='linear')
+            self.fc1 = Dense(64, activation="relu")
+            self.fc2 = Dense(64, activation="relu")
+            self.fc3 = Dense(1, activation="linear")
 
         def call(self, state, action):
             x = tf.concat([state, action], axis=-1)
@@ -81,15 +82,18 @@ def settle(keras):
     name = f"{keras.__name__} {keras.__version__}"
     weights = agent.actor.get_weights()
     agent.update_target_networks(1.0)  # §2.4: agent.update_target_networks(1.0)
-    print(f"{name}: get_weights() of the unbuilt actor: {weights} (length {len(weights)}); "
-          "set_weights([]) raised nothing")
+    print(
+        f"{name}: get_weights() of the unbuilt actor: {weights} (length {len(weights)}); set_weights([]) raised nothing"
+    )
     state, action = np.zeros((1, 3), np.float32), np.zeros((1, 1), np.float32)
     for net in (agent.actor, agent.target_actor):
         net(state)
     for net in (agent.critic, agent.target_critic):
         net(state, action)
-    same = [all(np.array_equal(a, b) for a, b in zip(n.get_weights(), t.get_weights()))
-            for n, t in ((agent.actor, agent.target_actor), (agent.critic, agent.target_critic))]
+    same = [
+        all(np.array_equal(a, b) for a, b in zip(n.get_weights(), t.get_weights()))
+        for n, t in ((agent.actor, agent.target_actor), (agent.critic, agent.target_critic))
+    ]
     print(f"{name}: after the first calls, target actor == actor: {same[0]}; target critic == critic: {same[1]}")
 
 
