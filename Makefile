@@ -28,9 +28,11 @@ test: install-test lint
 test-fast: install-test lint
 	$(BIN)/python -m pytest -ra -m "not slow" -n 2 --dist loadgroup
 
+## ruff (lint and format) and mypy, configured in pyproject.toml: zero findings.
 lint: install-test
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	$(BIN)/mypy
 
 ## These pages, built strictly (a broken link or a missing page fails) into site/.
 docs: install-test

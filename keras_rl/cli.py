@@ -330,7 +330,9 @@ def _kept_runs(base, seeds_and_dirs: list) -> list:
     from keras_rl.runs.reuse import check_reusable
     from keras_rl.runs.summary import RunSummary
 
-    kept, version = [], code_version() if seeds_and_dirs else None
+    if not seeds_and_dirs:
+        return []
+    kept, version = [], code_version()
     for seed, seed_dir in seeds_and_dirs:
         try:
             check_reusable(seed_dir, base.replace(seed=seed), version)

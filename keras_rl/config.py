@@ -21,7 +21,7 @@ import math
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 from keras_rl.errors import ConfigError
 from keras_rl.learners.table import frameworks
@@ -48,6 +48,10 @@ class ExperimentConfig:
         "matched_init": "--matched-init",
     }
     """Fields that have their own command-line flag; ``--set`` refuses them."""
+
+    if TYPE_CHECKING:  # every post's config declares these, with the post's values
+        episodes: int
+        threshold: float
 
     variant: str = "faithful"
     """Which named variant produced this config (for the record; set by ``for_variant``)."""
@@ -223,14 +227,15 @@ class ExperimentConfig:
 
     def _check_warmup(self) -> None:
         """Catch a run that would never train, or fail at its first update, before it starts."""
-        if self.buffer_size < self.train_start:
+        buffer_size, train_start, batch_size = (getattr(self, f) for f in ("buffer_size", "train_start", "batch_size"))
+        if buffer_size < train_start:
             raise ConfigError(
-                f"buffer_size {self.buffer_size} is below train_start {self.train_start}: the buffer "
+                f"buffer_size {buffer_size} is below train_start {train_start}: the buffer "
                 "never holds enough transitions, so the run would never train"
             )
-        if self.batch_size > self.train_start:
+        if batch_size > train_start:
             raise ConfigError(
-                f"batch_size {self.batch_size} is larger than train_start {self.train_start}: the "
+                f"batch_size {batch_size} is larger than train_start {train_start}: the "
                 "first update samples without replacement from train_start transitions"
             )
 

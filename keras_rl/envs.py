@@ -46,7 +46,10 @@ def box_spec(env: gym.Env, algorithm: str) -> EnvSpec:
     env_id = _env_id(env)
     if not isinstance(space, gym.spaces.Box):
         raise EnvironmentMismatchError(f"{algorithm} needs a continuous Box action space, but {env_id} has {space}")
-    if len(space.shape) != 1 or len(env.observation_space.shape) != 1:
+    observations = env.observation_space
+    if not isinstance(observations, gym.spaces.Box):
+        raise EnvironmentMismatchError(f"{algorithm} needs Box observations, but {env_id} has {observations}")
+    if len(space.shape) != 1 or len(observations.shape) != 1:
         raise EnvironmentMismatchError(
             f"{algorithm} needs flat observations and actions; {env_id} has observation shape "
             f"{env.observation_space.shape} and action shape {space.shape}"
@@ -56,11 +59,11 @@ def box_spec(env: gym.Env, algorithm: str) -> EnvSpec:
             f"{algorithm} scales tanh by one symmetric bound; {env_id}'s action bounds are {space.low}..{space.high}"
         )
     return EnvSpec(
-        env.observation_space.shape[0],
+        observations.shape[0],
         space.shape[0],
         float(space.high[0]),
-        obs_low=env.observation_space.low,
-        obs_high=env.observation_space.high,
+        obs_low=observations.low,
+        obs_high=observations.high,
         max_episode_steps=env.spec.max_episode_steps if env.spec else None,
     )
 
@@ -72,12 +75,11 @@ def discrete_spec(env: gym.Env, algorithm: str) -> EnvSpec:
         raise EnvironmentMismatchError(
             f"{algorithm} needs a Discrete action space, but {env_id} has {env.action_space}"
         )
-    if len(env.observation_space.shape) != 1:
-        raise EnvironmentMismatchError(
-            f"{algorithm} needs flat observations; {env_id} has shape {env.observation_space.shape}"
-        )
+    shape = env.observation_space.shape
+    if shape is None or len(shape) != 1:
+        raise EnvironmentMismatchError(f"{algorithm} needs flat observations; {env_id} has shape {shape}")
     return EnvSpec(
-        env.observation_space.shape[0],
+        shape[0],
         1,
         n_actions=int(env.action_space.n),
         max_episode_steps=env.spec.max_episode_steps if env.spec else None,

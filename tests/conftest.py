@@ -16,3 +16,18 @@ configure_tensorflow(1)
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+# `make test` runs the suite in two processes (pytest-xdist, --dist loadgroup). A module-scoped
+# fixture that trains is built once per process that runs a test using it, so each such test
+# joins its fixture's group; the tests of test_ray.py (clusters, socket checks) keep to one.
+GROUP_OF_FIXTURE = {"compared": "compare-runs", "sweep_dir": "ray", "short_run": "short-run", "tiny": "tiny-runs"}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        groups = [GROUP_OF_FIXTURE[f] for f in getattr(item, "fixturenames", ()) if f in GROUP_OF_FIXTURE]
+        if item.get_closest_marker("ray") is not None:
+            groups.append("ray")
+        if groups:
+            item.add_marker(pytest.mark.xdist_group(groups[0]))

@@ -20,6 +20,8 @@ ray = pytest.importorskip("ray")
 from keras_rl.cli import main  # noqa: E402
 from keras_rl.runs.files import read_episodes  # noqa: E402
 
+pytestmark = [pytest.mark.ray, pytest.mark.slow]  # local Ray instances and clusters: one xdist process
+
 CLI = [sys.executable, "-m", "keras_rl"]
 # Pendulum for 3 episodes trains nothing (train_start is 1000 steps), so a job costs seconds;
 # with the EMA threshold at -1300 some seeds pass and some do not, so the statistics have work.

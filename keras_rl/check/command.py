@@ -49,7 +49,9 @@ class CheckResult:
         return "changed" if self.decision.changed else "consistent"
 
 
-def baseline_values(experiment, rule: CheckRule, folder: Path) -> tuple[dict[int, float], list]:
+def baseline_values(
+    experiment, rule: CheckRule, folder: Path
+) -> tuple[dict[int, float], dict[int, list[dict[str, Any]]]]:
     """Each baseline seed's statistic (and its rows, for the plot); a clear error if the
     folder is not a finished faithful baseline."""
     seed_dirs = sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1]))
@@ -58,7 +60,7 @@ def baseline_values(experiment, rule: CheckRule, folder: Path) -> tuple[dict[int
             f"no baseline at {folder} (expected seed_<n>/ folders); --against names the folder "
             "that holds <experiment>/baseline"
         )
-    faithful = experiment.config_cls.for_variant("faithful").to_dict()
+    faithful = experiment.config_cls.for_variant("faithful")
     values, rows_of = {}, {}
     for seed_dir in seed_dirs:
         summary = RunSummary.read(seed_dir)
@@ -67,8 +69,8 @@ def baseline_values(experiment, rule: CheckRule, folder: Path) -> tuple[dict[int
                 f"{seed_dir} is a baseline of {summary.experiment}, not of {experiment.name}: "
                 f"--against names the folder that holds {experiment.name}/baseline"
             )
-        made = experiment.config_cls.from_dict(json.loads((seed_dir / "config.json").read_text())).to_dict()
-        differing = sorted(k for k in faithful if k not in ("seed",) and made.get(k) != faithful[k])
+        made = experiment.config_cls.from_dict(json.loads((seed_dir / "config.json").read_text()))
+        differing = made.differs_from(faithful)
         if differing:
             raise RunFolderError(
                 f"{seed_dir} is not a faithful run ({', '.join(differing[:3])} differ); "

@@ -69,25 +69,27 @@ class Decision:
     """The test's statistic (Mann-Whitney U of the new sample, or Fisher's odds ratio input)."""
 
 
-def decide(baseline: Sequence[float], new: Sequence[float], statistic: str, alpha: float) -> Decision:
+def decide(
+    baseline: Sequence[float] | np.ndarray, new: Sequence[float] | np.ndarray, statistic: str, alpha: float
+) -> Decision:
     """Two-sided test of ``new`` against ``baseline``; changed when p < alpha."""
-    baseline, new = np.asarray(baseline, float), np.asarray(new, float)
-    if len(baseline) == 0 or len(new) == 0:
+    base, fresh = np.asarray(baseline, float), np.asarray(new, float)
+    if len(base) == 0 or len(fresh) == 0:
         raise ValueError("both samples need at least one seed")
     test = "Fisher's exact test (two-sided)" if statistic == "success" else "Mann-Whitney U (two-sided)"
-    if np.isnan(baseline).any() or np.isnan(new).any():  # a run that blew up is a change in itself
+    if np.isnan(base).any() or np.isnan(fresh).any():  # a run that blew up is a change in itself
         return Decision(0.0, True, test, float("nan"))
     if statistic == "success":
-        p = fisher_exact(int(new.sum()), len(new), int(baseline.sum()), len(baseline))
-        return Decision(p, p < alpha, test, float(new.mean()))
-    if np.ptp(np.concatenate([baseline, new])) == 0:  # all equal: nothing to tell apart
+        p = fisher_exact(int(fresh.sum()), len(fresh), int(base.sum()), len(base))
+        return Decision(p, p < alpha, test, float(fresh.mean()))
+    if np.ptp(np.concatenate([base, fresh])) == 0:  # all equal: nothing to tell apart
         return Decision(1.0, False, "Mann-Whitney U (two-sided)", float("nan"))
-    u, p = mann_whitney(new, baseline)
+    u, p = mann_whitney(fresh, base)
     return Decision(p, p < alpha, "Mann-Whitney U (two-sided)", u)
 
 
 def false_alarm_rate(
-    baseline: Sequence[float],
+    baseline: Sequence[float] | np.ndarray,
     n: int,
     statistic: str,
     alpha: float,
@@ -108,8 +110,8 @@ def false_alarm_rate(
 
 
 def power(
-    baseline: Sequence[float],
-    changed: Sequence[float],
+    baseline: Sequence[float] | np.ndarray,
+    changed: Sequence[float] | np.ndarray,
     n: int,
     statistic: str,
     alpha: float,
@@ -127,7 +129,7 @@ def power(
 
 
 def detectable_shift(
-    baseline: Sequence[float],
+    baseline: Sequence[float] | np.ndarray,
     n: int,
     alpha: float,
     target: float = 0.8,

@@ -140,6 +140,8 @@ class DQNLearner:
 def post003_networks(config, spec: EnvSpec, dtype: str | None = None) -> tuple[keras.Model, keras.Model]:
     """In [28]: ``policy_net``, then ``target_net`` with ``target_net.load_state_dict(policy_net.state_dict())``."""
     c = config
+    if spec.n_actions is None:
+        raise ValueError("post 003's Q-network needs a Discrete action space (spec.n_actions)")
     q_network = build(QNetwork(spec.obs_dim, spec.n_actions, c.q_hidden_units, c.init, dtype), spec.obs_dim)
     target_network = build(QNetwork(spec.obs_dim, spec.n_actions, c.q_hidden_units, c.init, dtype), spec.obs_dim)
     soft_update(target_network.variables, q_network.variables, 1.0)  # target_net.load_state_dict(...)

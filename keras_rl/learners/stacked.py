@@ -234,8 +234,12 @@ class StackedDDPGLearner(SliceState, DDPGLearner):
         self._mask = tf.Variable(tf.ones([seeds], tf.bool), trainable=False, name="mask")
         self._mask_now = np.ones(seeds, bool)
         self.solo_policies: list[tuple[keras.Model, keras.Model]] = []  # (actor, critic) per seed, for saving
+        target_actor, target_critic = networks[2], networks[3]
         super().__init__(
-            *networks,
+            actor,
+            critic,
+            target_actor,
+            target_critic,
             SeedAdam(actor.trainable_variables, seeds, actor_lr),
             SeedAdam(critic.trainable_variables, seeds, critic_lr),
             xla=xla,

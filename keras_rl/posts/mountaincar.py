@@ -207,6 +207,9 @@ def assemble(config: MountainCarDDPGConfig, spec: EnvSpec, learner, action_space
             else None
         ),
     )  # P001-RETURNS
+    buffer: PoppingBuffer | ReplayBuffer
+    schedule: Bursts | EveryStep
+    explorer: AdditiveNoise | NoExploration
     if c.popping_buffer:  # P001-POP, P001-TRIGGER
         capacity = c.train_start + (spec.max_episode_steps or 999) + 1  # the most it can ever hold
         buffer = PoppingBuffer(capacity, layout, random.Random(int(seeds[0].generate_state(1)[0])))

@@ -139,7 +139,7 @@ def _jsonable(value: Any) -> Any:
     """The analysis as plain JSON (intervals as {estimate, low, high}; NaN as null)."""
     import dataclasses
 
-    if dataclasses.is_dataclass(value):
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return _jsonable(dataclasses.asdict(value))
     if isinstance(value, dict):
         return {k: _jsonable(v) for k, v in value.items()}

@@ -52,7 +52,7 @@ from keras_rl.runs.checkpoint import delete_checkpoints, read_batch_checkpoints,
 from keras_rl.runs.files import RunRecorder, atomic_write_text, episode_columns, episodes_csv_text
 from keras_rl.runs.provenance import command_line, library_versions, provenance
 from keras_rl.runs.signals import signal_name, stop_signals_as_flag, stop_signals_deferred
-from keras_rl.runs.summary import RunSummary
+from keras_rl.runs.summary import RunSummary, Status
 from keras_rl.seeding import configure_tensorflow, seed_everything
 
 
@@ -117,7 +117,10 @@ def run_seeds(experiment: Experiment, configs: Sequence, out_dirs: Sequence[Path
             if bar is not None:
                 bar.close()
             state.close()
-    return [s.final for s in seeds]
+    missing = [s.run.config.seed for s in seeds if s.final is None]
+    if missing:  # close() flushes every seed's summary; a gap here is a bug, not a user's error
+        raise RuntimeError(f"seeds {missing} ended without a summary")
+    return [s.final for s in seeds if s.final is not None]
 
 
 def build_seed_axis(experiment: Experiment, configs: list, envs: Sequence | None):
@@ -154,7 +157,7 @@ class PartsAxis:
         self.agents, self.learner = agents, learner
         self.loss_names = tuple(learner.loss_names)
         self.batches: list[list] = [[] for _ in agents]
-        self.raw: np.ndarray | None = None
+        self.raw: np.ndarray = np.empty(0)  # each seed's action from the learner, before exploration
 
     def begin(self, k: int, obs) -> None:
         self.agents[k].start_episode(obs)
@@ -316,7 +319,7 @@ class SeedRun:
         self.summary("running").write(self.recorder.out_dir)
         return row
 
-    def summary(self, status: str, message: str = "") -> RunSummary:
+    def summary(self, status: Status, message: str = "") -> RunSummary:
         c, rows, metric = self.config, self.recorder.rows, self.metric
         at_end = self.experiment.success_at_end
         finite = [r["metric"] for r in rows if r["metric"] is not None and math.isfinite(r["metric"])]
@@ -343,7 +346,8 @@ class _Seed:
         self.config, self.env = config, env
         self.recorder = RunRecorder(out_dir, loss_names)
         self.run = SeedRun(experiment, config, self.recorder, experiment.make_metric(config), command)
-        self.status, self.message = "running", ""
+        self.status: Status = "running"
+        self.message = ""
         self.score, self.steps, self.episode = 0.0, 0, 0
         self.saved = False
         self.writer: _TensorBoard | None = None
@@ -354,7 +358,7 @@ class _Seed:
     def active(self) -> bool:
         return self.status == "running"
 
-    def finish(self, status: str, message: str = "") -> None:
+    def finish(self, status: Status, message: str = "") -> None:
         self.status, self.message = status, message
 
     def snapshot(self) -> dict[str, Any]:

@@ -29,7 +29,7 @@ def git_state() -> dict[str, object]:
     "diff_sha256": hash of the uncommitted diff of keras_rl/ or None}`` of the checkout this
     package runs from; nulls when it is not a git checkout (a wheel)."""
     root = Path(__file__).resolve().parents[1]
-    unknown = {"commit": None, "code_tree": None, "dirty": None, "diff_sha256": None}
+    unknown: dict[str, object] = {"commit": None, "code_tree": None, "dirty": None, "diff_sha256": None}
     if not (root.parent / ".git").exists():
         return unknown
     try:

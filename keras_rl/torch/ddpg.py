@@ -35,10 +35,11 @@ from keras_rl.envs import EnvSpec
 from keras_rl.learners.protocol import ActorUpdate, check_actor_update, four_networks
 from keras_rl.torch import load_state, require_torch, save_state, single_threaded
 from keras_rl.torch.networks import Actor, Critic, MountainCarActor, MountainCarCritic
-from keras_rl.torch.optimizers import KerasAdam
+from keras_rl.torch.optimizers import KerasAdam, SeedKerasAdam
 from keras_rl.torch.weights import hard_copy, match_keras, soft_update, variables
 
-torch = require_torch()
+require_torch()  # a clear error, naming the extra, when torch is missing
+import torch  # noqa: E402
 
 
 class TorchDDPGLearner:
@@ -66,8 +67,9 @@ class TorchDDPGLearner:
     ):
         check_actor_update(actor_update)
         self.actor, self.critic, self.target_actor, self.target_critic = actor, critic, target_actor, target_critic
-        self.actor_optimizer = KerasAdam(actor.parameters(), lr=actor_lr)
-        self.critic_optimizer = KerasAdam(critic.parameters(), lr=critic_lr)
+        # KerasAdam here; a seed-batched subclass puts a SeedKerasAdam in their place
+        self.actor_optimizer: KerasAdam | SeedKerasAdam = KerasAdam(actor.parameters(), lr=actor_lr)
+        self.critic_optimizer: KerasAdam | SeedKerasAdam = KerasAdam(critic.parameters(), lr=critic_lr)
         self.gamma, self.tau = float(gamma), float(tau)
         self.broadcast_target = bool(broadcast_target)
         self.layout = layout

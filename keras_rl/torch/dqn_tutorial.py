@@ -20,16 +20,18 @@ from keras_rl.agents.skeleton import EpisodeStats, LossTally
 from keras_rl.envs import EnvSpec
 from keras_rl.torch import load_state, require_torch, save_state, single_threaded
 
-torch = require_torch()
-nn = torch.nn
-F = torch.nn.functional
+require_torch()  # a clear error, naming the extra, when torch is missing
+import torch  # noqa: E402
+from torch import nn  # noqa: E402
+
+F = nn.functional
 
 Transition = namedtuple("Transition", ("state", "action", "next_state", "reward"))
 
 
 class ReplayMemory:
     def __init__(self, capacity: int, rng: random.Random):
-        self.memory = deque([], maxlen=capacity)
+        self.memory: deque = deque([], maxlen=capacity)
         self.rng = rng
 
     def push(self, *args):
@@ -64,6 +66,8 @@ class TutorialDQNAgent:
     def __init__(self, config, spec: EnvSpec, action_space):
         self.config = c = config
         n_observations, n_actions = spec.obs_dim, spec.n_actions
+        if n_actions is None:
+            raise ValueError("the tutorial's DQN needs a Discrete action space (spec.n_actions)")
         single_threaded()
         torch.manual_seed(c.seed)
         self.policy_net = DQN(n_observations, n_actions, c.q_hidden_units)
@@ -85,8 +89,8 @@ class TutorialDQNAgent:
         self.action_space = action_space
         self.steps_done = 0
         self.tally = LossTally(self.loss_names)
-        self._state = None
-        self._action = None
+        self._state: torch.Tensor | None = None
+        self._action: torch.Tensor = torch.zeros((1, 1), dtype=torch.long)
 
     # -- the tutorial's functions ----------------------------------------------------------
     def select_action(self, state, sample: float | None = None):
@@ -142,7 +146,7 @@ class TutorialDQNAgent:
         self.tally.reset()
         self._state = torch.tensor(obs, dtype=torch.float32).unsqueeze(0)
         self._action = self.select_action(self._state)
-        return self._action.item()
+        return int(self._action.item())
 
     def step(self, reward: float, obs, terminated: bool, truncated: bool) -> int | None:
         reward_t = torch.tensor([reward])
@@ -156,7 +160,7 @@ class TutorialDQNAgent:
         if terminated or truncated:
             return None
         self._action = self.select_action(self._state)
-        return self._action.item()
+        return int(self._action.item())
 
     def end_episode(self) -> EpisodeStats:
         return self.tally.stats()

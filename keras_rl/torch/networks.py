@@ -9,9 +9,11 @@ from collections.abc import Sequence
 from keras_rl.torch import require_torch
 from keras_rl.torch.weights import dense_pairs
 
-torch = require_torch()
-nn = torch.nn
-F = torch.nn.functional
+require_torch()  # a clear error, naming the extra, when torch is missing
+import torch  # noqa: E402
+from torch import nn  # noqa: E402
+
+F = nn.functional
 
 
 class Actor(nn.Module):

@@ -25,9 +25,11 @@ from keras_rl.envs import EnvSpec
 from keras_rl.errors import ConfigError
 from keras_rl.torch import require_torch, save_state
 from keras_rl.torch.ddpg import TorchDDPGLearner, post000_learner, post001_learner
+from keras_rl.torch.optimizers import SeedKerasAdam, keep_where
 
-torch = require_torch()
-nn = torch.nn
+require_torch()  # a clear error, naming the extra, when torch is missing
+import torch  # noqa: E402
+from torch import nn  # noqa: E402
 
 NETWORKS = ("actor", "critic", "target_actor", "target_critic")
 
@@ -57,54 +59,6 @@ class Vmapped(nn.Module):
         return torch.func.vmap(one)(params, buffers, *inputs)
 
 
-def _keep(mask, like):
-    return mask.reshape([-1] + [1] * (like.dim() - 1))
-
-
-class SeedKerasAdam:
-    """``KerasAdam`` (torch's Adam with Keras' epsilon placement) for stacked parameters,
-    each seed with its own step count; a seed whose mask is False keeps its slice of every
-    parameter, its moments and its step count bit for bit. With every mask True it is the
-    solo optimizer's arithmetic per seed (torch's single-tensor Adam: ``m.lerp_(g, 1-b1)``,
-    ``v = b2 v + (1-b2) g^2``, ``p -= lr/(1-b1^t) * m / (sqrt(v)/sqrt(1-b2^t) + eps_t)``,
-    with ``eps_t = eps / sqrt(1-b2^t)``; the bias corrections in double precision)."""
-
-    def __init__(self, params, seeds: int, lr: float, epsilon: float = 1e-7, betas=(0.9, 0.999)):
-        self.params = list(params)
-        self.lr, self.epsilon, (self.beta_1, self.beta_2) = float(lr), float(epsilon), betas
-        self.steps = torch.zeros(seeds, dtype=torch.int64)
-        self.m = [torch.zeros_like(p) for p in self.params]
-        self.v = [torch.zeros_like(p) for p in self.params]
-        self.mask = torch.ones(seeds, dtype=torch.bool)
-
-    def zero_grad(self, set_to_none: bool = False) -> None:
-        for p in self.params:
-            p.grad = None
-
-    @torch.no_grad()
-    def step(self) -> None:
-        t = (self.steps + 1).to(torch.float64)
-        bias_correction1 = 1 - self.beta_1**t
-        bias_correction2_sqrt = (1 - self.beta_2**t).sqrt()
-        step_size = (self.lr / bias_correction1).to(torch.float32)
-        eps = (self.epsilon / bias_correction2_sqrt).to(torch.float32)
-        bc2 = bias_correction2_sqrt.to(torch.float32)
-        for p, m, v in zip(self.params, self.m, self.v, strict=True):
-            g = p.grad
-            keep = _keep(self.mask, p)
-            new_m = m.lerp(g, 1 - self.beta_1)
-            new_v = v.mul(self.beta_2).addcmul(g, g, value=1 - self.beta_2)
-            denom = new_v.sqrt() / _keep(bc2, p) + _keep(eps, p)
-            new_p = p - _keep(step_size, p) * (new_m / denom)
-            m.copy_(torch.where(keep, new_m, m))
-            v.copy_(torch.where(keep, new_v, v))
-            p.copy_(torch.where(keep, new_p, p))
-        self.steps = torch.where(self.mask, self.steps + 1, self.steps)
-
-    def tensors(self) -> list:
-        return [self.steps, *self.m, *self.v]
-
-
 class StackedTorchDDPGLearner(TorchDDPGLearner):
     """``TorchDDPGLearner``'s update for S seeds in one call (see the module docstring)."""
 
@@ -115,8 +69,11 @@ class StackedTorchDDPGLearner(TorchDDPGLearner):
         self.seeds = len(solos)
         nets = [Vmapped([s[i] for s in solos]) for i in range(4)]
         super().__init__(*nets, actor_lr=actor_lr, critic_lr=critic_lr, **kwargs)
-        self.actor_optimizer = SeedKerasAdam(nets[0].parameters(), self.seeds, actor_lr)
-        self.critic_optimizer = SeedKerasAdam(nets[1].parameters(), self.seeds, critic_lr)
+        self.seed_adams = (
+            SeedKerasAdam(nets[0].parameters(), self.seeds, actor_lr),
+            SeedKerasAdam(nets[1].parameters(), self.seeds, critic_lr),
+        )
+        self.actor_optimizer, self.critic_optimizer = self.seed_adams
         self.solo_policies = [(s[0], s[1]) for s in solos]  # seed k's modules, for saving its slice
 
     # -- TorchDDPGLearner's hooks --------------------------------------------------------------
@@ -127,17 +84,17 @@ class StackedTorchDDPGLearner(TorchDDPGLearner):
         return loss.sum()  # each slice gets its solo gradient
 
     def soft_update_targets(self) -> None:
-        mask = self.actor_optimizer.mask
+        mask = self.seed_adams[0].mask
         for target, source in self._soft_pairs:
             for t, s in zip(target, source, strict=True):
-                t.copy_(torch.where(_keep(mask, t), self.tau * s + (1.0 - self.tau) * t, t))
+                t.copy_(torch.where(keep_where(mask, t), self.tau * s + (1.0 - self.tau) * t, t))
 
     # -- the stacked interface -------------------------------------------------------------------
     def train(self, rows: np.ndarray, mask: np.ndarray | None = None) -> dict:
         """One update of the seeds where ``mask`` is True (all by default) on their own rows
         ``[S, B, width]``; losses ``[S]``."""
-        mask = torch.ones(self.seeds, dtype=torch.bool) if mask is None else torch.as_tensor(np.asarray(mask, bool))
-        self.actor_optimizer.mask = self.critic_optimizer.mask = mask
+        which = torch.ones(self.seeds, dtype=torch.bool) if mask is None else torch.as_tensor(np.asarray(mask, bool))
+        self.seed_adams[0].mask = self.seed_adams[1].mask = which
         return super().train(rows)
 
     @torch.no_grad()
@@ -175,8 +132,8 @@ class StackedTorchDDPGLearner(TorchDDPGLearner):
     def _stateful(self) -> list:
         return [
             *(t for name in NETWORKS for t in (*getattr(self, name).parameters(), *getattr(self, name).buffers())),
-            *self.actor_optimizer.tensors(),
-            *self.critic_optimizer.tensors(),
+            *self.seed_adams[0].tensors(),
+            *self.seed_adams[1].tensors(),
         ]
 
     def slice_state(self, k: int) -> dict:

@@ -9,7 +9,8 @@ import numpy as np
 
 from keras_rl.torch import require_torch
 
-torch = require_torch()
+require_torch()  # a clear error, naming the extra, when torch is missing
+import torch  # noqa: E402
 
 
 def dense_pairs(linears, denses) -> list:
