@@ -19,10 +19,10 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from keras_rl import __version__
-from keras_rl.errors import ConfigError, KerasRLError
+from keras_rl.errors import ConfigError, KerasRLError, NoVerdictError
 from keras_rl.runs.options import RunOptions, run_options_parser
 
-EXIT_OK, EXIT_CRITERION, EXIT_USAGE = 0, 1, 2
+EXIT_OK, EXIT_CRITERION, EXIT_USAGE, EXIT_NO_VERDICT = 0, 1, 2, 3
 MAX_SEEDS = 10_000
 """More seeds than this in one command is taken for a typo (``0-100000``) and refused."""
 
@@ -658,6 +658,9 @@ def check(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print("interrupted: no verdict", file=sys.stderr)
         return _stopped()
+    except (NoVerdictError, OSError) as exc:  # neither "consistent" nor "changed", nor the user's input
+        print(f"error: no verdict: {exc}", file=sys.stderr)
+        return EXIT_NO_VERDICT
     for r in results:
         print(
             f"{r.experiment}: {r.verdict} ({r.rule.statistic}, {r.decision.test}, p = {r.decision.p:.3g}, "

@@ -19,3 +19,7 @@ class RunFolderError(KerasRLError, FileNotFoundError):
 
 class NonFiniteLossError(KerasRLError, FloatingPointError):
     """A training loss became NaN or infinite; the run stops and keeps what it wrote."""
+
+
+class NoVerdictError(KerasRLError):
+    """``check`` could not decide: a fresh seed crashed or left no summary (exit 3, not 1 or 2)."""

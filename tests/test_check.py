@@ -172,8 +172,8 @@ def test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline(
         text=True,
         timeout=1500,
     )
+    assert proc.returncode == 0, (proc.stdout, proc.stderr[-3000:])  # before the report: a crash shows its stderr
     report = json.loads((out / "check.json").read_text())
-    assert proc.returncode == 0, (proc.stdout, proc.stderr[-3000:])
     assert [e["experiment"] for e in report["experiments"]] == ["pendulum", "cartpole", "mountaincar"]
     for e in report["experiments"]:
         assert e["verdict"] == "consistent" and len(e["baseline"]) == 30 and len(e["new"]) == e["rule"]["seeds"]
@@ -225,3 +225,22 @@ def test_a_baseline_of_another_post_is_named_as_such():
     cartpole = Path(__file__).resolve().parent.parent / "results" / "checks" / "cartpole" / "baseline"
     with pytest.raises(RunFolderError, match="is a baseline of cartpole, not of pendulum"):
         baseline_values(get_experiment("pendulum"), rule_for("pendulum", "smoke"), cartpole)
+
+
+@pytest.mark.parametrize("failure", ["no summary", "disk full"])
+def test_check_that_cannot_decide_exits_3_not_changed_or_usage(failure, tmp_path, monkeypatch, capsys):
+    """Exit 3 means "could not decide": a fresh seed that crashed or left nothing, or an OSError.
+    Exit 1 is kept for "changed" and 2 for the user's input (issue #21, item 6)."""
+    import keras_rl.runs.jobs as jobs
+    from keras_rl.cli import EXIT_NO_VERDICT, main
+
+    def fake_run_jobs(todo, backend, progress=True):
+        if failure == "disk full":
+            raise OSError(28, "No space left on device")
+        return jobs.JobsOutcome()  # the seeds never wrote a thing
+
+    monkeypatch.setattr(jobs, "run_jobs", fake_run_jobs)
+    code = main(["check", "pendulum", "--workers", "1", "--no-progress", "--out", str(tmp_path / "check")])
+    err = capsys.readouterr().err
+    assert code == EXIT_NO_VERDICT == 3, err
+    assert "no verdict" in err and ("left no readable summary" in err or "No space left" in err)

@@ -21,7 +21,7 @@ import numpy as np
 
 from keras_rl.check.rules import CheckRule, rule_for
 from keras_rl.check.statistics import Decision, decide, seed_statistic
-from keras_rl.errors import ConfigError, RunFolderError
+from keras_rl.errors import ConfigError, NoVerdictError, RunFolderError
 from keras_rl.registry import get_experiment
 from keras_rl.runs.files import atomic_write_json, atomic_write_text, read_episodes
 from keras_rl.runs.options import RunOptions
@@ -164,14 +164,17 @@ def run_check(
     for experiment, rule, fresh, _config, baseline, baseline_rows in plan:
         new, new_rows = {}, {}
         for s in fresh:
-            summary = RunSummary.read(out / experiment.name / f"seed_{s}")
+            try:
+                summary = RunSummary.read(out / experiment.name / f"seed_{s}")
+            except RunFolderError as exc:
+                raise NoVerdictError(f"{experiment.name} seed {s} left no readable summary: {exc}") from None
             rows = (
                 read_episodes(out / experiment.name / f"seed_{s}" / "episodes.csv")
                 if (out / experiment.name / f"seed_{s}" / "episodes.csv").is_file()
                 else []
             )
             if summary.status not in ("completed", "non_finite_loss") or not rows:
-                raise RunFolderError(f"{experiment.name} seed {s} did not finish ({summary.status}: {summary.message})")
+                raise NoVerdictError(f"{experiment.name} seed {s} did not finish ({summary.status}: {summary.message})")
             new[s] = _statistic(experiment, rule, rows) if summary.status == "completed" else float("nan")
             new_rows[s] = rows
         decision = decide(list(baseline.values()), list(new.values()), rule.statistic, rule.alpha)
