@@ -64,11 +64,15 @@ def read_batch_checkpoints(run_dirs: list[Path], batch: list[int]) -> list[dict[
     current = [read_checkpoint(d) for d in run_dirs]
     for d, state in zip(run_dirs, current):
         if state.get("version") != VERSION:
-            raise RunFolderError(f"{Path(d) / CHECKPOINT} was written by an older keras-rl (checkpoint layout "
-                                 f"{state.get('version', 1)}, this one reads {VERSION}); pass --overwrite to start again")
+            raise RunFolderError(
+                f"{Path(d) / CHECKPOINT} was written by an older keras-rl (checkpoint layout "
+                f"{state.get('version', 1)}, this one reads {VERSION}); pass --overwrite to start again"
+            )
         if state["batch"] != batch:
-            raise RunFolderError(f"{Path(d) / CHECKPOINT} belongs to a batch of seeds {state['batch']}, this command "
-                                 f"resumes seeds {batch} together; resume with the same --seeds and --seed-batch")
+            raise RunFolderError(
+                f"{Path(d) / CHECKPOINT} belongs to a batch of seeds {state['batch']}, this command "
+                f"resumes seeds {batch} together; resume with the same --seeds and --seed-batch"
+            )
     steps = {state["vector_step"] for state in current}
     if len(steps) == 1:
         return current
@@ -78,8 +82,10 @@ def read_batch_checkpoints(run_dirs: list[Path], batch: list[int]) -> list[dict[
         if state["vector_step"] != older:
             state = read_checkpoint(d, PREVIOUS) if (Path(d) / PREVIOUS).is_file() else {}
         if state.get("vector_step") != older:
-            raise RunFolderError(f"the checkpoints of seeds {batch} were not written at one vector step and "
-                                 f"{d} holds none of step {older}; pass --overwrite to start again")
+            raise RunFolderError(
+                f"the checkpoints of seeds {batch} were not written at one vector step and "
+                f"{d} holds none of step {older}; pass --overwrite to start again"
+            )
         chosen.append(state)
     return chosen
 
@@ -88,16 +94,19 @@ def read_checkpoint(run_dir: Path, name: str = CHECKPOINT) -> dict[str, Any]:
     """The checkpoint's state, or a RunFolderError that says why it cannot be used."""
     path = Path(run_dir) / name
     if not path.is_file():
-        raise RunFolderError(f"{run_dir} has no {CHECKPOINT} to resume from (a run writes one every "
-                             "--checkpoint-every episodes and when it is stopped); pass --overwrite to start again")
+        raise RunFolderError(
+            f"{run_dir} has no {CHECKPOINT} to resume from (a run writes one every "
+            "--checkpoint-every episodes and when it is stopped); pass --overwrite to start again"
+        )
     data = path.read_bytes()
     digest_end = len(MAGIC) + 64
-    if not data.startswith(MAGIC) or data[digest_end:digest_end + 1] != b"\n":
+    if not data.startswith(MAGIC) or data[digest_end : digest_end + 1] != b"\n":
         raise RunFolderError(f"{path} is not a keras-rl checkpoint (bad header); the run folder is left as it is")
-    payload = data[digest_end + 1:]
-    if hashlib.sha256(payload).hexdigest().encode() != data[len(MAGIC):digest_end]:
-        raise RunFolderError(f"{path} is corrupt (checksum mismatch: truncated or damaged); "
-                             "the run folder is left as it is")
+    payload = data[digest_end + 1 :]
+    if hashlib.sha256(payload).hexdigest().encode() != data[len(MAGIC) : digest_end]:
+        raise RunFolderError(
+            f"{path} is corrupt (checksum mismatch: truncated or damaged); the run folder is left as it is"
+        )
     try:
         return pickle.loads(payload)
     except Exception as exc:  # a checksum-valid file from an incompatible version

@@ -35,8 +35,14 @@ EVALUATION = "evaluation.json"
 INTERRUPTED = "evaluation.interrupted.json"
 
 
-def evaluate_run(run_dir: Path, episodes: int = 5, gif: Path | None = None, seed: int | None = None,
-                 progress: bool = False, overwrite: bool = False) -> dict[str, Any]:
+def evaluate_run(
+    run_dir: Path,
+    episodes: int = 5,
+    gif: Path | None = None,
+    seed: int | None = None,
+    progress: bool = False,
+    overwrite: bool = False,
+) -> dict[str, Any]:
     """Reload the saved policy and play greedy episodes, like post 000 §3's test section.
 
     The result goes to ``evaluation.json``. An evaluation of more episodes already there
@@ -48,8 +54,10 @@ def evaluate_run(run_dir: Path, episodes: int = 5, gif: Path | None = None, seed
     experiment, config = load_run_config(run_dir)
     held = _held_episodes(Path(run_dir) / EVALUATION)
     if held is not None and held > episodes and not overwrite:
-        raise ConfigError(f"{Path(run_dir) / EVALUATION} holds an evaluation of {held} episodes; this one of "
-                          f"{episodes} would replace it. Ask for {held} or more, or pass --overwrite")
+        raise ConfigError(
+            f"{Path(run_dir) / EVALUATION} holds an evaluation of {held} episodes; this one of "
+            f"{episodes} would replace it. Ask for {held} or more, or pass --overwrite"
+        )
     configure_tensorflow(1)
     seed = config.seed + 10_000 if seed is None else seed
     seed_everything(seed)
@@ -75,13 +83,20 @@ def evaluate_run(run_dir: Path, episodes: int = 5, gif: Path | None = None, seed
     except KeyboardInterrupt:  # Ctrl-C or SIGTERM: keep the episodes played so far
         interrupted = True
     env.close()
-    result = {"run_dir": str(run_dir), "episodes": len(scores), "episodes_asked": episodes, "seed": seed,
-              "scores": scores, "mean": float(np.mean(scores)) if scores else None,
-              "std": float(np.std(scores)) if scores else None, "interrupted": interrupted}
+    result = {
+        "run_dir": str(run_dir),
+        "episodes": len(scores),
+        "episodes_asked": episodes,
+        "seed": seed,
+        "scores": scores,
+        "mean": float(np.mean(scores)) if scores else None,
+        "std": float(np.std(scores)) if scores else None,
+        "interrupted": interrupted,
+    }
     if gif and frames and (scores or interrupted):
-        from PIL import Image
-
         import io
+
+        from PIL import Image
 
         buf = io.BytesIO()
         images = [Image.fromarray(f) for f in frames]

@@ -15,9 +15,10 @@ import json
 import math
 import os
 import tempfile
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 from keras_rl.runs.signals import stop_signals_deferred
 
@@ -132,15 +133,17 @@ def read_episodes(path: Path, expected_rows: int | None = None) -> list[dict[str
                 if None in raw or None in raw.values():
                     raise RunFolderError(f"{path} line {line} has another number of fields than its header: {damaged}")
                 try:
-                    rows.append({k: (None if v == "" else int(v) if k in INTEGER_COLUMNS else float(v))
-                                 for k, v in raw.items()})
+                    rows.append(
+                        {k: (None if v == "" else int(v) if k in INTEGER_COLUMNS else float(v)) for k, v in raw.items()}
+                    )
                 except ValueError as exc:
                     raise RunFolderError(f"{path} line {line} cannot be read ({exc}): {damaged}") from None
     except UnicodeDecodeError:
         raise RunFolderError(f"{path} is not text: {damaged}") from None
     if expected_rows is not None and len(rows) != expected_rows:
-        raise RunFolderError(f"{path} holds {len(rows)} episodes, but its summary.json counts {expected_rows}: "
-                             f"{damaged}")
+        raise RunFolderError(
+            f"{path} holds {len(rows)} episodes, but its summary.json counts {expected_rows}: {damaged}"
+        )
     return rows
 
 
@@ -162,8 +165,9 @@ class RunRecorder:
     def add_episode(self, row: dict[str, Any]) -> None:
         # The file and the in-memory rows change together: Ctrl-C waits for both.
         with stop_signals_deferred():
-            atomic_write_text(self.out_dir / "episodes.csv",
-                              episodes_csv_text([*self.rows, row], episode_columns(self.loss_names)))
+            atomic_write_text(
+                self.out_dir / "episodes.csv", episodes_csv_text([*self.rows, row], episode_columns(self.loss_names))
+            )
             self.rows.append(row)
 
 
@@ -190,8 +194,10 @@ def run_folder_locks(run_dirs: Iterable[Path]):
                 handle.seek(0)
                 holder = handle.read().strip() or "another process"
                 handle.close()
-                raise RunFolderError(f"{run_dir} is being written by another keras-rl command ({holder}); wait for "
-                                     "it to end, or pass another --out") from None
+                raise RunFolderError(
+                    f"{run_dir} is being written by another keras-rl command ({holder}); wait for "
+                    "it to end, or pass another --out"
+                ) from None
             handle.seek(0)
             handle.truncate()
             handle.write(f"pid {os.getpid()}")

@@ -13,7 +13,6 @@ outcome is read back from disk, so an interrupted worker still reports what it k
 from __future__ import annotations
 
 import json
-
 import shutil
 import sys
 from dataclasses import dataclass, field
@@ -28,6 +27,7 @@ from keras_rl.runs.loop import run_seeds
 from keras_rl.runs.provenance import command_line
 from keras_rl.runs.signals import sigterm_as_interrupt
 from keras_rl.runs.summary import RunSummary
+
 
 @dataclass(frozen=True)
 class SeedJob:
@@ -46,7 +46,7 @@ class SeedJob:
     argv is not it)."""
 
     @classmethod
-    def of(cls, config, out_dir: Path, **options: Any) -> "SeedJob":
+    def of(cls, config, out_dir: Path, **options: Any) -> SeedJob:
         options.setdefault("command", command_line())
         return cls(config.experiment, config.to_dict(), Path(out_dir), **options)
 
@@ -85,19 +85,26 @@ def batched(jobs: list[SeedJob], seed_batch: int) -> list:
         if seed_batch <= 1 or job.start == "resume" or (job.experiment, job.config.get("framework")) not in STACKED:
             alone.append(job)
             continue
-        key = (job.experiment, json.dumps({k: v for k, v in job.config.items() if k != "seed"}, sort_keys=True),
-               job.command, str(job.tensorboard), job.checkpoint_every)
+        key = (
+            job.experiment,
+            json.dumps({k: v for k, v in job.config.items() if k != "seed"}, sort_keys=True),
+            job.command,
+            str(job.tensorboard),
+            job.checkpoint_every,
+        )
         groups.setdefault(key, []).append(job)
     out = []
     for group in groups.values():
         for i in range(0, len(group), seed_batch):
-            chunk = tuple(group[i:i + seed_batch])
+            chunk = tuple(group[i : i + seed_batch])
             out.append(chunk[0] if len(chunk) == 1 else SeedBatchJob(chunk))
     for (batch, _), group in resumed.items():
         have = sorted(j.config["seed"] for j in group)
         if have != sorted(batch):
-            raise RunFolderError(f"{group[0].out_dir} was checkpointed in a batch of seeds {list(batch)}; resume "
-                                 f"them together (this command resumes {have} of them)")
+            raise RunFolderError(
+                f"{group[0].out_dir} was checkpointed in a batch of seeds {list(batch)}; resume "
+                f"them together (this command resumes {have} of them)"
+            )
         out.append(SeedBatchJob(tuple(sorted(group, key=lambda j: list(batch).index(j.config["seed"])))))
     return out + alone
 
@@ -132,10 +139,18 @@ def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> 
             if j.start == "overwrite" and Path(j.out_dir).exists():
                 shutil.rmtree(j.out_dir)  # whole: no weights or evaluation.json of the old run survive
         try:
-            summaries = run_seeds(experiment, configs, [j.out_dir for j in group], progress=progress,
-                                  position=position, resume=first.start == "resume",
-                                  checkpoint_every=first.checkpoint_every, tensorboard=first.tensorboard,
-                                  should_stop=should_stop, command=first.command)
+            summaries = run_seeds(
+                experiment,
+                configs,
+                [j.out_dir for j in group],
+                progress=progress,
+                position=position,
+                resume=first.start == "resume",
+                checkpoint_every=first.checkpoint_every,
+                tensorboard=first.tensorboard,
+                should_stop=should_stop,
+                command=first.command,
+            )
         finally:
             for j, config in zip(group, configs):
                 _draw_curve(j.out_dir, experiment, config)

@@ -38,8 +38,9 @@ import datetime
 import json
 import math
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -56,20 +57,51 @@ from keras_rl.runs.summary import RunSummary, Status
 from keras_rl.seeding import configure_tensorflow, seed_everything
 
 
-def run_seed(experiment: Experiment, config, out_dir: Path, progress: bool = True, position: int = 0,
-             threads: int | None = 1, env=None, resume: bool = False, checkpoint_every: int = 10,
-             tensorboard: Path | None = None, should_stop: Callable[[], bool] | None = None,
-             command: str | None = None) -> RunSummary:
+def run_seed(
+    experiment: Experiment,
+    config,
+    out_dir: Path,
+    progress: bool = True,
+    position: int = 0,
+    threads: int | None = 1,
+    env=None,
+    resume: bool = False,
+    checkpoint_every: int = 10,
+    tensorboard: Path | None = None,
+    should_stop: Callable[[], bool] | None = None,
+    command: str | None = None,
+) -> RunSummary:
     """Train one seed: ``run_seeds`` with a seed axis of one."""
-    return run_seeds(experiment, [config], [out_dir], progress=progress, position=position, threads=threads,
-                     envs=None if env is None else [env], resume=resume, checkpoint_every=checkpoint_every,
-                     tensorboard=tensorboard, should_stop=should_stop, command=command)[0]
+    return run_seeds(
+        experiment,
+        [config],
+        [out_dir],
+        progress=progress,
+        position=position,
+        threads=threads,
+        envs=None if env is None else [env],
+        resume=resume,
+        checkpoint_every=checkpoint_every,
+        tensorboard=tensorboard,
+        should_stop=should_stop,
+        command=command,
+    )[0]
 
 
-def run_seeds(experiment: Experiment, configs: Sequence, out_dirs: Sequence[Path], progress: bool = True,
-              position: int = 0, threads: int | None = 1, envs: Sequence | None = None, resume: bool = False,
-              checkpoint_every: int = 10, tensorboard: Path | None = None,
-              should_stop: Callable[[], bool] | None = None, command: str | None = None) -> list[RunSummary]:
+def run_seeds(
+    experiment: Experiment,
+    configs: Sequence,
+    out_dirs: Sequence[Path],
+    progress: bool = True,
+    position: int = 0,
+    threads: int | None = 1,
+    envs: Sequence | None = None,
+    resume: bool = False,
+    checkpoint_every: int = 10,
+    tensorboard: Path | None = None,
+    should_stop: Callable[[], bool] | None = None,
+    command: str | None = None,
+) -> list[RunSummary]:
     """Train the seeds of ``configs`` (equal but for the seed) together to the threshold or
     the budget; write each one's folder and return their summaries.
 
@@ -136,8 +168,10 @@ def build_seed_axis(experiment: Experiment, configs: list, envs: Sequence | None
     spec = experiment.env_spec(envs[0])
     if impl.whole_agent:
         if len(configs) > 1:
-            raise ConfigError(f"{experiment.name}'s {c.framework} version is the original code, one seed per run; "
-                              "it does not batch (drop --seed-batch)")
+            raise ConfigError(
+                f"{experiment.name}'s {c.framework} version is the original code, one seed per run; "
+                "it does not batch (drop --seed-batch)"
+            )
         return WholeAgentAxis(impl.load()(c, spec, envs[0].action_space)), envs
     if len(configs) == 1:
         from keras_rl.learners.stacked import SoloAsStack
@@ -180,8 +214,9 @@ class PartsAxis:
         n = max(counts, default=0)
         alike = len({c for c, r in zip(counts, running) if r}) <= 1
         if not alike and not getattr(self.learner, "takes_masks", False):
-            raise ConfigError("seed-batched runs of this learner need the seeds to train the same number of batches "
-                              "on each env step")
+            raise ConfigError(
+                "seed-batched runs of this learner need the seeds to train the same number of batches on each env step"
+            )
         states = np.stack([a.state for a in self.agents])
         if n == 0:
             self.raw = self.learner.act_without_update(states, separate=any_ended)
@@ -202,8 +237,9 @@ class PartsAxis:
         for k, agent in enumerate(self.agents):
             if running[k]:
                 try:
-                    agent.record_losses([{name: v[k] for name, v in losses.items()}
-                                         for losses, trained in rounds if trained[k]])
+                    agent.record_losses(
+                        [{name: v[k] for name, v in losses.items()} for losses, trained in rounds if trained[k]]
+                    )
                 except NonFiniteLossError as exc:
                     failed[k] = str(exc)
         return failed
@@ -211,8 +247,9 @@ class PartsAxis:
     def _rows(self, i: int, trains: list[bool]) -> np.ndarray:
         """Update i's rows ``[S, B, width]``; a seed that does not train on it gives rows of zeros."""
         shape = next(self.batches[k][i].shape for k in range(len(self.agents)) if trains[k])
-        return np.stack([self.batches[k][i] if trains[k] else np.zeros(shape, np.float32)
-                         for k in range(len(self.agents))])
+        return np.stack(
+            [self.batches[k][i] if trains[k] else np.zeros(shape, np.float32) for k in range(len(self.agents))]
+        )
 
     def next_actions(self, running: list[bool], restarted: set[int]) -> None:
         for k, agent in enumerate(self.agents):
@@ -282,9 +319,12 @@ class WholeAgentAxis:
 
     def seed_state(self, k: int) -> dict[str, Any]:
         tally = self.agent.tally
-        return {"agent": self.agent.state_dict(), "action": self._action,
-                "agent_step": {"state": self.agent._state, "action": self.agent._action},
-                "tally": {"sums": dict(tally.sums), "updates": tally.updates}}
+        return {
+            "agent": self.agent.state_dict(),
+            "action": self._action,
+            "agent_step": {"state": self.agent._state, "action": self.agent._action},
+            "tally": {"sums": dict(tally.sums), "updates": tally.updates},
+        }
 
     def load_seed_state(self, k: int, state: dict[str, Any]) -> None:
         self.agent.load_state_dict(state["agent"])
@@ -300,8 +340,10 @@ class SeedRun:
         self.experiment, self.config, self.recorder, self.metric = experiment, config, recorder, metric
         self.command = command or command_line()
         self.start = time.perf_counter()
-        self.provenance = {**provenance(), "started_at": datetime.datetime.now(datetime.timezone.utc).isoformat(
-            timespec="seconds")}
+        self.provenance = {
+            **provenance(),
+            "started_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        }
         self.versions = library_versions(config.framework)
         self.reached_at: int | None = None
         self.total_steps = 0
@@ -311,8 +353,15 @@ class SeedRun:
         ``summary.json``; returns the row."""
         self.total_steps += steps
         value = self.metric.update(score)
-        row = {"episode": episode, "steps": steps, "total_steps": self.total_steps, "score": score, "metric": value,
-               **stats.mean_losses, "wall_seconds": time.perf_counter() - self.start}
+        row = {
+            "episode": episode,
+            "steps": steps,
+            "total_steps": self.total_steps,
+            "score": score,
+            "metric": value,
+            **stats.mean_losses,
+            "wall_seconds": time.perf_counter() - self.start,
+        }
         self.recorder.add_episode(row)
         if self.reached_at is None and self.metric.passes(value, self.config.threshold):
             self.reached_at = episode
@@ -325,18 +374,34 @@ class SeedRun:
         finite = [r["metric"] for r in rows if r["metric"] is not None and math.isfinite(r["metric"])]
         best = (min if metric.comparison in ("<", "<=") else max)(finite, default=None)
         return RunSummary(
-            experiment=self.experiment.name, variant=c.variant, seed=c.seed, status=status, message=message,
-            success=(metric.passes(rows[-1]["metric"], c.threshold) and len(rows) == c.episodes if at_end and rows
-                     else self.reached_at is not None),
-            criterion=(f"metric {metric.comparison} {c.threshold:g} "
-                       + (f"after all {c.episodes} episodes" if at_end else f"within {c.episodes} episodes")),
-            reached_at_episode=self.reached_at, episodes_run=len(rows), budget_episodes=c.episodes,
+            experiment=self.experiment.name,
+            variant=c.variant,
+            seed=c.seed,
+            status=status,
+            message=message,
+            success=(
+                metric.passes(rows[-1]["metric"], c.threshold) and len(rows) == c.episodes
+                if at_end and rows
+                else self.reached_at is not None
+            ),
+            criterion=(
+                f"metric {metric.comparison} {c.threshold:g} "
+                + (f"after all {c.episodes} episodes" if at_end else f"within {c.episodes} episodes")
+            ),
+            reached_at_episode=self.reached_at,
+            episodes_run=len(rows),
+            budget_episodes=c.episodes,
             total_steps=self.total_steps,
             steps_to_threshold=rows[self.reached_at - 1]["total_steps"] if self.reached_at else None,
-            final_metric=rows[-1]["metric"] if rows else None, best_metric=best,
-            wall_seconds=round(time.perf_counter() - self.start, 3), framework=c.framework,
-            command=self.command, versions=self.versions, provenance=self.provenance,
-            extras=self.experiment.summary_extras(rows, c))
+            final_metric=rows[-1]["metric"] if rows else None,
+            best_metric=best,
+            wall_seconds=round(time.perf_counter() - self.start, 3),
+            framework=c.framework,
+            command=self.command,
+            versions=self.versions,
+            provenance=self.provenance,
+            extras=self.experiment.summary_extras(rows, c),
+        )
 
 
 class _Seed:
@@ -363,12 +428,22 @@ class _Seed:
 
     def snapshot(self) -> dict[str, Any]:
         run = self.run
-        return {"config": self.config.to_dict(), "rows": list(self.recorder.rows), "reached_at": run.reached_at,
-                "total_steps": run.total_steps, "elapsed": time.perf_counter() - run.start, "metric": run.metric,
-                # an interrupted seed resumes: it is running as far as the checkpoint goes
-                "status": "running" if self.status == "interrupted" else self.status,
-                "message": "" if self.status == "interrupted" else self.message, "episode": self.episode, "score": self.score,
-                "steps": self.steps, "saved": self.saved, "env": self.env}
+        return {
+            "config": self.config.to_dict(),
+            "rows": list(self.recorder.rows),
+            "reached_at": run.reached_at,
+            "total_steps": run.total_steps,
+            "elapsed": time.perf_counter() - run.start,
+            "metric": run.metric,
+            # an interrupted seed resumes: it is running as far as the checkpoint goes
+            "status": "running" if self.status == "interrupted" else self.status,
+            "message": "" if self.status == "interrupted" else self.message,
+            "episode": self.episode,
+            "score": self.score,
+            "steps": self.steps,
+            "saved": self.saved,
+            "env": self.env,
+        }
 
     def restore(self, state: dict[str, Any]) -> None:
         wanted = json.loads(json.dumps(self.config.to_dict()))
@@ -376,22 +451,33 @@ class _Seed:
         differing = sorted(k for k in wanted if theirs.get(k) != wanted[k])
         if differing:
             k = differing[0]
-            raise ConfigError(f"--resume: the checkpoint in {self.recorder.out_dir} was made with {k}={theirs.get(k)!r}, "
-                              f"this command asks for {wanted[k]!r}; resume with the same options")
+            raise ConfigError(
+                f"--resume: the checkpoint in {self.recorder.out_dir} was made with {k}={theirs.get(k)!r}, "
+                f"this command asks for {wanted[k]!r}; resume with the same options"
+            )
         if getattr(self.config, "learning_phase_training", False):
-            raise ConfigError("--resume does not cover learning_phase_training=true (its noise layer draws from "
-                              "TensorFlow's generator, which checkpoints do not hold)")
+            raise ConfigError(
+                "--resume does not cover learning_phase_training=true (its noise layer draws from "
+                "TensorFlow's generator, which checkpoints do not hold)"
+            )
         run = self.run
         run.metric.__dict__.update(state["metric"].__dict__)
         self.recorder.rows = list(state["rows"])
         run.reached_at, run.total_steps = state["reached_at"], int(state["total_steps"])
         run.start = time.perf_counter() - float(state["elapsed"])
         self.status, self.message = state["status"], state["message"]
-        self.episode, self.score, self.steps, self.saved = state["episode"], state["score"], state["steps"], state["saved"]
+        self.episode, self.score, self.steps, self.saved = (
+            state["episode"],
+            state["score"],
+            state["steps"],
+            state["saved"],
+        )
         _load_env_state(self.env, state["env"])
         if self.active:  # episodes played after the checkpoint are played again, so they leave the CSV
-            atomic_write_text(self.recorder.out_dir / "episodes.csv",
-                              episodes_csv_text(self.recorder.rows, episode_columns(self.recorder.loss_names)))
+            atomic_write_text(
+                self.recorder.out_dir / "episodes.csv",
+                episodes_csv_text(self.recorder.rows, episode_columns(self.recorder.loss_names)),
+            )
         else:  # it had finished before the checkpoint: its files stay as they are
             self.final = RunSummary.read(self.recorder.out_dir)
 
@@ -488,8 +574,11 @@ class _Batch:
                     if s.active:
                         s.finish("interrupted", f"stopped by {by}; the episodes so far are kept (--resume continues)")
                 return
-            if (self.checkpoint_every and any(s.active for s in seeds)
-                    and self.since_checkpoint >= self.checkpoint_every * len(seeds)):
+            if (
+                self.checkpoint_every
+                and any(s.active for s in seeds)
+                and self.since_checkpoint >= self.checkpoint_every * len(seeds)
+            ):
                 self.write_checkpoints()
 
     # -- checkpoints ------------------------------------------------------------------------
@@ -519,8 +608,9 @@ class _Batch:
                 self.axis.save(k, s.recorder.out_dir)
                 s.saved = True
             except Exception as exc:  # disk full, permissions
-                s.finish("error", f"could not write the run's files in {s.recorder.out_dir}: "
-                                  f"{type(exc).__name__}: {exc}")
+                s.finish(
+                    "error", f"could not write the run's files in {s.recorder.out_dir}: {type(exc).__name__}: {exc}"
+                )
         if s.writer is not None:
             s.writer.close()
             s.writer = None
@@ -532,7 +622,7 @@ class _Batch:
         seed's, finished ones included, so the batch resumes whole); a batch that ended
         removes them."""
         seeds = self.seeds
-        for k, s in enumerate(seeds):
+        for s in seeds:
             if s.active:  # an error outside any one seed: every seed still running says so
                 s.finish("error", "the batch stopped on an error")
         if any(s.status == "interrupted" for s in seeds):
@@ -541,8 +631,10 @@ class _Batch:
             except Exception as exc:  # disk full: say so in every interrupted seed's summary
                 for s in seeds:
                     if s.status == "interrupted":
-                        s.finish("error", f"could not write the checkpoint in {s.recorder.out_dir}: "
-                                          f"{type(exc).__name__}: {exc}")
+                        s.finish(
+                            "error",
+                            f"could not write the checkpoint in {s.recorder.out_dir}: {type(exc).__name__}: {exc}",
+                        )
                         s.final = None
         elif all(s.status in ("completed", "non_finite_loss") for s in seeds):
             for s in seeds:
@@ -557,10 +649,20 @@ def _progress_bar(experiment: Experiment, configs: list, seeds: list[_Seed], pos
     from tqdm.auto import tqdm
 
     c = configs[0]
-    who = (f"seed {c.seed}" if len(configs) == 1
-           else f"seeds {configs[0].seed}..{configs[-1].seed} (batch of {len(configs)})")
-    return tqdm(total=len(seeds) * c.episodes, initial=sum(len(s.recorder.rows) for s in seeds), position=position,
-                leave=position == 0, dynamic_ncols=True, unit="ep", desc=f"{experiment.name}/{c.variant}/{c.framework} {who}")
+    who = (
+        f"seed {c.seed}"
+        if len(configs) == 1
+        else f"seeds {configs[0].seed}..{configs[-1].seed} (batch of {len(configs)})"
+    )
+    return tqdm(
+        total=len(seeds) * c.episodes,
+        initial=sum(len(s.recorder.rows) for s in seeds),
+        position=position,
+        leave=position == 0,
+        dynamic_ncols=True,
+        unit="ep",
+        desc=f"{experiment.name}/{c.variant}/{c.framework} {who}",
+    )
 
 
 class _TensorBoard:
@@ -571,7 +673,8 @@ class _TensorBoard:
 
         self.tf = tf
         self.writer = tf.summary.create_file_writer(
-            str(Path(root) / f"{config.experiment}-{config.variant}-{config.framework}-seed{config.seed}"))
+            str(Path(root) / f"{config.experiment}-{config.variant}-{config.framework}-seed{config.seed}")
+        )
 
     def episode(self, row: dict[str, Any]) -> None:
         with self.writer.as_default():
@@ -582,4 +685,3 @@ class _TensorBoard:
 
     def close(self) -> None:
         self.writer.close()
-

@@ -37,7 +37,7 @@ class RunOptions:
     progress: bool = True
 
     @classmethod
-    def from_args(cls, args: argparse.Namespace) -> "RunOptions":
+    def from_args(cls, args: argparse.Namespace) -> RunOptions:
         """The options a command was given, checked; absent flags take their defaults."""
         workers = getattr(args, "workers", 1)
         episodes = getattr(args, "episodes", None)
@@ -50,14 +50,22 @@ class RunOptions:
             raise ConfigError(f"--seed-batch must be at least 1, got {seed_batch}")
         cores = os.cpu_count() or 1
         if workers > cores:
-            print(f"warning: --workers {workers} is more than this machine's {cores} cores; using {cores}",
-                  file=sys.stderr)
+            print(
+                f"warning: --workers {workers} is more than this machine's {cores} cores; using {cores}",
+                file=sys.stderr,
+            )
             workers = cores
         address = None
         if hasattr(args, "address"):
             address = args.address or os.environ.get("RAY_ADDRESS") or None
-        return cls(workers=workers, address=address, seed_batch=seed_batch, episodes=episodes,
-                   overrides=tuple(getattr(args, "overrides", ())), progress=not getattr(args, "no_progress", False))
+        return cls(
+            workers=workers,
+            address=address,
+            seed_batch=seed_batch,
+            episodes=episodes,
+            overrides=tuple(getattr(args, "overrides", ())),
+            progress=not getattr(args, "no_progress", False),
+        )
 
     def check_address(self) -> None:
         """A ConfigError unless the cluster at ``address`` (if any) answers; call it once the
@@ -80,21 +88,37 @@ def run_options_parser(*names: str, workers_default: int = 1, what: str = "seeds
     names = names or OPTIONS
     parent = argparse.ArgumentParser(add_help=False)
     if "workers" in names:
-        parent.add_argument("--workers", type=int, default=workers_default,
-                            help=f"{what} (or seed batches) at once on a local Ray instance "
-                                 f"(default {workers_default}{': in this process, no Ray' if workers_default == 1 else ''})")
+        parent.add_argument(
+            "--workers",
+            type=int,
+            default=workers_default,
+            help=f"{what} (or seed batches) at once on a local Ray instance "
+            f"(default {workers_default}{': in this process, no Ray' if workers_default == 1 else ''})",
+        )
     if "address" in names:
-        parent.add_argument("--address", default=None,
-                            help="run on the Ray cluster at HOST:PORT instead (default: $RAY_ADDRESS if set)")
+        parent.add_argument(
+            "--address", default=None, help="run on the Ray cluster at HOST:PORT instead (default: $RAY_ADDRESS if set)"
+        )
     if "seed_batch" in names:
-        parent.add_argument("--seed-batch", type=int, default=1, metavar="S",
-                            help="train S seeds together in one compiled step per env step (default 1: each seed "
-                                 "alone; `keras-rl list` shows which frameworks batch)")
+        parent.add_argument(
+            "--seed-batch",
+            type=int,
+            default=1,
+            metavar="S",
+            help="train S seeds together in one compiled step per env step (default 1: each seed "
+            "alone; `keras-rl list` shows which frameworks batch)",
+        )
     if "episodes" in names:
         parent.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
     if "set" in names:
-        parent.add_argument("--set", dest="overrides", action="append", default=[], metavar="FIELD=VALUE",
-                            help="override a config field of every run, e.g. --set tau=0.005 (repeatable)")
+        parent.add_argument(
+            "--set",
+            dest="overrides",
+            action="append",
+            default=[],
+            metavar="FIELD=VALUE",
+            help="override a config field of every run, e.g. --set tau=0.005 (repeatable)",
+        )
     if "no_progress" in names:
         parent.add_argument("--no-progress", action="store_true", help="no progress bars")
     return parent

@@ -39,8 +39,12 @@ def git_state() -> dict[str, object]:
             return unknown
         tree = subprocess.run([*git, "rev-parse", "HEAD:keras_rl"], capture_output=True, text=True, timeout=10)
         diff = subprocess.run([*git, "diff", "HEAD", "--", "keras_rl"], capture_output=True, timeout=30).stdout
-        return {"commit": commit.stdout.strip(), "code_tree": tree.stdout.strip() or None, "dirty": bool(diff.strip()),
-                "diff_sha256": hashlib.sha256(diff).hexdigest() if diff.strip() else None}
+        return {
+            "commit": commit.stdout.strip(),
+            "code_tree": tree.stdout.strip() or None,
+            "dirty": bool(diff.strip()),
+            "diff_sha256": hashlib.sha256(diff).hexdigest() if diff.strip() else None,
+        }
     except (OSError, subprocess.SubprocessError):
         return unknown
 
@@ -71,10 +75,15 @@ def library_versions(framework: str = "keras") -> dict[str, str]:
 
     from keras_rl import __version__
 
-    versions = {"keras_rl": __version__, "python": platform.python_version(),
-                "tensorflow": tensorflow.__version__, "keras": keras.__version__,
-                "keras_backend": keras.backend.backend(), "gymnasium": gymnasium.__version__,
-                "numpy": numpy.__version__}
+    versions = {
+        "keras_rl": __version__,
+        "python": platform.python_version(),
+        "tensorflow": tensorflow.__version__,
+        "keras": keras.__version__,
+        "keras_backend": keras.backend.backend(),
+        "gymnasium": gymnasium.__version__,
+        "numpy": numpy.__version__,
+    }
     if framework == "torch":
         versions["torch"] = sys.modules["torch"].__version__ if "torch" in sys.modules else "not imported"
     return versions

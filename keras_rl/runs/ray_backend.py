@@ -60,8 +60,11 @@ def _seed_task(job, files_in: list[dict[str, bytes]] | None, stop_flag) -> list[
     resume = group[0].start == "resume"
     node = ray.get_runtime_context().get_node_id()
     if files_in is None:
-        execute(_with(job, lambda j: dataclasses.replace(j, start="resume" if resume else "overwrite")),
-                progress=False, should_stop=should_stop)
+        execute(
+            _with(job, lambda j: dataclasses.replace(j, start="resume" if resume else "overwrite")),
+            progress=False,
+            should_stop=should_stop,
+        )
         for j in group:
             _record_node(Path(j.out_dir), node)
         return None
@@ -72,8 +75,11 @@ def _seed_task(job, files_in: list[dict[str, bytes]] | None, stop_flag) -> list[
             for name, data in files.items():
                 (run_dir / name).write_bytes(data)
         moved = iter(dirs)
-        execute(_with(job, lambda j: dataclasses.replace(j, out_dir=next(moved), start="resume" if resume else "new")),
-                progress=False, should_stop=should_stop)
+        execute(
+            _with(job, lambda j: dataclasses.replace(j, out_dir=next(moved), start="resume" if resume else "new")),
+            progress=False,
+            should_stop=should_stop,
+        )
         for run_dir in dirs:
             _record_node(run_dir, node)
         return [_pack(run_dir) for run_dir in dirs]
@@ -122,8 +128,9 @@ def check_reachable(address: str, timeout: float = 5.0) -> None:
         with socket.create_connection((host, int(port)), timeout=timeout):
             pass
     except OSError as exc:
-        raise ConfigError(f"no Ray cluster answers at {address} ({exc}); start one with `ray start --head` "
-                          "or check the address") from None
+        raise ConfigError(
+            f"no Ray cluster answers at {address} ({exc}); start one with `ray start --head` or check the address"
+        ) from None
 
 
 @dataclass
@@ -151,11 +158,19 @@ class RayBackend:
         from ray._private import ray_constants
 
         if ray_constants.ENABLE_RAY_CLUSTER:  # Ray was imported before the variable was set
-            raise ConfigError("Ray was imported in this process before RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0 was set, "
-                              "so a local instance would listen on every interface; set the variable in the "
-                              "environment before Python starts (tests/conftest.py does)")
-        ray.init(address="local", num_cpus=self.workers, include_dashboard=False, log_to_driver=False,
-                 object_store_memory=self.object_store_mb * 1024 * 1024, _node_ip_address="127.0.0.1")
+            raise ConfigError(
+                "Ray was imported in this process before RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0 was set, "
+                "so a local instance would listen on every interface; set the variable in the "
+                "environment before Python starts (tests/conftest.py does)"
+            )
+        ray.init(
+            address="local",
+            num_cpus=self.workers,
+            include_dashboard=False,
+            log_to_driver=False,
+            object_store_memory=self.object_store_mb * 1024 * 1024,
+            _node_ip_address="127.0.0.1",
+        )
         return ray, self.workers
 
     def run(self, jobs: list, progress: bool) -> bool:
@@ -185,8 +200,11 @@ class RayBackend:
                     unsaid = [m for m in members(job) if not (Path(m.out_dir) / "summary.json").is_file()]
                     if unsaid:  # a seed whose summary records the error is reported from it by the command
                         who = ", ".join(f"seed {m.config['seed']}" for m in unsaid)
-                        print(f"error: {who} in {Path(unsaid[0].out_dir).parent}: {type(cause).__name__}: "
-                              f"{_plain(str(cause))}", file=sys.stderr)
+                        print(
+                            f"error: {who} in {Path(unsaid[0].out_dir).parent}: {type(cause).__name__}: "
+                            f"{_plain(str(cause))}",
+                            file=sys.stderr,
+                        )
                     if bar is not None:
                         bar.update(1)
                     continue
@@ -200,8 +218,7 @@ class RayBackend:
             while pending or running:
                 while pending and len(running) < slots:
                     job = pending.pop(0)
-                    files = ([_pack(m.out_dir) if m.start == "resume" else {} for m in members(job)] if ship
-                             else None)
+                    files = [_pack(m.out_dir) if m.start == "resume" else {} for m in members(job)] if ship else None
                     running[task.remote(job, files, stop)] = job
                 collect(ray.wait(list(running), num_returns=1, timeout=0.5)[0])
         except KeyboardInterrupt:
@@ -214,8 +231,10 @@ class RayBackend:
                 except KeyboardInterrupt:  # a second Ctrl-C while the seeds flush: keep waiting
                     continue
             if running:
-                print(f"warning: {len(running)} seeds did not stop within 300 s; their folders are not written",
-                      file=sys.stderr)
+                print(
+                    f"warning: {len(running)} seeds did not stop within 300 s; their folders are not written",
+                    file=sys.stderr,
+                )
         finally:
             if bar is not None:
                 bar.close()

@@ -27,9 +27,11 @@ def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
     if not (seed_dir / "summary.json").is_file():
         if seed_dir.is_dir() and any(seed_dir.iterdir()):  # not a run this project made: never removed unasked
             held = ", ".join(sorted(p.name for p in seed_dir.iterdir())[:5])
-            raise RunFolderError(f"{seed_dir} holds files ({held}) but no summary.json, so it is not a run that can be "
-                                 "reused and it is left as it is; move what you keep there and pass --rerun to "
-                                 "replace it")
+            raise RunFolderError(
+                f"{seed_dir} holds files ({held}) but no summary.json, so it is not a run that can be "
+                "reused and it is left as it is; move what you keep there and pass --rerun to "
+                "replace it"
+            )
         return "missing"
     summary = RunSummary.read(seed_dir)
     try:
@@ -39,13 +41,17 @@ def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
     made, wanted = made_config.to_dict(), expected.to_dict()
     differing = made_config.differs_from(expected)
     if differing:
+        which = ", ".join(f"{k}={made.get(k)!r} here, {wanted[k]!r} wanted" for k in differing[:3])
         raise RunFolderError(
-            f"{seed_dir} was made with a different config ({', '.join(f'{k}={made.get(k)!r} here, {wanted[k]!r} wanted' for k in differing[:3])}); "
-            "refusing to mix runs: pass --rerun to replace it, or --runs to use another folder")
+            f"{seed_dir} was made with a different config ({which}); "
+            "refusing to mix runs: pass --rerun to replace it, or --runs to use another folder"
+        )
     theirs = code_version_of(summary.provenance, summary.versions.get("keras_rl"))
     if theirs != code_version:
-        raise RunFolderError(f"{seed_dir} was made by code version {theirs}, this is {code_version}; "
-                             "refusing to mix code versions: pass --rerun to replace it")
+        raise RunFolderError(
+            f"{seed_dir} was made by code version {theirs}, this is {code_version}; "
+            "refusing to mix code versions: pass --rerun to replace it"
+        )
     if summary.status not in OUTCOMES:
         return f"unfinished ({summary.status})"
     return None

@@ -66,8 +66,7 @@ def stop_signals_deferred(reraise: bool = True):
 def sigterm_as_interrupt():
     """SIGTERM raises KeyboardInterrupt, as Ctrl-C does (for code outside the episode loop:
     a dispatcher between seeds, ``evaluate``)."""
-    if threading.current_thread() is not threading.main_thread() or \
-            signal.getsignal(signal.SIGTERM) is signal.SIG_IGN:
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGTERM) is signal.SIG_IGN:
         yield
         return
 

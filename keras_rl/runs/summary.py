@@ -59,7 +59,7 @@ class RunSummary:
         return {**out, **self.extras}
 
     @classmethod
-    def from_json(cls, values: dict[str, Any]) -> "RunSummary":
+    def from_json(cls, values: dict[str, Any]) -> RunSummary:
         names = {f.name for f in dataclasses.fields(cls)} - {"extras"}
         known = {k: v for k, v in values.items() if k in names}
         extras = {k: v for k, v in values.items() if k not in names and k != "finished"}
@@ -69,7 +69,7 @@ class RunSummary:
         atomic_write_json(Path(run_dir) / "summary.json", self.to_json())
 
     @classmethod
-    def read(cls, run_dir: Path) -> "RunSummary":
+    def read(cls, run_dir: Path) -> RunSummary:
         """The summary of a seed folder, or a RunFolderError naming the folder and what is wrong."""
         path = Path(run_dir) / "summary.json"
         if not path.is_file():

@@ -41,8 +41,10 @@ def parse_grid(config_cls, items: list[str]) -> list[GridPoint]:
     for name, parsed in axes.items():
         repeated = sorted({value_text(v) for v in parsed if parsed.count(v) > 1})
         if repeated:  # 0.1, 0.10 and 1e-1 are one grid point: as three they would count its seeds thrice
-            raise ConfigError(f"--grid {name}= gives {name}={' and '.join(repeated)} more than once (values are "
-                              "compared after parsing); give each value once")
+            raise ConfigError(
+                f"--grid {name}= gives {name}={' and '.join(repeated)} more than once (values are "
+                "compared after parsing); give each value once"
+            )
     points = [dict(zip(axes, combo)) for combo in itertools.product(*axes.values())]
     return [GridPoint(point_name(p), p) for p in points]
 
@@ -54,18 +56,23 @@ def ablation_grid(config_cls, base) -> list[GridPoint]:
         if getattr(base, field_name) != off:
             points.append(GridPoint(point_name({field_name: off}), {field_name: off}))
     if len(points) == 1:
-        raise ConfigError(f"the {base.variant} variant of {config_cls.experiment} has no quirk switch left on to ablate")
+        raise ConfigError(
+            f"the {base.variant} variant of {config_cls.experiment} has no quirk switch left on to ablate"
+        )
     return points
 
 
-def sweep_jobs(base, points: list[GridPoint], seeds: list[int], out: Path, yes: bool = False,
-               **job_options: Any) -> tuple[list[SeedJob], list[SeedJob], dict[str, Any]]:
+def sweep_jobs(
+    base, points: list[GridPoint], seeds: list[int], out: Path, yes: bool = False, **job_options: Any
+) -> tuple[list[SeedJob], list[SeedJob], dict[str, Any]]:
     """(every job of the sweep, the ones still to run, each point's config) for the grid
     points on top of ``base``; refuses a folder made by another config or code version."""
     total = len(points) * len(seeds)
     if total > MAX_JOBS_WITHOUT_YES and not yes:
-        raise ConfigError(f"this sweep has {total} jobs ({len(points)} grid points x {len(seeds)} seeds), more than "
-                          f"{MAX_JOBS_WITHOUT_YES}; pass --yes if you mean it")
+        raise ConfigError(
+            f"this sweep has {total} jobs ({len(points)} grid points x {len(seeds)} seeds), more than "
+            f"{MAX_JOBS_WITHOUT_YES}; pass --yes if you mean it"
+        )
     version = code_version()
     every, todo, configs = [], [], {}
     for point in points:
@@ -78,8 +85,9 @@ def sweep_jobs(base, points: list[GridPoint], seeds: list[int], out: Path, yes: 
             try:
                 reason = check_reusable(seed_dir, config.replace(seed=seed), version)
             except RunFolderError as exc:
-                raise RunFolderError(f"{exc} (this sweep's folder {out} holds runs of another sweep or code "
-                                     "version: use another --out)") from None
+                raise RunFolderError(
+                    f"{exc} (this sweep's folder {out} holds runs of another sweep or code version: use another --out)"
+                ) from None
             if reason is not None:
                 todo.append(job)
     return every, todo, configs
@@ -90,4 +98,3 @@ def record_grid(out: Path, points: list[GridPoint]) -> None:
     from keras_rl.runs.files import atomic_write_json
 
     atomic_write_json(Path(out) / "grid.json", [{"name": p.name, "overrides": p.overrides} for p in points])
-
