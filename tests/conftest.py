@@ -27,6 +27,8 @@ GROUP_OF_FIXTURE = {"compared": "compare-runs", "sweep_dir": "ray", "short_run":
 def pytest_collection_modifyitems(config, items):
     for item in items:
         groups = [GROUP_OF_FIXTURE[f] for f in getattr(item, "fixturenames", ()) if f in GROUP_OF_FIXTURE]
+        if groups:  # those fixtures train (in a subprocess, some under Ray): out of `make test-fast`
+            item.add_marker(pytest.mark.slow)
         if item.get_closest_marker("ray") is not None:
             groups.append("ray")
         if groups:

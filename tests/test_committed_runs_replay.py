@@ -26,6 +26,8 @@ import pytest
 
 from keras_rl.runs.provenance import cpu_model
 
+pytestmark = pytest.mark.slow  # every test here trains whole runs
+
 RESULTS = Path(__file__).resolve().parent.parent / "results"
 
 CASES = [

@@ -6,6 +6,8 @@ import sys
 
 import pytest
 
+pytestmark = pytest.mark.slow  # every test here trains whole runs
+
 
 def run(out, experiment, seed, episodes, *extra):
     proc = subprocess.run(

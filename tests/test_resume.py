@@ -15,6 +15,9 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # every test here trains whole runs
+
+
 CLI = [sys.executable, "-m", "keras_rl", "reproduce"]
 CASES = [  # experiment, framework, episodes, kill after this many episodes are on disk
     ("pendulum", "keras", 12, 7),  # training from episode 2 on (train_start=200, set below)
