@@ -429,6 +429,7 @@ def reproduce(args: argparse.Namespace) -> int:
         return EXIT_OK
 
     from keras_rl.report.aggregate import write_aggregate
+    from keras_rl.report.plots import draw_job_curves
     from keras_rl.runs.backends import backend_for
     from keras_rl.runs.jobs import SeedJob, batched, run_jobs
 
@@ -443,7 +444,9 @@ def reproduce(args: argparse.Namespace) -> int:
         ],
         options.seed_batch,
     )
-    outcome = run_jobs(jobs, backend_for(options.workers, len(jobs), options.address), progress=options.progress)
+    outcome = run_jobs(
+        jobs, backend_for(options.workers, len(jobs), options.address), options.progress, after_job=draw_job_curves
+    )
     summaries = sorted(kept + outcome.summaries, key=lambda s: seeds.index(s.seed))
     failures = [s for s in summaries if s.status in ("non_finite_loss", "error")]
     for s in failures:
@@ -585,6 +588,7 @@ def sweep(args: argparse.Namespace) -> int:
         f"{len(every) - len(todo)} already done, {len(todo)} to run",
         file=sys.stderr,
     )
+    from keras_rl.report.plots import draw_job_curves
     from keras_rl.report.sweep import write_sweep_report
     from keras_rl.runs.backends import backend_for
     from keras_rl.runs.jobs import batched, run_jobs
@@ -593,7 +597,9 @@ def sweep(args: argparse.Namespace) -> int:
 
     record_grid(args.out, points)
     todo = batched(todo, options.seed_batch)
-    outcome = run_jobs(todo, backend_for(options.workers, len(todo), options.address), progress=options.progress)
+    outcome = run_jobs(
+        todo, backend_for(options.workers, len(todo), options.address), options.progress, after_job=draw_job_curves
+    )
     summaries = {
         p.name: [
             RunSummary.read(j.out_dir)
@@ -658,7 +664,12 @@ def check(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print("interrupted: no verdict", file=sys.stderr)
         return _stopped()
-    except (NoVerdictError, OSError) as exc:  # neither "consistent" nor "changed", nor the user's input
+    except NoVerdictError as exc:  # neither "consistent" nor "changed"
+        print(f"error: no verdict: {exc}", file=sys.stderr)
+        return EXIT_NO_VERDICT
+    except KerasRLError:  # the user's input (a RunFolderError is an OSError too): exit 2, from main
+        raise
+    except OSError as exc:  # a full disk or a vanished folder mid-check: no verdict either
         print(f"error: no verdict: {exc}", file=sys.stderr)
         return EXIT_NO_VERDICT
     for r in results:

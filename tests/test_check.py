@@ -234,7 +234,7 @@ def test_check_that_cannot_decide_exits_3_not_changed_or_usage(failure, tmp_path
     import keras_rl.runs.jobs as jobs
     from keras_rl.cli import EXIT_NO_VERDICT, main
 
-    def fake_run_jobs(todo, backend, progress=True):
+    def fake_run_jobs(todo, backend, progress=True, after_job=None):
         if failure == "disk full":
             raise OSError(28, "No space left on device")
         return jobs.JobsOutcome()  # the seeds never wrote a thing

@@ -157,7 +157,10 @@ def run_check(
         group = [SeedJob.of(config.replace(seed=s), folder / f"seed_{s}", start="overwrite") for s in fresh]
         jobs += batched(group, rule.seed_batch)
     atomic_write_json(out / MARKER, {"status": "running", "experiments": names})
-    outcome = run_jobs(jobs, backend_for(options.workers, len(jobs), options.address), progress=options.progress)
+    from keras_rl.report.plots import draw_job_curves
+
+    backend = backend_for(options.workers, len(jobs), options.address)
+    outcome = run_jobs(jobs, backend, options.progress, after_job=draw_job_curves)
     if outcome.interrupted:
         raise KeyboardInterrupt
     results = []

@@ -17,7 +17,7 @@ from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import frameworks
 from keras_rl.registry import get_experiment
-from keras_rl.report.plots import plt, save_figure
+from keras_rl.report.plots import draw_job_curves, plt, save_figure
 from keras_rl.report.stats import episodes_to_threshold_stats, fisher_exact, iqm_ci, mann_whitney, median_difference_ci
 from keras_rl.runs.backends import backend_for
 from keras_rl.runs.files import atomic_write_json, atomic_write_text, finite_or_none, read_episodes, run_folder
@@ -301,7 +301,8 @@ def compare(
     jobs = batched(
         gather(experiment, variant, seeds, runs_root, rerun, reuse_only, overrides, matched_init), options.seed_batch
     )  # the Keras runs still to make, S seeds at a time
-    if run_jobs(jobs, backend_for(options.workers, len(jobs), options.address), options.progress).interrupted:
+    backend = backend_for(options.workers, len(jobs), options.address)
+    if run_jobs(jobs, backend, options.progress, after_job=draw_job_curves).interrupted:
         raise KeyboardInterrupt
     runs = {fw: load_runs(run_folder(runs_root, name, variant, fw, matched_init), seeds) for fw in FRAMEWORKS}
     for fw, rs in runs.items():

@@ -134,3 +134,20 @@ def plot_sweep(
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="best")
     save_figure(fig, path)
+
+
+def draw_job_curves(job) -> None:
+    """Each seed folder of a finished (or stopped) job gets its ``curve.png``: the commands
+    pass this to ``run_jobs(..., after_job=...)``. A full disk is a warning: the run's own
+    files and summary are what count."""
+    import sys
+
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs.jobs import members
+
+    for member in members(job):
+        experiment = get_experiment(member.experiment)
+        try:
+            plot_seed_curve(Path(member.out_dir), experiment, experiment.config_cls.from_dict(member.config))
+        except OSError as exc:
+            print(f"warning: could not draw {Path(member.out_dir) / 'curve.png'}: {exc}", file=sys.stderr)

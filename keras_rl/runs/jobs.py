@@ -14,14 +14,13 @@ from __future__ import annotations
 
 import json
 import shutil
-import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, Protocol
 
 from keras_rl.errors import RunFolderError
 from keras_rl.registry import get_experiment
-from keras_rl.report.plots import plot_seed_curve
 from keras_rl.runs.files import run_folder_locks
 from keras_rl.runs.loop import run_seeds
 from keras_rl.runs.provenance import command_line
@@ -127,9 +126,10 @@ class JobsOutcome:
 
 
 def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> RunSummary:
-    """Run one job (a seed, or a batch of seeds) here through the one episode loop and draw
-    each seed's ``curve.png`` (whatever the run's end); a batch returns the summary of its
-    first interrupted seed, else of its last."""
+    """Run one job (a seed, or a batch of seeds) here through the one episode loop; a batch
+    returns the summary of its first interrupted seed, else of its last. Drawing
+    ``curve.png`` is the command's job (``run_jobs(..., after_job=...)``): nothing a worker
+    imports reaches plotting."""
     group = members(job)
     experiment = get_experiment(group[0].experiment)
     configs = [experiment.config_cls.from_dict(j.config) for j in group]
@@ -138,52 +138,53 @@ def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> 
         for j in group:
             if j.start == "overwrite" and Path(j.out_dir).exists():
                 shutil.rmtree(j.out_dir)  # whole: no weights or evaluation.json of the old run survive
-        try:
-            summaries = run_seeds(
-                experiment,
-                configs,
-                [j.out_dir for j in group],
-                progress=progress,
-                position=position,
-                resume=first.start == "resume",
-                checkpoint_every=first.checkpoint_every,
-                tensorboard=first.tensorboard,
-                should_stop=should_stop,
-                command=first.command,
-            )
-        finally:
-            for j, config in zip(group, configs):
-                _draw_curve(j.out_dir, experiment, config)
+        summaries = run_seeds(
+            experiment,
+            configs,
+            [j.out_dir for j in group],
+            progress=progress,
+            position=position,
+            resume=first.start == "resume",
+            checkpoint_every=first.checkpoint_every,
+            tensorboard=first.tensorboard,
+            should_stop=should_stop,
+            command=first.command,
+        )
     return next((s for s in summaries if s.status == "interrupted"), summaries[-1])
 
 
-def _draw_curve(out_dir: Path, experiment, config) -> None:
-    try:
-        plot_seed_curve(out_dir, experiment, config)
-    except OSError as exc:  # a full disk: the run's own files and summary are what count
-        print(f"warning: could not draw {Path(out_dir) / 'curve.png'}: {exc}", file=sys.stderr)
+AfterJob = Callable[["SeedJob | SeedBatchJob"], None]
+"""Called in the command's process once a job's folders are written, however the job ended."""
 
 
 class Backend(Protocol):
-    def run(self, jobs: list[SeedJob], progress: bool) -> bool:
+    def run(self, jobs: list[SeedJob], progress: bool, after_job: AfterJob | None = None) -> bool:
         """Run the jobs; True if Ctrl-C stopped them (no further job starts then)."""
 
 
 class InProcess:
-    def run(self, jobs: list[SeedJob], progress: bool) -> bool:
+    def run(self, jobs: list[SeedJob], progress: bool, after_job: AfterJob | None = None) -> bool:
         try:
             with sigterm_as_interrupt():  # between seeds too, SIGTERM stops like Ctrl-C
                 for job in jobs:
-                    if execute(job, progress).status == "interrupted":
+                    try:
+                        status = execute(job, progress).status
+                    finally:
+                        if after_job is not None:
+                            after_job(job)
+                    if status == "interrupted":
                         return True
         except KeyboardInterrupt:  # arrived outside a seed's episode loop
             return True
         return False
 
 
-def run_jobs(jobs: list[SeedJob], backend: Backend, progress: bool = True) -> JobsOutcome:
-    """Run ``jobs`` on ``backend`` and read back what each folder holds."""
-    interrupted = backend.run(jobs, progress) if jobs else False
+def run_jobs(
+    jobs: list[SeedJob], backend: Backend, progress: bool = True, after_job: AfterJob | None = None
+) -> JobsOutcome:
+    """Run ``jobs`` on ``backend`` and read back what each folder holds; ``after_job`` (say,
+    drawing each seed's curve) runs here as each job's folders land."""
+    interrupted = backend.run(jobs, progress, after_job) if jobs else False
     summaries = []
     for job in (m for j in jobs for m in members(j)):
         try:

@@ -173,15 +173,15 @@ class RayBackend:
         )
         return ray, self.workers
 
-    def run(self, jobs: list, progress: bool) -> bool:
+    def run(self, jobs: list, progress: bool, after_job=None) -> bool:
         ray, slots = self._init()
         try:
             with sigterm_as_interrupt():  # ray.init replaces the driver's SIGTERM handler: take it back
-                return self._run(ray, slots, jobs, progress)
+                return self._run(ray, slots, jobs, progress, after_job)
         finally:
             ray.shutdown()
 
-    def _run(self, ray, slots: int, jobs: list, progress: bool) -> bool:
+    def _run(self, ray, slots: int, jobs: list, progress: bool, after_job=None) -> bool:
         task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(_seed_task)
         stop = ray.remote(num_cpus=0)(_StopFlag).remote()
         ship = self.address is not None  # a cluster's nodes may not share this disk
@@ -205,12 +205,16 @@ class RayBackend:
                             f"{_plain(str(cause))}",
                             file=sys.stderr,
                         )
+                    if after_job is not None:
+                        after_job(job)
                     if bar is not None:
                         bar.update(1)
                     continue
                 if ship:
                     for member, member_files in zip(members(job), files):
                         _land(member, member_files)
+                if after_job is not None:
+                    after_job(job)
                 if bar is not None:
                     bar.update(1)
 
