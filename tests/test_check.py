@@ -56,6 +56,7 @@ def test_decide_flags_a_shift_in_either_direction_and_not_a_resample():
     assert not decide([5.0] * 30, [5.0] * 10, "auc", 0.01).changed  # nothing to tell apart
 
 
+@pytest.mark.slow
 def test_the_false_alarm_rate_of_a_resampled_sample_is_about_alpha():
     base = np.random.default_rng(1).normal(size=30)
     rate = false_alarm_rate(base, 10, "auc", 0.05, repeats=2000)
@@ -97,6 +98,7 @@ def _cli(*args, cwd=None):
     )
 
 
+@pytest.mark.slow
 def test_check_refuses_bad_input_with_exit_2_and_touches_nothing(tmp_path):
     proc = _cli("pendulum", "--tier", "medium", "--out", str(tmp_path / "o"))
     assert proc.returncode == 2 and "unknown tier 'medium'" in proc.stderr

@@ -179,6 +179,7 @@ def test_an_interrupted_evaluation_never_replaces_a_finished_one(short_run, monk
     assert json.loads((short_run / "evaluation.interrupted.json").read_text())["episodes"] == 1
 
 
+@pytest.mark.slow
 def test_nan_in_a_loss_stops_the_run_and_keeps_the_episodes(tmp_path):
     exp = get_experiment("pendulum")
     config = PendulumDDPGConfig.for_variant("faithful", episodes=10, train_start=64, batch_size=16)
@@ -199,6 +200,7 @@ def test_nan_in_a_loss_stops_the_run_and_keeps_the_episodes(tmp_path):
     assert check_reusable(tmp_path, config, code_version()) == "unfinished (interrupted)"
 
 
+@pytest.mark.slow
 def test_ctrl_c_mid_episode_is_taken_between_env_steps(tmp_path):
     exp = get_experiment("pendulum")
     config = PendulumDDPGConfig.for_variant("faithful", episodes=10, train_start=64, batch_size=16)
@@ -234,6 +236,7 @@ def test_stop_signals_as_flag_records_instead_of_raising_and_respects_an_ignored
 
 
 @pytest.mark.parametrize("seeds,workers", [("0", 1), ("0-2", 2)])
+@pytest.mark.slow
 def test_ctrl_c_leaves_valid_files_marked_unfinished(tmp_path, seeds, workers):
     out = tmp_path / "run"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
@@ -295,6 +298,7 @@ def test_framework_the_experiment_does_not_have(capsys, tmp_path):
 
 
 @pytest.mark.parametrize("experiment,episodes", [("pendulum", 6), ("mountaincar", 2)])
+@pytest.mark.slow
 def test_torch_ddpg_run_folder_evaluate_and_corrupt_checkpoint(tmp_path, experiment, episodes):
     pytest.importorskip("torch", reason="needs the torch extra")
     out = tmp_path / "t"
@@ -332,6 +336,7 @@ def test_dqn_on_a_box_action_env_is_refused(capsys, tmp_path):
 
 
 @pytest.mark.parametrize("framework,weights", [("keras", "q_network.weights.h5"), ("torch", "q_network.pt")])
+@pytest.mark.slow
 def test_cartpole_run_folder_and_evaluate_with_gif(tmp_path, framework, weights):
     if framework == "torch":
         pytest.importorskip("torch", reason="needs the torch extra")
@@ -364,6 +369,7 @@ def test_cartpole_run_folder_and_evaluate_with_gif(tmp_path, framework, weights)
     assert gif.read_bytes()[:6] in (b"GIF87a", b"GIF89a")
 
 
+@pytest.mark.slow
 def test_compare_and_sweep_never_remove_a_seed_folder_they_did_not_make(tmp_path, capsys):
     """Issue #23.1: a seed folder without summary.json (someone's notes in it) is refused
     with its name, not deleted; --rerun is the way to replace it."""
@@ -400,6 +406,7 @@ def test_compare_refuses_rerun_with_reuse_only(capsys):
     assert "--rerun and --reuse-only contradict each other" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_a_second_command_writing_the_same_run_folder_is_refused(tmp_path):
     """#23.5: two commands with one --out were not kept apart (the second's --overwrite
     cleared the first's folder under it). The second now exits 2 naming the folder, and the
@@ -482,6 +489,7 @@ def test_aggregate_redraws_curves_against_env_steps(short_run, tmp_path, capsys)
         main(["aggregate", str(parent), "--x-axis", "time"])
 
 
+@pytest.mark.slow
 def test_reproduce_reruns_a_recorded_config_and_dry_run_trains_nothing(tmp_path):
     """#23.13: `--config RUN/config.json` reruns a recorded run (here a committed seed, its
     first 20 episodes bit for bit), and `--dry-run` prints the config and the folders only."""

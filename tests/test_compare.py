@@ -177,6 +177,7 @@ def test_compare_without_torch_is_a_clear_error(monkeypatch, capsys, tmp_path, e
     assert not any(tmp_path.iterdir())  # nothing ran, nothing written
 
 
+@pytest.mark.slow
 def test_compare_pendulum_with_matched_init_keeps_its_runs_and_report_apart(tmp_path):
     pytest.importorskip("torch", reason="compare needs the torch extra")
     args = [

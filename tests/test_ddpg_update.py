@@ -126,6 +126,7 @@ def test_one_update_matches_the_posts_eager_code(variant, broadcast, xla):
             np.testing.assert_allclose(a, b, atol=1e-5)
 
 
+@pytest.mark.slow
 def test_faithful_and_fixed_updates_differ_only_when_a_done_is_sampled():
     batch_done = make_batch(np.random.default_rng(4), [0, 1, 0, 0])
     batch_none = make_batch(np.random.default_rng(4), [0, 0, 0, 0])

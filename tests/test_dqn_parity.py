@@ -86,6 +86,7 @@ def update_both(ours, theirs, batch):
     return our_loss, their_loss
 
 
+@pytest.mark.slow
 def test_initial_weights_follow_nn_linear_init():
     seed_everything(0)
     weights = agent_for(CartPoleDQNConfig(), SPEC, gym.spaces.Discrete(2)).learner.q_network.get_weights()

@@ -40,6 +40,7 @@ def test_P001_PHASE_learning_phase_0_noise_off_and_bn_on_initial_moving_stats():
     assert not np.array_equal(noisy(s).numpy(), noisy(s).numpy())
 
 
+@pytest.mark.slow
 def test_P001_PHASE_updates_train_gamma_beta_but_never_move_the_moving_stats():
     agent = make_agent()
     rng = np.random.default_rng(1)
@@ -100,6 +101,7 @@ def test_P001_POP_consumes_exactly_as_the_posts_buffer():
     assert len(ours) <= 100  # ended on a burst
 
 
+@pytest.mark.slow
 def test_P001_TRIGGER_trains_in_bursts_down_to_100_after_episode_end():
     agent = make_agent()
     obs = np.array([-0.5, 0.0], np.float32)
@@ -148,6 +150,7 @@ def test_P001_RETURNS_NEXTSTATE_DONE_what_reaches_the_buffer(variant):
         np.testing.assert_array_equal(batch.dones, [0, 0, 0, 0, 0])  # truncation bootstraps
 
 
+@pytest.mark.slow
 def test_P001_NOEXPLORE_faithful_acts_deterministically_fixed_adds_ou_noise():
     obs = np.array([-0.5, 0.0], np.float32)
     faithful, fixed = make_agent("faithful"), make_agent("fixed")

@@ -87,6 +87,7 @@ def test_training_runs_every_step_from_train_start():
         assert agent.updates == max(0, step - 99)  # first update when len(memory) >= 100
 
 
+@pytest.mark.slow
 def test_stop_at_threshold_ends_the_run_at_the_first_crossing(tmp_path):
     from keras_rl.registry import get_experiment
     from keras_rl.runs.loop import run_seed

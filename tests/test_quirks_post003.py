@@ -55,6 +55,7 @@ def test_P003_TRUNCATION_bootstraps_only_termination_is_terminal():
     np.testing.assert_array_equal(agent.buffer.ordered().dones, [0.0, 1.0])
 
 
+@pytest.mark.slow
 def test_P003_WEIGHT_DECAY_adamw_default_shrinks_weights_even_without_gradient():
     decayed, plain = make_agent(), make_agent(weight_decay=0.0)
     rows = decayed.learner.layout.pack(

@@ -50,6 +50,7 @@ def solo_weights(learner) -> dict:
     return {name: layer_weights(getattr(learner, name)) for name in NETWORKS}
 
 
+@pytest.mark.slow
 def test_each_slice_starts_from_its_solo_runs_initial_weights_and_seeds_differ():
     stack = stacked(range(4))
     for k in range(4):
@@ -58,6 +59,7 @@ def test_each_slice_starts_from_its_solo_runs_initial_weights_and_seeds_differ()
 
 
 @pytest.mark.parametrize("variant", ["faithful", "fixed"])
+@pytest.mark.slow
 def test_one_stacked_update_equals_each_seeds_solo_update(variant):
     seeds = list(range(8))
     stack = stacked(seeds, variant)
@@ -76,6 +78,7 @@ def test_one_stacked_update_equals_each_seeds_solo_update(variant):
     print(f"max |stacked - solo| after one update, 8 seeds, {variant}: {worst:.3g}")
 
 
+@pytest.mark.slow
 def test_a_seeds_result_does_not_depend_on_which_seeds_share_its_batch():
     first, second = stacked(range(0, 8)), stacked(range(3, 11))
     first.train(np.stack([rows_for(s) for s in range(0, 8)]))
@@ -83,6 +86,7 @@ def test_a_seeds_result_does_not_depend_on_which_seeds_share_its_batch():
     assert max_gap(first.slice_weights(3), second.slice_weights(0)) <= 1e-6
 
 
+@pytest.mark.slow
 def test_acting_gives_each_seed_its_own_action():
     seeds = list(range(4))
     stack = stacked(seeds)
@@ -92,6 +96,7 @@ def test_acting_gives_each_seed_its_own_action():
         np.testing.assert_allclose(actions[k], solo(seed).act(states[k]), atol=1e-6)
 
 
+@pytest.mark.slow
 def test_one_seed_through_the_stacked_learner_is_bit_identical_to_the_solo_learner():
     alone, stack = solo(0), stacked([0])
     rows = rows_for(0)
@@ -118,6 +123,7 @@ def _batch(tmp_path, name, seeds, **overrides):
     return run_seed_batch(exp, configs, [tmp_path / name / f"seed_{s}" for s in seeds], progress=False)
 
 
+@pytest.mark.slow
 def test_one_seed_through_the_batched_loop_writes_the_solo_runs_episodes_csv(tmp_path):
     import subprocess
     import sys
@@ -147,6 +153,7 @@ def test_one_seed_through_the_batched_loop_writes_the_solo_runs_episodes_csv(tmp
     assert _csv(tmp_path / "batch" / "seed_3" / "episodes.csv") == _csv(tmp_path / "solo" / "seed_3" / "episodes.csv")
 
 
+@pytest.mark.slow
 def test_batched_seeds_are_independent_of_their_neighbours_and_of_each_other(tmp_path):
     first = _batch(tmp_path, "a", [0, 1, 2, 3], episodes=7)
     second = _batch(tmp_path, "b", [3, 4, 5, 6], episodes=7)
@@ -164,6 +171,7 @@ def test_batched_seeds_are_independent_of_their_neighbours_and_of_each_other(tmp
     assert RunSummary.read(tmp_path / "b" / "seed_3").provenance["seed_batch"] == [3, 4, 5, 6]
 
 
+@pytest.mark.slow
 def test_a_seed_that_reaches_the_threshold_stops_while_the_others_go_on(tmp_path):
     summaries = _batch(tmp_path, "t", [0, 1, 2, 3], episodes=6, threshold=-1450.0)
     by_seed = {s.seed: s for s in summaries}
@@ -187,6 +195,7 @@ def _envs(seeds, wrap=None):
     return [wrap(e) if wrap is not None and i == 1 else e for i, e in enumerate(envs)]
 
 
+@pytest.mark.slow
 def test_a_nan_in_one_seed_stops_that_seed_only(tmp_path):
     from keras_rl.registry import get_experiment
     from keras_rl.runs.loop import run_seeds as run_seed_batch
@@ -203,6 +212,7 @@ def test_a_nan_in_one_seed_stops_that_seed_only(tmp_path):
     assert by_seed[0].episodes_run == by_seed[2].episodes_run == 5
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_every_seed_of_a_batch_and_keeps_their_episodes(tmp_path):
     import signal
 
@@ -278,6 +288,7 @@ def _cartpole_rows(seed: int) -> np.ndarray:
     )
 
 
+@pytest.mark.slow
 def test_dqn_slices_start_from_their_solo_runs_weights_and_seeds_differ():
     spec = _cartpole_spec()
     stack = _dqn_stack(range(3), spec)
@@ -286,6 +297,7 @@ def test_dqn_slices_start_from_their_solo_runs_weights_and_seeds_differ():
     assert max_gap(stack.slice_weights(0), stack.slice_weights(1)) > 0.05  # not one RNG stream for all
 
 
+@pytest.mark.slow
 def test_one_stacked_dqn_update_equals_each_seeds_solo_update_and_ignores_its_batch_mates():
     spec = _cartpole_spec()
     seeds = list(range(8))
@@ -325,6 +337,7 @@ def _cartpole_runs(tmp_path, name, seeds, episodes, batch: bool):
     return [run_seed(exp, c, d, progress=False) for c, d in zip(configs, dirs)]
 
 
+@pytest.mark.slow
 def test_cartpole_seeds_batched_play_their_solo_episodes(tmp_path):
     """S=1 writes the solo episodes.csv bit for bit; in a batch of 4 (episodes of different
     lengths, seeds finishing at different env steps) every seed plays the same episodes as
@@ -371,6 +384,7 @@ def test_only_jobs_that_differ_in_the_seed_share_a_batch(tmp_path):
     assert batched(jobs, 1) == jobs
 
 
+@pytest.mark.slow
 def test_seed_batch_on_sweep_runs_each_grid_point_as_a_batch_and_refuses_what_it_cannot_do(tmp_path):
     import json
     import subprocess

@@ -75,6 +75,7 @@ def max_gap(a: dict, b: dict) -> float:
     return max(float(np.max(np.abs(x - y))) for name in a for x, y in zip(a[name], b[name], strict=True))
 
 
+@pytest.mark.slow
 def test_each_slice_starts_from_its_solo_runs_weights_batchnorm_included_and_seeds_differ():
     stack = stacked(range(3))
     for k in range(3):
@@ -84,6 +85,7 @@ def test_each_slice_starts_from_its_solo_runs_weights_batchnorm_included_and_see
 
 
 @pytest.mark.parametrize("changes", ACTOR_UPDATES)
+@pytest.mark.slow
 def test_one_stacked_update_equals_each_seeds_solo_update(changes):
     seeds = [0, 1, 2]
     stack = stacked(seeds, **changes)
@@ -100,6 +102,7 @@ def test_one_stacked_update_equals_each_seeds_solo_update(changes):
             assert float(losses[name][k]) == pytest.approx(float(solo_losses[name]), rel=1e-5, abs=1e-6)
 
 
+@pytest.mark.slow
 def test_a_masked_seed_keeps_weights_moments_and_its_own_adam_step_count_bit_for_bit():
     seeds = [0, 1, 2]
     stack = stacked(seeds)
@@ -119,6 +122,7 @@ def test_a_masked_seed_keeps_weights_moments_and_its_own_adam_step_count_bit_for
         assert max_gap(stack.slice_weights(k), weights(alone)) <= 1e-6, seed
 
 
+@pytest.mark.slow
 def test_a_seeds_result_does_not_depend_on_which_seeds_share_its_batch():
     first, second = stacked([2, 3]), stacked([3, 4, 5])
     first.train(np.stack([rows_for(s) for s in (2, 3)]))
@@ -126,6 +130,7 @@ def test_a_seeds_result_does_not_depend_on_which_seeds_share_its_batch():
     assert max_gap(first.slice_weights(1), second.slice_weights(0)) <= 1e-6
 
 
+@pytest.mark.slow
 def test_acting_gives_each_seed_its_own_action():
     stack = stacked([0, 1, 2])
     states = np.random.default_rng(0).uniform(0, 1, (3, 2)).astype(np.float32)
@@ -141,6 +146,7 @@ def test_the_learning_phase_on_does_not_batch():
         stacked([0, 1], learning_phase_training=True)
 
 
+@pytest.mark.slow
 def test_post001_seeds_batched_burst_by_burst_play_their_solo_episodes(tmp_path):
     """Three seeds through the one loop with their bursts masked per seed; each seed's
     episodes match its solo run's (to the rounding of stacked matmuls: 1e-7 per update)."""

@@ -83,6 +83,7 @@ CASES = [
 @pytest.mark.parametrize(
     "config_cls,variant,make,batch,obs_dim", CASES, ids=[f"{c.experiment}-{v}" for c, v, *_ in CASES]
 )
+@pytest.mark.slow
 def test_one_update_agrees_with_keras(config_cls, variant, make, batch, obs_dim):
     keras_learner, torch_learner = twins(make, config_cls.for_variant(variant, seed=3))
     nets = networks(keras_learner, torch_learner)

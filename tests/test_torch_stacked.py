@@ -120,6 +120,7 @@ def test_acting_gives_each_seed_its_own_action():
         np.testing.assert_allclose(actions[k], solo("000", k).act(states[k]), atol=1e-6)
 
 
+@pytest.mark.slow
 def test_a_torch_batch_runs_through_the_loop_and_resumes_to_the_same_files(tmp_path):
     """Post 000's PyTorch port, 2 seeds batched: Ctrl-C after episode 3 leaves checkpoints,
     and resuming gives every seed the episodes an uninterrupted batch gives."""

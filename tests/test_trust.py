@@ -64,6 +64,7 @@ def test_a_folder_holding_a_run_is_refused_then_replaced_whole_with_overwrite(ti
     assert len(read_episodes(seed_dir / "episodes.csv")) == 3
 
 
+@pytest.mark.slow
 def test_set_never_writes_into_the_variants_own_folder(tmp_path):
     proc = run_cli(
         "reproduce",
@@ -105,6 +106,7 @@ def _default_signals():
 
 
 @pytest.mark.parametrize("workers", [1, 2])
+@pytest.mark.slow
 def test_sigterm_is_handled_like_ctrl_c(tmp_path, workers):
     out = tmp_path / "run"
     proc = subprocess.Popen(
@@ -158,6 +160,7 @@ def tiny_disk(folder, size: str):
         subprocess.run(["umount", str(folder)], capture_output=True)
 
 
+@pytest.mark.slow
 def test_disk_full_is_an_error_naming_the_file_and_nothing_claims_success(tmp_path):
     with tiny_disk(tmp_path / "tiny", "40k") as mount:
         proc = run_cli(
@@ -181,6 +184,7 @@ def test_disk_full_is_an_error_naming_the_file_and_nothing_claims_success(tmp_pa
         assert "No space left on device" in proc.stderr or "could not write" in proc.stderr, proc.stderr
 
 
+@pytest.mark.slow
 def test_disk_full_under_ray_is_one_line_per_seed_naming_the_file(tmp_path):
     """#23.8: with --workers 2 a full disk printed a Ray stack trace with colour codes."""
     with tiny_disk(tmp_path / "tiny", "200k") as mount:
@@ -292,6 +296,7 @@ def test_summary_records_provenance_and_is_valid_json_with_usual_permissions(tin
         assert (seed_dir / name).stat().st_mode & 0o777 == 0o666 & ~mask, name
 
 
+@pytest.mark.slow
 def test_lower_is_better_metrics_keep_their_best_and_json_has_no_infinity(tmp_path):
     proc = run_cli(
         "reproduce",
@@ -312,6 +317,7 @@ def test_lower_is_better_metrics_keep_their_best_and_json_has_no_infinity(tmp_pa
     assert summary["best_metric"] == min(spreads)
 
 
+@pytest.mark.slow
 def test_torch_runs_record_the_torch_version(tmp_path):
     pytest.importorskip("torch")
     proc = run_cli(
@@ -362,6 +368,7 @@ def test_every_option_has_help_text():
 
 
 @pytest.mark.parametrize("seed_batch", [1, 2])
+@pytest.mark.slow
 def test_tensorboard_scalars_read_back(tmp_path, seed_batch):
     import tensorflow as tf
 
