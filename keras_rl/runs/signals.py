@@ -53,13 +53,31 @@ def stop_signals_as_flag():
 @contextlib.contextmanager
 def stop_signals_deferred(reraise: bool = True):
     """Hold SIGINT/SIGTERM back until the block is done, so a write and its bookkeeping stay
-    together. A signal that arrives inside the block is remembered and raised as
-    KeyboardInterrupt when the block ends (``reraise=False``: dropped, for a flush that is
-    the run's last act)."""
-    with stop_signals_as_flag() as caught:
+    together. A signal that arrives inside the block is handed, when the block ends, to the
+    handler it would have met: an enclosing ``stop_signals_as_flag`` records it (so the
+    training loop stops at its next step, as for any other signal), and otherwise it is
+    raised as KeyboardInterrupt (``reraise=False``: dropped, for a flush that is the run's
+    last act)."""
+    caught: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
         yield
+        return
+    previous = {}
+    for sig in STOP_SIGNALS:
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            previous[sig] = signal.signal(sig, lambda signum, frame: caught.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     if caught and reraise:
-        raise KeyboardInterrupt
+        handler = previous.get(signal.Signals(caught[-1]))
+        if callable(handler) and handler is not signal.default_int_handler:
+            handler(caught[-1], None)  # an enclosing flag, or sigterm_as_interrupt (which raises)
+        else:
+            _RECEIVED.append(caught[-1])
+            raise KeyboardInterrupt
 
 
 @contextlib.contextmanager
