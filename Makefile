@@ -4,17 +4,19 @@ VENV := .venv
 BIN := $(VENV)/bin
 SEED ?= 13
 
-.PHONY: reproduce test test-fast lint docs install install-test benchmark clean
+.PHONY: reproduce test test-fast lint docs install install-test matrix benchmark clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
+## Both install the exact versions that made results/ (constraints.txt); setup.cfg admits the
+## range the version matrix proves.
 install: $(BIN)/python
-	$(BIN)/pip install --quiet -e .
+	$(BIN)/pip install --quiet -c constraints.txt -e .
 
 install-test: $(BIN)/python
-	$(BIN)/pip install --quiet -e ".[test,torch]"
+	$(BIN)/pip install --quiet -c constraints.txt -e ".[test,torch]"
 
 ## The main reproduction: post 000's faithful DDPG on Pendulum-v1 to EMA > -300.
 reproduce: install
@@ -37,6 +39,12 @@ lint: install-test
 ## These pages, built strictly (a broken link or a missing page fails) into site/.
 docs: install-test
 	$(BIN)/mkdocs build --strict
+
+## The version matrix (noxfile.py): every cell in its own virtualenv, then results/compat/README.md.
+## Hours: one cell is about 20 minutes. A cell resumes where it stopped; `nox -s cell-NAME table` runs one.
+matrix: $(BIN)/python
+	$(BIN)/pip install --quiet -c constraints.txt -e ".[matrix]"
+	$(BIN)/nox
 
 benchmark: install
 	/usr/bin/time -v $(BIN)/python benchmarks/step_time.py

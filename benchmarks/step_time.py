@@ -79,13 +79,7 @@ def time_post001_updates(batches_wanted: int, with_torch: bool) -> tuple[float, 
     """ms per training batch (one critic + one literal actor update + soft updates) on the
     same popped data: the post's ``Agent.train`` mirrored eagerly, our compiled Keras
     learner, and our PyTorch learner."""
-    import random
-
-    from keras_rl.buffers import PoppingBuffer
-    from keras_rl.envs import EnvSpec
-    from keras_rl.posts.mountaincar import MountainCarDDPGConfig
     from keras_rl.reference.post001_eager import PostAgent, fill, functional_models
-    from keras_rl.registry import agent_for
 
     rng = np.random.default_rng(0)
     n = 100 + 32 * batches_wanted
@@ -99,24 +93,83 @@ def time_post001_updates(batches_wanted: int, with_torch: bool) -> tuple[float, 
     batches = post.train()
     post_ms = (time.perf_counter() - start) / batches * 1e3
 
-    rows = rng.normal(size=(n, 2 * 2 + 1 + 2)).astype(np.float32)  # [state 2 | action | reward | next 2 | done]
+    return (
+        post_ms,
+        time_post001_ours("keras", batches_wanted),
+        (time_post001_ours("torch", batches_wanted) if with_torch else None),
+    )
 
-    def ours(framework: str) -> float:
-        spec = EnvSpec(
-            2, 1, 1.0, obs_low=np.array([-1.2, -0.07]), obs_high=np.array([0.6, 0.07]), max_episode_steps=999
+
+def time_post001_ours(framework: str, batches_wanted: int) -> float:
+    """ms per training batch of our post 001 learner (``framework``), on one burst of popped data."""
+    import random
+
+    from keras_rl.buffers import PoppingBuffer
+    from keras_rl.envs import EnvSpec
+    from keras_rl.posts.mountaincar import MountainCarDDPGConfig
+    from keras_rl.registry import agent_for
+
+    n = 100 + 32 * batches_wanted
+    rows = np.random.default_rng(1).normal(size=(n, 2 * 2 + 1 + 2)).astype(np.float32)  # [s 2|a|r|s' 2|done]
+    spec = EnvSpec(2, 1, 1.0, obs_low=np.array([-1.2, -0.07]), obs_high=np.array([0.6, 0.07]), max_episode_steps=999)
+    agent = agent_for(MountainCarDDPGConfig(framework=framework), spec)
+    buffer = PoppingBuffer(n + 1, agent.buffer.layout, random.Random(0))
+    buffer.add_rows(rows)
+    agent.learner.train(buffer.sample_rows(32))  # trace and compile / warm up
+    buffer.add_rows(rows[:32])
+    start, count = time.perf_counter(), 0
+    while len(buffer) > 100:  # the post's burst: pop and train until 100 are left
+        agent.learner.train(buffer.sample_rows(32))
+        count += 1
+    return (time.perf_counter() - start) / count * 1e3
+
+
+Row = tuple[str, str, str, "float | None", float, "float | None"]
+
+
+def keras_rows(steps: int, warmup: int) -> list[Row]:
+    """Our Keras side of each post only (``--keras-only``)."""
+    return [
+        ("pendulum (post 000)", "env step", "-", None, time_agent("pendulum", steps, warmup), None),
+        ("cartpole (post 003)", "env step", "-", None, time_agent("cartpole", steps, warmup), None),
+        ("mountaincar (post 001)", "train batch", "-", None, time_post001_ours("keras", max(20, steps // 4)), None),
+    ]
+
+
+def all_rows(steps: int, warmup: int, has_torch: bool) -> list[Row]:
+    """Each post three ways: the post's original code path, our Keras, our PyTorch."""
+    keras_ms = time_agent("pendulum", steps, warmup)
+    torch_ms = time_agent("pendulum", steps, warmup, framework="torch") if has_torch else None
+    post_ms = time_post000_eager(steps, warmup)
+    rows: list[Row] = [
+        (
+            "pendulum (post 000)",
+            "env step",
+            "the post's eager Keras loop (get/set_weights)",
+            post_ms,
+            keras_ms,
+            torch_ms,
         )
-        agent = agent_for(MountainCarDDPGConfig(framework=framework), spec)
-        buffer = PoppingBuffer(n + 1, agent.buffer.layout, random.Random(0))
-        buffer.add_rows(rows)
-        agent.learner.train(buffer.sample_rows(32))  # trace and compile / warm up
-        buffer.add_rows(rows[:32])
-        start, count = time.perf_counter(), 0
-        while len(buffer) > 100:  # the post's burst: pop and train until 100 are left
-            agent.learner.train(buffer.sample_rows(32))
-            count += 1
-        return (time.perf_counter() - start) / count * 1e3
-
-    return post_ms, ours("keras"), ours("torch") if with_torch else None
+    ]
+    if has_torch:
+        keras_ms = time_agent("cartpole", steps, warmup)
+        tutorial = time_agent("cartpole", steps, warmup, framework="torch")
+        # the post *is* PyTorch: our PyTorch version is the tutorial's own code path
+        rows.append(
+            (
+                "cartpole (post 003)",
+                "env step",
+                "the PyTorch tutorial's code (= our PyTorch)",
+                tutorial,
+                keras_ms,
+                tutorial,
+            )
+        )
+    post_ms, keras_ms, torch_ms = time_post001_updates(max(20, steps // 4), has_torch)
+    rows.append(
+        ("mountaincar (post 001)", "train batch", "the post's Agent.train, eager mirror", post_ms, keras_ms, torch_ms)
+    )
+    return rows
 
 
 def main() -> None:
@@ -125,6 +178,11 @@ def main() -> None:
     parser.add_argument("--warmup", type=int, default=50)
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--json", type=Path, default=None, help="also write the numbers here")
+    parser.add_argument(
+        "--keras-only",
+        action="store_true",
+        help="time only our Keras side of each post (the version matrix compares it across library versions)",
+    )
     args = parser.parse_args()
     configure_tensorflow(args.threads)
     seed_everything(0)
@@ -138,38 +196,7 @@ def main() -> None:
         print("(no torch installed: the PyTorch column and the CartPole row need the torch extra)")
 
     # (experiment, unit, the post's original code path, its ms, our Keras ms, our PyTorch ms)
-    rows = []
-    keras_ms = time_agent("pendulum", args.steps, args.warmup)
-    torch_ms = time_agent("pendulum", args.steps, args.warmup, framework="torch") if has_torch else None
-    post_ms = time_post000_eager(args.steps, args.warmup)
-    rows.append(
-        (
-            "pendulum (post 000)",
-            "env step",
-            "the post's eager Keras loop (get/set_weights)",
-            post_ms,
-            keras_ms,
-            torch_ms,
-        )
-    )
-    if has_torch:
-        keras_ms = time_agent("cartpole", args.steps, args.warmup)
-        tutorial = time_agent("cartpole", args.steps, args.warmup, framework="torch")
-        # the post *is* PyTorch: our PyTorch version is the tutorial's own code path
-        rows.append(
-            (
-                "cartpole (post 003)",
-                "env step",
-                "the PyTorch tutorial's code (= our PyTorch)",
-                tutorial,
-                keras_ms,
-                tutorial,
-            )
-        )
-    post_ms, keras_ms, torch_ms = time_post001_updates(max(20, args.steps // 4), has_torch)
-    rows.append(
-        ("mountaincar (post 001)", "train batch", "the post's Agent.train, eager mirror", post_ms, keras_ms, torch_ms)
-    )
+    rows = keras_rows(args.steps, args.warmup) if args.keras_only else all_rows(args.steps, args.warmup, has_torch)
 
     fmt = lambda v: f"{v:8.3f}" if v is not None else f"{'n/a':>8s}"  # noqa: E731
     print(
@@ -179,10 +206,8 @@ def main() -> None:
     result = {"steps": args.steps, "threads": args.threads, "rows": []}
     for name, unit, original, orig, mine, theirs in rows:
         torch_ratio = f"{theirs / mine:10.1f}x" if theirs is not None else f"{'n/a':>11s}"
-        print(
-            f"{name:23s} {unit:11s} {original:46s} {fmt(orig)} {fmt(mine)} {fmt(theirs)} "
-            f"{orig / mine:9.1f}x {torch_ratio}"
-        )
+        orig_ratio = f"{orig / mine:9.1f}x" if orig is not None else f"{'n/a':>10s}"
+        print(f"{name:23s} {unit:11s} {original:46s} {fmt(orig)} {fmt(mine)} {fmt(theirs)} {orig_ratio} {torch_ratio}")
         result["rows"].append(
             {
                 "experiment": name,
@@ -191,7 +216,7 @@ def main() -> None:
                 "original_ms": orig,
                 "keras_ms": mine,
                 "torch_ms": theirs,
-                "original_over_keras": orig / mine,
+                "original_over_keras": orig / mine if orig is not None else None,
                 "torch_over_keras": theirs / mine if theirs is not None else None,
             }
         )

@@ -15,7 +15,6 @@ Runs committed before the model was recorded were all made on this project's mac
 
 from __future__ import annotations
 
-import csv
 import json
 import subprocess
 import sys
@@ -25,6 +24,7 @@ from pathlib import Path
 import pytest
 
 from keras_rl.runs.provenance import cpu_model
+from keras_rl.runs.replay import plan_replay, seed_rows
 
 pytestmark = pytest.mark.slow  # every test here trains whole runs
 
@@ -42,8 +42,7 @@ CASES = [
 
 
 def read_rows(path: Path) -> list[dict[str, str]]:
-    with open(path, newline="") as fh:
-        return [{k: v for k, v in row.items() if k != "wall_seconds"} for row in csv.DictReader(fh)]
+    return seed_rows(path)
 
 
 @pytest.mark.parametrize("folder, experiment, extra, episodes", CASES)
@@ -51,11 +50,7 @@ def test_committed_run_reproduces_bit_for_bit(tmp_path, folder, experiment, extr
     committed = RESULTS / folder
     if "--framework" in extra:
         pytest.importorskip("torch", reason="needs the torch extra")
-    config = json.loads((committed / "config.json").read_text())
     summary = json.loads((committed / "summary.json").read_text())
-    expected = read_rows(committed / "episodes.csv")
-    if episodes is not None:
-        expected = expected[:episodes]
     theirs = summary.get("provenance", {}).get("cpu_model")
     if theirs is not None and theirs != cpu_model():
         warnings.warn(
@@ -63,40 +58,16 @@ def test_committed_run_reproduces_bit_for_bit(tmp_path, folder, experiment, extr
             "bit-exactness across CPUs, so only the first 5 episodes are compared",
             stacklevel=2,
         )
-        expected = expected[:5]
-    budget = (
-        len(expected)
-        if episodes is not None or len(expected) < len(read_rows(committed / "episodes.csv"))
-        else config["episodes"]
-    )
+        episodes = 5
+    replay = plan_replay(committed, experiment, episodes)
     out = tmp_path / "run"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "keras_rl",
-            "reproduce",
-            experiment,
-            "--variant",
-            config["variant"],
-            "--seeds",
-            str(config["seed"]),
-            "--episodes",
-            str(budget),
-            "--no-progress",
-            "--out",
-            str(out),
-            *extra,
-        ],
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
+    proc = subprocess.run(replay.command(out, *extra), capture_output=True, text=True, timeout=900)
     assert proc.returncode in (0, 1), proc.stderr
-    got = read_rows(out / f"seed_{config['seed']}" / "episodes.csv")
-    assert len(got) == len(expected)
-    for want, have in zip(expected, got):
+    got = read_rows(out / f"seed_{replay.seed}" / "episodes.csv")
+    assert len(got) == len(replay.expected)
+    for want, have in zip(replay.expected, got):
         assert have == want, f"{folder}: first difference at episode {want['episode']}"
+    assert replay.divergence(out).identical
 
 
 BATCH_CASES = [

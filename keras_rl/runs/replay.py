@@ -1,0 +1,98 @@
+"""Replaying a committed run: the command that reruns one seed, and where two runs part.
+
+``episodes.csv`` is a function of the seed in every column but ``wall_seconds``. A rerun of a
+committed seed (same code, same library versions, same kind of CPU) must give the same rows
+bit for bit; where it does not, the first differing episode says how far the two agree. The
+replay test (``tests/test_committed_runs_replay.py``) and the version matrix
+(``reproductions/compat_cell.py``) both use this.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+TIMING_COLUMNS = ("wall_seconds",)  # the one column that is not a function of the seed
+
+
+def seed_rows(path: Path) -> list[dict[str, str]]:
+    """The rows of an ``episodes.csv`` as the exact text written, without the timing column."""
+    with open(path, newline="") as fh:
+        return [{k: v for k, v in row.items() if k not in TIMING_COLUMNS} for row in csv.DictReader(fh)]
+
+
+@dataclass(frozen=True)
+class Divergence:
+    """Where a rerun first differs from the committed run (``None`` fields: it does not)."""
+
+    compared: int  # episodes compared (the shorter of the two files, at most the budget)
+    first_episode: int | None  # the first episode whose row differs
+    columns: tuple[str, ...]  # the columns that differ in that row
+
+    @property
+    def identical(self) -> bool:
+        return self.first_episode is None
+
+    def as_dict(self) -> dict:
+        return {"compared": self.compared, "first_episode": self.first_episode, "columns": list(self.columns)}
+
+
+def first_divergence(expected: list[dict[str, str]], got: list[dict[str, str]]) -> Divergence:
+    """Compare two runs row by row. A rerun with fewer rows than expected differs at the first
+    missing episode (its ``columns`` are empty)."""
+    for index, want in enumerate(expected):
+        if index >= len(got):
+            return Divergence(len(got), int(want["episode"]), ())
+        have = got[index]
+        if have != want:
+            columns = tuple(sorted(k for k in set(want) | set(have) if want.get(k) != have.get(k)))
+            return Divergence(index + 1, int(want["episode"]), columns)
+    return Divergence(len(expected), None, ())
+
+
+@dataclass(frozen=True)
+class Replay:
+    """How to rerun one committed seed folder, and what it should give."""
+
+    folder: Path
+    experiment: str
+    variant: str
+    seed: int
+    budget: int  # episodes to rerun
+    expected: list[dict[str, str]]  # the committed rows the rerun must equal
+
+    def command(self, out: Path, *extra: str, python: str | None = None) -> list[str]:
+        return [
+            python or sys.executable,
+            "-m",
+            "keras_rl",
+            "reproduce",
+            self.experiment,
+            "--variant",
+            self.variant,
+            "--seeds",
+            str(self.seed),
+            "--episodes",
+            str(self.budget),
+            "--no-progress",
+            "--out",
+            str(out),
+            *extra,
+        ]
+
+    def divergence(self, out: Path) -> Divergence:
+        return first_divergence(self.expected, seed_rows(Path(out) / f"seed_{self.seed}" / "episodes.csv"))
+
+
+def plan_replay(folder: Path, experiment: str, episodes: int | None = None) -> Replay:
+    """The replay of a committed seed folder: its first ``episodes`` rows, or the whole run
+    (a run that ended before its budget is rerun with its own budget, so it ends the same way)."""
+    folder = Path(folder)
+    config = json.loads((folder / "config.json").read_text())
+    rows = seed_rows(folder / "episodes.csv")
+    expected = rows[:episodes] if episodes is not None else rows
+    budget = len(expected) if episodes is not None else int(config["episodes"])
+    return Replay(folder, experiment, str(config["variant"]), int(config["seed"]), budget, expected)

@@ -1,0 +1,114 @@
+"""The version matrix: one nox session per cell, each a fresh virtualenv holding one combination
+of TensorFlow, Keras, Gymnasium and NumPy (``make matrix`` runs them all, the reference first).
+
+    .venv/bin/nox                          # every cell, then the table
+    .venv/bin/nox -s cell-tf2.19.1 table   # one cell, then the table
+    .venv/bin/nox -l                       # the cells
+
+Each cell varies one factor from the reference (the versions that made ``results/``, pinned in
+``constraints.txt``), but for the combined cells ``oldest`` and ``newest``. A factor left out of a
+cell's spec (``None``) is whatever pip resolves beside the others. Everything else (Ray, SciPy,
+...) is resolved by pip in every cell, and recorded in the cell's ``pip-freeze.txt``. PyTorch stays
+at 2.13.0, the CPU wheel, in every cell.
+
+A cell writes ``results/compat/<cell>/``: ``install.json`` here, then the steps of
+``reproductions/compat_cell.py`` (tests, bit-exact replay of each post's committed seed 0, the
+smoke check against the committed baselines, the speed ratio to the reference cell). A cell
+interrupted midway resumes at its first unfinished step. ``nox -s table`` regenerates
+``results/compat/README.md`` and the README's short table from the committed cell folders.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import time
+from pathlib import Path
+
+import nox
+
+ROOT = Path(__file__).resolve().parent
+COMPAT = ROOT / "results" / "compat"
+FACTORS = ("tensorflow", "keras", "gymnasium", "numpy")
+REFERENCE = {"tensorflow": "2.21.0", "keras": "3.15.1", "gymnasium": "1.4.0", "numpy": "2.4.6"}
+
+# cell -> the version of each factor it asks for (None: pip resolves it)
+CELLS: dict[str, dict[str, str | None]] = {
+    "reference": REFERENCE,
+    # TensorFlow on its own, each with the Keras 3 and NumPy that pip resolves for it
+    "tf2.20.0": {**REFERENCE, "tensorflow": "2.20.0", "keras": None, "numpy": None},
+    "tf2.19.1": {**REFERENCE, "tensorflow": "2.19.1", "keras": None, "numpy": None},
+    # Keras on its own, on TensorFlow 2.21
+    "keras3.14.1": {**REFERENCE, "keras": "3.14.1"},
+    "keras3.13.2": {**REFERENCE, "keras": "3.13.2"},
+    # Gymnasium on its own
+    "gymnasium1.3.0": {**REFERENCE, "gymnasium": "1.3.0"},
+    "gymnasium1.2.3": {**REFERENCE, "gymnasium": "1.2.3"},
+    # NumPy 1.26 against the reference's 2.x
+    "numpy1.26.4": {**REFERENCE, "numpy": "1.26.4"},
+    # combined: the oldest of everything, and the newest pip resolves today (nothing pinned)
+    "oldest": {"tensorflow": "2.19.1", "keras": "3.13.0", "gymnasium": "1.2.0", "numpy": "1.26.4"},
+    "newest": {factor: None for factor in FACTORS},
+}
+
+nox.options.sessions = [f"cell-{name}" for name in CELLS] + ["table"]
+nox.options.reuse_venv = "yes"  # a cell resumes at its first unfinished step, in the venv it made
+
+
+def _requirements(spec: dict[str, str | None]) -> list[str]:
+    return [f"{factor}=={version}" for factor, version in spec.items() if version is not None]
+
+
+def _cell(name: str, spec: dict[str, str | None]):
+    def session(session: nox.Session) -> None:
+        out = COMPAT / name
+        out.mkdir(parents=True, exist_ok=True)
+        python = str(Path(session.bin) / "python")
+        reference_python = str(Path(session.virtualenv.location).parent / "cell-reference" / "bin" / "python")
+        install = [python, "-m", "pip", "install", "--quiet", "-e", ".[test,torch]", *_requirements(spec)]
+        marker = out / "install.json"
+        if not marker.exists() or json.loads(marker.read_text())["exit_code"] != 0:
+            session.log(" ".join(install[2:]))
+            start = time.perf_counter()
+            done = subprocess.run(install, cwd=ROOT, capture_output=True, text=True)
+            record = {
+                "spec": spec,
+                "command": "pip " + " ".join(install[3:]),
+                "exit_code": done.returncode,
+                "seconds": round(time.perf_counter() - start, 1),
+                "error": done.stderr[-4000:] if done.returncode else None,
+            }
+            _write_json(marker, record)
+            if done.returncode != 0:
+                session.error(f"{name}: the install failed (results/compat/{name}/install.json)")
+        session.run(
+            python,
+            "reproductions/compat_cell.py",
+            "--cell",
+            name,
+            "--spec",
+            json.dumps(spec),
+            "--reference-python",
+            reference_python,
+            external=True,
+        )
+
+    session.__name__ = f"cell_{name}"
+    session.__doc__ = ", ".join(f"{f} {v or 'as resolved'}" for f, v in spec.items())
+    return session
+
+
+def _write_json(path: Path, payload: dict) -> None:
+    tmp = path.with_name(f".tmp-{path.name}")
+    tmp.write_text(json.dumps(payload, indent=2) + "\n")
+    tmp.replace(path)
+
+
+for _name, _spec in CELLS.items():
+    nox.session(name=f"cell-{_name}")(_cell(_name, _spec))
+
+
+@nox.session(python=False)
+def table(session: nox.Session) -> None:
+    """results/compat/README.md and the README's short table, from the committed cell folders."""
+    session.run("python", "reproductions/compat_table.py", "--write", external=True)

@@ -1,0 +1,234 @@
+"""One cell of the version matrix, run inside that cell's virtualenv (``noxfile.py`` calls it).
+
+    python reproductions/compat_cell.py --cell NAME --spec '{"tensorflow": "2.20.0"}' \
+        --reference-python .nox/cell-reference/bin/python [--out results/compat/NAME] [--redo STEP]
+
+Steps, each written to ``<out>/<step>.json`` as it finishes (a killed cell resumes at the first
+step without its file; ``--redo STEP`` reruns one):
+
+- ``versions``: the library versions this interpreter imports, and ``pip freeze`` (``pip-freeze.txt``);
+- ``tests``: the fast suite (``pytest -m "not slow"``), its counts and the names of failures;
+- ``replay``: committed seed 0 of each post (Keras) rerun whole: bit for bit, or the first
+  differing episode and its columns;
+- ``check``: ``keras-rl check pendulum cartpole mountaincar --tier smoke`` against the committed
+  baselines (``check.json``, ``check.md`` copied here). A post found ``changed`` is checked again
+  at the full tier before anyone calls it a break (``check-full.json``);
+- ``speed``: ``benchmarks/step_time.py --keras-only`` here and under ``--reference-python``
+  (the reference cell's interpreter), alternated five times in this one session; the cell's ms
+  over the reference's ms per post, median of the runs.
+
+``cell.json`` gathers them; ``reproductions/compat_table.py --write`` makes the table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from keras_rl.runs.files import atomic_write_json, atomic_write_text  # noqa: E402
+
+STEPS = ("versions", "tests", "replay", "check", "speed")
+POSTS = ("pendulum", "cartpole", "mountaincar")
+REPLAYS = {  # post -> its committed seed 0 (Keras, the faithful variant), rerun whole
+    "pendulum": "results/pendulum/faithful/seed_0",
+    "cartpole": "results/cartpole/faithful/seed_0",
+    "mountaincar": "results/mountaincar/faithful/seed_0",
+}
+SPEED_ROUNDS = 5  # reference and cell alternate: ref, cell, ref, ... (each round one of each)
+
+
+def run(command: list[str], log: Path, timeout: float) -> tuple[int, float]:
+    """Run a command with its output to ``log``; its exit code and wall seconds."""
+    start = time.perf_counter()
+    with open(log, "w") as fh:
+        try:
+            code = subprocess.run(command, stdout=fh, stderr=subprocess.STDOUT, cwd=ROOT, timeout=timeout).returncode
+        except subprocess.TimeoutExpired:
+            fh.write(f"\n[compat_cell] timed out after {timeout:.0f} s\n")
+            code = -9
+    return code, time.perf_counter() - start
+
+
+def step_versions(out: Path, work: Path) -> dict:
+    from keras_rl.runs.provenance import git_state, library_versions
+
+    freeze = subprocess.run([sys.executable, "-m", "pip", "freeze"], capture_output=True, text=True, check=True)
+    lines = [line for line in freeze.stdout.splitlines() if not line.startswith("-e ") and "keras-rl-repro" not in line]
+    atomic_write_text(out / "pip-freeze.txt", "\n".join(lines) + "\n")
+    import torch  # the torch extra is part of every cell (pinned at 2.13.0, the CPU wheel)
+
+    code = {k: v for k, v in git_state().items() if k in ("commit", "dirty")}
+    return {"versions": {**library_versions(), "torch": torch.__version__}, "packages": len(lines), "code": code}
+
+
+def step_tests(out: Path, work: Path) -> dict:
+    junit = work / "tests.xml"
+    code, seconds = run(
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-q",
+            "-m",
+            "not slow",
+            "-n",
+            "2",
+            "-p",
+            "no:cacheprovider",
+            f"--junitxml={junit}",
+        ],
+        work / "tests.log",
+        timeout=1800,
+    )
+    counts = {"tests": 0, "failures": 0, "errors": 0, "skipped": 0}
+    failed: list[str] = []
+    if junit.exists():
+        root = ET.parse(junit).getroot()
+        for suite in root.iter("testsuite"):
+            for key in counts:
+                counts[key] += int(suite.get(key, 0))
+        for case in root.iter("testcase"):
+            if case.find("failure") is not None or case.find("error") is not None:
+                failed.append(f"{case.get('classname')}::{case.get('name')}")
+    if code != 0:  # keep the log of a failing suite beside the cell's results
+        shutil.copy(work / "tests.log", out / "tests.log")
+    passed = counts["tests"] - counts["failures"] - counts["errors"] - counts["skipped"]
+    return {"exit_code": code, "seconds": round(seconds, 1), **counts, "passed": passed, "failed": failed}
+
+
+def step_replay(out: Path, work: Path) -> dict:
+    from keras_rl.runs.replay import plan_replay
+
+    posts = {}
+    for post, folder in REPLAYS.items():
+        replay = plan_replay(ROOT / folder, post)
+        run_dir = work / f"replay-{post}"
+        shutil.rmtree(run_dir, ignore_errors=True)
+        code, seconds = run(replay.command(run_dir), work / f"replay-{post}.log", timeout=1800)
+        try:
+            divergence = replay.divergence(run_dir).as_dict()
+        except FileNotFoundError:
+            divergence = None
+            shutil.copy(work / f"replay-{post}.log", out / f"replay-{post}.log")
+        posts[post] = {
+            "folder": folder,
+            "episodes": replay.budget,
+            "exit_code": code,
+            "seconds": round(seconds, 1),
+            "bit_exact": divergence is not None and divergence["first_episode"] is None,
+            "divergence": divergence,
+        }
+    return {"posts": posts}
+
+
+def _check(out: Path, work: Path, posts: list[str], tier: str, name: str) -> dict:
+    check_dir = work / name
+    shutil.rmtree(check_dir, ignore_errors=True)
+    command = [
+        sys.executable,
+        "-m",
+        "keras_rl",
+        "check",
+        *posts,
+        "--tier",
+        tier,
+        "--no-progress",
+        "--out",
+        str(check_dir),
+    ]
+    code, seconds = run(command, work / f"{name}.log", timeout=7200)
+    report = check_dir / "check.json"
+    if not report.exists():
+        shutil.copy(work / f"{name}.log", out / f"{name}.log")
+        return {"tier": tier, "exit_code": code, "seconds": round(seconds, 1), "posts": {}}
+    shutil.copy(report, out / f"{name}.json")
+    shutil.copy(check_dir / "check.md", out / f"{name}.md")
+    payload = json.loads(report.read_text())
+    verdicts = {
+        e["experiment"]: {"verdict": e["verdict"], "p": e["decision"]["p"], "statistic": e["rule"]["statistic"]}
+        for e in payload["experiments"]
+    }
+    return {"tier": tier, "exit_code": code, "seconds": round(seconds, 1), "posts": verdicts}
+
+
+def step_check(out: Path, work: Path) -> dict:
+    smoke = _check(out, work, list(POSTS), "smoke", "check")
+    changed = [post for post, v in smoke["posts"].items() if v["verdict"] == "changed"]
+    full = _check(out, work, changed, "full", "check-full") if changed else None
+    return {"smoke": smoke, "full": full, "rerun_at_full_tier": changed}
+
+
+def step_speed(out: Path, work: Path, reference_python: str) -> dict:
+    script = str(ROOT / "benchmarks" / "step_time.py")
+    ms: dict[str, dict[str, list[float]]] = {"cell": {}, "reference": {}}
+    for round_ in range(SPEED_ROUNDS):
+        for side, python in (("reference", reference_python), ("cell", sys.executable)):
+            target = work / f"speed-{side}-{round_}.json"
+            code, _ = run([python, script, "--keras-only", "--json", str(target)], work / f"speed-{side}.log", 900)
+            if code != 0:
+                raise SystemExit(f"benchmarks/step_time.py failed under {python}: see {work / f'speed-{side}.log'}")
+            for row in json.loads(target.read_text())["rows"]:
+                ms[side].setdefault(row["experiment"], []).append(row["keras_ms"])
+    ratios = {
+        experiment: round(
+            statistics.median(c / r for c, r in zip(ms["cell"][experiment], ms["reference"][experiment])), 3
+        )
+        for experiment in ms["cell"]
+    }
+    return {"rounds": SPEED_ROUNDS, "reference_python": reference_python, "ms": ms, "cell_over_reference": ratios}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--cell", required=True)
+    parser.add_argument("--spec", required=True, help="the versions this cell asks for, as JSON")
+    parser.add_argument("--reference-python", required=True, help="the reference cell's interpreter (speed ratios)")
+    parser.add_argument("--out", type=Path, default=None, help="default results/compat/<cell>")
+    parser.add_argument("--redo", action="append", choices=STEPS, default=[], help="rerun this step (repeatable)")
+    args = parser.parse_args()
+    if not Path(args.reference_python).exists():
+        print(
+            f"error: --reference-python {args.reference_python} does not exist: run the reference cell first",
+            file=sys.stderr,
+        )
+        raise SystemExit(2)
+    out = args.out or ROOT / "results" / "compat" / args.cell
+    out.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=f"compat-{args.cell}-"))
+    spec = json.loads(args.spec)
+    for step in STEPS:
+        target = out / f"{step}.json"
+        if target.exists() and step not in args.redo:
+            print(f"[{args.cell}] {step}: done before ({target.name}), skipped", flush=True)
+            continue
+        print(f"[{args.cell}] {step} ...", flush=True)
+        start = time.perf_counter()
+        if step == "speed":
+            result = step_speed(out, work, args.reference_python)
+        else:
+            result = globals()[f"step_{step}"](out, work)
+        result["step_seconds"] = round(time.perf_counter() - start, 1)
+        atomic_write_json(target, result)
+        print(f"[{args.cell}] {step}: {result['step_seconds']:.0f} s", flush=True)
+    steps = {step: json.loads((out / f"{step}.json").read_text()) for step in STEPS}
+    install = json.loads((out / "install.json").read_text()) if (out / "install.json").exists() else None
+    cell = {"cell": args.cell, "spec": spec, "install": install, **steps}
+    cell["seconds"] = round(sum(s["step_seconds"] for s in steps.values()) + (install or {}).get("seconds", 0), 1)
+    atomic_write_json(out / "cell.json", cell)
+    shutil.rmtree(work, ignore_errors=True)
+    print(f"[{args.cell}] wrote {out / 'cell.json'}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,53 @@
+"""Where a rerun parts from a committed run (keras_rl/runs/replay.py), on hand-made rows."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+from keras_rl.runs.replay import first_divergence, plan_replay, seed_rows
+
+RESULTS = Path(__file__).resolve().parent.parent / "results"
+
+
+def rows(*scores: str) -> list[dict[str, str]]:
+    return [{"episode": str(i + 1), "score": s, "metric": s} for i, s in enumerate(scores)]
+
+
+def test_identical_runs_have_no_divergence():
+    d = first_divergence(rows("1", "2", "3"), rows("1", "2", "3"))
+    assert d.identical and d.compared == 3 and d.as_dict() == {"compared": 3, "first_episode": None, "columns": []}
+
+
+def test_the_first_differing_episode_and_its_columns_are_named():
+    got = rows("1", "2", "3.5", "9")
+    got[2]["metric"] = "3"  # only the score differs in episode 3
+    d = first_divergence(rows("1", "2", "3", "4"), got)
+    assert (d.first_episode, d.columns, d.compared) == (3, ("score",), 3)
+
+
+def test_a_rerun_that_stopped_early_differs_at_its_first_missing_episode():
+    d = first_divergence(rows("1", "2", "3"), rows("1"))
+    assert (d.first_episode, d.columns, d.compared) == (2, (), 1)
+
+
+def test_the_timing_column_is_not_compared(tmp_path):
+    path = tmp_path / "episodes.csv"
+    with open(path, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=["episode", "score", "wall_seconds"])
+        writer.writeheader()
+        writer.writerow({"episode": 1, "score": "-1.5", "wall_seconds": "0.25"})
+    assert seed_rows(path) == [{"episode": "1", "score": "-1.5"}]
+
+
+def test_a_whole_run_replays_with_its_own_budget_and_a_cut_one_with_its_length():
+    folder = RESULTS / "pendulum" / "faithful" / "seed_0"
+    config = json.loads((folder / "config.json").read_text())
+    whole = plan_replay(folder, "pendulum")
+    assert whole.budget == config["episodes"] and len(whole.expected) == len(seed_rows(folder / "episodes.csv"))
+    first = plan_replay(folder, "pendulum", 7)
+    assert first.budget == 7 and len(first.expected) == 7
+    command = first.command(Path("OUT"), "--framework", "torch", python="py")
+    assert command[:5] == ["py", "-m", "keras_rl", "reproduce", "pendulum"]
+    assert command[command.index("--episodes") + 1] == "7" and command[-2:] == ["--framework", "torch"]
