@@ -78,3 +78,51 @@ def test_every_committed_run_records_the_commit_and_clean_tree_that_made_it():
     dirty = [str(p.parent.relative_to(ROOT)) for p in summaries if json.loads(p.read_text())["provenance"].get("dirty")]
     assert not missing, f"runs without provenance (regenerate them): {missing[:5]}"
     assert not dirty, f"runs made from a dirty tree (regenerate them from a clean checkout): {dirty[:5]}"
+
+
+def test_the_version_matrix_table_is_generated_from_the_committed_cells():
+    gen = load_generator("compat_table")
+    page = (ROOT / "results" / "compat" / "README.md").read_text()
+    assert page == gen.page(), "results/compat/README.md is stale: run python reproductions/compat_table.py --write"
+    assert block((ROOT / "README.md").read_text(), gen.SHORT_BEGIN, gen.SHORT_END) == gen.short_table(), (
+        "README.md's version table is stale: run python reproductions/compat_table.py --write"
+    )
+
+
+def test_the_matrix_table_shows_failed_installs_unrun_cells_and_divergences(tmp_path, monkeypatch):
+    import json
+
+    gen = load_generator("compat_table")
+    monkeypatch.setattr(gen, "COMPAT", tmp_path)
+    spec = {"tensorflow": "2.19.1", "keras": None, "gymnasium": "1.4.0", "numpy": None}
+    for name, code in (("broken", 1), ("waiting", 0), ("ran", 0)):
+        (tmp_path / name).mkdir()
+        install = {"spec": spec, "exit_code": code, "seconds": 120.0}
+        (tmp_path / name / "install.json").write_text(json.dumps(install))
+    posts = ("pendulum", "cartpole", "mountaincar")
+    divergence = {"compared": 3, "first_episode": 3, "columns": ["score"]}
+    cell = {
+        "versions": {"versions": {"tensorflow": "2.19.1", "keras": "3.15.1", "gymnasium": "1.4.0", "numpy": "2.1.3"}},
+        "tests": {"exit_code": 1, "passed": 900, "failures": 2, "errors": 0},
+        "replay": {
+            "posts": {p: {"bit_exact": p != "cartpole", "divergence": divergence, "exit_code": 0} for p in posts}
+        },
+        "check": {
+            "smoke": {
+                "exit_code": 1,
+                "posts": {p: {"verdict": "changed" if p == "pendulum" else "consistent", "p": 0.004} for p in posts},
+            },
+            "rerun_at_full_tier": ["pendulum"],
+            "full": {"posts": {"pendulum": {"verdict": "consistent", "p": 0.3}}},
+        },
+        "speed": {"cell_over_reference": {gen.SPEED_KEYS[p]: 1.1 for p in posts}},
+        "seconds": 1200.0,
+    }
+    (tmp_path / "ran" / "cell.json").write_text(json.dumps(cell))
+    rows = {line.split("|")[1].strip(): line for line in gen.table().splitlines()[2:]}
+    assert "**failed**" in rows["broken"] and "not run yet" in rows["waiting"]
+    ran = rows["ran"]
+    assert "2.1.3" in ran and "**2 failed**, 900 passed" in ran and "differs from ep 3 (score)" in ran
+    assert "changed (p=0.004); full tier: consistent (p=0.3)" in ran and "1.10 / 1.10 / 1.10" in ran
+    short = gen.short_table()
+    assert "000, 001 (2/3)" in short and "changed or no verdict: 000" in short and "install failed" in short

@@ -1,0 +1,192 @@
+"""The version matrix's table, from the committed cell folders ``results/compat/<cell>/``.
+
+    python reproductions/compat_table.py            # print it
+    python reproductions/compat_table.py --write    # results/compat/README.md and the README's short table
+
+The cells are made by ``noxfile.py`` (``make matrix``); each folder holds ``install.json`` and,
+once the cell has run, ``cell.json`` (see ``reproductions/compat_cell.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from findings_table import replace_block  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+COMPAT = ROOT / "results" / "compat"
+POSTS = ("pendulum", "cartpole", "mountaincar")
+POST_NAMES = {"pendulum": "000", "cartpole": "003", "mountaincar": "001"}
+FACTORS = ("tensorflow", "keras", "gymnasium", "numpy")
+SHORT_BEGIN, SHORT_END = "<!-- compat-short:begin -->", "<!-- compat-short:end -->"
+SPEED_KEYS = {
+    "pendulum": "pendulum (post 000)",
+    "cartpole": "cartpole (post 003)",
+    "mountaincar": "mountaincar (post 001)",
+}
+
+
+def cell_order(name: str) -> tuple[int, str]:
+    return ({"reference": 0, "oldest": 2, "newest": 3}.get(name, 1), name)
+
+
+def load_cells() -> list[tuple[str, dict, dict | None]]:
+    """(cell, install.json, cell.json or None) for every cell folder, reference first."""
+    cells = []
+    for folder in sorted((p for p in COMPAT.iterdir() if p.is_dir()), key=lambda p: cell_order(p.name)):
+        install = folder / "install.json"
+        if not install.exists():
+            continue
+        cell = folder / "cell.json"
+        cells.append(
+            (folder.name, json.loads(install.read_text()), json.loads(cell.read_text()) if cell.exists() else None)
+        )
+    return cells
+
+
+def versions_text(install: dict, cell: dict | None) -> list[str]:
+    """Each factor's installed version (what the cell asked for, until it has run)."""
+    got = cell["versions"]["versions"] if cell else {}
+    return [got.get(f) or (install["spec"].get(f) or "?") for f in FACTORS]
+
+
+def tests_text(cell: dict) -> str:
+    t = cell["tests"]
+    failed = t["failures"] + t["errors"]
+    return (
+        f"{t['passed']} passed" if failed == 0 and t["exit_code"] == 0 else f"**{failed} failed**, {t['passed']} passed"
+    )
+
+
+def replay_text(entry: dict) -> str:
+    if entry["bit_exact"]:
+        return "bit-exact"
+    d = entry["divergence"]
+    if d is None:
+        return f"**no run** (exit {entry['exit_code']})"
+    columns = f" ({', '.join(d['columns'])})" if d["columns"] else ""
+    return f"differs from ep {d['first_episode']}{columns}"
+
+
+def check_text(cell: dict, post: str) -> str:
+    check = cell["check"]
+    smoke = check["smoke"]["posts"].get(post)
+    if smoke is None:
+        return f"**no verdict** (exit {check['smoke']['exit_code']})"
+    text = f"{smoke['verdict']} (p={smoke['p']:.2g})"
+    if post in check["rerun_at_full_tier"]:
+        full = (check["full"] or {}).get("posts", {}).get(post)
+        text += f"; full tier: {full['verdict']} (p={full['p']:.2g})" if full else "; full tier: no verdict"
+    return text
+
+
+def speed_text(cell: dict) -> str:
+    ratios = cell["speed"]["cell_over_reference"]
+    return " / ".join(f"{ratios[SPEED_KEYS[p]]:.2f}" for p in POSTS)
+
+
+def table() -> str:
+    header = (
+        "| cell | TensorFlow | Keras | Gymnasium | NumPy | install | fast tests | replay 000 | replay 003 | replay 001 "
+        "| check 000 | check 003 | check 001 | ms / reference (000 / 003 / 001) | cost (min) |"
+    )
+    lines = [header, "|" + "---|" * (header.count("|") - 1)]
+    for name, install, cell in load_cells():
+        versions = versions_text(install, cell)
+        if install["exit_code"] != 0:
+            lines.append(f"| {name} | {' | '.join(versions)} | **failed** (see install.json) |" + " - |" * 9)
+            continue
+        if cell is None:
+            lines.append(f"| {name} | {' | '.join(versions)} | ok |" + " not run yet |" * 9)
+            continue
+        replays = [replay_text(cell["replay"]["posts"][p]) for p in POSTS]
+        checks = [check_text(cell, p) for p in POSTS]
+        lines.append(
+            f"| {name} | {' | '.join(versions)} | ok ({install['seconds'] / 60:.0f} min) | {tests_text(cell)} | "
+            f"{' | '.join(replays)} | {' | '.join(checks)} | {speed_text(cell)} | {cell['seconds'] / 60:.0f} |"
+        )
+    return "\n".join(lines)
+
+
+def short_table() -> str:
+    lines = [
+        "| cell | TF / Keras / Gymnasium / NumPy | fast tests | seed 0 bit-exact | smoke check |",
+        "|---|---|---|---|---|",
+    ]
+    for name, install, cell in load_cells():
+        versions = " / ".join(versions_text(install, cell))
+        if install["exit_code"] != 0 or cell is None:
+            state = "install failed" if install["exit_code"] != 0 else "not run yet"
+            lines.append(f"| {name} | {versions} | {state} | - | - |")
+            continue
+        exact = [POST_NAMES[p] for p in POSTS if cell["replay"]["posts"][p]["bit_exact"]]
+        changed = [
+            POST_NAMES[p] for p in POSTS if cell["check"]["smoke"]["posts"].get(p, {}).get("verdict") != "consistent"
+        ]
+        checks = "all 3 consistent" if not changed else "changed or no verdict: " + ", ".join(changed)
+        lines.append(
+            f"| {name} | {versions} | {tests_text(cell)} | {', '.join(exact) or 'none'} ({len(exact)}/3) | {checks} |"
+        )
+    return "\n".join(lines)
+
+
+def page() -> str:
+    cells = load_cells()
+    done = [c for _, i, c in cells if c is not None]
+    cost = sum(c["seconds"] for c in done) / 60
+    return "\n".join(
+        [
+            "# Version matrix: our scores against library versions",
+            "",
+            "Generated by `python reproductions/compat_table.py --write` from the cell folders beside this file;",
+            "the cells are run by `make matrix` (`noxfile.py`: one fresh virtualenv per cell, `.venv/bin/nox -l` lists",
+            "them). Each cell varies one factor from `reference`, the versions that made `results/` (`constraints.txt`);",
+            "`oldest` and `newest` vary all four. PyTorch is 2.13.0 (the CPU wheel) in every cell.",
+            "",
+            table(),
+            "",
+            f"{len(done)} cells run, {cost:.0f} minutes in all on this project's machine (2 cores).",
+            "",
+            "How to read it:",
+            "",
+            '- **fast tests**: `pytest -m "not slow"` in the cell (`tests.json`; a failing suite\'s log is kept).',
+            "- **replay**: the post's committed seed 0 (Keras, faithful variant) rerun whole in the cell; `bit-exact`",
+            "  means every column of `episodes.csv` but `wall_seconds` is equal, otherwise the first episode that",
+            "  differs and its columns (`replay.json`).",
+            "- **check**: `keras-rl check pendulum cartpole mountaincar --tier smoke` against the committed",
+            "  baselines (`check.md`). Each post-cell test has a false-alarm rate under 1%",
+            "  (`results/checks/calibration.md`), so over 30 or so of them about one false alarm is expected: a",
+            "  `changed` smoke verdict is rerun at the full tier in the same cell, and shown beside it, before it",
+            "  is called a break.",
+            "- **ms / reference**: `benchmarks/step_time.py --keras-only` in the cell over the same in the reference",
+            "  cell, alternated five times in one session, median per post (`speed.json`). The reference row",
+            "  against itself shows the noise.",
+            "- **cost**: install plus all steps, wall minutes.",
+            "",
+        ]
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--write", action="store_true", help="write results/compat/README.md and the README's table")
+    args = parser.parse_args()
+    if not args.write:
+        print(page())
+        return
+    from keras_rl.runs.files import atomic_write_text
+
+    atomic_write_text(COMPAT / "README.md", page())
+    readme = ROOT / "README.md"
+    atomic_write_text(readme, replace_block(readme.read_text(), SHORT_BEGIN, SHORT_END, short_table()))
+    print(f"updated {COMPAT / 'README.md'} and {readme}")
+
+
+if __name__ == "__main__":
+    main()
