@@ -290,6 +290,19 @@ def criterion_by_seeds(name: str) -> dict:
     }
 
 
+def family_block() -> str:
+    """The family-wise section (``reproductions/check_family.py --write``), kept across rewrites."""
+    from check_family import BEGIN, END, render
+
+    path = CHECKS / "family.json"
+    text = (
+        render(json.loads(path.read_text()))
+        if path.is_file()
+        else "Not computed yet: run python reproductions/check_family.py --write"
+    )
+    return f"{BEGIN}\n{text}\n{END}"
+
+
 def markdown(results: dict) -> str:
     lines = [
         "# Error rates of `keras-rl check`'s rules",
@@ -297,7 +310,12 @@ def markdown(results: dict) -> str:
         "False alarms: the tier's n seeds drawn from the 30-seed baseline and tested against the other "
         "30 - n, 10,000 times. Power: n seeds drawn with replacement from a mutant's 10 seeds, tested against "
         "the whole baseline, 2,000 times. Delay: the smallest delay of every baseline curve (in episodes) "
-        "the rule flags 80% of the time.",
+        "the rule flags 80% of the time. These are one post's rates at its own alpha; the whole",
+        "command's are in the next section.",
+        "",
+        "## The whole command",
+        "",
+        family_block(),
         "",
     ]
     for name, measured in results.items():

@@ -6,6 +6,12 @@ baseline's runs (cut to the rule's episodes), the test, and the rule's measured 
 rates (``results/checks/calibration.json``, written by ``reproductions/check_calibrate.py``).
 Writes ``check.md``, ``check.json`` and per experiment ``<experiment>/check.png`` under
 ``--out``; the fresh runs go in ``<out>/<experiment>/seed_<n>``.
+
+One command is one family of tests: with k posts, Holm's step-down adjustment keeps the chance
+that any of them is called changed when none changed at most alpha (the rules' 0.01), not k
+times it. A one-post command is its own rule, unadjusted. The report gives the family-wise
+false-alarm rate of the command as it ran: each post's exact (untied statistics) or resampled
+rate at Holm's first level alpha / k against its whole baseline, combined over the posts.
 """
 
 from __future__ import annotations
@@ -13,14 +19,21 @@ from __future__ import annotations
 import json
 import math
 import shutil
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from keras_rl.check.rules import CheckRule, rule_for
-from keras_rl.check.statistics import Decision, decide, seed_statistic
+from keras_rl.check.statistics import (
+    Decision,
+    check_false_alarm_rate,
+    decide,
+    family_false_alarm_rate,
+    holm_adjusted,
+    seed_statistic,
+)
 from keras_rl.errors import ConfigError, NoVerdictError, RunFolderError
 from keras_rl.registry import get_experiment
 from keras_rl.runs.files import atomic_write_json, atomic_write_text, read_episodes
@@ -43,6 +56,8 @@ class CheckResult:
     overrides: list[str]
     error_rates: dict[str, Any] | None
     """The rule's measured false-alarm rate and power, if calibrated."""
+    adjusted_p: float | None = None
+    """Holm's adjusted p over the command's posts (``decision.changed`` follows it)."""
 
     @property
     def verdict(self) -> str:
@@ -131,6 +146,7 @@ def run_check(
     from keras_rl.runs.jobs import SeedJob, batched, run_jobs
 
     plan = []
+    plots: list[tuple] = []
     for name in names:
         experiment = get_experiment(name)
         rule = rule_for(name, tier)
@@ -183,9 +199,44 @@ def run_check(
         decision = decide(list(baseline.values()), list(new.values()), rule.statistic, rule.alpha)
         result = CheckResult(experiment.name, rule, baseline, new, decision, list(options.overrides), error_rates(rule))
         results.append(result)
-        _plot(out / experiment.name / "check.png", experiment, result, baseline_rows, new_rows)
+        plots.append((out / experiment.name / "check.png", experiment, result, baseline_rows, new_rows))
+    adjust_for_family(results)
+    for args in plots:
+        _plot(*args)
     write_report(out, results, tier)
     return results
+
+
+def family_alpha(results: list[CheckResult]) -> float:
+    alphas = {r.rule.alpha for r in results}
+    if len(alphas) != 1:
+        raise ConfigError(f"the posts of one check have different alphas {sorted(alphas)}; one family needs one")
+    return alphas.pop()
+
+
+def adjust_for_family(results: list[CheckResult]) -> None:
+    """Holm over the command's posts: each verdict from its adjusted p against the family's alpha."""
+    if not results:
+        return
+    alpha = family_alpha(results)
+    for result, adjusted in zip(results, holm_adjusted([r.decision.p for r in results])):
+        result.adjusted_p = adjusted
+        result.decision = replace(result.decision, changed=adjusted < alpha)
+
+
+def command_false_alarm(results: list[CheckResult]) -> dict[str, Any]:
+    """The whole command's false-alarm rate as it ran: each post's rate at Holm's first level
+    (alpha / k: under no change, some post fires only if the smallest p clears it) for its
+    number of fresh seeds against its whole baseline, combined as independent tests."""
+    alpha = family_alpha(results)
+    level = alpha / len(results)
+    rates = {
+        r.experiment: check_false_alarm_rate(list(r.baseline.values()), len(r.new), r.rule.statistic, level)
+        for r in results
+    }
+    posts = {name: asdict(fa) for name, fa in rates.items()}
+    family = family_false_alarm_rate([fa.rate for fa in rates.values()])
+    return {"alpha": alpha, "posts": len(results), "level_per_post": level, "per_post": posts, "family_wise": family}
 
 
 def write_report(out: Path, results: list[CheckResult], tier: str, command: str | None = None) -> None:
@@ -197,9 +248,9 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         "",
         f"Command: `{command}`",
         "",
-        "| experiment | statistic | test | baseline median (n) | new median (n) | p | alpha | verdict "
+        "| experiment | statistic | test | baseline median (n) | new median (n) | p | p (Holm) | alpha | verdict "
         "| false-alarm rate | power (gross / all mutants) |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
         rates = r.error_rates
@@ -208,8 +259,18 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         lines.append(
             f"| {r.experiment} | {r.rule.statistic} (first {r.rule.episodes} episodes) | "
             f"{r.decision.test} | {_median(r.baseline)} ({len(r.baseline)}) | {_median(r.new)} "
-            f"({len(r.new)}) | {r.decision.p:.3g} | {r.rule.alpha} | **{r.verdict}** | {fa} | {pw} |"
+            f"({len(r.new)}) | {r.decision.p:.3g} | {_adjusted(r)} | {r.rule.alpha} | **{r.verdict}** | {fa} | {pw} |"
         )
+    family = command_false_alarm(results) if results else None
+    if family is not None:
+        per_post = ", ".join(f"{name} {p['rate']:.2%} ({p['method']})" for name, p in family["per_post"].items())
+        lines += [
+            "",
+            f"False alarms of this command as a whole: **{family['family_wise']:.2%}** when nothing changed "
+            f"(alpha {family['alpha']} for the family of {family['posts']} post(s), Holm; each post at "
+            f"alpha / {family['posts']} against its whole baseline: {per_post}). The last two columns are the "
+            "rule's own rates at alpha for one post (results/checks/calibration.md).",
+        ]
     if any(r.overrides for r in results):
         lines += ["", "New runs with: " + ", ".join(f"`--set {o}`" for o in results[0].overrides)]
     lines += [
@@ -225,12 +286,14 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         "command": command,
         "status": "finished",
         "changed": any(r.decision.changed for r in results),
+        "false_alarm": family,
         "experiments": [
             {
                 "experiment": r.experiment,
                 "rule": asdict(r.rule),
                 "verdict": r.verdict,
                 "decision": asdict(r.decision),
+                "adjusted_p": r.adjusted_p,
                 "overrides": r.overrides,
                 "baseline": {str(k): v for k, v in r.baseline.items()},
                 "new": {str(k): v for k, v in r.new.items()},
@@ -240,6 +303,10 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         ],
     }
     atomic_write_json(out / MARKER, payload)
+
+
+def _adjusted(result: CheckResult) -> str:
+    return "-" if result.adjusted_p is None else f"{result.adjusted_p:.3g}"
 
 
 def _median(values: dict[int, float]) -> str:

@@ -153,3 +153,97 @@ def detectable_shift(
         else:
             lo = mid
     return hi
+
+
+# -- error rates of the check as it runs: n fresh seeds against the whole baseline, and the
+# -- family of posts one command checks ---------------------------------------------------
+
+
+def holm_adjusted(pvalues: Sequence[float]) -> list[float]:
+    """Holm's step-down adjusted p-values (Holm 1979): ``changed`` where adjusted p < alpha
+    keeps the family-wise false-alarm rate of the whole set of tests at alpha, whatever
+    their dependence. One test: its own p."""
+    order = sorted(range(len(pvalues)), key=lambda i: pvalues[i])
+    adjusted, running = [1.0] * len(pvalues), 0.0
+    for rank, i in enumerate(order):
+        running = max(running, min(1.0, (len(pvalues) - rank) * pvalues[i]))
+        adjusted[i] = running
+    return adjusted
+
+
+def _ranks_with_sum(total: int, size: int, rank_sum: int) -> list[int]:
+    """A ``size``-subset of the ranks 1..total whose sum is ``rank_sum`` (any one will do:
+    the two-sided Mann-Whitney p depends on the ranks only through their sum)."""
+    ranks = list(range(1, size + 1))
+    extra = rank_sum - sum(ranks)
+    for k in range(size - 1, -1, -1):  # lift the largest rank first, as far as it may go
+        room = (total - (size - 1 - k)) - ranks[k]
+        step = min(room, extra)
+        ranks[k] += step
+        extra -= step
+    if extra:
+        raise ValueError(f"no {size} of ranks 1..{total} sum to {rank_sum}")
+    return ranks
+
+
+def exact_false_alarm_rate(n_new: int, n_baseline: int, alpha: float) -> float:
+    """The exact false-alarm rate of ``decide`` (Mann-Whitney, as the check computes its p)
+    for ``n_new`` fresh seeds against a baseline of ``n_baseline``, when both come from one
+    continuous distribution: every split of the ranks 1..N is equally likely, so the rate is
+    the share of rank sums, counted with their multiplicity, whose p falls below alpha."""
+    from math import comb
+
+    total = n_new + n_baseline
+    counts: list[dict[int, int]] = [{0: 1}] + [{} for _ in range(n_new)]  # counts[k][s]: k ranks summing to s
+    for rank in range(1, total + 1):
+        for k in range(min(rank, n_new), 0, -1):
+            for s, c in counts[k - 1].items():
+                counts[k][s + rank] = counts[k].get(s + rank, 0) + c
+    alarms = 0
+    for rank_sum, count in counts[n_new].items():
+        new = _ranks_with_sum(total, n_new, rank_sum)
+        chosen = set(new)
+        base = [r for r in range(1, total + 1) if r not in chosen]
+        if decide(base, new, "final_metric", alpha).changed:
+            alarms += count
+    return alarms / comb(total, n_new)
+
+
+@dataclass(frozen=True)
+class FalseAlarm:
+    """The false-alarm rate of one post's rule as the check runs it."""
+
+    rate: float
+    method: str
+    standard_error: float  # 0 for an exact rate
+
+
+def check_false_alarm_rate(
+    baseline: Sequence[float] | np.ndarray,
+    n: int,
+    statistic: str,
+    alpha: float,
+    repeats: int = 4_000,
+    rng: np.random.Generator | None = None,
+) -> FalseAlarm:
+    """How often ``n`` fresh seeds of an unchanged learner are called changed against this
+    whole baseline. Untied values (a continuous statistic): exact, by ranks. Tied values
+    (success, or episodes-to-threshold with censored seeds): ``repeats`` pooled samples of
+    ``n + len(baseline)`` seeds drawn from the baseline's values (its empirical distribution,
+    ties included), each split at random into baseline and new."""
+    values = np.asarray(baseline, float)
+    if statistic != "success" and len(np.unique(values)) == len(values):
+        return FalseAlarm(exact_false_alarm_rate(n, len(values), alpha), "exact (ranks)", 0.0)
+    rng = rng if rng is not None else np.random.default_rng(2)
+    m, alarms = len(values), 0
+    for _ in range(repeats):
+        pooled = values[rng.integers(0, m, m + n)]
+        alarms += decide(pooled[:m], pooled[m:], statistic, alpha).changed
+    rate = alarms / repeats
+    return FalseAlarm(rate, f"resampled ({repeats} pooled draws)", float(np.sqrt(rate * (1 - rate) / repeats)))
+
+
+def family_false_alarm_rate(rates: Sequence[float]) -> float:
+    """The chance that at least one of independent tests with these false-alarm rates fires:
+    the whole command's false-alarm rate (each post's seeds are its own runs)."""
+    return float(1.0 - np.prod([1.0 - r for r in rates]))
