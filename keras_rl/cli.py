@@ -285,8 +285,10 @@ def _seed_folder_state(seed_dir: Path) -> tuple[str, str] | None:
         return "unreadable", "files of an earlier run"
 
 
-def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool) -> list[str]:
-    """How each seed folder starts (new, overwrite, resume), or a ConfigError before anything runs."""
+def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool, episodes: int | None = None) -> list[str]:
+    """How each seed folder starts (new, overwrite, resume, keep), or a ConfigError before
+    anything runs. With ``--resume``, a completed run asked for more episodes than it played
+    is extended from its final checkpoint (``resume``); one that has none is refused."""
     if overwrite and resume:
         raise ConfigError("--overwrite and --resume contradict each other; pick one")
     from keras_rl.runs.checkpoint import CHECKPOINT
@@ -296,10 +298,17 @@ def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool) -> list[s
         state = _seed_folder_state(seed_dir)
         status, held = state if state is not None else (None, None)
         if resume:
-            if (seed_dir / CHECKPOINT).is_file():
+            extend = status == "completed" and episodes is not None and _extendable(seed_dir, episodes)
+            if (seed_dir / CHECKPOINT).is_file() and (status != "completed" or extend):
                 modes.append("resume")
             elif held is None:
                 modes.append("new")  # nothing to resume: start it
+            elif extend:
+                raise ConfigError(
+                    f"--resume --episodes {episodes}: {seed_dir} completed its budget but holds no final "
+                    f"{CHECKPOINT} (a seed-batched run keeps none), so it cannot be extended; "
+                    "--overwrite reruns it"
+                )
             elif status == "completed":
                 modes.append("keep")  # finishing an interrupted set: its finished seeds stay as they are
             else:
@@ -320,6 +329,19 @@ def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool) -> list[s
             "or --out for another folder"
         )
     return modes
+
+
+def _extendable(seed_dir: Path, episodes: int) -> bool:
+    """A completed run that played its whole budget, fewer episodes than ``episodes`` (one
+    stopped at its threshold stops there again in a straight run of any budget: it is kept)."""
+    import json
+
+    from keras_rl.runs.summary import RunSummary
+
+    summary = RunSummary.read(seed_dir)
+    stop = json.loads((seed_dir / "config.json").read_text()).get("stop_at_threshold", True)
+    stopped_early = summary.reached_at_episode is not None and stop
+    return summary.episodes_run == summary.budget_episodes < episodes and not stopped_early
 
 
 def _kept_runs(base, seeds_and_dirs: list) -> list:
@@ -411,7 +433,7 @@ def reproduce(args: argparse.Namespace) -> int:
     if args.tensorboard is not None:
         _check_writable_dir(args.tensorboard, "--tensorboard")
     seed_dirs = [out / f"seed_{s}" for s in seeds]
-    modes = _start_modes(seed_dirs, args.overwrite, args.resume)
+    modes = _start_modes(seed_dirs, args.overwrite, args.resume, base.episodes)
     options.check_address()  # now that the input is good: is the cluster there?
     _check_seed_batch(options.seed_batch, experiment.name, args.framework)
     if args.dry_run:

@@ -99,7 +99,68 @@ def test_killed_and_resumed_run_equals_an_uninterrupted_one(tmp_path, experiment
     expected = rows(tmp_path / "straight" / "seed_2" / "episodes.csv")
     assert len(expected) == episodes
     assert rows(csv_path) == expected, f"resumed after {kept} episodes on disk"
-    assert not (tmp_path / "killed" / "seed_2" / "checkpoint.pkl").exists()  # a completed run keeps none
+    # a solo run that played its whole budget keeps its final checkpoint, to be extended (#23.12)
+    summary = json.loads((tmp_path / "killed" / "seed_2" / "summary.json").read_text())
+    assert summary["status"] == "completed" and summary["episodes_run"] == episodes
+    assert (tmp_path / "killed" / "seed_2" / "checkpoint.pkl").is_file()
+
+
+EXTEND_CASES = [  # experiment, framework, the first budget, the larger one
+    ("pendulum", "keras", 3, 6),
+    ("pendulum", "torch", 3, 5),
+    ("cartpole", "keras", 18, 30),  # training from about episode 6 on
+    ("cartpole", "torch", 18, 30),  # the tutorial's own agent (a whole-agent seed axis)
+    ("mountaincar", "keras", 2, 4),
+]
+
+
+@pytest.mark.parametrize(
+    "experiment, framework, first, budget", EXTEND_CASES, ids=[f"{c[0]}-{c[1]}" for c in EXTEND_CASES]
+)
+def test_resume_with_a_larger_budget_extends_a_finished_run_as_a_straight_run(
+    tmp_path, experiment, framework, first, budget
+):
+    """Issue #23, item 12: ``--resume --episodes N`` continues a run that completed a smaller
+    budget; its episodes stay as they were and the rest equal a straight run of N, bit for bit."""
+    if framework == "torch":
+        pytest.importorskip("torch", reason="needs the torch extra")
+    straight = subprocess.run(
+        args(experiment, framework, budget, tmp_path / "straight"), capture_output=True, text=True, timeout=600
+    )
+    assert straight.returncode in (0, 1), straight.stderr
+    out = tmp_path / "extended"
+    short = subprocess.run(args(experiment, framework, first, out), capture_output=True, text=True, timeout=600)
+    assert short.returncode in (0, 1), short.stderr
+    played = rows(out / "seed_2" / "episodes.csv")
+    assert len(played) == first
+    longer = subprocess.run(
+        [*args(experiment, framework, budget, out), "--resume"], capture_output=True, text=True, timeout=600
+    )
+    assert longer.returncode in (0, 1), longer.stderr
+    got = rows(out / "seed_2" / "episodes.csv")
+    assert got[:first] == played  # what it had played stays as it was
+    assert got == rows(tmp_path / "straight" / "seed_2" / "episodes.csv")
+    assert json.loads((out / "seed_2" / "config.json").read_text())["episodes"] == budget
+    summary = json.loads((out / "seed_2" / "summary.json").read_text())
+    assert (summary["episodes_run"], summary["budget_episodes"], summary["status"]) == (budget, budget, "completed")
+
+
+def test_a_budget_below_what_was_played_or_a_batch_without_a_final_checkpoint_is_refused(tmp_path):
+    out = tmp_path / "run"
+    done = subprocess.run(args("pendulum", "keras", 3, out), capture_output=True, text=True, timeout=300)
+    assert done.returncode in (0, 1), done.stderr
+    before = {p.name: p.read_bytes() for p in (out / "seed_2").iterdir()}
+    fewer = subprocess.run(
+        [*args("pendulum", "keras", 2, out), "--resume"], capture_output=True, text=True, timeout=300
+    )
+    assert fewer.returncode == 2 and "episodes=3 here, 2 wanted" in fewer.stderr, fewer.stderr
+    assert {p.name: p.read_bytes() for p in (out / "seed_2").iterdir()} == before
+    batch = [*CLI, "pendulum", "--seeds", "0-1", "--seed-batch", "2", "--no-progress", "--out", str(tmp_path / "batch")]
+    made = subprocess.run([*batch, "--episodes", "2"], capture_output=True, text=True, timeout=300)
+    assert made.returncode in (0, 1), made.stderr
+    assert not (tmp_path / "batch" / "seed_0" / "checkpoint.pkl").exists()  # a batch keeps no final checkpoint
+    more = subprocess.run([*batch, "--episodes", "4", "--resume"], capture_output=True, text=True, timeout=300)
+    assert more.returncode == 2 and "cannot be extended" in more.stderr, more.stderr
 
 
 BATCH_CASES = [  # experiment, seeds, episodes, kill after this many episodes are on disk for the first seed

@@ -29,7 +29,9 @@ slice of the learner, and the generators outside it. A batch's checkpoints carry
 vector step they were taken at and the seeds of the batch; a seed keeps its previous one
 beside the current one until the next is written, so a batch killed while writing them
 resumes from the newest vector step every seed holds. Resuming replays the rest exactly as
-an uninterrupted run of the same batch (``tests/test_resume.py``).
+an uninterrupted run of the same batch (``tests/test_resume.py``). A solo run that played
+its whole budget keeps its final checkpoint, so ``--resume --episodes N`` extends it to N
+episodes exactly as a straight run of N would have played them.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ import datetime
 import json
 import math
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -126,6 +129,9 @@ def run_seeds(
     state = _Batch(seeds, axis, checkpoint_every, batch)
     if resume:
         state.restore(read_batch_checkpoints([s.recorder.out_dir for s in seeds], batch))
+        for s in seeds:
+            if s.active:  # it goes on, perhaps to a larger budget (--resume --episodes N): config.json says which
+                s.recorder.write_config(s.config.to_dict())
     else:
         for s in seeds:
             s.recorder.write_config(s.config.to_dict())
@@ -258,6 +264,14 @@ class PartsAxis:
             if running[k]:
                 agent.explore(self.raw[k])
 
+    def restart_actions(self, ks: list[int]) -> None:
+        """First actions of seeds that resume past the budget they completed: the updated
+        policy's action on each new first state, explored, as ``next_actions`` gives it."""
+        raw = self.learner.act(np.stack([a.state for a in self.agents]))
+        for k in ks:
+            self.agents[k].reset_episode_stats()
+            self.agents[k].explore(raw[k])
+
     def action(self, k: int):
         return self.agents[k]._action
 
@@ -307,6 +321,9 @@ class WholeAgentAxis:
     def next_actions(self, running: list[bool], restarted: set[int]) -> None:
         if restarted and running[0]:
             self._action = self.agent.begin_episode(self._obs)
+
+    def restart_actions(self, ks: list[int]) -> None:
+        self._action = self.agent.begin_episode(self._obs)
 
     def action(self, k: int):
         return self._action
@@ -418,6 +435,14 @@ class _Seed:
         self.writer: _TensorBoard | None = None
         self.final: RunSummary | None = None
         """The summary written when the seed stopped (its wall time ends there)."""
+        self.extending = False
+        """Resumed past the budget it completed (``--resume --episodes N``): its next episode starts the loop."""
+
+    @property
+    def ended_on_budget(self) -> bool:
+        """Completed by playing its whole budget, not stopped at the threshold: a larger budget continues it."""
+        stopped_early = self.run.reached_at is not None and self.config.stop_at_threshold
+        return self.status == "completed" and self.episode == self.config.episodes and not stopped_early
 
     @property
     def active(self) -> bool:
@@ -448,7 +473,13 @@ class _Seed:
     def restore(self, state: dict[str, Any]) -> None:
         wanted = json.loads(json.dumps(self.config.to_dict()))
         theirs = json.loads(json.dumps(state["config"]))
-        differing = sorted(k for k in wanted if theirs.get(k) != wanted[k])
+        played = len(state["rows"])
+        if wanted["episodes"] < played:
+            raise ConfigError(
+                f"--resume: {self.recorder.out_dir} has played {played} episodes, more than --episodes "
+                f"{wanted['episodes']}; a resumed run keeps what it played (ask for at least {played})"
+            )
+        differing = sorted(k for k in wanted if k != "episodes" and theirs.get(k) != wanted[k])
         if differing:
             k = differing[0]
             raise ConfigError(
@@ -473,6 +504,10 @@ class _Seed:
             state["saved"],
         )
         _load_env_state(self.env, state["env"])
+        budget, stopped_early = int(theirs["episodes"]), run.reached_at is not None and self.config.stop_at_threshold
+        if self.status == "completed" and len(self.recorder.rows) == budget < wanted["episodes"] and not stopped_early:
+            # it played its whole budget; the larger one continues it from the state it ended in
+            self.status, self.message, self.saved, self.extending = "running", "", False, True
         if self.active:  # episodes played after the checkpoint are played again, so they leave the CSV
             atomic_write_text(
                 self.recorder.out_dir / "episodes.csv",
@@ -526,6 +561,14 @@ class _Batch:
                 s.episode = 1
             axis.first_actions()
             self.started = True
+        extended = [k for k, s in enumerate(seeds) if s.extending]
+        if extended:  # as the straight run did when the episode ended: reset, then act on the new state
+            for k in extended:
+                s = seeds[k]
+                axis.begin(k, s.env.reset()[0])
+                s.episode += 1
+                s.score, s.steps, s.extending = 0.0, 0, False
+            axis.restart_actions(extended)
         while any(s.active for s in seeds):
             ended = []
             for k, s in enumerate(seeds):
@@ -589,6 +632,18 @@ class _Batch:
             write_checkpoint(s.recorder.out_dir, {**shared, "seed": s.snapshot(), "axis": self.axis.seed_state(k)})
         self.since_checkpoint = 0
 
+    def write_final_checkpoints(self) -> None:
+        """The state a solo run ended in when it played its whole budget, kept so that
+        ``--resume --episodes N`` can extend it as if it had run N episodes straight. (Not
+        in a batch: a seed that finished before the others is masked, and its slice moves
+        on.) A failed write costs only that: the run is complete, and says so."""
+        try:
+            self.write_checkpoints()
+        except OSError as exc:
+            for s in self.seeds:
+                delete_checkpoints(s.recorder.out_dir)
+            warnings.warn(f"could not keep the final checkpoint (the run cannot be extended): {exc}", stacklevel=2)
+
     def restore(self, states: list[dict[str, Any]]) -> None:
         for k, (s, state) in enumerate(zip(self.seeds, states)):
             s.restore(state["seed"])
@@ -636,6 +691,8 @@ class _Batch:
                             f"could not write the checkpoint in {s.recorder.out_dir}: {type(exc).__name__}: {exc}",
                         )
                         s.final = None
+        elif len(seeds) == 1 and seeds[0].ended_on_budget:
+            self.write_final_checkpoints()
         elif all(s.status in ("completed", "non_finite_loss") for s in seeds):
             for s in seeds:
                 delete_checkpoints(s.recorder.out_dir)
