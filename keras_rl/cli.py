@@ -143,6 +143,21 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="also log per-episode score, metric and losses as TensorBoard scalars under DIR",
     )
+    rep.add_argument(
+        "--eval-every",
+        type=int,
+        default=0,
+        metavar="N",
+        help="every N training episodes, play --eval-episodes greedy episodes on an env of their own, "
+        "leaving training as it is (evaluations.csv; the best mean's weights in best/); default 0: none",
+    )
+    rep.add_argument(
+        "--eval-episodes",
+        type=int,
+        default=10,
+        metavar="K",
+        help="greedy episodes per evaluation of --eval-every (default 10)",
+    )
 
     ev = sub.add_parser("evaluate", help="reload a run's saved policy and play greedy episodes")
     ev.add_argument(
@@ -412,6 +427,11 @@ def reproduce(args: argparse.Namespace) -> int:
     options = RunOptions.from_args(args)
     if args.checkpoint_every < 0:
         raise ConfigError(f"--checkpoint-every must be zero or more, got {args.checkpoint_every}")
+    if args.eval_every < 0:
+        raise ConfigError(f"--eval-every must be zero (no evaluations) or more, got {args.eval_every}")
+    from keras_rl.runs.evaluate import EvalSchedule
+
+    evaluation = EvalSchedule(args.eval_every, args.eval_episodes) if args.eval_every else None
     if not 0 <= args.min_success_rate <= 1:
         raise ConfigError(f"--min-success-rate must be in [0, 1], got {args.min_success_rate}")
     if recorded is not None:
@@ -433,6 +453,11 @@ def reproduce(args: argparse.Namespace) -> int:
     if args.tensorboard is not None:
         _check_writable_dir(args.tensorboard, "--tensorboard")
     seed_dirs = [out / f"seed_{s}" for s in seeds]
+    if evaluation is not None and getattr(base, "learning_phase_training", False):
+        raise ConfigError(
+            "--eval-every does not cover learning_phase_training=true: its noise layer draws from "
+            "TensorFlow's generator when the policy acts, which would change the training run"
+        )
     modes = _start_modes(seed_dirs, args.overwrite, args.resume, base.episodes)
     options.check_address()  # now that the input is good: is the cluster there?
     _check_seed_batch(options.seed_batch, experiment.name, args.framework)
@@ -459,7 +484,12 @@ def reproduce(args: argparse.Namespace) -> int:
     jobs = batched(
         [
             SeedJob.of(
-                base.replace(seed=s), d, start=m, checkpoint_every=args.checkpoint_every, tensorboard=args.tensorboard
+                base.replace(seed=s),
+                d,
+                start=m,
+                checkpoint_every=args.checkpoint_every,
+                tensorboard=args.tensorboard,
+                evaluation=evaluation,
             )
             for s, d, m in zip(seeds, seed_dirs, modes)
             if m != "keep"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -118,3 +119,147 @@ def _held_episodes(path: Path) -> int | None:
         return None if held.get("interrupted") else int(held["episodes"])
     except (ValueError, KeyError, TypeError, AttributeError):
         raise RunFolderError(f"{path} is corrupt; move it aside to evaluate again") from None
+
+
+# -- evaluation during training (``reproduce --eval-every N --eval-episodes K``) ----------------
+
+EVALUATIONS = "evaluations.csv"
+BEST = "best"
+EVAL_SEED_OFFSET = 10_000  # the same start states as ``evaluate`` plays by default
+
+
+@dataclass(frozen=True)
+class EvalSchedule:
+    """Greedy evaluations during training: ``episodes`` greedy episodes after every ``every``-th
+    training episode, on an env of their own."""
+
+    every: int
+    episodes: int = 10
+
+    def __post_init__(self) -> None:
+        if self.every < 1:
+            raise ConfigError(f"--eval-every must be at least 1, got {self.every}")
+        if self.episodes < 1:
+            raise ConfigError(f"--eval-episodes must be at least 1, got {self.episodes}")
+
+
+class TrainingEvaluator:
+    """One seed's evaluations during training.
+
+    Each evaluation plays ``episodes`` greedy episodes on an env of its own, reset with seeds
+    ``seed + 10000 + i`` (the same start states every time, so evaluations compare), through
+    the training agent's greedy action (no exploration, no update). Nothing of the training
+    streams is touched: its env, buffers, explorers and learner are not used but to read the
+    policy, and Python's and NumPy's global generators are restored afterwards
+    (``tests/test_evaluation_during_training.py`` shows ``episodes.csv`` unchanged). Each
+    evaluation is a row of ``evaluations.csv``; the best mean so far keeps its weights in
+    ``best/`` (with ``best.json``), beside the final ones."""
+
+    COLUMNS = ("episode", "mean", "std", "min", "max", "best")
+
+    def __init__(self, experiment, config, run_dir: Path, schedule: EvalSchedule):
+        if getattr(config, "learning_phase_training", False):
+            raise ConfigError(
+                "--eval-every does not cover learning_phase_training=true: its noise layer draws from "
+                "TensorFlow's generator when the policy acts, which would change the training run"
+            )
+        self.schedule, self.run_dir = schedule, Path(run_dir)
+        self.seed = config.seed + EVAL_SEED_OFFSET
+        from keras_rl.rngs import global_rng_state, set_global_rng_state
+
+        held = global_rng_state()
+        self.env = experiment.make_env(config)  # its own env: the training env's generators stay untouched
+        set_global_rng_state(held)
+        self.rows: list[dict[str, Any]] = []
+
+    @property
+    def best_mean(self) -> float | None:
+        return max((r["mean"] for r in self.rows), default=None)
+
+    def due(self, episode: int) -> bool:
+        return episode % self.schedule.every == 0
+
+    def evaluate(self, episode: int, greedy, save_policy, writer=None) -> dict[str, Any]:
+        """Play the greedy episodes after training episode ``episode``; ``greedy(obs)`` is the
+        policy's action, ``save_policy(folder)`` writes its weights there."""
+        from keras_rl.rngs import global_rng_state, set_global_rng_state
+
+        held = global_rng_state()
+        scores = []
+        try:
+            for i in range(self.schedule.episodes):
+                obs, _ = self.env.reset(seed=self.seed + i)
+                score, done = 0.0, False
+                while not done:
+                    obs, reward, terminated, truncated, _ = self.env.step(greedy(obs))
+                    score += float(reward)
+                    done = terminated or truncated
+                scores.append(score)
+        finally:
+            set_global_rng_state(held)
+        mean = float(np.mean(scores))
+        best = self.best_mean is None or mean > self.best_mean
+        row = {
+            "episode": episode,
+            "mean": mean,
+            "std": float(np.std(scores)),
+            "min": float(np.min(scores)),
+            "max": float(np.max(scores)),
+            "best": int(best),
+        }
+        self.rows.append(row)
+        self._write_rows()
+        if best:
+            self._keep_best(row, scores, save_policy)
+        if writer is not None:
+            writer.scalars({"eval_mean": mean}, episode)
+        return row
+
+    def _write_rows(self) -> None:
+        from keras_rl.runs.files import atomic_write_text
+
+        lines = [",".join(self.COLUMNS)] + [",".join(repr(r[c]) for c in self.COLUMNS) for r in self.rows]
+        atomic_write_text(self.run_dir / EVALUATIONS, "\n".join(lines) + "\n")
+
+    def _keep_best(self, row: dict[str, Any], scores: list[float], save_policy) -> None:
+        """The weights into a fresh folder, then swapped in for ``best/``: never half of two."""
+        import shutil
+        import tempfile
+
+        staging = Path(tempfile.mkdtemp(prefix=".tmp-best-", dir=self.run_dir))
+        save_policy(staging)
+        atomic_write_json(staging / "best.json", {**row, "scores": scores, "seed": self.seed})
+        target = self.run_dir / BEST
+        old = self.run_dir / ".tmp-best-old"
+        if target.exists():
+            target.rename(old)
+        staging.rename(target)
+        shutil.rmtree(old, ignore_errors=True)
+
+    def resume(self, episodes_played: int) -> None:
+        """After ``--resume``: the evaluations of the episodes the checkpoint holds (later ones
+        are played again, so they leave the file), and ``best/`` only if it is one of them."""
+        path = self.run_dir / EVALUATIONS
+        if path.is_file():
+            import csv
+
+            with open(path, newline="") as fh:
+                parsed = [
+                    {"episode": int(r["episode"]), **{c: float(r[c]) for c in ("mean", "std", "min", "max")}}
+                    for r in csv.DictReader(fh)
+                ]
+            best: float | None = None
+            for r in parsed:
+                if r["episode"] <= episodes_played:
+                    r["best"] = int(best is None or r["mean"] > best)
+                    best = r["mean"] if r["best"] else best
+                    self.rows.append(r)
+            self._write_rows()
+        marker = self.run_dir / BEST / "best.json"
+        if marker.is_file() and json.loads(marker.read_text())["episode"] > episodes_played:
+            import shutil
+
+            shutil.rmtree(self.run_dir / BEST)
+
+    def close(self) -> None:
+        self.env.close()

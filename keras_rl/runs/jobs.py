@@ -21,6 +21,7 @@ from typing import Any, Literal, Protocol
 
 from keras_rl.errors import RunFolderError
 from keras_rl.registry import get_experiment
+from keras_rl.runs.evaluate import EvalSchedule
 from keras_rl.runs.files import run_folder_locks
 from keras_rl.runs.loop import run_seeds
 from keras_rl.runs.provenance import command_line
@@ -43,6 +44,8 @@ class SeedJob:
     command: str = ""
     """The command line that asked for the job, recorded in its summary (a Ray worker's own
     argv is not it)."""
+    evaluation: EvalSchedule | None = None
+    """Greedy evaluations during training (``--eval-every``), or none."""
 
     @classmethod
     def of(cls, config, out_dir: Path, **options: Any) -> SeedJob:
@@ -90,6 +93,7 @@ def batched(jobs: list[SeedJob], seed_batch: int) -> list:
             job.command,
             str(job.tensorboard),
             job.checkpoint_every,
+            job.evaluation,
         )
         groups.setdefault(key, []).append(job)
     out = []
@@ -149,6 +153,7 @@ def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> 
             tensorboard=first.tensorboard,
             should_stop=should_stop,
             command=first.command,
+            evaluation=first.evaluation,
         )
     return next((s for s in summaries if s.status == "interrupted"), summaries[-1])
 

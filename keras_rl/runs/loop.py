@@ -53,6 +53,7 @@ from keras_rl.experiment import Experiment
 from keras_rl.learners.table import implementation, stacked_implementation
 from keras_rl.rngs import global_rng_state, set_global_rng_state
 from keras_rl.runs.checkpoint import delete_checkpoints, read_batch_checkpoints, write_checkpoint
+from keras_rl.runs.evaluate import EvalSchedule, TrainingEvaluator
 from keras_rl.runs.files import RunRecorder, atomic_write_text, episode_columns, episodes_csv_text
 from keras_rl.runs.provenance import command_line, library_versions, provenance
 from keras_rl.runs.signals import signal_name, stop_signals_as_flag, stop_signals_deferred
@@ -73,6 +74,7 @@ def run_seed(
     tensorboard: Path | None = None,
     should_stop: Callable[[], bool] | None = None,
     command: str | None = None,
+    evaluation: EvalSchedule | None = None,
 ) -> RunSummary:
     """Train one seed: ``run_seeds`` with a seed axis of one."""
     return run_seeds(
@@ -88,6 +90,7 @@ def run_seed(
         tensorboard=tensorboard,
         should_stop=should_stop,
         command=command,
+        evaluation=evaluation,
     )[0]
 
 
@@ -104,6 +107,7 @@ def run_seeds(
     tensorboard: Path | None = None,
     should_stop: Callable[[], bool] | None = None,
     command: str | None = None,
+    evaluation: EvalSchedule | None = None,
 ) -> list[RunSummary]:
     """Train the seeds of ``configs`` (equal but for the seed) together to the threshold or
     the budget; write each one's folder and return their summaries.
@@ -114,6 +118,8 @@ def run_seeds(
     passed in, one per seed (tests wrap envs). ``should_stop`` is asked whenever an episode
     ends; True stops the batch as a signal would (a distributed backend's stop flag).
     ``command`` is the command line to record (a job run elsewhere carries its driver's).
+    ``evaluation``: greedy evaluations during training on envs of their own
+    (``runs/evaluate.TrainingEvaluator``), which leave the training run as it would be without.
     """
     configs = list(configs)
     check_same_but_seed(configs)
@@ -127,11 +133,16 @@ def run_seeds(
         if len(seeds) > 1:  # which seeds shared its stacked updates: its bits depend on them
             s.run.provenance["seed_batch"] = batch
     state = _Batch(seeds, axis, checkpoint_every, batch)
+    if evaluation is not None:
+        for s in seeds:
+            s.evaluator = TrainingEvaluator(experiment, s.config, s.recorder.out_dir, evaluation)
     if resume:
         state.restore(read_batch_checkpoints([s.recorder.out_dir for s in seeds], batch))
         for s in seeds:
             if s.active:  # it goes on, perhaps to a larger budget (--resume --episodes N): config.json says which
                 s.recorder.write_config(s.config.to_dict())
+            if s.evaluator is not None:
+                s.evaluator.resume(len(s.recorder.rows))
     else:
         for s in seeds:
             s.recorder.write_config(s.config.to_dict())
@@ -264,6 +275,13 @@ class PartsAxis:
             if running[k]:
                 agent.explore(self.raw[k])
 
+    def greedy(self, k: int, obs):
+        """Seed k's policy action for ``obs``, without exploration or update (the others' rows
+        are their current states, and their actions are dropped)."""
+        states = np.stack([a.state for a in self.agents])
+        states[k] = self.agents[k].transitions.observe(obs)
+        return self.learner.act(states)[k]
+
     def restart_actions(self, ks: list[int]) -> None:
         """First actions of seeds that resume past the budget they completed: the updated
         policy's action on each new first state, explored, as ``next_actions`` gives it."""
@@ -321,6 +339,9 @@ class WholeAgentAxis:
     def next_actions(self, running: list[bool], restarted: set[int]) -> None:
         if restarted and running[0]:
             self._action = self.agent.begin_episode(self._obs)
+
+    def greedy(self, k: int, obs):
+        return self.agent.greedy_action(obs)
 
     def restart_actions(self, ks: list[int]) -> None:
         self._action = self.agent.begin_episode(self._obs)
@@ -435,6 +456,7 @@ class _Seed:
         self.writer: _TensorBoard | None = None
         self.final: RunSummary | None = None
         """The summary written when the seed stopped (its wall time ends there)."""
+        self.evaluator: TrainingEvaluator | None = None
         self.extending = False
         """Resumed past the budget it completed (``--resume --episodes N``): its next episode starts the loop."""
 
@@ -596,6 +618,10 @@ class _Batch:
                 row = s.run.record_episode(s.episode, *records[k], axis.episode_stats(k))
                 if s.writer is not None:
                     s.writer.episode(row)
+                if s.evaluator is not None and s.evaluator.due(s.episode):
+                    s.evaluator.evaluate(
+                        s.episode, lambda obs, k=k: axis.greedy(k, obs), lambda d, k=k: axis.save(k, d), s.writer
+                    )
                 if bar is not None:
                     bar.update(1)
                     bar.set_postfix(score=f"{row['score']:.1f}", metric=f"{row['metric']:.1f}", refresh=False)
@@ -700,6 +726,8 @@ class _Batch:
             if s.final is None:
                 self.flush(k)
             s.env.close()
+            if s.evaluator is not None:
+                s.evaluator.close()
 
 
 def _progress_bar(experiment: Experiment, configs: list, seeds: list[_Seed], position: int):
@@ -732,6 +760,12 @@ class _TensorBoard:
         self.writer = tf.summary.create_file_writer(
             str(Path(root) / f"{config.experiment}-{config.variant}-{config.framework}-seed{config.seed}")
         )
+
+    def scalars(self, values: dict[str, float], step: int) -> None:
+        with self.writer.as_default():
+            for key, value in values.items():
+                self.tf.summary.scalar(key, value, step=step)
+        self.writer.flush()
 
     def episode(self, row: dict[str, Any]) -> None:
         with self.writer.as_default():
