@@ -11,8 +11,8 @@ step without its file; ``--redo STEP`` reruns one):
 - ``replay``: committed seed 0 of each post (Keras) rerun whole: bit for bit, or the first
   differing episode and its columns;
 - ``check``: ``keras-rl check pendulum cartpole mountaincar --tier smoke`` against the committed
-  baselines (``check.json``, ``check.md`` copied here). A post found ``changed`` is checked again
-  at the full tier before anyone calls it a break (``check-full.json``);
+  baselines (its ``check.json`` and ``check.md`` copied here as ``check-report.*``). A post found ``changed`` is checked again
+  at the full tier before anyone calls it a break (``check-full-report.*``);
 - ``speed``: ``benchmarks/step_time.py --keras-only`` here and under ``--reference-python``
   (the reference cell's interpreter), alternated five times in this one session; the cell's ms
   over the reference's ms per post, median of the runs.
@@ -162,8 +162,8 @@ def _check(out: Path, work: Path, posts: list[str], tier: str, name: str) -> dic
     if not report.exists():
         shutil.copy(work / f"{name}.log", out / f"{name}.log")
         return {"tier": tier, "exit_code": code, "seconds": round(seconds, 1), "posts": {}}
-    shutil.copy(report, out / f"{name}.json")
-    shutil.copy(check_dir / "check.md", out / f"{name}.md")
+    shutil.copy(report, out / f"{name}-report.json")  # not <step>.json, which is this step's own record
+    shutil.copy(check_dir / "check.md", out / f"{name}-report.md")
     payload = json.loads(report.read_text())
     # each post-cell test on its own, at its rule's alpha (the check itself adjusts over the posts)
     verdicts = {
