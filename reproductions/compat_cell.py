@@ -11,8 +11,9 @@ step without its file; ``--redo STEP`` reruns one):
 - ``replay``: committed seed 0 of each post (Keras) rerun whole: bit for bit, or the first
   differing episode and its columns;
 - ``check``: ``keras-rl check pendulum cartpole mountaincar --tier smoke`` against the committed
-  baselines (its ``check.json`` and ``check.md`` copied here as ``check-report.*``). A post found ``changed`` is checked again
-  at the full tier before anyone calls it a break (``check-full-report.*``);
+  baselines (its ``check.json`` and ``check.md`` copied here as ``check-report.*``). A post
+  found ``changed`` is checked again at the full tier before anyone calls it a break
+  (``check-full-report.*``);
 - ``speed``: ``benchmarks/step_time.py --keras-only`` here and under ``--reference-python``
   (the reference cell's interpreter), alternated five times in this one session; the cell's ms
   over the reference's ms per post, median of the runs.

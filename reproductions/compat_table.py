@@ -168,7 +168,7 @@ def page() -> str:
             "  means every column of `episodes.csv` but `wall_seconds` is equal, otherwise the first episode that",
             "  differs and its columns (`replay.json`).",
             "- **check**: `keras-rl check pendulum cartpole mountaincar --tier smoke` against the committed",
-            "  baselines (`check.md`). Each post-cell test has a false-alarm rate under 1%",
+            "  baselines (`check-report.md`). Each post-cell test has a false-alarm rate under 1%",
             "  (`results/checks/calibration.md`), so over 30 or so of them about one false alarm is expected: a",
             "  `changed` smoke verdict is rerun at the full tier in the same cell, and shown beside it, before it",
             "  is called a break.",
