@@ -35,7 +35,9 @@ class Interval:
         return f"{self.estimate:.4g} [{self.low:.4g}, {self.high:.4g}]"
 
 
-def _bootstrap(samples: tuple, statistic, rng: np.random.Generator, n_resamples: int) -> tuple[float, float]:
+def bootstrap_interval(
+    samples: tuple, statistic, rng: np.random.Generator, n_resamples: int, confidence: float = 0.95
+) -> tuple[float, float]:
     if any(len(s) < 2 for s in samples) or all(np.ptp(s) == 0 for s in samples):
         value = statistic(*samples)  # a degenerate sample has a degenerate interval
         return float(value), float(value)
@@ -43,7 +45,7 @@ def _bootstrap(samples: tuple, statistic, rng: np.random.Generator, n_resamples:
         samples,
         statistic,
         n_resamples=n_resamples,
-        confidence_level=0.95,
+        confidence_level=confidence,
         method="percentile",
         vectorized=False,
         random_state=rng,
@@ -59,7 +61,7 @@ def median_difference_ci(a, b, rng: np.random.Generator | None = None, n_resampl
     def diff(x, y):
         return np.median(x) - np.median(y)
 
-    low, high = _bootstrap((a, b), diff, rng, n_resamples)
+    low, high = bootstrap_interval((a, b), diff, rng, n_resamples)
     return Interval(float(diff(a, b)), low, high)
 
 
@@ -67,7 +69,7 @@ def iqm_ci(x, rng: np.random.Generator | None = None, n_resamples: int = 10_000)
     """IQM of one set of runs with a 95% (stratified, one task) bootstrap interval."""
     x = np.asarray(x, float)
     rng = np.random.default_rng(0) if rng is None else rng
-    low, high = _bootstrap((x,), iqm, rng, n_resamples)
+    low, high = bootstrap_interval((x,), iqm, rng, n_resamples)
     return Interval(iqm(x), low, high)
 
 
@@ -88,15 +90,15 @@ def fisher_exact(successes_a: int, n_a: int, successes_b: int, n_b: int) -> floa
     return float(stats.fisher_exact(table, alternative="two-sided").pvalue)
 
 
-def success_difference_ci(successes_a: int, n_a: int, successes_b: int, n_b: int) -> Interval:
-    """rate(a) - rate(b) with Newcombe's (1998, method 10) hybrid score 95% interval:
+def success_difference_ci(successes_a: int, n_a: int, successes_b: int, n_b: int, confidence: float = 0.95) -> Interval:
+    """rate(a) - rate(b) with Newcombe's (1998, method 10) hybrid score interval:
     ``d - sqrt((p_a - l_a)^2 + (u_b - p_b)^2)`` to ``d + sqrt((u_a - p_a)^2 + (p_b - l_b)^2)``,
-    where (l, u) is each rate's Wilson score interval."""
+    where (l, u) is each rate's Wilson score interval at ``confidence`` (95% by default)."""
     rates, bounds = [], []
     for k, n in ((successes_a, n_a), (successes_b, n_b)):
         if n < 1 or not 0 <= k <= n:
             raise ValueError(f"successes must lie in [0, n] with n >= 1, got {k} of {n}")
-        ci = stats.binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+        ci = stats.binomtest(k, n).proportion_ci(confidence_level=confidence, method="wilson")
         rates.append(k / n)
         bounds.append((float(ci.low), float(ci.high)))
     (pa, pb), ((la, ua), (lb, ub)) = rates, bounds

@@ -1,0 +1,124 @@
+"""Equivalence verdicts: where we say "no difference", a two-one-sided test (TOST) against a
+margin fixed before the runs (issue #20).
+
+Two arms (Keras against PyTorch, batched against solo seeds) give one of three readings:
+
+- **equivalent within the margin**: the 90% interval of the difference lies inside the margin
+  (Schuirmann's TOST at 5%: each one-sided test rejects "the difference is at least the
+  margin");
+- **different**: not equivalent, and the 95% interval excludes no difference;
+- **inconclusive at n seeds**: neither; more seeds would be needed to say.
+
+The margins are pre-registered: written here, and in ``docs/findings.md``, on 2026-11-23,
+before any of the 30-seed runs they judge was made. Changing them after seeing those runs
+would void the verdicts; a change goes in with its reason and reruns nothing but the report.
+
+- success rate: within ±0.15 (absolute), Newcombe's hybrid score interval;
+- median episodes to threshold: the ratio of the arms' medians within 0.90-1.10 (±10%),
+  percentile bootstrap; seeds that never reached the threshold count as budget + 1 (they rank
+  last), and an arm where half or more never reached it has no median to compare.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from keras_rl.report.stats import Interval, bootstrap_interval, success_difference_ci
+
+Reading = Literal["equivalent within the margin", "different", "inconclusive"]
+
+SUCCESS_RATE_MARGIN = 0.15
+"""Pre-registered (2026-11-23): |rate(a) - rate(b)| < 0.15 is "no difference" in success."""
+MEDIAN_RATIO_MARGIN = 0.10
+"""Pre-registered (2026-11-23): median(a) / median(b) within 1 ± 0.10 is "no difference" in speed."""
+TOST_ALPHA = 0.05
+"""Each one-sided test at 5%: the (1 - 2 * 0.05) = 90% interval inside the margin."""
+
+
+@dataclass(frozen=True)
+class Equivalence:
+    quantity: str
+    estimate: float
+    tost: Interval  # the 90% interval (TOST)
+    test: Interval  # the 95% interval (difference or not)
+    margin: tuple[float, float]
+    null: float  # "no difference": 0 for a difference, 1 for a ratio
+    n: tuple[int, int]
+    reading: Reading
+    note: str = ""
+
+    def sentence(self) -> str:
+        """The reading with its numbers, as a report states it."""
+        n = f"{self.n[0]} and {self.n[1]} seeds" if self.n[0] != self.n[1] else f"{self.n[0]} seeds each"
+        said = "inconclusive at " + n if self.reading == "inconclusive" else self.reading
+        return (
+            f"{self.quantity}: **{said}** ({self.estimate:.3g}; 90% interval {self.tost.low:.3g} to "
+            f"{self.tost.high:.3g}, 95% {self.test.low:.3g} to {self.test.high:.3g}; margin "
+            f"{self.margin[0]:.3g} to {self.margin[1]:.3g}, set before the runs; {n})"
+            + (f". {self.note}" if self.note else "")
+        )
+
+
+def read(tost: Interval, test: Interval, margin: tuple[float, float], null: float) -> Reading:
+    if margin[0] < tost.low and tost.high < margin[1]:
+        return "equivalent within the margin"
+    if not test.low <= null <= test.high:
+        return "different"
+    return "inconclusive"
+
+
+def success_rate_equivalence(
+    successes_a: int, n_a: int, successes_b: int, n_b: int, margin: float = SUCCESS_RATE_MARGIN
+) -> Equivalence:
+    """rate(a) - rate(b) against ±margin (Newcombe's interval at 90% and 95%)."""
+    tost = success_difference_ci(successes_a, n_a, successes_b, n_b, confidence=1 - 2 * TOST_ALPHA)
+    test = success_difference_ci(successes_a, n_a, successes_b, n_b, confidence=0.95)
+    bounds = (-margin, margin)
+    return Equivalence(
+        "success rate difference", tost.estimate, tost, test, bounds, 0.0, (n_a, n_b), read(tost, test, bounds, 0.0)
+    )
+
+
+def median_ratio_equivalence(
+    a,
+    b,
+    budget: int,
+    margin: float = MEDIAN_RATIO_MARGIN,
+    rng: np.random.Generator | None = None,
+    n_resamples: int = 10_000,
+) -> Equivalence:
+    """median(a) / median(b) of episodes to threshold against 1 ± margin. ``a`` and ``b`` hold
+    each seed's episode, or None for a seed that never reached the threshold (budget + 1)."""
+    x, y = (np.array([budget + 1 if v is None else v for v in arm], float) for arm in (a, b))
+    bounds, n = (1 - margin, 1 + margin), (len(x), len(y))
+    if any(np.median(arm) > budget for arm in (x, y)):
+        nan = Interval(float("nan"), float("nan"), float("nan"))
+        return Equivalence(
+            "median episodes to threshold, ratio",
+            float("nan"),
+            nan,
+            nan,
+            bounds,
+            1.0,
+            n,
+            "inconclusive",
+            "Half or more of an arm's seeds never reached the threshold: no median to compare",
+        )
+    rng = np.random.default_rng(0) if rng is None else rng
+
+    def ratio(u, v):
+        return np.median(u) / np.median(v)
+
+    intervals = []
+    for confidence in (1 - 2 * TOST_ALPHA, 0.95):
+        low, high = bootstrap_interval(
+            (x, y), ratio, np.random.default_rng(rng.integers(2**32)), n_resamples, confidence
+        )
+        intervals.append(Interval(float(ratio(x, y)), low, high))
+    tost, test = intervals
+    return Equivalence(
+        "median episodes to threshold, ratio", tost.estimate, tost, test, bounds, 1.0, n, read(tost, test, bounds, 1.0)
+    )
