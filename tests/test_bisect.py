@@ -1,0 +1,123 @@
+"""``keras-rl bisect`` (issue #21, item 5) on a throwaway repository with a planted regression.
+
+The repository's own ``keras_rl`` is a stand-in whose ``check`` reads ``learner.txt``: a commit
+that writes "broken" there makes the learner's p tiny, as a real regression would. Bisect runs
+each commit's own ``python -m keras_rl check``, so the stand-in is what it drives."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from keras_rl.check.bisect import judge, step_budget
+from keras_rl.cli import main
+
+FAKE_CHECK = """
+import json, sys
+from pathlib import Path
+args = sys.argv[1:]
+out = Path(args[args.index("--out") + 1])
+names = [a for a in args[1:args.index("--tier")]]
+state = Path("learner.txt").read_text().strip()
+if state == "crash":
+    sys.exit(3)
+p = {"broken": 1e-6, "slightly": 0.006}.get(state, 0.5)
+out.mkdir(parents=True, exist_ok=True)
+experiments = [{"experiment": n, "decision": {"p": p if n == "pendulum" else 0.5}} for n in names]
+(out / "check.json").write_text(json.dumps({"experiments": experiments}))
+sys.exit(1 if p < 0.01 else 0)
+"""
+
+
+def make_repo(root: Path, states: list[str]) -> list[str]:
+    """A repository whose i-th commit sets learner.txt to states[i]; the commits' hashes."""
+    root.mkdir()
+    (root / "keras_rl").mkdir()
+    (root / "keras_rl" / "__init__.py").write_text("")
+    (root / "keras_rl" / "__main__.py").write_text(FAKE_CHECK)
+
+    def git(*args):
+        return subprocess.run(["git", *args], cwd=root, check=True, capture_output=True, text=True).stdout.strip()
+
+    git("init", "-q")
+    git("config", "user.email", "t@example.invalid")
+    git("config", "user.name", "t")
+    shas = []
+    for i, state in enumerate(states):
+        (root / "learner.txt").write_text(state + "\n")
+        (root / f"file_{i}.txt").write_text(str(i))
+        git("add", "-A")
+        git("commit", "-q", "-m", f"commit {i}: learner {state}")
+        shas.append(git("rev-parse", "HEAD"))
+    return shas
+
+
+@pytest.fixture
+def baseline(tmp_path):
+    folder = tmp_path / "checks"
+    (folder / "pendulum" / "baseline" / "seed_0").mkdir(parents=True)
+    return folder
+
+
+def run(repo, baseline, out, *args):
+    return main(["bisect", *args, "pendulum", "--repo", str(repo), "--against", str(baseline), "--out", str(out)])
+
+
+def test_bisect_finds_the_planted_regression_and_leaves_the_repository_alone(tmp_path, baseline, capsys):
+    shas = make_repo(tmp_path / "repo", ["ok"] * 5 + ["broken"] * 4)  # commit 5 breaks it
+    before = subprocess.run(["git", "status", "--porcelain"], cwd=tmp_path / "repo", capture_output=True, text=True)
+    code = run(tmp_path / "repo", baseline, tmp_path / "out", shas[0], shas[-1])
+    assert code == 0, capsys.readouterr().err
+    assert f"first changed commit: {shas[5]}" in capsys.readouterr().out
+    report = json.loads((tmp_path / "out" / "bisect.json").read_text())
+    assert report["first_changed"] == shas[5] and report["outcome"] == "found"
+    assert report["commits"] == 8 and report["alpha_per_step"] == pytest.approx(0.01 / 4)  # BAD + ceil(log2 8)
+    assert report["steps"][0]["commit"] == shas[-1] and report["steps"][0]["verdict"] == "changed"
+    assert len(report["steps"]) <= step_budget(8)
+    assert (tmp_path / "out" / "baseline" / "pendulum" / "baseline").is_dir()  # the baseline copied out of the tree
+    assert "the first changed commit" in (tmp_path / "out" / "bisect.md").read_text()
+    after = subprocess.run(["git", "status", "--porcelain"], cwd=tmp_path / "repo", capture_output=True, text=True)
+    assert after.stdout == before.stdout
+    worktrees = subprocess.run(["git", "worktree", "list"], cwd=tmp_path / "repo", capture_output=True, text=True)
+    assert len(worktrees.stdout.strip().splitlines()) == 1  # its temporary worktree is gone
+
+
+def test_a_change_below_the_per_step_alpha_is_not_a_regression(tmp_path, baseline, capsys):
+    """p = 0.006 clears the check's own 0.01 but not bisect's 0.01 / 2 per step (2 commits: BAD
+    and one more): BAD is consistent."""
+    shas = make_repo(tmp_path / "repo", ["ok", "ok", "slightly"])
+    assert run(tmp_path / "repo", baseline, tmp_path / "out", shas[0], shas[-1]) == 1
+    assert "nothing to bisect" in capsys.readouterr().out
+
+
+def test_a_commit_whose_check_crashes_is_skipped(tmp_path, baseline, capsys):
+    shas = make_repo(tmp_path / "repo", ["ok", "ok", "crash", "broken", "broken"])
+    """Commit 2 cannot be checked and commit 3 is broken: the first change is 2 or 3, and bisect
+    says so (exit 3, no verdict) rather than guess."""
+    assert run(tmp_path / "repo", baseline, tmp_path / "out", shas[0], shas[-1]) == 3
+    report = json.loads((tmp_path / "out" / "bisect.json").read_text())
+    assert "no verdict" in [s["verdict"] for s in report["steps"]] and report["first_changed"] is None
+    assert sorted(report["candidates"]) == sorted([shas[2], shas[3]])
+
+
+def test_bad_input_exits_2(tmp_path, baseline, capsys):
+    shas = make_repo(tmp_path / "repo", ["ok", "broken"])
+    repo, out = tmp_path / "repo", tmp_path / "out"
+    assert run(repo, baseline, out, shas[1], shas[0]) == 2  # GOOD after BAD
+    assert "is not an ancestor" in capsys.readouterr().err
+    assert run(repo, baseline, out, "nope", shas[1]) == 2
+    assert "is not a commit" in capsys.readouterr().err
+    assert run(repo, baseline, out, shas[0], shas[0]) == 2
+    assert "nothing to bisect" in capsys.readouterr().err
+    assert main(["bisect", shas[0], shas[1], "nosuch", "--repo", str(repo)]) == 2
+    assert run(repo, tmp_path / "empty", out, shas[0], shas[1]) == 2
+    assert "holds no pendulum/baseline" in capsys.readouterr().err
+
+
+def test_holm_within_a_step_and_the_step_budget():
+    assert judge({"pendulum": 0.001, "cartpole": 0.5}, 0.0025)[0] == "changed"  # 2 * 0.001 < 0.0025
+    assert judge({"pendulum": 0.002, "cartpole": 0.5}, 0.0025)[0] == "consistent"  # 0.004 > 0.0025
+    assert [step_budget(n) for n in (1, 2, 3, 8, 9, 100)] == [2, 2, 3, 4, 5, 8]
