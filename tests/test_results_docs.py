@@ -126,3 +126,31 @@ def test_the_matrix_table_shows_failed_installs_unrun_cells_and_divergences(tmp_
     assert "changed (p=0.004); full tier: consistent (p=0.3)" in ran and "1.10 / 1.10 / 1.10" in ran
     short = gen.short_table()
     assert "000, 001 (2/3)" in short and "changed or no verdict: 000" in short and "install failed" in short
+
+
+def test_the_manifest_lists_every_committed_run_set_as_it_is():
+    import json
+
+    gen = load_generator("manifest")
+    entries = gen.manifest()
+    committed = json.loads((ROOT / "results" / "MANIFEST.json").read_text())
+    assert entries == committed, "results/MANIFEST.json is stale: run python reproductions/manifest.py --write"
+    assert (ROOT / "results" / "MANIFEST.md").read_text() == gen.markdown(entries), (
+        "results/MANIFEST.md is stale: run python reproductions/manifest.py --write"
+    )
+    sets = {e["set"]: e for e in entries}
+    for post in ("pendulum", "cartpole", "mountaincar"):
+        assert f"{post}/faithful" in sets and f"checks/{post}/baseline" in sets
+    assert sets["checks/cartpole/baseline"]["batches"] == [list(range(15)), list(range(15, 30))]
+
+
+def test_a_seeds_batch_comes_from_its_summary_or_else_its_command():
+    gen = load_generator("manifest")
+    recorded = {"seed": 3, "experiment": "pendulum", "provenance": {"seed_batch": [2, 3]}, "command": ""}
+    assert gen.batch_of(recorded) == [2, 3]
+    command = "keras-rl reproduce pendulum --seeds 0-9 --seed-batch 4 --workers 2"
+    assert gen.batch_of({"seed": 5, "experiment": "pendulum", "command": command}) == [4, 5, 6, 7]
+    assert gen.batch_of({"seed": 9, "experiment": "pendulum", "command": command}) == [8, 9]
+    tutorial = {"seed": 5, "experiment": "cartpole", "framework": "torch", "command": command}
+    assert gen.batch_of(tutorial) == [5]  # the tutorial's own code never batches
+    assert gen.batch_of({"seed": 5, "experiment": "pendulum", "command": "keras-rl reproduce pendulum"}) == [5]

@@ -1,0 +1,253 @@
+"""Every committed run set under ``results/``, with what made it and what it cost; and one
+resumable command that reruns them (all, or those named) into a fresh folder and says, set by
+set, whether the rerun agrees with what is committed.
+
+    python reproductions/manifest.py                      # print the manifest
+    python reproductions/manifest.py --write              # results/MANIFEST.md and MANIFEST.json
+    python reproductions/manifest.py --rerun 'pendulum/faithful' 'checks/*/baseline' --out /tmp/rerun [--workers 2]
+
+A set is a folder of ``seed_<n>/`` run folders. Its cost is in process-minutes: a seed run
+alone costs its wall time, a seed batch (``--seed-batch``) the wall time of the batch, once.
+
+``--rerun`` reruns each set with ``keras-rl reproduce --config <seed>/config.json`` (the exact
+config, whichever command made it), batch by batch as the set was made (the batch's seeds are
+in each summary, or else in its command's ``--seeds``/``--seed-batch``), with ``--resume``: a
+rerun stopped midway continues where it was. Then, per set: where the CPU model and the library
+versions match the committed runs, every seed must be bit for bit the same (``episodes.csv``
+but for wall time; the first differing episode otherwise); where they do not, the two sets are
+compared as distributions (two-sided Mann-Whitney on each seed's final metric). The verdicts go
+to ``<out>/rerun.md`` and ``rerun.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import fnmatch
+import json
+import shlex
+import subprocess
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "reproductions"))
+
+RESULTS = ROOT / "results"
+NOT_COMMITTED = ("make-reproduce",)  # `make reproduce` writes here; .gitignore keeps it out of results/
+
+
+def seed_of(folder: Path) -> int:
+    return int(folder.name.split("_", 1)[1])
+
+
+def find_sets(results: Path = RESULTS) -> dict[str, list[Path]]:
+    """Set (its path under results/) -> its seed folders, in seed order."""
+    sets: dict[str, list[Path]] = defaultdict(list)
+    for summary in results.rglob("seed_*/summary.json"):
+        if summary.relative_to(results).parts[0] in NOT_COMMITTED:
+            continue
+        sets[summary.parent.parent.relative_to(results).as_posix()].append(summary.parent)
+    return {k: sorted(v, key=seed_of) for k, v in sorted(sets.items())}
+
+
+def _flag(argv: list[str], name: str) -> str | None:
+    return argv[argv.index(name) + 1] if name in argv and argv.index(name) + 1 < len(argv) else None
+
+
+def batch_of(summary: dict) -> list[int]:
+    """The seeds a seed was trained with (itself alone, unless seed-batched)."""
+    recorded = summary.get("provenance", {}).get("seed_batch")
+    if recorded:
+        return [int(s) for s in recorded]
+    argv = shlex.split(summary.get("command", ""))
+    size = int(_flag(argv, "--seed-batch") or 1)
+    seeds_text = _flag(argv, "--seeds")
+    from keras_rl.learners.table import STACKED
+
+    if size <= 1 or seeds_text is None or (summary["experiment"], summary.get("framework", "keras")) not in STACKED:
+        return [int(summary["seed"])]
+    from keras_rl.cli import parse_seeds
+
+    seeds = parse_seeds(seeds_text)
+    for i in range(0, len(seeds), size):
+        if int(summary["seed"]) in seeds[i : i + size]:
+            return seeds[i : i + size]
+    return [int(summary["seed"])]
+
+
+def describe(name: str, folders: list[Path]) -> dict:
+    summaries = [json.loads((f / "summary.json").read_text()) for f in folders]
+    batches: dict[tuple[int, ...], float] = {}
+    for s in summaries:
+        key = tuple(batch_of(s))
+        batches[key] = max(batches.get(key, 0.0), float(s.get("wall_seconds") or 0.0))
+    first = summaries[0]
+    return {
+        "set": name,
+        "experiment": first["experiment"],
+        "variant": first["variant"],
+        "framework": first.get("framework", "keras"),
+        "seeds": [int(s["seed"]) for s in summaries],
+        "batches": [list(b) for b in batches],
+        "commands": sorted({s.get("command", "") for s in summaries}),
+        "commits": sorted({str(s.get("provenance", {}).get("commit")) for s in summaries}),
+        "cpu_models": sorted({str(s.get("provenance", {}).get("cpu_model")) for s in summaries}),
+        "versions": first.get("versions", {}),
+        "status": dict(
+            sorted({st: sum(s["status"] == st for s in summaries) for st in {s["status"] for s in summaries}}.items())
+        ),
+        "process_minutes": round(sum(batches.values()) / 60, 1),
+    }
+
+
+def manifest(results: Path = RESULTS) -> list[dict]:
+    return [describe(name, folders) for name, folders in find_sets(results).items()]
+
+
+def markdown(entries: list[dict]) -> str:
+    total = sum(e["process_minutes"] for e in entries)
+    lines = [
+        "# Every committed run set",
+        "",
+        "Generated by `python reproductions/manifest.py --write` from the run folders; a test fails when",
+        "it is stale. Rerun sets into a fresh folder, and compare them with these, with",
+        "`python reproductions/manifest.py --rerun SET ... --out DIR` (see its docstring).",
+        "",
+        f"{len(entries)} sets, {sum(len(e['seeds']) for e in entries)} seed runs, {total:.0f} process-minutes "
+        f"({total / 60:.1f} process-hours; with `--workers 2` on this 2-core machine, about half that in wall time).",
+        "",
+        "| set | experiment / variant / framework | seeds | batches | process-min | made by |",
+        "|---|---|---|---|---|---|",
+    ]
+    for e in entries:
+        seeds = f"{min(e['seeds'])}-{max(e['seeds'])}" if len(e["seeds"]) > 1 else str(e["seeds"][0])
+        batch = "solo" if all(len(b) == 1 for b in e["batches"]) else f"{len(e['batches'])} of {len(e['batches'][0])}"
+        commands = "; ".join(f"`{c}`" for c in e["commands"])
+        lines.append(
+            f"| `{e['set']}` | {e['experiment']} / {e['variant']} / {e['framework']} | {seeds} ({len(e['seeds'])}) "
+            f"| {batch} | {e['process_minutes']:g} | {commands} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+# -- rerun --------------------------------------------------------------------------------------
+
+
+def rerun_set(entry: dict, out: Path, workers: int) -> dict:
+    """Rerun one set batch by batch with ``--resume``, then compare it with the committed one."""
+    from keras_rl.runs.replay import first_divergence, seed_rows
+
+    committed = RESULTS / entry["set"]
+    target = out / entry["set"]
+    codes = []
+    for batch in entry["batches"]:
+        seeds = ",".join(str(s) for s in batch)
+        config = committed / f"seed_{batch[0]}" / "config.json"
+        command = [
+            sys.executable, "-m", "keras_rl", "reproduce", entry["experiment"], "--config", str(config),
+            "--seeds", seeds, "--seed-batch", str(len(batch)), "--workers", str(workers), "--no-progress",
+            "--min-success-rate", "0", "--resume", "--out", str(target),
+        ]  # fmt: skip
+        codes.append(subprocess.run(command, cwd=ROOT).returncode)
+    from keras_rl.runs.provenance import cpu_model, library_versions
+
+    same_machine = entry["cpu_models"] == [cpu_model()]
+    mine = library_versions(entry["framework"])
+    same_versions = all(mine.get(k) == v for k, v in entry["versions"].items() if k not in ("keras_rl", "torch"))
+    seeds = {}
+    for seed in entry["seeds"]:
+        theirs, ours = committed / f"seed_{seed}" / "episodes.csv", target / f"seed_{seed}" / "episodes.csv"
+        seeds[seed] = first_divergence(seed_rows(theirs), seed_rows(ours)).as_dict() if ours.is_file() else None
+    exact = sum(d is not None and d["first_episode"] is None for d in seeds.values())
+    result = {
+        "set": entry["set"],
+        "exit_codes": codes,
+        "same_cpu_and_versions": same_machine and same_versions,
+        "bit_exact": exact,
+        "seeds": len(entry["seeds"]),
+        "divergences": {str(k): v for k, v in seeds.items() if v is None or v["first_episode"] is not None},
+    }
+    result["distribution_p"] = _distribution_p(committed, target, entry["seeds"])
+    if result["same_cpu_and_versions"]:
+        result["agrees"] = exact == len(entry["seeds"])
+        result["how"] = "bit for bit"
+    else:
+        result["agrees"] = result["distribution_p"] is not None and result["distribution_p"] >= 0.05
+        result["how"] = "as distributions (Mann-Whitney on final metric, p >= 0.05)"
+    return result
+
+
+def _distribution_p(committed: Path, target: Path, seeds: list[int]) -> float | None:
+    from keras_rl.report.stats import mann_whitney
+
+    def finals(folder: Path) -> list[float]:
+        out = []
+        for s in seeds:
+            path = folder / f"seed_{s}" / "summary.json"
+            if path.is_file():
+                value = json.loads(path.read_text()).get("final_metric")
+                if value is not None:
+                    out.append(float(value))
+        return out
+
+    a, b = finals(committed), finals(target)
+    if len(a) < 2 or len(b) < 2:
+        return None
+    if a == b:
+        return 1.0
+    return mann_whitney(a, b)[1]
+
+
+def rerun(patterns: list[str], out: Path, workers: int) -> list[dict]:
+    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+
+    entries = [e for e in manifest() if any(fnmatch.fnmatch(e["set"], p) for p in patterns)]
+    if not entries:
+        raise SystemExit(
+            f"error: no committed set matches {' '.join(patterns)} (python reproductions/manifest.py lists them)"
+        )
+    out.mkdir(parents=True, exist_ok=True)
+    results = []
+    for entry in entries:
+        cost = f"{len(entry['seeds'])} seeds, committed cost {entry['process_minutes']} process-min"
+        print(f"rerunning {entry['set']} ({cost})", flush=True)
+        results.append(rerun_set(entry, out, workers))
+        atomic_write_json(out / "rerun.json", results)
+        lines = ["| set | seeds | compared | agrees | bit-exact seeds | final-metric p |", "|---|---|---|---|---|---|"]
+        for r in results:
+            p = "-" if r["distribution_p"] is None else f"{r['distribution_p']:.3g}"
+            agrees = "yes" if r["agrees"] else "**no**"
+            lines.append(f"| `{r['set']}` | {r['seeds']} | {r['how']} | {agrees} | {r['bit_exact']} | {p} |")
+        atomic_write_text(out / "rerun.md", "# Rerun against the committed sets\n\n" + "\n".join(lines) + "\n")
+    return results
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--write", action="store_true", help="write results/MANIFEST.md and MANIFEST.json")
+    parser.add_argument("--rerun", nargs="+", metavar="SET", help="rerun the sets matching these patterns (fnmatch)")
+    parser.add_argument("--out", type=Path, help="where --rerun writes (a fresh folder, or one to resume)")
+    parser.add_argument("--workers", type=int, default=1)
+    args = parser.parse_args()
+    if args.rerun:
+        if args.out is None:
+            parser.error("--rerun needs --out")
+        if args.out.resolve().is_relative_to(RESULTS.resolve()):
+            parser.error("--out must not be inside results/: the rerun is compared with it, never written over it")
+        results = rerun(args.rerun, args.out, args.workers)
+        raise SystemExit(0 if all(r["agrees"] for r in results) else 1)
+    entries = manifest()
+    if not args.write:
+        print(markdown(entries))
+        return
+    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+
+    atomic_write_json(RESULTS / "MANIFEST.json", entries)
+    atomic_write_text(RESULTS / "MANIFEST.md", markdown(entries))
+    print(f"updated {RESULTS / 'MANIFEST.md'} and MANIFEST.json")
+
+
+if __name__ == "__main__":
+    main()
