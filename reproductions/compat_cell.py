@@ -90,6 +90,7 @@ def step_tests(out: Path, work: Path) -> dict:
             "2",
             "-p",
             "no:cacheprovider",
+            *[f"--deselect={test}" for test in DESELECTED],
             f"--junitxml={junit}",
         ],
         work / "tests.log",

@@ -170,9 +170,11 @@ def test_an_interrupted_evaluation_never_replaces_a_finished_one(short_run, monk
     path = short_run / "evaluation.json"
     finished = {"episodes": 3, "scores": [-1.0] * 3, "interrupted": False}
     path.write_text(json.dumps(finished))
-    real = evaluate.get_experiment("pendulum")
+    import keras_rl.registry as registry  # evaluate looks the experiment up there when it runs
+
+    real = registry.get_experiment("pendulum")
     wrapped = dataclasses.replace(real, make_env=lambda *a, **k: InterruptAt(real.make_env(*a, **k)))
-    monkeypatch.setattr(evaluate, "get_experiment", lambda name: wrapped)
+    monkeypatch.setattr(registry, "get_experiment", lambda name: wrapped)
     result = evaluate.evaluate_run(short_run, episodes=5)
     assert result["interrupted"] and len(result["scores"]) == 1
     assert json.loads(path.read_text()) == finished

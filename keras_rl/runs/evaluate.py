@@ -1,4 +1,6 @@
-"""Reload a run folder's config and saved policy, and play greedy episodes with it."""
+"""Greedy episodes of a run's policy: ``evaluate`` on a saved run, and evaluations during
+training (``reproduce --eval-every``). Nothing heavy is imported at the top: the CLI reads
+``EvalSchedule`` before TensorFlow loads, so bad input is refused at once."""
 
 from __future__ import annotations
 
@@ -10,14 +12,14 @@ from typing import Any
 import numpy as np
 
 from keras_rl.errors import ConfigError, RunFolderError
-from keras_rl.registry import build_agent, get_experiment
 from keras_rl.runs.files import atomic_write_bytes, atomic_write_json
 from keras_rl.runs.signals import sigterm_as_interrupt
-from keras_rl.seeding import configure_tensorflow, seed_everything
 
 
 def load_run_config(run_dir: Path):
     """The experiment and config a run folder was made with, or a RunFolderError."""
+    from keras_rl.registry import get_experiment
+
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise RunFolderError(f"run folder {str(run_dir)!r} does not exist")
@@ -52,6 +54,9 @@ def evaluate_run(
     replaces a finished one: it goes to ``evaluation.interrupted.json``."""
     if episodes <= 0:
         raise ConfigError(f"--episodes must be positive, got {episodes}")
+    from keras_rl.registry import build_agent
+    from keras_rl.seeding import configure_tensorflow, seed_everything
+
     experiment, config = load_run_config(run_dir)
     held = _held_episodes(Path(run_dir) / EVALUATION)
     if held is not None and held > episodes and not overwrite:
