@@ -10,6 +10,9 @@ step without its file; ``--redo STEP`` reruns one):
 - ``tests``: the fast suite (``pytest -m "not slow"``), its counts and the names of failures;
 - ``replay``: committed seed 0 of each post (Keras) rerun whole: bit for bit, or the first
   differing episode and its columns;
+- ``probe``: ``reproductions/compat_probe.py`` here and under ``--reference-python``: each
+  post's initial weights, first action and one update on a fixed batch, compared (the largest
+  absolute difference of each: 0 for the same bits, ~1e-7 for float32 rounding);
 - ``check``: ``keras-rl check pendulum cartpole mountaincar --tier smoke`` against the committed
   baselines (its ``check.json`` and ``check.md`` copied here as ``check-report.*``). A post
   found ``changed`` is checked again at the full tier before anyone calls it a break
@@ -39,7 +42,7 @@ sys.path.insert(0, str(ROOT))
 
 from keras_rl.runs.files import atomic_write_json, atomic_write_text  # noqa: E402
 
-STEPS = ("versions", "tests", "replay", "check", "speed")
+STEPS = ("versions", "tests", "replay", "probe", "check", "speed")
 # Tests of the repository's committed state, not of the libraries: the matrix table is made from
 # the cell folders, which a running cell is still writing.
 DESELECTED = ("tests/test_results_docs.py::test_the_version_matrix_table_is_generated_from_the_committed_cells",)
@@ -144,6 +147,21 @@ def step_replay(out: Path, work: Path) -> dict:
     return {"posts": posts}
 
 
+def step_probe(out: Path, work: Path, reference_python: str) -> dict:
+    script = str(ROOT / "reproductions" / "compat_probe.py")
+    dumps = {}
+    for side, python in (("reference", reference_python), ("cell", sys.executable)):
+        dumps[side] = work / f"probe-{side}.npz"
+        code, _ = run([python, script, "dump", str(dumps[side])], work / f"probe-{side}.log", 900)
+        if code != 0:
+            shutil.copy(work / f"probe-{side}.log", out / f"probe-{side}.log")
+            return {"error": f"compat_probe.py dump failed under {python} (probe-{side}.log)"}
+    sys.path.insert(0, str(ROOT / "reproductions"))
+    from compat_probe import compare
+
+    return {"max_abs_difference": compare(dumps["reference"], dumps["cell"])}
+
+
 def _check(out: Path, work: Path, posts: list[str], tier: str, name: str) -> dict:
     check_dir = work / name
     shutil.rmtree(check_dir, ignore_errors=True)
@@ -240,8 +258,8 @@ def main() -> None:
             continue
         print(f"[{args.cell}] {step} ...", flush=True)
         start = time.perf_counter()
-        if step == "speed":
-            result = step_speed(out, work, args.reference_python)
+        if step in ("speed", "probe"):
+            result = globals()[f"step_{step}"](out, work, args.reference_python)
         else:
             result = globals()[f"step_{step}"](out, work)
         result["step_seconds"] = round(time.perf_counter() - start, 1)

@@ -74,6 +74,20 @@ def replay_text(entry: dict) -> str:
     return f"differs from ep {d['first_episode']}{columns}"
 
 
+def probe_text(cell: dict) -> str:
+    """The largest difference, over the posts, of the first numbers from the reference's."""
+    probe = cell.get("probe")
+    if probe is None:
+        return "not run"
+    if "error" in probe:
+        return "**failed**"
+    diffs = [v for post in probe["max_abs_difference"].values() for v in post.values()]
+    if any(isinstance(v, str) for v in diffs):
+        return "**other shapes**"
+    worst = max(diffs)
+    return "same bits" if worst == 0 else f"rounding ({worst:.0e})" if worst < 1e-5 else f"**differ ({worst:.1e})**"
+
+
 def post_verdict(entry: dict) -> str:
     """A post-cell test on its own, at its rule's alpha (the check adjusts over its posts)."""
     return "changed" if entry["p"] < entry.get("alpha", 0.01) else "consistent"
@@ -99,22 +113,23 @@ def speed_text(cell: dict) -> str:
 def table() -> str:
     header = (
         "| cell | TensorFlow | Keras | Gymnasium | NumPy | install | fast tests | replay 000 | replay 003 | replay 001 "
-        "| check 000 | check 003 | check 001 | ms / reference (000 / 003 / 001) | cost (min) |"
+        "| first numbers | check 000 | check 003 | check 001 | ms / reference (000 / 003 / 001) | cost (min) |"
     )
     lines = [header, "|" + "---|" * (header.count("|") - 1)]
     for name, install, cell in load_cells():
         versions = versions_text(install, cell)
         if install["exit_code"] != 0:
-            lines.append(f"| {name} | {' | '.join(versions)} | **failed** (see install.json) |" + " - |" * 9)
+            lines.append(f"| {name} | {' | '.join(versions)} | **failed** (see install.json) |" + " - |" * 10)
             continue
         if cell is None:
-            lines.append(f"| {name} | {' | '.join(versions)} | ok |" + " not run yet |" * 9)
+            lines.append(f"| {name} | {' | '.join(versions)} | ok |" + " not run yet |" * 10)
             continue
         replays = [replay_text(cell["replay"]["posts"][p]) for p in POSTS]
         checks = [check_text(cell, p) for p in POSTS]
         lines.append(
             f"| {name} | {' | '.join(versions)} | ok ({install['seconds'] / 60:.0f} min) | {tests_text(cell)} | "
-            f"{' | '.join(replays)} | {' | '.join(checks)} | {speed_text(cell)} | {cell['seconds'] / 60:.0f} |"
+            f"{' | '.join(replays)} | {probe_text(cell)} | {' | '.join(checks)} | {speed_text(cell)} | "
+            f"{cell['seconds'] / 60:.0f} |"
         )
     return "\n".join(lines)
 
@@ -167,6 +182,11 @@ def page() -> str:
             "- **replay**: the post's committed seed 0 (Keras, faithful variant) rerun whole in the cell; `bit-exact`",
             "  means every column of `episodes.csv` but `wall_seconds` is equal, otherwise the first episode that",
             "  differs and its columns (`replay.json`).",
+            "- **first numbers**: `reproductions/compat_probe.py` in the cell and in the reference: each post's",
+            "  initial weights, first action, and losses and weights after one update on a fixed batch; the",
+            "  largest absolute difference over all of them (`probe.json`). `same bits`; `rounding`: float32",
+            "  rounding in a kernel (under 1e-5), which a long run then amplifies into different episodes",
+            "  without changing what is learned; `differ`: the computation itself changed.",
             "- **check**: `keras-rl check pendulum cartpole mountaincar --tier smoke` against the committed",
             "  baselines (`check-report.md`). Each post-cell test has a false-alarm rate under 1%",
             "  (`results/checks/calibration.md`), so over 30 or so of them about one false alarm is expected: a",

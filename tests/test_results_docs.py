@@ -116,6 +116,7 @@ def test_the_matrix_table_shows_failed_installs_unrun_cells_and_divergences(tmp_
             "full": {"posts": {"pendulum": {"verdict": "consistent", "p": 0.3}}},
         },
         "speed": {"cell_over_reference": {gen.SPEED_KEYS[p]: 1.1 for p in posts}},
+        "probe": {"max_abs_difference": {p: {"initial": 0.0, "loss": 9e-8} for p in posts}},
         "seconds": 1200.0,
     }
     (tmp_path / "ran" / "cell.json").write_text(json.dumps(cell))
@@ -124,6 +125,7 @@ def test_the_matrix_table_shows_failed_installs_unrun_cells_and_divergences(tmp_
     ran = rows["ran"]
     assert "2.1.3" in ran and "**2 failed**, 900 passed" in ran and "differs from ep 3 (score)" in ran
     assert "changed (p=0.004); full tier: consistent (p=0.3)" in ran and "1.10 / 1.10 / 1.10" in ran
+    assert "rounding (9e-08)" in ran
     short = gen.short_table()
     assert "000, 001 (2/3)" in short and "changed or no verdict: 000" in short and "install failed" in short
 
