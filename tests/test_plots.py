@@ -54,3 +54,20 @@ def test_the_sweep_figure_overlays_each_points_median_with_its_iqr(drawn, tmp_pa
     medians = {line.get_label(): list(line.get_ydata()) for line in ax.get_lines()}
     assert medians["a (median of 3 seeds)"] == [r["metric"] for r in long]  # every seed has the same metric here
     assert len(ax.collections) == 2  # one IQR band per point
+
+
+def test_a_curve_that_cannot_be_drawn_is_a_warning_not_an_error(tmp_path, monkeypatch, capsys):
+    """The runs are on disk by then: a plot that fails (here matplotlib refusing the data)
+    must not turn a finished command into a crash (issue #22)."""
+    import keras_rl.report.plots as plots
+    from keras_rl.posts.pendulum import PendulumDDPGConfig
+    from keras_rl.runs.jobs import SeedJob
+
+    def refuse(*args, **kwargs):
+        raise ValueError("Axis limits cannot be NaN or Inf")
+
+    monkeypatch.setattr(plots, "plot_seed_curve", refuse)
+    job = SeedJob.of(PendulumDDPGConfig.for_variant("faithful", seed=4), tmp_path / "seed_4", command="x")
+    plots.draw_job_curves(job)
+    err = capsys.readouterr().err
+    assert "warning: could not draw" in err and "ValueError: Axis limits" in err and "seed_4" in err

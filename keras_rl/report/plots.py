@@ -139,7 +139,9 @@ def plot_sweep(
 def draw_job_curves(job) -> None:
     """Each seed folder of a finished (or stopped) job gets its ``curve.png``: the commands
     pass this to ``run_jobs(..., after_job=...)``. A full disk is a warning: the run's own
-    files and summary are what count."""
+    files and summary are what count, so any failure to draw (a full disk, a damaged file,
+    matplotlib refusing odd data) is a warning that names the file, never an error after the
+    training is done."""
     import sys
 
     from keras_rl.registry import get_experiment
@@ -149,5 +151,8 @@ def draw_job_curves(job) -> None:
         experiment = get_experiment(member.experiment)
         try:
             plot_seed_curve(Path(member.out_dir), experiment, experiment.config_cls.from_dict(member.config))
-        except OSError as exc:
-            print(f"warning: could not draw {Path(member.out_dir) / 'curve.png'}: {exc}", file=sys.stderr)
+        except Exception as exc:  # noqa: BLE001 - the runs are written; a missing plot must not fail the command
+            print(
+                f"warning: could not draw {Path(member.out_dir) / 'curve.png'}: {type(exc).__name__}: {exc}",
+                file=sys.stderr,
+            )
