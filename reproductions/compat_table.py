@@ -176,6 +176,11 @@ def page() -> str:
             "",
             f"{len(done)} cells run, {cost:.0f} minutes in all on this project's machine (2 cores).",
             "",
+            *[
+                f"An installed TensorFlow is kept: [{p.name}]({p.name}) (`bash reproductions/compat_keep_tf.sh`)."
+                for p in sorted(COMPAT.glob("keep-tf*.md"))
+            ],
+            "",
             "How to read it:",
             "",
             '- **fast tests**: `pytest -m "not slow"` in the cell (`tests.json`; a failing suite\'s log is kept).',
