@@ -53,7 +53,11 @@ class Pass:
         out = done.stdout + done.stderr
         lost = [str(p) for p, data in before.items() if not p.is_file() or p.read_bytes() != data]
         ok = done.returncode == code and message in out and "Traceback" not in out and not lost
-        last = next((line for line in reversed(done.stderr.splitlines()) if line.strip()), "")
+        noise = ("I0000", "W0000", "WARNING: All log messages")  # TensorFlow's start-up lines
+        lines = [
+            line for line in (done.stderr + done.stdout).splitlines() if line.strip() and not line.startswith(noise)
+        ]
+        last = next((line for line in lines if line.startswith("error")), lines[-1] if lines else "")
         seen = f"exit {done.returncode}; {last[:160]}" + (f"; LOST {lost}" if lost else "")
         self.outcomes.append(Outcome(item, "keras-rl " + " ".join(args), ok, seen))
         return done
