@@ -15,9 +15,11 @@ with that switch flipped alone, seeds 0-9 at the post's budget. Every number com
 
 The reading is mechanical: "changes the success rate" when that interval excludes 0; else
 "faster"/"slower" when both the Mann-Whitney test (p < 0.05) and the interval of the median
-difference say so, with a caveat when only one does; else "no measurable effect at 10 seeds".
-An interval that includes 0 is no evidence of no effect; the interval
-says how large an effect the 10 seeds leave room for.
+difference say so, with a caveat when only one does. Else no effect was shown, and the
+equivalence tests against the margins set before the 30-seed runs (``report/equivalence.py``:
+success rate within ±0.15, median episodes to threshold within ±10%, TOST) say whether that
+means "equivalent within the margins" or only "inconclusive at n seeds": an interval that
+includes 0 is no evidence of no effect.
 """
 
 from __future__ import annotations
@@ -68,7 +70,7 @@ def _summaries(folder: Path) -> list:
     return [RunSummary.read(d) for d in sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1]))]
 
 
-def _reading(row: dict, statuses: list[str]) -> str:
+def _reading(row: dict, statuses: list[str], faithful: dict, budget: int) -> str:
     if row["unfinished"] and len(row["unfinished"]) == row["seeds"]:
         return "every seed stopped early: " + ", ".join(sorted(set(statuses)))
     rate, diff = row["success_difference"], row.get("median_difference")
@@ -87,7 +89,17 @@ def _reading(row: dict, statuses: list[str]) -> str:
                 else f"{direction} by the median's interval, but Mann-Whitney p >= 0.05"
             )
         )
-    return "no measurable effect at 10 seeds"
+    from keras_rl.report.equivalence import framework_verdict
+
+    _, judged = framework_verdict(
+        (row["successes"], faithful["successes"]),
+        (row["seeds"], faithful["seeds"]),
+        (row["episodes_to_threshold"], faithful["episodes_to_threshold"]),
+        budget,
+    )
+    if all(e.reading == "equivalent within the margin" for e in judged):
+        return "no effect: equivalent within the margins (TOST)"
+    return f"no effect shown; inconclusive at {row['seeds']} seeds (TOST)"
 
 
 def table(experiment: str) -> str:
@@ -123,6 +135,7 @@ def table(experiment: str) -> str:
     if "faithful" not in summaries:
         return "\n".join(lines[:2] + ["Not run yet: no faithful runs in " + source["base"] + "."])
     result = {r["point"]: r for r in analyse_sweep(summaries, "faithful")["points"]}
+    budget = summaries["faithful"][0].budget_episodes
     g = lambda v: "n/a" if v is None else f"{v:g}"  # noqa: E731
     p = lambda v: "n/a" if v is None or v != v else f"{v:.2g}"  # noqa: E731
     for ledger_id, label, _folder in rows:
@@ -143,7 +156,7 @@ def table(experiment: str) -> str:
             f"| {ledger_id} | {label} | {r['successes']}/{r['seeds']}{stopped} "
             f"| {rate['estimate']:+.2f} [{rate['low']:+.2f}, {rate['high']:+.2f}] | {p(r['fisher_p'])} "
             f"| {spread} | {diff_text} | {p(r.get('mann_whitney_p'))} "
-            f"| {_reading(r, [x.status for x in summaries[label]])} |"
+            f"| {_reading(r, [x.status for x in summaries[label]], result['faithful'], budget)} |"
         )
     return "\n".join(lines)
 

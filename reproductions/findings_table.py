@@ -166,10 +166,12 @@ def short_table() -> str:
 
 def compare_table() -> str:
     """One row per committed ``results/compare/**/result.json``."""
+    from keras_rl.report.equivalence import framework_verdict
+
     lines = [
         "| experiment | torch init | success keras / torch (Fisher p) | episodes to threshold, median keras / torch "
-        "| keras - torch [95% CI] | Mann-Whitney p | report |",
-        "|---|---|---|---|---|---|---|",
+        "| keras - torch [95% CI] | Mann-Whitney p | equivalence, success ±0.15 / median ±10% (TOST) | report |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     g = lambda v: "-" if v is None else f"{v:.2g}"  # noqa: E731  (p-values)
     m = lambda v: "-" if v is None else f"{v:g}"  # noqa: E731  (medians, exact)
@@ -179,10 +181,18 @@ def compare_table() -> str:
         d = r["median_difference"]
         diff = "-" if d is None else f"{d['estimate']:g} [{d['low']:g}, {d['high']:g}]"
         link = path.parent.relative_to(ROOT / "results") / "report.md"
+        _, judged = framework_verdict(
+            (k["successes"], t["successes"]),
+            (len(k["seeds"]), len(t["seeds"])),
+            (k["episodes_to_threshold"], t["episodes_to_threshold"]),
+            r["budget"],
+        )
+        readings = " / ".join(e.reading.replace(" within the margin", "") for e in judged)
         lines.append(
             f"| {r['experiment']} ({r['variant']}) | {'matched to Keras' if r['matched_init'] else 'torch default'} "
             f"| {k['successes']}/{len(k['seeds'])} / {t['successes']}/{len(t['seeds'])} ({g(r['fisher_p'])}) "
-            f"| {m(k['median'])} / {m(t['median'])} | {diff} | {g(r['mann_whitney'][1])} | [{link}]({link}) |"
+            f"| {m(k['median'])} / {m(t['median'])} | {diff} | {g(r['mann_whitney'][1])} | {readings} "
+            f"| [{link}]({link}) |"
         )
     return "\n".join(lines)
 

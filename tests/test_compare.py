@@ -109,7 +109,8 @@ def test_compare_writes_a_well_formed_report_whose_numbers_the_csvs_reproduce(co
     result = json.loads((out / "result.json").read_text())  # the same numbers, for machines
     assert result["experiment"] == "cartpole" and result["fisher_p"] == 1.0 and result["matched_init"] is False
     assert result["verdict"] in report
-    assert "No detectable difference in success (success 0/2 (Keras) vs 0/2 (PyTorch)" in report
+    assert "Inconclusive at 2 seeds each" in report and "success 0/2 (Keras) vs 0/2 (PyTorch)" in report
+    assert "margin -0.15 to 0.15, set before the runs" in report  # a TOST verdict, not "no detectable difference"
     for fw, folder in (("keras", "faithful"), ("torch", "faithful-torch")):
         finals, walls, ms = [], [], []
         for seed in (0, 1):

@@ -17,6 +17,7 @@ from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import frameworks
 from keras_rl.registry import get_experiment
+from keras_rl.report.equivalence import framework_verdict
 from keras_rl.report.plots import draw_job_curves, plt, save_figure
 from keras_rl.report.stats import episodes_to_threshold_stats, fisher_exact, iqm_ci, mann_whitney, median_difference_ci
 from keras_rl.runs.backends import backend_for
@@ -108,31 +109,19 @@ def analyse(runs: dict[str, list[dict[str, Any]]], budget: int) -> dict[str, Any
 
 
 def verdict(result: dict[str, Any], n: int) -> str:
-    diff, (_, p) = result["median_difference"], result["mann_whitney"]
+    """The equivalence verdict (``report/equivalence.py``: TOST against the margins set before
+    the runs), with the tests of a difference beside it."""
     k, t = result["frameworks"]["keras"], result["frameworks"]["torch"]
-    rates = (
-        f"success {k['successes']}/{n} (Keras) vs {t['successes']}/{n} (PyTorch), Fisher p = {result['fisher_p']:.2f}"
+    headline, judged = framework_verdict(
+        (k["successes"], t["successes"]),
+        (len(k["seeds"]), len(t["seeds"])),
+        (k["episodes_to_threshold"], t["episodes_to_threshold"]),
+        result["budget"],
     )
-    if result["fisher_p"] < 0.05:
-        more = "Keras" if k["successes"] > t["successes"] else "PyTorch"
-        return f"The frameworks differ: {more} succeeds more often ({rates}, {n} seeds each)."
-    if diff is None or not np.isfinite(p):
-        return (
-            f"No detectable difference in success ({rates}), and too few successes to compare "
-            "episodes-to-threshold: no verdict on speed of learning."
-        )
-    excludes_zero = diff.low > 0 or diff.high < 0
-    if p < 0.05 and excludes_zero:
-        faster = "Keras" if diff.estimate < 0 else "PyTorch"
-        return (
-            f"The frameworks differ: {faster} reaches the threshold sooner (median difference {diff}, "
-            f"Mann-Whitney p = {p:.3f}, {n} seeds each; {rates})."
-        )
-    return (
-        f"No detectable difference between the frameworks at {n} seeds: {rates}; the median difference in "
-        f"episodes to threshold is {diff} (95% bootstrap CI includes 0) and Mann-Whitney p = {p:.2f}; "
-        f"a difference smaller than that interval could still exist."
-    )
+    p = result["mann_whitney"][1]
+    tests = f"Fisher p = {result['fisher_p']:.2f}" + (f", Mann-Whitney p = {p:.2f}" if np.isfinite(p) else "")
+    rates = f"success {k['successes']}/{len(k['seeds'])} (Keras) vs {t['successes']}/{len(t['seeds'])} (PyTorch)"
+    return f"{headline}. {rates}; " + "; ".join(e.sentence() for e in judged) + f". Tests of a difference: {tests}."
 
 
 def _jsonable(value: Any) -> Any:

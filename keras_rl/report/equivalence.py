@@ -122,3 +122,28 @@ def median_ratio_equivalence(
     return Equivalence(
         "median episodes to threshold, ratio", tost.estimate, tost, test, bounds, 1.0, n, read(tost, test, bounds, 1.0)
     )
+
+
+def episodes_with_censoring(hits: list[int], seeds: int) -> list[int | None]:
+    """An arm's episodes to threshold over all its seeds: its successes' episodes, and None for
+    each seed that did not succeed (what ``median_ratio_equivalence`` counts as budget + 1)."""
+    return [*hits, *([None] * (seeds - len(hits)))]
+
+
+def framework_verdict(
+    successes: tuple[int, int], seeds: tuple[int, int], hits: tuple[list[int], list[int]], budget: int
+) -> tuple[str, list[Equivalence]]:
+    """Two arms (Keras, PyTorch) judged on both pre-set margins: the headline and the two verdicts."""
+    success = success_rate_equivalence(successes[0], seeds[0], successes[1], seeds[1])
+    speed = median_ratio_equivalence(
+        episodes_with_censoring(hits[0], seeds[0]), episodes_with_censoring(hits[1], seeds[1]), budget
+    )
+    readings = {success.reading, speed.reading}
+    n = f"{seeds[0]} seeds each" if seeds[0] == seeds[1] else f"{seeds[0]} and {seeds[1]} seeds"
+    if "different" in readings:
+        headline = "The frameworks differ"
+    elif readings == {"equivalent within the margin"}:
+        headline = "Equivalent within the margins set before the runs"
+    else:
+        headline = f"Inconclusive at {n}: neither a difference nor equivalence within the margins is shown"
+    return headline, [success, speed]
