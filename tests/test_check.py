@@ -379,3 +379,24 @@ def _load_script(path):
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+@pytest.mark.slow
+def test_the_rate_given_one_baseline_is_what_drawing_new_seeds_gives():
+    """Exact by convolution of the gaps against a Monte Carlo of new seeds, for one baseline."""
+    from keras_rl.check.statistics import false_alarm_rate_given_baseline, rejection_region
+
+    rng = np.random.default_rng(7)
+    baseline = np.sort(rng.random(12))
+    exact = false_alarm_rate_given_baseline(baseline, 5, rejection_region(5, 12, 0.1))
+    draws = 20_000
+    alarms = sum(decide(baseline, rng.random(5), "final_metric", 0.1).changed for _ in range(draws))
+    assert abs(alarms / draws - exact) < 4 * np.sqrt(exact * (1 - exact) / draws)
+
+
+def test_the_spread_over_baselines_averages_to_the_exact_rate():
+    from keras_rl.check.statistics import baseline_spread
+
+    spread = baseline_spread(6, 30, 0.01, baselines=3_000)
+    assert spread["p5"] < spread["median"] < spread["p95"] and 0 < spread["share_above_alpha"] < 1
+    assert spread["mean"] == pytest.approx(exact_false_alarm_rate(6, 30, 0.01), abs=0.0008)

@@ -247,3 +247,55 @@ def family_false_alarm_rate(rates: Sequence[float]) -> float:
     """The chance that at least one of independent tests with these false-alarm rates fires:
     the whole command's false-alarm rate (each post's seeds are its own runs)."""
     return float(1.0 - np.prod([1.0 - r for r in rates]))
+
+
+def rejection_region(n_new: int, n_baseline: int, alpha: float) -> np.ndarray:
+    """For untied values: which Mann-Whitney U of the new sample (0 .. n * m, U counting the
+    baseline values below each new one) ``decide`` calls changed, as a boolean mask."""
+    total = n_new + n_baseline
+    low = n_new * (n_new + 1) // 2
+    region = np.zeros(n_new * n_baseline + 1, bool)
+    for u in range(n_new * n_baseline + 1):
+        new = _ranks_with_sum(total, n_new, low + u)
+        chosen = set(new)
+        base = [r for r in range(1, total + 1) if r not in chosen]
+        region[u] = decide(base, new, "final_metric", alpha).changed
+    return region
+
+
+def false_alarm_rate_given_baseline(baseline_quantiles: np.ndarray, n_new: int, region: np.ndarray) -> float:
+    """The false-alarm rate of one fixed baseline: new seeds drawn from the same continuous
+    distribution F, the baseline's values given as their quantiles F(b). Each new value falls
+    into a gap between baseline values with the gap's probability (the spacings), so U, the
+    sum over new values of the baseline values below each, has an exact distribution: the
+    n-fold convolution of the gaps' distribution."""
+    q = np.sort(np.asarray(baseline_quantiles, float))
+    gaps = np.diff(np.concatenate([[0.0], q, [1.0]]))  # P(a new value has k baseline values below it)
+    pmf = np.array([1.0])
+    for _ in range(n_new):
+        pmf = np.convolve(pmf, gaps)
+    return float(pmf[region].sum())
+
+
+def baseline_spread(
+    n_new: int, n_baseline: int, alpha: float, baselines: int = 4_000, rng: np.random.Generator | None = None
+) -> dict[str, float]:
+    """How the check's false-alarm rate depends on which baseline of ``n_baseline`` seeds it was
+    given: over ``baselines`` baselines drawn from one continuous distribution (the rank test
+    is distribution-free, so uniform quantiles stand for any), each baseline's exact rate.
+    Returns its mean (the rate averaged over baselines), 5th, 50th and 95th percentiles, and
+    the share of baselines whose rate exceeds alpha."""
+    rng = rng if rng is not None else np.random.default_rng(3)
+    region = rejection_region(n_new, n_baseline, alpha)
+    rates = np.array(
+        [false_alarm_rate_given_baseline(rng.random(n_baseline), n_new, region) for _ in range(baselines)]
+    )
+    p5, p50, p95 = np.percentile(rates, [5, 50, 95])
+    return {
+        "mean": float(rates.mean()),
+        "p5": float(p5),
+        "median": float(p50),
+        "p95": float(p95),
+        "share_above_alpha": float((rates > alpha).mean()),
+        "baselines": baselines,
+    }
