@@ -176,6 +176,11 @@ def page() -> str:
             "",
             f"{len(done)} cells run, {cost:.0f} minutes in all on this project's machine (2 cores).",
             "",
+            *(
+                ["Why the bits change where they do, with the evidence: [FINDINGS.md](FINDINGS.md).", ""]
+                if (COMPAT / "FINDINGS.md").is_file()
+                else []
+            ),
             *[
                 f"An installed TensorFlow is kept: [{p.name}]({p.name}) (`bash reproductions/compat_keep_tf.sh`)."
                 for p in sorted(COMPAT.glob("keep-tf*.md"))
