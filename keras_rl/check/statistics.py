@@ -287,9 +287,7 @@ def baseline_spread(
     the share of baselines whose rate exceeds alpha."""
     rng = rng if rng is not None else np.random.default_rng(3)
     region = rejection_region(n_new, n_baseline, alpha)
-    rates = np.array(
-        [false_alarm_rate_given_baseline(rng.random(n_baseline), n_new, region) for _ in range(baselines)]
-    )
+    rates = np.array([false_alarm_rate_given_baseline(rng.random(n_baseline), n_new, region) for _ in range(baselines)])
     p5, p50, p95 = np.percentile(rates, [5, 50, 95])
     return {
         "mean": float(rates.mean()),
