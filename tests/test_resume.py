@@ -251,6 +251,8 @@ def test_a_corrupt_checkpoint_is_refused_and_the_folder_left_alone(tmp_path):
     from keras_rl.runs.checkpoint import write_checkpoint
 
     write_checkpoint(seed_dir, {"anything": 1})
+    summary = json.loads((seed_dir / "summary.json").read_text())  # a completed run with the same budget is kept
+    (seed_dir / "summary.json").write_text(json.dumps({**summary, "status": "interrupted"}))
     ckpt = seed_dir / "checkpoint.pkl"
     ckpt.write_bytes(ckpt.read_bytes()[:-3])
     before = {p.name: p.read_bytes() for p in seed_dir.iterdir()}

@@ -342,7 +342,9 @@ def test_torch_runs_record_the_torch_version(tmp_path):
 # -- what the user is told ------------------------------------------------------------------------------
 def test_the_end_of_a_run_says_where_pass_or_fail_and_why_exit_1(tiny):
     out, proc = tiny
-    assert f"{out / 'seed_1'}/: config.json, curve.png, episodes.csv, q_network.weights.h5, summary.json" in proc.stdout
+    # a solo run that played its whole budget keeps its final checkpoint, to be extended (--resume --episodes N)
+    files = "checkpoint.pkl, config.json, curve.png, episodes.csv, q_network.weights.h5, summary.json"
+    assert f"{out / 'seed_1'}/: {files}" in proc.stdout
     assert "FAIL (metric >= 475 within 2 episodes: not reached" in proc.stdout
     assert "constantly achieves 500 steps" in proc.stdout  # the post's own claim beside it
     assert "criterion not met: 0/1 seeds succeeded, need 100%" in proc.stderr
