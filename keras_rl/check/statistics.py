@@ -199,13 +199,8 @@ def exact_false_alarm_rate(n_new: int, n_baseline: int, alpha: float) -> float:
         for k in range(min(rank, n_new), 0, -1):
             for s, c in counts[k - 1].items():
                 counts[k][s + rank] = counts[k].get(s + rank, 0) + c
-    alarms = 0
-    for rank_sum, count in counts[n_new].items():
-        new = _ranks_with_sum(total, n_new, rank_sum)
-        chosen = set(new)
-        base = [r for r in range(1, total + 1) if r not in chosen]
-        if decide(base, new, "final_metric", alpha).changed:
-            alarms += count
+    region, low = rejection_region(n_new, n_baseline, alpha), n_new * (n_new + 1) // 2  # U = rank sum - low
+    alarms = sum(count for rank_sum, count in counts[n_new].items() if region[rank_sum - low])
     return alarms / comb(total, n_new)
 
 
