@@ -4,6 +4,7 @@
     python benchmarks/seed_batch.py --experiment cartpole    # post 003, 250 episodes per seed
     python benchmarks/seed_batch.py --experiment mountaincar # post 001, 4 episodes (999 steps) per seed
     python benchmarks/seed_batch.py --table                  # the targets table of issue #18, all posts
+    python benchmarks/seed_batch.py --experiment cartpole --episodes 600 --finished-seeds 10  # mask or shrink
 
 Part 1 (one process, one TensorFlow thread): one solo seed, then S = 2, 4, 8, 10 and 16
 seeds in one ``--seed-batch`` run, every seed playing its own episodes. The ratio is the
@@ -72,15 +73,49 @@ def solo_seconds(experiment: str, episodes: int) -> tuple[float, int]:
         return time.perf_counter() - start, summary.total_steps
 
 
-def batch_seconds(experiment: str, seeds: int, episodes: int) -> tuple[float, int]:
-    """A batch's wall time and vector steps (its longest seed's env steps)."""
+def batch_seconds(
+    experiment: str, seeds: int, episodes: int, finished_seeds: str | None = None, keep: list | None = None
+) -> tuple[float, int]:
+    """A batch's wall time and vector steps (its longest seed's env steps). ``keep``: a list
+    that gets each seed's episodes (all columns but the wall time)."""
+    from keras_rl.runs.files import read_episodes
     from keras_rl.runs.loop import run_seeds as run_seed_batch
 
     exp, configs = _configs(experiment, range(seeds), episodes)
     with tempfile.TemporaryDirectory() as tmp:
+        dirs = [Path(tmp) / f"seed_{s}" for s in range(seeds)]
         start = time.perf_counter()
-        summaries = run_seed_batch(exp, configs, [Path(tmp) / f"seed_{s}" for s in range(seeds)], progress=False)
-        return time.perf_counter() - start, max(s.total_steps for s in summaries)
+        summaries = run_seed_batch(exp, configs, dirs, progress=False, finished_seeds=finished_seeds)
+        wall = time.perf_counter() - start
+        if keep is not None:
+            keep.extend(
+                [{k: v for k, v in r.items() if k != "wall_seconds"} for r in read_episodes(d / "episodes.csv")]
+                for d in dirs
+            )
+        return wall, max(s.total_steps for s in summaries)
+
+
+def mask_or_shrink(name: str, seeds: int, episodes: int, rounds: int) -> None:
+    """Whole runs of one batch under each policy for seeds that finish first, alternated."""
+    walls: dict[str, list[float]] = {"mask": [], "shrink": []}
+    runs: dict[str, list] = {"mask": [], "shrink": []}
+    for _ in range(rounds):
+        for policy in walls:
+            kept: list = []
+            walls[policy].append(batch_seconds(name, seeds, episodes, policy, kept)[0])
+            runs[policy].append(kept)
+    same = all(r == runs["mask"][0] for policy in runs for r in runs[policy])
+    mask, shrink = min(walls["mask"]), min(walls["shrink"])
+    print(
+        f"\n{name} ({FRAMEWORK[0]}), one batch of {seeds} seeds, {episodes} episodes each, whole runs "
+        f"({rounds} round{'s' * (rounds > 1)}, mask then shrink; best of each):"
+    )
+    print("| finished seeds | wall s (each round) | best | against mask |")
+    print("|---|---|---|---|")
+    for policy, best in (("mask", mask), ("shrink", shrink)):
+        each = ", ".join(f"{w:.1f}" for w in walls[policy])
+        print(f"| {policy} | {each} | {best:.1f} | {mask / best:.2f}x faster |")
+    print(f"every seed's episodes identical under both: {'yes' if same else 'NO'}")
 
 
 def learner_call_ms(experiment: str, seeds: int, calls: int = 300) -> float:
@@ -160,6 +195,15 @@ def main() -> None:
         default="keras",
         help="torch: the PyTorch ports (pendulum, mountaincar)",
     )
+    parser.add_argument(
+        "--finished-seeds",
+        type=int,
+        default=0,
+        metavar="S",
+        help="only: whole runs of one batch of S seeds with finished seeds masked, then shrunk "
+        "(--rounds times), and whether every seed's episodes are the same under both",
+    )
+    parser.add_argument("--rounds", type=int, default=1, help="rounds of --finished-seeds (default 1)")
     parser.add_argument("--skip-study", action="store_true", help="parts 1 and 2 only")
     parser.add_argument("--study-only", action="store_true", help="part 3 only")
     parser.add_argument(
@@ -178,6 +222,8 @@ def main() -> None:
     from keras_rl.seeding import configure_tensorflow
 
     configure_tensorflow(1)
+    if args.finished_seeds:
+        return mask_or_shrink(name, args.finished_seeds, episodes, args.rounds)
     if not args.study_only:
         parts_1_and_2(name, episodes)
     if args.skip_study:

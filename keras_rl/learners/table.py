@@ -49,6 +49,18 @@ STACKED: dict[tuple[str, str], Implementation] = {
 }
 """Seed-batched learners (``--seed-batch``): ``factory(configs, spec)`` for S seeds at once."""
 
+FINISHED_SEEDS: dict[tuple[str, str], str] = {}
+"""What a seed batch does with a seed that finishes before the others, where it is not
+``mask`` (the seed stays in the stacked update on rows of zeros): ``shrink`` rebuilds the
+stack without it (``runs/loop.PartsAxis``), so later updates cost what a smaller batch
+costs, for a rebuild and compile of a few seconds. Both give every seed the same bits
+(``tests/test_finished_seeds.py``); the choice is speed alone, by measurement
+(``benchmarks/seed_batch.py --finished-seeds``, docs/performance.md)."""
+
+
+def finished_seeds_default(experiment: str, framework: str) -> str:
+    return FINISHED_SEEDS.get((experiment, framework), "mask")
+
 
 def stacked_implementation(experiment: str, framework: str) -> Implementation:
     from keras_rl.errors import ConfigError

@@ -17,10 +17,13 @@ its run folder and summary. One learner holds the seed axis (``SeedAxis``):
 Every env step is a vector step: each running seed steps its env and stores its
 transitions (``Agent.store``); a seed whose episode ended resets its env at once; then one
 learner call trains every seed and picks every next action; then ended episodes are
-recorded. A seed that finishes (threshold, budget, or a non-finite loss of its own) is
-masked: its slice keeps stepping on rows of zeros so the others stay in lockstep, but
-nothing of it is recorded any more, and nothing of it reaches the other slices (the loss
-is a sum of per-seed losses; Adam and the soft update are elementwise).
+recorded. A seed that finishes (threshold, budget, or a non-finite loss of its own) stops
+its env and its records at once; in the learner it is masked (its slice keeps stepping on
+rows of zeros, and nothing of it reaches the other slices: the loss is a sum of per-seed
+losses, Adam and the soft update are elementwise) or, where the post's
+``learners/table.FINISHED_SEEDS`` says ``shrink``, the stack is rebuilt without it (never
+below two seeds). A slice computes the same bits in a stack of any size, so the two
+differ in speed only (``tests/test_finished_seeds.py``).
 
 Checkpoints (``--resume``): every ``checkpoint_every`` episodes per seed, and when a signal
 or the dispatcher stops the batch, every seed writes the state at the current vector step
@@ -50,7 +53,7 @@ import numpy as np
 from keras_rl.config import check_same_but_seed
 from keras_rl.errors import ConfigError, NonFiniteLossError
 from keras_rl.experiment import Experiment
-from keras_rl.learners.table import implementation, stacked_implementation
+from keras_rl.learners.table import finished_seeds_default, implementation, stacked_implementation
 from keras_rl.rngs import global_rng_state, set_global_rng_state
 from keras_rl.runs.checkpoint import delete_checkpoints, read_batch_checkpoints, write_checkpoint
 from keras_rl.runs.evaluate import EvalSchedule, TrainingEvaluator
@@ -108,6 +111,7 @@ def run_seeds(
     should_stop: Callable[[], bool] | None = None,
     command: str | None = None,
     evaluation: EvalSchedule | None = None,
+    finished_seeds: str | None = None,
 ) -> list[RunSummary]:
     """Train the seeds of ``configs`` (equal but for the seed) together to the threshold or
     the budget; write each one's folder and return their summaries.
@@ -120,13 +124,18 @@ def run_seeds(
     ``command`` is the command line to record (a job run elsewhere carries its driver's).
     ``evaluation``: greedy evaluations during training on envs of their own
     (``runs/evaluate.TrainingEvaluator``), which leave the training run as it would be without.
+    ``finished_seeds``: what a batch does with a seed that has finished while others run,
+    ``mask`` (it stays in the stack) or ``shrink`` (the stack is rebuilt without it; the
+    same bits, measured by ``tests/test_finished_seeds.py``); None takes the post's
+    (``learners/table.FINISHED_SEEDS``), chosen by speed. A resumed batch rebuilds the stack
+    its checkpoints record.
     """
     configs = list(configs)
     check_same_but_seed(configs)
     if len({c.episodes for c in configs}) != 1:
         raise ConfigError("seed-batched runs share one budget")
     configure_tensorflow(threads)
-    axis, envs = build_seed_axis(experiment, configs, envs)
+    axis, envs = build_seed_axis(experiment, configs, envs, finished_seeds)
     seeds = [_Seed(experiment, c, env, Path(d), axis.loss_names, command) for c, env, d in zip(configs, envs, out_dirs)]
     batch = [c.seed for c in configs]
     for s in seeds:
@@ -172,9 +181,11 @@ def run_seeds(
     return [s.final for s in seeds if s.final is not None]
 
 
-def build_seed_axis(experiment: Experiment, configs: list, envs: Sequence | None):
+def build_seed_axis(experiment: Experiment, configs: list, envs: Sequence | None, finished_seeds: str | None = None):
     """The seed axis for ``configs``, and each seed's env, built in the order a solo run
-    draws its initial weights (Keras seeded with the seed, env, then the learner)."""
+    draws its initial weights (Keras seeded with the seed, env, then the learner).
+    ``finished_seeds``: ``mask`` or ``shrink`` (``PartsAxis``) for a stacked learner; None
+    takes the post's (``learners/table.FINISHED_SEEDS``)."""
     c = configs[0]
     impl = implementation(experiment.name, c.framework)
     if len(configs) == 1:
@@ -194,21 +205,44 @@ def build_seed_axis(experiment: Experiment, configs: list, envs: Sequence | None
         from keras_rl.learners.stacked import SoloAsStack
 
         learner = SoloAsStack(impl.load()(c, spec))
-    else:
-        learner = stacked_implementation(experiment.name, c.framework).load()(configs, spec)
+        return PartsAxis([experiment.assemble(c, spec, learner, envs[0].action_space)], learner), envs
+    stack = stacked_implementation(experiment.name, c.framework).load()
+    learner = stack(configs, spec)
     agents = [experiment.assemble(config, spec, learner, env.action_space) for config, env in zip(configs, envs)]
-    return PartsAxis(agents, learner), envs
+    return (
+        PartsAxis(
+            agents,
+            learner,
+            rebuild=lambda keep: stack([configs[k] for k in keep], spec),
+            shrink=(finished_seeds or finished_seeds_default(experiment.name, c.framework)) == "shrink",
+        ),
+        envs,
+    )
 
 
 class PartsAxis:
     """Each seed's agent parts (``agents/skeleton.Agent``'s phases) and one learner that
-    holds the seed axis (stacked calls: ``[S, ...]`` in, ``[S, ...]`` out)."""
+    holds the seed axis (stacked calls: ``[S, ...]`` in, ``[S, ...]`` out).
 
-    def __init__(self, agents: list, learner):
-        self.agents, self.learner = agents, learner
+    ``live`` lists the seeds in the learner's stack, in stack order. Under the ``shrink``
+    policy for finished seeds, ``drop`` takes finished seeds out of the stack: the learner is
+    rebuilt (``rebuild``, for the given seeds) for the seeds still running, from their slices,
+    so each later call costs what a batch of that size costs. Under ``mask``, a finished seed
+    stays in the stack on rows of zeros."""
+
+    def __init__(self, agents: list, learner, rebuild: Callable[[list[int]], Any] | None = None, shrink=False):
+        self.agents, self.learner, self.rebuild, self.shrink = agents, learner, rebuild, shrink
         self.loss_names = tuple(learner.loss_names)
         self.batches: list[list] = [[] for _ in agents]
-        self.raw: np.ndarray = np.empty(0)  # each seed's action from the learner, before exploration
+        self.live = list(range(len(agents)))
+        self.parked: dict[int, dict] = {}  # a dropped seed's slice as it left the stack (its checkpoint)
+        self.raw: dict[int, Any] = {}  # each live seed's action from the learner, before exploration
+
+    def _act(self, states: np.ndarray) -> None:
+        self.raw = dict(zip(self.live, self.learner.act(states)))
+
+    def _states(self) -> np.ndarray:
+        return np.stack([self.agents[k].state for k in self.live])
 
     def begin(self, k: int, obs) -> None:
         self.agents[k].start_episode(obs)
@@ -216,9 +250,9 @@ class PartsAxis:
     def first_actions(self) -> None:
         for agent in self.agents:
             agent.reset_episode_stats()
-        self.raw = self.learner.act(np.stack([a.state for a in self.agents]))
-        for k, agent in enumerate(self.agents):
-            agent.explore(self.raw[k])
+        self._act(self._states())
+        for k in self.live:
+            self.agents[k].explore(self.raw[k])
 
     def store(self, k: int, reward: float, obs, terminated: bool, truncated: bool) -> None:
         self.batches[k] = self.agents[k].store(reward, obs, terminated, truncated)
@@ -227,46 +261,49 @@ class PartsAxis:
         """Every running seed's updates of this env step and every seed's next action, in
         the calls the solo run makes (``skeleton.run_updates``) with a seed axis; returns
         the seeds whose loss went non-finite, with the message."""
-        counts = [len(self.batches[k]) if running[k] else 0 for k in range(len(self.agents))]
+        live = self.live
+        trains = [running[k] for k in live]
+        counts = [len(self.batches[k]) if t else 0 for k, t in zip(live, trains)]
         n = max(counts, default=0)
-        alike = len({c for c, r in zip(counts, running) if r}) <= 1
+        alike = len({c for c, t in zip(counts, trains) if t}) <= 1
         if not alike and not getattr(self.learner, "takes_masks", False):
             raise ConfigError(
                 "seed-batched runs of this learner need the seeds to train the same number of batches on each env step"
             )
-        states = np.stack([a.state for a in self.agents])
+        states = self._states()
         if n == 0:
-            self.raw = self.learner.act_without_update(states, separate=any_ended)
+            self.raw = dict(zip(live, self.learner.act_without_update(states, separate=any_ended)))
             return {}
-        rounds = []  # (losses [S] by name, which seeds trained)
+        rounds = []  # (losses [S] by name, which stack slots trained)
         if alike:  # every running seed trains n batches: the solo run's calls, stacked
             separate = any_ended or not self.agents[0].schedule.fuse_act
             for i in range(n - 1):
-                rounds.append((_numpy(self.learner.train(self._rows(i, running))), running))
-            last, self.raw = self.learner.train_and_act(self._rows(n - 1, running), states, separate=separate)
-            rounds.append((_numpy(last), running))
+                rounds.append((_numpy(self.learner.train(self._rows(i, trains))), trains))
+            last, raw = self.learner.train_and_act(self._rows(n - 1, trains), states, separate=separate)
+            self.raw = dict(zip(live, raw))
+            rounds.append((_numpy(last), trains))
         else:  # post 001's bursts: round i trains the seeds with more than i batches, the others masked
             for i in range(n):
                 mask = [c > i for c in counts]
                 rounds.append((_numpy(self.learner.train(self._rows(i, mask), mask=np.array(mask))), mask))
-            self.raw = self.learner.act(states)
+            self._act(states)
         failed = {}
-        for k, agent in enumerate(self.agents):
-            if running[k]:
+        for j, k in enumerate(live):
+            if trains[j]:
                 try:
-                    agent.record_losses(
-                        [{name: v[k] for name, v in losses.items()} for losses, trained in rounds if trained[k]]
+                    self.agents[k].record_losses(
+                        [{name: v[j] for name, v in losses.items()} for losses, trained in rounds if trained[j]]
                     )
                 except NonFiniteLossError as exc:
                     failed[k] = str(exc)
         return failed
 
     def _rows(self, i: int, trains: list[bool]) -> np.ndarray:
-        """Update i's rows ``[S, B, width]``; a seed that does not train on it gives rows of zeros."""
-        shape = next(self.batches[k][i].shape for k in range(len(self.agents)) if trains[k])
-        return np.stack(
-            [self.batches[k][i] if trains[k] else np.zeros(shape, np.float32) for k in range(len(self.agents))]
-        )
+        """Update i's rows ``[S, B, width]`` (one per stack slot); a slot that does not train
+        on it gives rows of zeros."""
+        live = self.live
+        shape = next(self.batches[k][i].shape for k, t in zip(live, trains) if t)
+        return np.stack([self.batches[k][i] if t else np.zeros(shape, np.float32) for k, t in zip(live, trains)])
 
     def next_actions(self, running: list[bool], restarted: set[int]) -> None:
         for k, agent in enumerate(self.agents):
@@ -278,17 +315,45 @@ class PartsAxis:
     def greedy(self, k: int, obs):
         """Seed k's policy action for ``obs``, without exploration or update (the others' rows
         are their current states, and their actions are dropped)."""
-        states = np.stack([a.state for a in self.agents])
-        states[k] = self.agents[k].transitions.observe(obs)
-        return self.learner.act(states)[k]
+        states = self._states()
+        states[self.live.index(k)] = self.agents[k].transitions.observe(obs)
+        return self.learner.act(states)[self.live.index(k)]
 
     def restart_actions(self, ks: list[int]) -> None:
         """First actions of seeds that resume past the budget they completed: the updated
         policy's action on each new first state, explored, as ``next_actions`` gives it."""
-        raw = self.learner.act(np.stack([a.state for a in self.agents]))
+        self._act(self._states())
         for k in ks:
             self.agents[k].reset_episode_stats()
-            self.agents[k].explore(raw[k])
+            self.agents[k].explore(self.raw[k])
+
+    def drop(self, ks: list[int]) -> None:
+        """Take finished seeds ``ks`` out of the stack (``shrink``; a no-op under ``mask``).
+        The stack never goes below two seeds: a stack of one would be another program, the
+        solo learner's, with another state layout."""
+        keep = [k for k in self.live if k not in ks]
+        if self.shrink and len(keep) < len(self.live) and len(keep) >= 2:
+            self.shrink_to(keep)
+
+    def shrink_to(self, keep: list[int]) -> None:
+        """Rebuild the learner for the seeds ``keep`` (a subset of ``live``), each from its
+        slice; the others' slices are parked for their checkpoints. The rebuild leaves
+        Python's and NumPy's global generators as they were, so it draws nothing a seed sees."""
+        if keep == self.live:
+            return
+        if self.rebuild is None:
+            raise ConfigError("this learner cannot drop finished seeds from its stack")
+        slices = {k: self.learner.slice_state(j) for j, k in enumerate(self.live)}
+        self.parked.update({k: v for k, v in slices.items() if k not in keep})
+        rngs = global_rng_state()
+        learner = self.rebuild(keep)
+        set_global_rng_state(rngs)
+        for j, k in enumerate(keep):
+            learner.load_slice_state(j, slices[k])
+        self.learner, self.live = learner, list(keep)
+        self.raw = {k: self.raw[k] for k in keep if k in self.raw}
+        for agent in self.agents:  # its phases never call it; the old stack is freed
+            agent.learner = learner
 
     def action(self, k: int):
         return self.agents[k]._action
@@ -297,14 +362,15 @@ class PartsAxis:
         return self.agents[k].end_episode()
 
     def save(self, k: int, run_dir: Path) -> None:
-        self.learner.save_slice(k, run_dir)
+        self.learner.save_slice(self.live.index(k), run_dir)
 
     def seed_state(self, k: int) -> dict[str, Any]:
-        return {"parts": self.agents[k].parts_state(), "learner": self.learner.slice_state(k)}
+        learner = self.parked[k] if k in self.parked else self.learner.slice_state(self.live.index(k))
+        return {"parts": self.agents[k].parts_state(), "learner": learner}
 
     def load_seed_state(self, k: int, state: dict[str, Any]) -> None:
         self.agents[k].load_parts_state(state["parts"])
-        self.learner.load_slice_state(k, state["learner"])
+        self.learner.load_slice_state(self.live.index(k), state["learner"])
 
 
 def _numpy(losses) -> dict[str, np.ndarray]:
@@ -315,10 +381,15 @@ class WholeAgentAxis:
     """A seed axis of one whole agent that trains itself inside its ``step`` (post 003's
     PyTorch tutorial): the loop's phases call its verbs in the solo order."""
 
+    live = [0]
+
     def __init__(self, agent):
         self.agent = agent
         self.loss_names = tuple(agent.loss_names)
         self._obs, self._action, self._failed = None, None, None
+
+    def drop(self, ks: list[int]) -> None:
+        """One seed: nothing to take out."""
 
     def begin(self, k: int, obs) -> None:
         self._obs = obs  # its begin_episode resets the tally: it runs after the episode is recorded
@@ -633,9 +704,11 @@ class _Batch:
                     s.score, s.steps = 0.0, 0
                     restarted.add(k)
             axis.next_actions([s.active for s in seeds], restarted)
-            for k, s in enumerate(seeds):
-                if not s.active and s.final is None:  # it stopped on this step: its files and summary now
-                    self.flush(k)
+            stopped = [k for k, s in enumerate(seeds) if not s.active and s.final is None]
+            for k in stopped:  # it stopped on this step: its files and summary now
+                self.flush(k)
+            if stopped and any(s.active for s in seeds):
+                axis.drop([k for k, s in enumerate(seeds) if not s.active])
             # the dispatcher's flag costs a round trip (a Ray actor call): asked when an episode ends
             if interrupted or (ended and should_stop is not None and should_stop()):
                 by = signal_name(interrupted) if interrupted else "the dispatcher's stop request (Ctrl-C or SIGTERM)"
@@ -653,7 +726,13 @@ class _Batch:
     # -- checkpoints ------------------------------------------------------------------------
     def write_checkpoints(self) -> None:
         """Every seed's state at this vector step, each into its own folder."""
-        shared = {"version": 2, "batch": self.batch, "vector_step": self.vector_step, "global_rng": global_rng_state()}
+        shared = {
+            "version": 2,
+            "batch": self.batch,
+            "vector_step": self.vector_step,
+            "global_rng": global_rng_state(),
+            "live": [self.batch[k] for k in self.axis.live],  # the learner's stack, shrunk or whole
+        }
         for k, s in enumerate(self.seeds):
             write_checkpoint(s.recorder.out_dir, {**shared, "seed": s.snapshot(), "axis": self.axis.seed_state(k)})
         self.since_checkpoint = 0
@@ -677,6 +756,9 @@ class _Batch:
         set_global_rng_state(states[0]["global_rng"])
         self.vector_step = int(states[0]["vector_step"])
         self.started = True
+        # the stack as it was when the checkpoints were taken (shrunk or whole: the same bits)
+        if len(self.seeds) > 1:
+            self.axis.shrink_to([self.batch.index(seed) for seed in states[0].get("live", self.batch)])
 
     # -- the end ------------------------------------------------------------------------------
     def flush(self, k: int) -> None:
