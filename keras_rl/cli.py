@@ -519,6 +519,7 @@ def reproduce(args: argparse.Namespace) -> int:
             if m != "keep"
         ],
         options.seed_batch,
+        options.workers,
     )
     outcome = run_jobs(
         jobs, backend_for(options.workers, len(jobs), options.address), options.progress, after_job=draw_job_curves
@@ -622,9 +623,10 @@ def compare(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _check_seed_batch(seed_batch: int, experiment: str, framework: str) -> None:
-    """``--seed-batch S`` (S > 1): a clear error before anything runs when it cannot apply."""
-    if seed_batch > 1:
+def _check_seed_batch(seed_batch: int | str, experiment: str, framework: str) -> None:
+    """``--seed-batch S`` (S > 1): a clear error before anything runs when it cannot apply
+    (``auto`` runs seeds alone where nothing batches)."""
+    if seed_batch != "auto" and int(seed_batch) > 1:
         from keras_rl.learners.table import stacked_implementation
 
         stacked_implementation(experiment, framework)  # a clear error if there is none
@@ -672,7 +674,7 @@ def sweep(args: argparse.Namespace) -> int:
     from keras_rl.runs.summary import RunSummary
 
     record_grid(args.out, points)
-    todo = batched(todo, options.seed_batch)
+    todo = batched(todo, options.seed_batch, options.workers)
     outcome = run_jobs(
         todo, backend_for(options.workers, len(todo), options.address), options.progress, after_job=draw_job_curves
     )

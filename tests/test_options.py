@@ -44,8 +44,12 @@ def test_run_options_are_checked_with_the_flag_named(capsys):
     parent = run_options_parser()
     with pytest.raises(ConfigError, match="--episodes must be positive"):
         RunOptions.from_args(parent.parse_args(["--episodes", "0"]))
-    with pytest.raises(ConfigError, match="--seed-batch must be at least 1"):
+    with pytest.raises(ConfigError, match="--seed-batch must be at least 1 or auto"):
         RunOptions.from_args(parent.parse_args(["--seed-batch", "0"]))
+    assert RunOptions.from_args(parent.parse_args(["--seed-batch", "auto"])).seed_batch == "auto"
+    with pytest.raises(SystemExit) as exit_:  # argparse: usage and exit 2
+        parent.parse_args(["--seed-batch", "many"])
+    assert exit_.value.code == 2 and "expected a whole number or auto, got 'many'" in capsys.readouterr().err
     with pytest.raises(ConfigError, match="--workers must be at least 1"):
         RunOptions.from_args(parent.parse_args(["--workers", "0"]))
     options = RunOptions.from_args(parent.parse_args(["--workers", "1000", "--set", "tau=0.1", "--no-progress"]))

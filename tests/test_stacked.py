@@ -384,6 +384,35 @@ def test_only_jobs_that_differ_in_the_seed_share_a_batch(tmp_path):
     assert batched(jobs, 1) == jobs
 
 
+@pytest.mark.parametrize(
+    "seeds, workers, cap, size",
+    [(30, 2, 10, 8), (30, 2, 16, 15), (10, 1, 10, 10), (10, 2, 10, 5), (11, 1, 10, 6), (1, 2, 10, 1), (40, 2, 10, 10)],
+)
+def test_auto_batches_are_as_even_as_the_cap_and_the_workers_allow(seeds, workers, cap, size):
+    import math
+
+    from keras_rl.runs.jobs import auto_batch_size
+
+    got = auto_batch_size(seeds, workers, cap)
+    assert got == size and got <= cap
+    jobs = math.ceil(seeds / got)
+    assert math.ceil(jobs / workers) == math.ceil(seeds / (workers * cap))  # no more rounds than the cap forces
+
+
+def test_seed_batch_auto_packs_each_post_by_its_cap(tmp_path):
+    from keras_rl.learners.table import SEED_BATCH_CAP, seed_batch_cap
+    from keras_rl.posts.cartpole import CartPoleDQNConfig
+    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched
+
+    jobs = [SeedJob.of(CartPoleDQNConfig(seed=s), tmp_path / f"seed_{s}", command="x") for s in range(30)]
+    packed = batched(jobs, "auto", workers=2)
+    assert [len(b.jobs) for b in packed if isinstance(b, SeedBatchJob)] == [8, 8, 8, 6]
+    assert seed_batch_cap("cartpole", "keras") == SEED_BATCH_CAP[("cartpole", "keras")] == 10
+    assert seed_batch_cap("cartpole", "torch") == 1  # the tutorial's code: one seed per run
+    torch = [SeedJob.of(CartPoleDQNConfig(seed=s, framework="torch"), tmp_path / f"t{s}", command="x") for s in (0, 1)]
+    assert batched(torch, "auto", workers=2) == torch
+
+
 @pytest.mark.slow
 def test_seed_batch_on_sweep_runs_each_grid_point_as_a_batch_and_refuses_what_it_cannot_do(tmp_path):
     import json

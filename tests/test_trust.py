@@ -400,3 +400,31 @@ def test_tensorboard_scalars_read_back(tmp_path, seed_batch):
                     scores[event.step] = float(tf.make_ndarray(value.tensor))
     expected = {r["episode"]: r["score"] for r in read_episodes(tmp_path / "runs" / "seed_0" / "episodes.csv")}
     assert scores == expected
+
+
+def test_episodes_csv_is_the_same_text_whether_written_row_by_row_or_whole(tmp_path):
+    """``RunRecorder.add_episode`` formats each row once and keeps the text; the file is
+    still what formatting every row afresh gives, after the rows are replaced too (resume)."""
+    from keras_rl.runs.files import RunRecorder, episode_columns, episodes_csv_text
+
+    names = ("loss",)
+    rows = [
+        {
+            "episode": i,
+            "steps": 20 + i,
+            "total_steps": 21 * i,
+            "score": 0.1 * i,
+            "metric": float("inf") if i < 2 else i,
+            "loss": None if i < 2 else 1 / 3 * i,
+            "wall_seconds": 0.5 * i,
+        }
+        for i in range(1, 8)
+    ]
+    recorder = RunRecorder(tmp_path, names)
+    for row in rows[:4]:
+        recorder.add_episode(row)
+    assert (tmp_path / "episodes.csv").read_text() == episodes_csv_text(rows[:4], episode_columns(names))
+    recorder.rows = [dict(r) for r in rows[:2]]  # a resume cuts the rows back to its checkpoint's
+    for row in rows[2:]:
+        recorder.add_episode(row)
+    assert (tmp_path / "episodes.csv").read_text() == episodes_csv_text(rows, episode_columns(names))

@@ -62,6 +62,24 @@ def finished_seeds_default(experiment: str, framework: str) -> str:
     return FINISHED_SEEDS.get((experiment, framework), "mask")
 
 
+SEED_BATCH_CAP: dict[tuple[str, str], int] = {
+    ("pendulum", "keras"): 16,
+    ("cartpole", "keras"): 10,
+    ("mountaincar", "keras"): 16,
+    ("pendulum", "torch"): 16,
+    ("mountaincar", "torch"): 16,
+}
+"""The most seeds ``--seed-batch auto`` puts in one batch: past it, a seed costs more in a
+batch than in a smaller one (post 003: 0.19 ms per seed in the learner call at 10 seeds,
+0.29 ms at 16). Measured with ``benchmarks/seed_batch.py --experiment NAME --skip-study``
+(docs/performance.md)."""
+
+
+def seed_batch_cap(experiment: str, framework: str) -> int:
+    """``SEED_BATCH_CAP``'s entry; 1 where the post has no seed-batched learner."""
+    return SEED_BATCH_CAP.get((experiment, framework), 1) if (experiment, framework) in STACKED else 1
+
+
 def stacked_implementation(experiment: str, framework: str) -> Implementation:
     from keras_rl.errors import ConfigError
 

@@ -288,7 +288,9 @@ def compare(
     options = options or RunOptions()
     overrides = options.config_changes()
     jobs = batched(
-        gather(experiment, variant, seeds, runs_root, rerun, reuse_only, overrides, matched_init), options.seed_batch
+        gather(experiment, variant, seeds, runs_root, rerun, reuse_only, overrides, matched_init),
+        options.seed_batch,
+        options.workers,
     )  # the Keras runs still to make, S seeds at a time
     backend = backend_for(options.workers, len(jobs), options.address)
     if run_jobs(jobs, backend, options.progress, after_job=draw_job_curves).interrupted:

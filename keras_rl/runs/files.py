@@ -103,10 +103,11 @@ def format_row(row: dict[str, Any], columns: tuple[str, ...]) -> dict[str, str]:
     return out
 
 
-def episodes_csv_text(rows: Iterable[dict[str, Any]], columns: tuple[str, ...]) -> str:
+def episodes_csv_text(rows: Iterable[dict[str, Any]], columns: tuple[str, ...], header: bool = True) -> str:
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
-    writer.writeheader()
+    if header:
+        writer.writeheader()
     for row in rows:
         writer.writerow(format_row(row, columns))
     return buf.getvalue()
@@ -158,17 +159,26 @@ class RunRecorder:
     def __post_init__(self) -> None:
         self.out_dir = Path(self.out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
+        self._text: tuple[list, int, str] | None = None  # (the rows list, its length, their CSV text)
 
     def write_config(self, config_dict: dict[str, Any]) -> None:
         atomic_write_json(self.out_dir / "config.json", config_dict)
 
     def add_episode(self, row: dict[str, Any]) -> None:
+        """The whole file, rewritten atomically with the new row; the rows already written
+        are formatted once, not again at every episode (``rows`` replaced or cut, as a
+        resume does, is formatted afresh)."""
+        columns = episode_columns(self.loss_names)
+        cached = self._text
+        if cached is not None and cached[0] is self.rows and cached[1] == len(self.rows):
+            text = cached[2] + episodes_csv_text([row], columns, header=False)
+        else:
+            text = episodes_csv_text([*self.rows, row], columns)
         # The file and the in-memory rows change together: Ctrl-C waits for both.
         with stop_signals_deferred():
-            atomic_write_text(
-                self.out_dir / "episodes.csv", episodes_csv_text([*self.rows, row], episode_columns(self.loss_names))
-            )
+            atomic_write_text(self.out_dir / "episodes.csv", text)
             self.rows.append(row)
+            self._text = (self.rows, len(self.rows), text)
 
 
 @contextlib.contextmanager

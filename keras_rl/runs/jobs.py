@@ -13,6 +13,7 @@ outcome is read back from disk, so an interrupted worker still reports what it k
 from __future__ import annotations
 
 import json
+import math
 import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -66,14 +67,27 @@ def members(job) -> tuple[SeedJob, ...]:
     return job.jobs if isinstance(job, SeedBatchJob) else (job,)
 
 
-def batched(jobs: list[SeedJob], seed_batch: int) -> list:
-    """``jobs`` packed into batches of up to ``seed_batch`` seeds. Only jobs that differ in
+def auto_batch_size(seeds: int, workers: int, cap: int) -> int:
+    """``--seed-batch auto``: the batch size that splits ``seeds`` into as few rounds of
+    ``workers`` jobs as batches of at most ``cap`` allow, the jobs as even as they can be
+    (30 seeds, 2 workers, cap 10: four jobs of 8, 8, 8 and 6, not 10, 10 and 10, whose
+    third job would run on one core while the other idles)."""
+    if seeds <= 1:
+        return 1
+    rounds = math.ceil(seeds / (workers * cap))
+    return math.ceil(seeds / (rounds * workers))
+
+
+def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> list:
+    """``jobs`` packed into batches of up to ``seed_batch`` seeds (``"auto"``: of the size
+    ``auto_batch_size`` gives for each group, with the post's ``SEED_BATCH_CAP`` and
+    ``workers`` jobs at once). Only jobs that differ in
     nothing but the seed share a batch (a sweep's grid points never do), and only jobs of
     an experiment and framework with a seed-batched learner (``learners/table.py``) are
     packed: the others (post 003's PyTorch tutorial in ``compare``, say) run alone. A job
     that resumes joins the batch its checkpoint was written by, whatever ``seed_batch`` is
     now. A group of one is the job itself."""
-    from keras_rl.learners.table import STACKED
+    from keras_rl.learners.table import STACKED, seed_batch_cap
 
     groups: dict[tuple, list[SeedJob]] = {}
     resumed: dict[tuple, list[SeedJob]] = {}
@@ -84,7 +98,7 @@ def batched(jobs: list[SeedJob], seed_batch: int) -> list:
             if len(batch) > 1:
                 resumed.setdefault((tuple(batch), job.command), []).append(job)
                 continue
-        if seed_batch <= 1 or job.start == "resume" or (job.experiment, job.config.get("framework")) not in STACKED:
+        if seed_batch == 1 or job.start == "resume" or (job.experiment, job.config.get("framework")) not in STACKED:
             alone.append(job)
             continue
         key = (
@@ -98,8 +112,13 @@ def batched(jobs: list[SeedJob], seed_batch: int) -> list:
         groups.setdefault(key, []).append(job)
     out = []
     for group in groups.values():
-        for i in range(0, len(group), seed_batch):
-            chunk = tuple(group[i : i + seed_batch])
+        size = (
+            auto_batch_size(len(group), workers, seed_batch_cap(group[0].experiment, group[0].config["framework"]))
+            if seed_batch == "auto"
+            else int(seed_batch)
+        )
+        for i in range(0, len(group), size):
+            chunk = tuple(group[i : i + size])
             out.append(chunk[0] if len(chunk) == 1 else SeedBatchJob(chunk))
     for (batch, _), group in resumed.items():
         have = sorted(j.config["seed"] for j in group)

@@ -28,8 +28,10 @@ class RunOptions:
     """Seeds (or batches of seeds) at once on a local Ray instance; 1 runs them in this process."""
     address: str | None = None
     """A Ray cluster's HOST:PORT; None for local."""
-    seed_batch: int = 1
-    """Seeds trained together, one compiled step per env step (``--seed-batch``)."""
+    seed_batch: int | str = 1
+    """Seeds trained together, one compiled step per env step (``--seed-batch``); ``"auto"``:
+    as many as the post's measured cap allows, split evenly over the workers
+    (``runs/jobs.auto_batch_size``)."""
     episodes: int | None = None
     """The episode budget; None keeps the post's."""
     overrides: tuple[str, ...] = ()
@@ -46,8 +48,8 @@ class RunOptions:
             raise ConfigError(f"--workers must be at least 1, got {workers}")
         if episodes is not None and episodes <= 0:
             raise ConfigError(f"--episodes must be positive, got {episodes}")
-        if seed_batch < 1:
-            raise ConfigError(f"--seed-batch must be at least 1, got {seed_batch}")
+        if seed_batch != "auto" and seed_batch < 1:
+            raise ConfigError(f"--seed-batch must be at least 1 or auto, got {seed_batch}")
         cores = os.cpu_count() or 1
         if workers > cores:
             print(
@@ -80,6 +82,16 @@ class RunOptions:
         return {} if self.episodes is None else {"episodes": self.episodes}
 
 
+def seed_batch_arg(text: str) -> int | str:
+    """``--seed-batch``'s value: a whole number, or ``auto``."""
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number or auto, got {text!r}") from None
+
+
 def run_options_parser(*names: str, workers_default: int = 1, what: str = "seeds") -> argparse.ArgumentParser:
     """An argparse parent with the named options of ``OPTIONS`` (all of them if none are named)."""
     unknown = set(names) - set(OPTIONS)
@@ -102,11 +114,12 @@ def run_options_parser(*names: str, workers_default: int = 1, what: str = "seeds
     if "seed_batch" in names:
         parent.add_argument(
             "--seed-batch",
-            type=int,
+            type=seed_batch_arg,
             default=1,
             metavar="S",
             help="train S seeds together in one compiled step per env step (default 1: each seed "
-            "alone; `keras-rl list` shows which frameworks batch)",
+            "alone; auto: the post's measured batch size, split evenly over --workers; "
+            "`keras-rl list` shows which frameworks batch)",
         )
     if "episodes" in names:
         parent.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
