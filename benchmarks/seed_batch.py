@@ -19,7 +19,7 @@ included.
 
 ``--table`` measures, for every post and PyTorch port that batches, 10 seeds in one process
 against one solo seed (part 1 at S=10 only) and a 30-seed study as commands (``--workers 2``
-against ``--workers 2 --seed-batch 15``, 10 for post 003), and prints them beside the targets.
+against ``--workers 2 --seed-batch auto``), and prints them beside the targets.
 
 Only ratios within one run mean much on a shared machine.
 """
@@ -179,7 +179,7 @@ def study_seconds(experiment: str, episodes: int, *extra: str, seeds: int = 10) 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--experiment", choices=sorted(OVERRIDES), default="pendulum")
+    parser.add_argument("--experiment", choices=sorted(OVERRIDES), default=None, help="default pendulum")
     parser.add_argument(
         "--episodes",
         type=int,
@@ -192,7 +192,7 @@ def main() -> None:
     parser.add_argument(
         "--framework",
         choices=("keras", "torch"),
-        default="keras",
+        default=None,
         help="torch: the PyTorch ports (pendulum, mountaincar)",
     )
     parser.add_argument(
@@ -207,16 +207,19 @@ def main() -> None:
     parser.add_argument("--skip-study", action="store_true", help="parts 1 and 2 only")
     parser.add_argument("--study-only", action="store_true", help="part 3 only")
     parser.add_argument(
-        "--table", action="store_true", help="the targets table for every batching post (ignores the other options)"
+        "--table",
+        action="store_true",
+        help="the targets table for every batching post (only --experiment's rows, and only "
+        "--framework's, when given; ignores the other options)",
     )
     args = parser.parse_args()
     if args.table:
         from keras_rl.seeding import configure_tensorflow
 
         configure_tensorflow(1)
-        return targets_table()
-    name = args.experiment
-    FRAMEWORK[0] = args.framework
+        return targets_table(args.experiment, args.framework)
+    name = args.experiment or "pendulum"
+    FRAMEWORK[0] = args.framework or "keras"
     episodes = args.episodes or DEFAULT_EPISODES[name]
 
     from keras_rl.seeding import configure_tensorflow
@@ -244,24 +247,29 @@ TARGETS = [  # (experiment, framework, 10 seeds in one process against one solo 
     ("mountaincar", "torch", "not batched", None),
 ]
 STUDY_SEEDS, STUDY_TARGET = 30, 2.0
-# Seeds per batch in the 30-seed study: two jobs of 15 for the two workers, except post 003,
-# whose learner call per seed is cheapest near 10 seeds (``--experiment cartpole`` part 2).
-STUDY_BATCH = {"pendulum": 15, "mountaincar": 15, "cartpole": 10}
 
 
-def targets_table() -> None:
+def study_batch(name: str) -> int:
+    """The batch size ``--seed-batch auto`` gives the 30-seed study on 2 workers."""
+    from keras_rl.learners.table import seed_batch_cap
+    from keras_rl.runs.jobs import auto_batch_size
+
+    return auto_batch_size(STUDY_SEEDS, 2, seed_batch_cap(name, FRAMEWORK[0]))
+
+
+def targets_table(only: str | None = None, framework_only: str | None = None) -> None:
     """Issue #18's speed table: every row measured in this run, beside its target."""
     rows = []
     for name, framework, before, target in TARGETS:
+        if (only and name != only) or (framework_only and framework != framework_only):
+            continue
         FRAMEWORK[0] = framework
         episodes = DEFAULT_EPISODES[name]
         solo, solo_steps = solo_seconds(name, episodes)
         wall, steps = batch_seconds(name, 10, episodes)
         ratio = wall / (solo / solo_steps * steps)
         today = study_seconds(name, episodes, "--workers", "2", seeds=STUDY_SEEDS)
-        batched = study_seconds(
-            name, episodes, "--workers", "2", "--seed-batch", str(STUDY_BATCH[name]), seeds=STUDY_SEEDS
-        )
+        batched = study_seconds(name, episodes, "--workers", "2", "--seed-batch", "auto", seeds=STUDY_SEEDS)
         rows.append((name, framework, before, target, ratio, today, batched))
         print(
             f"measured {name} ({framework}): 10 seeds {ratio:.2f}x one solo seed; {STUDY_SEEDS}-seed study "
@@ -278,9 +286,10 @@ def targets_table() -> None:
         met = "n/a" if target is None else "yes" if ratio <= target else "no"
         print(f"| {what} | {before} | {'-' if target is None else f'at most {target:g}x'} | {ratio:.2f}x | {met} |")
     for name, framework, _, _, _, today, batched in rows:
+        FRAMEWORK[0] = framework
         what = (
             f"{post[name]}{' (PyTorch port)' if framework == 'torch' else ''}, a {STUDY_SEEDS}-seed study, "
-            f"`--workers 2 --seed-batch {STUDY_BATCH[name]}` against `--workers 2`"
+            f"`--workers 2 --seed-batch auto` (batches of {study_batch(name)}) against `--workers 2`"
         )
         speedup = today / batched
         print(
