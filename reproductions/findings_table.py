@@ -2,6 +2,7 @@
 
     python reproductions/findings_table.py            # print the table
     python reproductions/findings_table.py --write    # replace it in results/README.md and README.md
+    python reproductions/findings_table.py --changes  # what seeds 0-9 said against what all the seeds say
 
 and the Keras-vs-PyTorch summary, one row per ``results/compare/**/result.json``.
 
@@ -27,7 +28,7 @@ BEGIN, END = "<!-- findings-table:begin -->", "<!-- findings-table:end -->"
 COMPARE_BEGIN, COMPARE_END = "<!-- compare-table:begin -->", "<!-- compare-table:end -->"
 SHORT_BEGIN, SHORT_END = "<!-- findings-short:begin -->", "<!-- findings-short:end -->"
 REPRODUCE = (
-    "keras-rl reproduce {exp} --variant {variant} --framework {fw}{matched} --seeds 0-9 --workers 2 --no-progress "
+    "keras-rl reproduce {exp} --variant {variant} --framework {fw}{matched} --seeds {seeds} --workers 2 --no-progress "
     "--min-success-rate 0"
 )
 
@@ -87,8 +88,10 @@ ROWS = [
 ]
 
 
-def row_numbers(folder: Path) -> dict | None:
+def row_numbers(folder: Path, seeds: set[int] | None = None) -> dict | None:
+    """A folder's numbers over its seeds (only ``seeds``, when given)."""
     summaries = [json.loads(p.read_text()) for p in sorted(folder.glob("seed_*/summary.json"))]
+    summaries = [s for s in summaries if seeds is None or s["seed"] in seeds]
     if not summaries:
         return None
     hits = [s["reached_at_episode"] for s in summaries if s["success"]]
@@ -106,6 +109,13 @@ def row_numbers(folder: Path) -> dict | None:
     }
 
 
+def seed_span(seeds: list[int]) -> str:
+    """``0-29`` for a run of consecutive seeds, else the list."""
+    if seeds == list(range(seeds[0], seeds[-1] + 1)):
+        return f"{seeds[0]}-{seeds[-1]}"
+    return ",".join(str(s) for s in seeds)
+
+
 def table() -> str:
     from keras_rl.runs.files import run_folder
 
@@ -118,7 +128,10 @@ def table() -> str:
         folder = run_folder(ROOT / "results", exp, variant, fw, matched)
         numbers = row_numbers(folder)
         framework = fw + (" (matched init)" if matched else "")
-        command = REPRODUCE.format(exp=exp, variant=variant, fw=fw, matched=" --matched-init" if matched else "")
+        span = "0-9" if numbers is None else seed_span(numbers["seeds"])
+        command = REPRODUCE.format(
+            exp=exp, variant=variant, fw=fw, matched=" --matched-init" if matched else "", seeds=span
+        )
         if numbers is None:
             lines.append(
                 f"| {post} | {variant} | {framework} | not run | {criterion} | - | {theirs} | - | `{command}` |"
@@ -154,7 +167,7 @@ def short_table() -> str:
             lines.append(f"| {post} | {variant} | {framework} | - | not run | - | {theirs} |")
             continue
         seeds = numbers["seeds"]
-        span = f"{seeds[0]}-{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else f"{len(seeds)} seeds"
+        span = seed_span(seeds) if seeds == list(range(seeds[0], seeds[-1] + 1)) else f"{len(seeds)} seeds"
         median = "-" if not np.isfinite(numbers["median"]) else f"{numbers['median']:g}"
         ci = binomtest(numbers["successes"], numbers["n"]).proportion_ci(method="wilson")
         lines.append(
@@ -197,6 +210,92 @@ def compare_table() -> str:
     return "\n".join(lines)
 
 
+FIRST_TEN = set(range(10))
+
+
+def wilson(successes: int, n: int) -> tuple[float, float]:
+    from scipy.stats import binomtest
+
+    ci = binomtest(successes, n).proportion_ci(method="wilson")
+    return ci.low, ci.high
+
+
+def changes_table() -> str:
+    """Every findings row and Keras-vs-PyTorch verdict on seeds 0-9 (what the findings said
+    before issue #20) beside all of its seeds, and whether the reading changed: a success
+    rate whose all-seeds estimate falls outside the 10-seed Wilson interval, or that moves
+    between "every seed", "some seeds" and "no seed"; a comparison whose TOST reading moves."""
+    from keras_rl.report.equivalence import framework_verdict
+    from keras_rl.runs.files import run_folder
+
+    def kind(successes: int, n: int) -> str:
+        return "every seed" if successes == n else "no seed" if successes == 0 else "some seeds"
+
+    lines = [
+        "| row | seeds 0-9: success (95% Wilson) | median | all seeds: success (95% Wilson) | median | changed |",
+        "|---|---|---|---|---|---|",
+    ]
+    for post, exp, variant, fw, matched, _criterion, _theirs in ROWS:
+        folder = run_folder(ROOT / "results", exp, variant, fw, matched)
+        ten, every = row_numbers(folder, FIRST_TEN), row_numbers(folder)
+        name = f"{post}, {variant}, {fw}{' (matched init)' if matched else ''}"
+        if ten is None or every is None or every["n"] <= 10:
+            lines.append(f"| {name} | - | - | {every['n'] if every else 0} seeds | - | not yet on more seeds |")
+            continue
+        low, high = wilson(ten["successes"], ten["n"])
+        rate = every["successes"] / every["n"]
+        why = []
+        if not low <= rate <= high:
+            why.append(f"{rate:.2f} is outside {low:.2f}-{high:.2f}")
+        if kind(ten["successes"], ten["n"]) != kind(every["successes"], every["n"]):
+            why.append(f"{kind(ten['successes'], ten['n'])} -> {kind(every['successes'], every['n'])}")
+        g = lambda v: "-" if not np.isfinite(v) else f"{v:g}"  # noqa: E731
+        lo2, hi2 = wilson(every["successes"], every["n"])
+        lines.append(
+            f"| {name} | {ten['successes']}/{ten['n']} ({low:.2f}-{high:.2f}) | {g(ten['median'])} "
+            f"| {every['successes']}/{every['n']} ({lo2:.2f}-{hi2:.2f}) | {g(every['median'])} "
+            f"| {'yes: ' + '; '.join(why) if why else 'no'} |"
+        )
+    lines += [
+        "",
+        "| comparison | seeds 0-9: success / median (TOST) | all seeds | changed |",
+        "|---|---|---|---|",
+    ]
+    for path in sorted((ROOT / "results" / "compare").glob("**/result.json")):
+        r = json.loads(path.read_text())
+        folders = {
+            fw: run_folder(ROOT / "results", r["experiment"], r["variant"], fw, r["matched_init"])
+            for fw in ("keras", "torch")
+        }
+        readings = {}
+        for label, seeds in (("ten", FIRST_TEN), ("all", set(r["frameworks"]["keras"]["seeds"]))):
+            arms = [_arm(folders[fw], seeds) for fw in ("keras", "torch")]
+            _, judged = framework_verdict(
+                (arms[0][0], arms[1][0]), (arms[0][1], arms[1][1]), (arms[0][2], arms[1][2]), r["budget"]
+            )
+            readings[label] = (" / ".join(e.reading for e in judged), arms[0][1])
+        name = f"{r['experiment']} ({r['variant']}), {'matched init' if r['matched_init'] else 'torch default init'}"
+        changed = (
+            "not yet on more seeds"
+            if readings["all"][1] <= 10
+            else "no"
+            if readings["ten"][0] == readings["all"][0]
+            else "yes"
+        )
+        lines.append(
+            f"| {name} | {readings['ten'][0]} | {readings['all'][0]} ({readings['all'][1]} seeds) | {changed} |"
+        )
+    return "\n".join(lines)
+
+
+def _arm(folder: Path, seeds: set[int]) -> tuple[int, int, list[int]]:
+    """(successes, seeds, episodes to threshold of the successes) of a run folder's ``seeds``."""
+    summaries = [json.loads(p.read_text()) for p in folder.glob("seed_*/summary.json")]
+    summaries = [s for s in summaries if s["seed"] in seeds]
+    hits = [s["reached_at_episode"] for s in summaries if s["success"]]
+    return len(hits), len(summaries), hits
+
+
 def replace_block(content: str, begin: str, end: str, text: str) -> str:
     if begin not in content or end not in content:
         raise SystemExit(f"results/README.md has no {begin} ... {end} markers to replace")
@@ -208,7 +307,13 @@ def replace_block(content: str, begin: str, end: str, text: str) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--write", action="store_true", help="replace the table in results/README.md")
+    parser.add_argument(
+        "--changes", action="store_true", help="print each row and comparison on seeds 0-9 against all its seeds"
+    )
     args = parser.parse_args()
+    if args.changes:
+        print(changes_table())
+        return
     text, compared = table(), compare_table()
     if not args.write:
         print(text, compared, sep="\n\n")
