@@ -49,7 +49,7 @@ STACKED: dict[tuple[str, str], Implementation] = {
 }
 """Seed-batched learners (``--seed-batch``): ``factory(configs, spec)`` for S seeds at once."""
 
-FINISHED_SEEDS: dict[tuple[str, str], str] = {}
+FINISHED_SEEDS: dict[tuple[str, str], str] = {("cartpole", "keras"): "shrink"}
 """What a seed batch does with a seed that finishes before the others, where it is not
 ``mask`` (the seed stays in the stacked update on rows of zeros): ``shrink`` rebuilds the
 stack without it (``runs/loop.PartsAxis``), so later updates cost what a smaller batch
