@@ -69,10 +69,12 @@ SEED_BATCH_CAP: dict[tuple[str, str], int] = {
     ("pendulum", "torch"): 16,
     ("mountaincar", "torch"): 16,
 }
-"""The most seeds ``--seed-batch auto`` puts in one batch: past it, a seed costs more in a
-batch than in a smaller one (post 003: 0.19 ms per seed in the learner call at 10 seeds,
-0.29 ms at 16). Measured with ``benchmarks/seed_batch.py --experiment NAME --skip-study``
-(docs/performance.md)."""
+"""The most seeds ``--seed-batch auto`` puts in one batch. Post 003's cost per seed rises
+past 10 (the learner call: 0.19 ms per seed at 10 seeds, 0.29 ms at 16); the others' still
+falls at 16, the largest size measured (2026-11-23, whole batches against one solo seed
+over as many steps: post 001 2.38x at 10 seeds, 3.37x at 16; post 000's PyTorch port 4.88x
+and 6.31x). Measured with ``benchmarks/seed_batch.py --experiment NAME [--framework torch]
+--skip-study`` (docs/performance.md)."""
 
 
 def seed_batch_cap(experiment: str, framework: str) -> int:
