@@ -599,25 +599,44 @@ def compare(args: argparse.Namespace) -> int:
     options = RunOptions.from_args(args)
     options.check_address()
     _check_seed_batch(options.seed_batch, args.experiment, "keras")
-    from keras_rl.report.compare import compare as run_compare
-    from keras_rl.runs.provenance import command_line
+    from keras_rl.learners.table import compared_frameworks
+    from keras_rl.registry import get_experiment
 
+    experiment = get_experiment(args.experiment)
+    compared_frameworks(experiment.name)  # a clear error where there is nothing to compare
+    from keras_rl.report.compare import compare as write_compare
+    from keras_rl.report.plots import draw_job_curves
+    from keras_rl.runs.compare_runs import make_compare_runs
+    from keras_rl.runs.provenance import command_line
+    from keras_rl.torch import require_torch
+
+    require_torch()
     try:
-        result = run_compare(
-            args.experiment,
+        make_compare_runs(
+            experiment,
+            args.variant,
             seeds,
             options,
-            variant=args.variant,
             runs_root=args.runs,
-            out_root=args.out,
             rerun=args.rerun,
             reuse_only=args.reuse_only,
             matched_init=args.matched_init,
-            command=command_line(),
+            after_job=draw_job_curves,
         )
     except KeyboardInterrupt:
         print("interrupted: the runs so far are on disk; run compare again to reuse them", file=sys.stderr)
         return _stopped()
+    result = write_compare(
+        experiment.name,
+        seeds,
+        variant=args.variant,
+        runs_root=args.runs,
+        out_root=args.out,
+        matched_init=args.matched_init,
+        episodes=options.episodes,
+        command=command_line(),
+        workers=options.workers,
+    )
     print(f"report: {result.out_dir / 'report.md'}")
     print(result.verdict)
     return EXIT_OK

@@ -54,7 +54,7 @@ def rebuild_seconds(experiment: str, seeds: int) -> float:
     states = rows[:, 0, : layout.obs_dim]
     learner.train_and_act(rows, states)
     learner.act(states)
-    learner.act_without_update(states)
+    learner.step_without_batch(states)
     learner.train(rows)
     return time.perf_counter() - start
 

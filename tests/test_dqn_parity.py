@@ -192,6 +192,6 @@ def test_soft_update_every_step_before_training_matches_state_dict_arithmetic():
     ours, theirs = make_pair()
     state = np.zeros(OBS, np.float32)
     for _ in range(5):
-        ours.learner.act_without_update(state, want_action=True)
+        ours.learner.step_without_batch(state, want_action=True)
         theirs.soft_update()
     assert_same_weights(ours, theirs, atol=1e-7)

@@ -199,7 +199,7 @@ def tiny_learner(mode, w=0.7, b=-0.2, k=1.5, at_buffer=True):
         broadcast_target=False,
         layout=Layout(1, 1),
         xla=False,
-        actor_update=mode,
+        actor_gradient=mode,
         dqda_at_buffer_actions=at_buffer,
     )
 

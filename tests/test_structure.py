@@ -115,6 +115,14 @@ def test_training_code_never_reaches_plotting_or_reports(prefix):
         assert not bad, f"{name} reaches {bad}"
 
 
+def test_reports_train_nothing():
+    """``report/`` reads run folders; making runs is ``runs/``' job (``runs/compare_runs.py``
+    for compare), so no report reaches the dispatcher or the episode loop."""
+    for name in (n for n in MODULES if n.startswith("keras_rl.report")):
+        bad = sorted(m for m in reachable(name) if m in ("keras_rl.runs.jobs", "keras_rl.runs.loop"))
+        assert not bad, f"{name} reaches {bad}"
+
+
 def test_one_learner_table_covers_every_experiment_and_imports_nothing_heavy():
     from keras_rl.learners.table import IMPLEMENTATIONS, frameworks
     from keras_rl.registry import EXPERIMENTS

@@ -26,11 +26,11 @@ class EveryStep:
 
     train_start: int
     batch_size: int
-    every: int = 1
+    train_every: int = 1
     fuse_act: bool = True
 
     def batches(self, buffer, total_steps: int) -> list[np.ndarray]:
-        if len(buffer) >= self.train_start and total_steps % self.every == 0:
+        if len(buffer) >= self.train_start and total_steps % self.train_every == 0:
             return [buffer.sample_rows(self.batch_size)]  # random.sample: without replacement
         return []
 

@@ -65,11 +65,11 @@ class LossTally:
 def run_updates(learner, batches: list, fuse_act: bool, next_state, want_action: bool) -> tuple[list, Any]:
     """A solo learner's calls for one env step's update batches (``schedules.py``): every
     update in turn, the last fused with picking the next action where the schedule allows
-    it and an action is wanted; a step without updates is ``act_without_update`` (post 003
+    it and an action is wanted; a step without updates is ``step_without_batch`` (post 003
     still soft-updates then). Returns (losses of each update, the next action or None)."""
     losses = [learner.train(rows) for rows in batches[:-1]]
     if not batches:
-        return losses, learner.act_without_update(next_state, want_action=want_action)
+        return losses, learner.step_without_batch(next_state, want_action=want_action)
     if want_action and fuse_act:
         last, action = learner.train_and_act(batches[-1], next_state)
         return [*losses, last], action

@@ -32,7 +32,7 @@ from keras_rl.learners.common import (
     variables_state,
 )
 from keras_rl.learners.networks import Actor, Critic, MountainCarActor, MountainCarCritic, build
-from keras_rl.learners.protocol import ActorUpdate, check_actor_update, four_networks
+from keras_rl.learners.protocol import ActorGradient, check_actor_gradient, four_networks
 
 
 class DDPGLearner:
@@ -54,10 +54,10 @@ class DDPGLearner:
         broadcast_target: bool,
         layout: Layout,
         xla: bool = True,
-        actor_update: ActorUpdate = "mean_q",
+        actor_gradient: ActorGradient = "mean_q",
         dqda_at_buffer_actions: bool = False,
     ):
-        self.actor_update = check_actor_update(actor_update)
+        self.actor_gradient = check_actor_gradient(actor_gradient)
         self.dqda_at_buffer_actions = bool(dqda_at_buffer_actions)
         self.actor, self.critic = actor, critic
         self.target_actor, self.target_critic = target_actor, target_critic
@@ -127,7 +127,7 @@ class DDPGLearner:
         losses, action = self._train_and_act(tf.constant(rows), tf.constant(state, tf.float32))
         return losses, action.numpy()
 
-    def act_without_update(self, state: np.ndarray, want_action: bool) -> np.ndarray | None:
+    def step_without_batch(self, state: np.ndarray, want_action: bool) -> np.ndarray | None:
         return self.act(state) if want_action else None
 
     def save(self, run_dir: Path) -> None:
@@ -190,7 +190,7 @@ class DDPGLearner:
     def actor_gradients(self, states, actions):
         """The actor's gradients (see the module docstring) and a loss to report, -mean Q."""
         variables = self.actor.trainable_variables
-        if self.actor_update == "mean_q":
+        if self.actor_gradient == "mean_q":
             with tf.GradientTape() as tape:
                 q_values = self.critic(states, self.actor(states))  # the freshly updated critic
                 actor_loss = -self.seed_mean(q_values)
@@ -205,7 +205,7 @@ class DDPGLearner:
             q_values = self.critic(states, at)
         dq_da = tf.stop_gradient(tape.gradient(q_values, at))  # [B, act]
         actor_loss = -self.seed_mean(q_values)
-        if self.actor_update == "dpg_intended":
+        if self.actor_gradient == "dpg_intended":
             with tf.GradientTape() as tape:
                 mu = self.actor(states)
             return tape.gradient(mu, variables, output_gradients=-dq_da), actor_loss
@@ -286,6 +286,6 @@ def post001_learner(config, spec: EnvSpec, xla: bool = True) -> DDPGLearner:
         broadcast_target=False,
         layout=Layout(spec.obs_dim, spec.action_dim),
         xla=xla,
-        actor_update=c.actor_gradient,
+        actor_gradient=c.actor_gradient,
         dqda_at_buffer_actions=c.dqda_at_buffer_actions,
     )

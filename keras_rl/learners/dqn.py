@@ -75,7 +75,7 @@ class DQNLearner:
         losses, action = self._train_and_act(tf.constant(rows), tf.constant(state, tf.float32))
         return losses, int(action)
 
-    def act_without_update(self, state: np.ndarray, want_action: bool) -> int | None:
+    def step_without_batch(self, state: np.ndarray, want_action: bool) -> int | None:
         """Before the first batch: the tutorial's soft update still runs every step."""
         action = int(self._sync_and_act(tf.constant(state, tf.float32)))
         return action if want_action else None

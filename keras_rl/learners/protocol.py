@@ -33,7 +33,7 @@ class Learner(Protocol):
         """``train(rows)`` then ``act(state)`` with the updated weights, in one call where
         the framework can fuse them (the posts pick step t+1's action after step t's update)."""
 
-    def act_without_update(self, state: np.ndarray, want_action: bool) -> Any:
+    def step_without_batch(self, state: np.ndarray, want_action: bool) -> Any:
         """An env step on which the schedule does not train: whatever the post does every
         step regardless (post 003's soft update), then ``act(state)`` if ``want_action``,
         else None."""
@@ -54,14 +54,16 @@ class Learner(Protocol):
         """Restore ``state_dict()``'s output exactly."""
 
 
-ActorUpdate = Literal["mean_q", "dpg_intended", "dpg_literal"]
+ActorGradient = Literal["mean_q", "dpg_intended", "dpg_literal"]
 """How a DDPG learner forms the actor's gradient (``keras_rl/learners/ddpg.py`` explains each)."""
 
 
-def check_actor_update(actor_update: str) -> str:
-    if actor_update not in typing.get_args(ActorUpdate):
-        raise ValueError(f"actor_update must be one of {', '.join(typing.get_args(ActorUpdate))}, got {actor_update!r}")
-    return actor_update
+def check_actor_gradient(actor_gradient: str) -> str:
+    if actor_gradient not in typing.get_args(ActorGradient):
+        raise ValueError(
+            f"actor_gradient must be one of {', '.join(typing.get_args(ActorGradient))}, got {actor_gradient!r}"
+        )
+    return actor_gradient
 
 
 def four_networks(

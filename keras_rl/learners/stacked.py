@@ -309,8 +309,8 @@ class StackedDDPGLearner(SliceState, DDPGLearner):
         losses, actions = self._train_and_act(tf.constant(rows), tf.constant(states, tf.float32))
         return losses, actions.numpy()
 
-    def act_without_update(self, states: np.ndarray, separate: bool = False) -> np.ndarray:
-        """Before the warm-up ends DDPG only acts (``separate`` changes nothing here)."""
+    def step_without_batch(self, states: np.ndarray, episode_ended: bool = False) -> np.ndarray:
+        """Before the warm-up ends DDPG only acts (``episode_ended`` changes nothing here)."""
         return self.act(states)
 
     def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
@@ -378,7 +378,7 @@ class StackedDQNLearner(SliceState, DQNLearner):
         losses, actions = self._train_and_act(tf.constant(rows), tf.constant(states, tf.float32))
         return losses, actions.numpy()
 
-    def act_without_update(self, states: np.ndarray, separate: bool = False) -> np.ndarray:
+    def step_without_batch(self, states: np.ndarray, episode_ended: bool = False) -> np.ndarray:
         """Before the first batch the tutorial's soft update still runs every step."""
         return self._sync_and_act(tf.constant(states, tf.float32)).numpy()
 
@@ -422,11 +422,11 @@ class SoloAsStack:
         losses, action = self.learner.train_and_act(rows[0], states[0])
         return self._one(losses), np.asarray(action)[None]
 
-    def act_without_update(self, states: np.ndarray, separate: bool = False) -> np.ndarray:
-        """``separate``: the episode ended on this step, so the solo run makes no act here
+    def step_without_batch(self, states: np.ndarray, episode_ended: bool = False) -> np.ndarray:
+        """``episode_ended``: the episode ended on this step, so the solo run makes no act here
         (the learner may still do its every-step work), then acts on the next first state."""
-        action = self.learner.act_without_update(states[0], want_action=not separate)
-        return self.act(states) if separate else np.asarray(action)[None]
+        action = self.learner.step_without_batch(states[0], want_action=not episode_ended)
+        return self.act(states) if episode_ended else np.asarray(action)[None]
 
     def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
         return self.learner.weights()
@@ -521,7 +521,7 @@ def stack_post001(configs: Sequence, spec: EnvSpec, xla: bool = True):
         lambda m: StackedMountainCarCritic(m, obs, act),
         xla,
         broadcast_target=False,
-        actor_update=c.actor_gradient,
+        actor_gradient=c.actor_gradient,
         dqda_at_buffer_actions=c.dqda_at_buffer_actions,
     )
 

@@ -97,6 +97,20 @@ def frameworks(experiment: str) -> tuple[str, ...]:
     return tuple(fw for (name, fw) in IMPLEMENTATIONS if name == experiment)
 
 
+def compared_frameworks(experiment: str) -> tuple[str, str]:
+    """The two frameworks ``keras-rl compare`` sets side by side (ours first), or a
+    ConfigError when the experiment has no second one."""
+    from keras_rl.errors import ConfigError
+
+    have = frameworks(experiment)
+    if len(have) != 2:
+        raise ConfigError(
+            f"{experiment} has no PyTorch version yet, so there is nothing to compare it with "
+            f"(frameworks: {', '.join(have)})"
+        )
+    return have[0], have[1]
+
+
 def implementation(experiment: str, framework: str) -> Implementation:
     from keras_rl.errors import ConfigError
 

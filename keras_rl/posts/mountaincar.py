@@ -33,7 +33,7 @@ from keras_rl.config import ExperimentConfig, non_negative, positive, unit, widt
 from keras_rl.envs import EnvSpec, box_spec, make_env
 from keras_rl.errors import ConfigError
 from keras_rl.experiment import Experiment
-from keras_rl.learners.protocol import ActorUpdate
+from keras_rl.learners.protocol import ActorGradient
 from keras_rl.metrics import GoalShare, ReturnSpread
 
 
@@ -135,7 +135,7 @@ class MountainCarDDPGConfig(ExperimentConfig):
     """P001-PHASE: Keras 2's learning phase is never fed, so it stays 0: GaussianNoise off,
     BatchNormalization on its never-updated moving statistics (an affine layer with
     trainable gamma and beta). True would call every network in training mode."""
-    actor_gradient: ActorUpdate = "dpg_literal"
+    actor_gradient: ActorGradient = "dpg_literal"
     """P001-ACTORGRAD: ``dpg_literal`` (what ``get_updates(loss=tf.gradients(...))`` computes:
     the gradient of the sum of the first-order gradients) or ``dpg_intended``."""
     dqda_at_buffer_actions: bool = True

@@ -1,8 +1,6 @@
-"""``keras-rl compare``: the same seeds in Keras and in PyTorch, and what differs.
+"""``keras-rl compare``'s report: the same seeds in Keras and in PyTorch, and what differs.
 
-Run folders are reused when they exist for the same config and code version; a folder
-made with another config or code version is never silently merged: the command refuses
-and says which field differs (``--rerun`` replaces such folders).
+It reads run folders and trains nothing: ``runs/compare_runs.py`` makes or reuses them first.
 """
 
 from __future__ import annotations
@@ -15,55 +13,17 @@ import numpy as np
 
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.experiment import Experiment
-from keras_rl.learners.table import frameworks
+from keras_rl.learners.table import compared_frameworks, frameworks
 from keras_rl.registry import get_experiment
 from keras_rl.report.equivalence import framework_verdict
-from keras_rl.report.plots import draw_job_curves, plt, save_figure
+from keras_rl.report.plots import plt, save_figure
 from keras_rl.report.stats import episodes_to_threshold_stats, fisher_exact, iqm_ci, mann_whitney, median_difference_ci
-from keras_rl.runs.backends import backend_for
 from keras_rl.runs.files import atomic_write_json, atomic_write_text, finite_or_none, read_episodes, run_folder
-from keras_rl.runs.jobs import SeedJob, batched, run_jobs
-from keras_rl.runs.options import RunOptions
-from keras_rl.runs.provenance import code_version
-from keras_rl.runs.reuse import check_reusable
 from keras_rl.runs.summary import RunSummary
 
 FRAMEWORKS = ("keras", "torch")
-
-
-def framework_overrides(framework: str, matched_init: bool) -> dict[str, Any]:
-    return {"framework": framework, "matched_init": matched_init and framework == "torch"}
-
-
-def gather(
-    experiment: Experiment,
-    variant: str,
-    seeds: list[int],
-    runs_root: Path,
-    rerun: bool,
-    reuse_only: bool,
-    overrides: dict[str, Any],
-    matched_init: bool = False,
-) -> list[SeedJob]:
-    """The jobs still to run for each framework (the rest are reused)."""
-    jobs: list[SeedJob] = []
-    missing: dict[str, list[int]] = {}
-    for framework in FRAMEWORKS:
-        base = experiment.config_cls.for_variant(variant, **framework_overrides(framework, matched_init), **overrides)
-        folder = run_folder(runs_root, experiment.name, variant, framework, matched_init)
-        for seed in seeds:
-            config = base.replace(seed=seed)
-            seed_dir = folder / f"seed_{seed}"
-            if rerun or check_reusable(seed_dir, config, code_version()) is not None:
-                jobs.append(SeedJob.of(config, seed_dir, start="overwrite"))
-                missing.setdefault(framework, []).append(seed)
-    if reuse_only and missing:
-        have = {fw: sorted(set(seeds) - set(missing.get(fw, []))) for fw in FRAMEWORKS}
-        raise RunFolderError(
-            f"mismatched seed sets: {', '.join(f'{fw} lacks seeds {s}' for fw, s in missing.items())} "
-            f"(reusable: {have}); run without --reuse-only to make them"
-        )
-    return jobs
+"""The two arms of every report, in ``learners/table.frameworks`` order
+(``runs/compare_runs.compared_frameworks`` holds each experiment to it)."""
 
 
 def load_runs(folder: Path, seeds: list[int]) -> list[dict[str, Any]]:
@@ -262,46 +222,29 @@ class CompareResult:
 def compare(
     name: str,
     seeds: list[int],
-    options: RunOptions | None = None,
     *,
     variant: str = "faithful",
     runs_root: Path = Path("results"),
     out_root: Path = Path("results/compare"),
-    rerun: bool = False,
-    reuse_only: bool = False,
     matched_init: bool = False,
+    episodes: int | None = None,
     command: str = "",
+    workers: int | None = None,
 ) -> CompareResult:
     """Write ``<out_root>/<name>/report.md`` (``<out_root>/<name>/matched-init/`` with
-    ``matched_init``: the torch runs start from the Keras runs' initial weights).
-
-    Raises KeyboardInterrupt when Ctrl-C stopped the runs (what finished is on disk)."""
+    ``matched_init``: the torch runs start from the Keras runs' initial weights) from the
+    run folders of ``seeds`` under ``runs_root``, which ``runs/compare_runs.py`` made.
+    ``episodes``: the budget the runs had, if not the post's."""
     experiment = get_experiment(name)
-    if "torch" not in frameworks(name):
-        raise ConfigError(
-            f"{name} has no PyTorch version yet, so there is nothing to compare it with "
-            f"(frameworks: {', '.join(frameworks(name))})"
-        )
-    from keras_rl.torch import require_torch
-
-    require_torch()
-    options = options or RunOptions()
-    overrides = options.config_changes()
-    jobs = batched(
-        gather(experiment, variant, seeds, runs_root, rerun, reuse_only, overrides, matched_init),
-        options.seed_batch,
-        options.workers,
-    )  # the Keras runs still to make, S seeds at a time
-    backend = backend_for(options.workers, len(jobs), options.address)
-    if run_jobs(jobs, backend, options.progress, after_job=draw_job_curves).interrupted:
-        raise KeyboardInterrupt
+    if compared_frameworks(name) != FRAMEWORKS:
+        raise ConfigError(f"{name}'s frameworks are {frameworks(name)}; a report compares {FRAMEWORKS}")
     runs = {fw: load_runs(run_folder(runs_root, name, variant, fw, matched_init), seeds) for fw in FRAMEWORKS}
     for fw, rs in runs.items():
         unfinished = [r["seed"] for r in rs if r["summary"].status != "completed"]
         if unfinished:
             raise RunFolderError(f"{fw} runs of seeds {unfinished} did not finish; the comparison needs them all")
-    config = experiment.config_cls.for_variant(variant, **overrides)
+    config = experiment.config_cls.for_variant(variant, **({} if episodes is None else {"episodes": episodes}))
     result = analyse(runs, config.episodes)
     out_dir = Path(out_root) / name / ("matched-init" if matched_init else "")
-    write_report(out_dir, experiment, variant, runs, result, config.threshold, command, matched_init, options.workers)
+    write_report(out_dir, experiment, variant, runs, result, config.threshold, command, matched_init, workers)
     return CompareResult(out_dir, verdict(result, len(seeds)), result)

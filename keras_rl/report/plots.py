@@ -145,9 +145,8 @@ def draw_job_curves(job) -> None:
     import sys
 
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.jobs import members
 
-    for member in members(job):
+    for member in getattr(job, "jobs", (job,)):  # a batch's seeds, or the one seed (runs/jobs.members)
         experiment = get_experiment(member.experiment)
         try:
             plot_seed_curve(Path(member.out_dir), experiment, experiment.config_cls.from_dict(member.config))

@@ -272,7 +272,7 @@ class PartsAxis:
             )
         states = self._states()
         if n == 0:
-            self.raw = dict(zip(live, self.learner.act_without_update(states, separate=any_ended)))
+            self.raw = dict(zip(live, self.learner.step_without_batch(states, episode_ended=any_ended)))
             return {}
         rounds = []  # (losses [S] by name, which stack slots trained)
         if alike:  # every running seed trains n batches: the solo run's calls, stacked

@@ -32,7 +32,7 @@ import numpy as np
 
 from keras_rl.buffers import Batch, Layout
 from keras_rl.envs import EnvSpec
-from keras_rl.learners.protocol import ActorUpdate, check_actor_update, four_networks
+from keras_rl.learners.protocol import ActorGradient, check_actor_gradient, four_networks
 from keras_rl.torch import load_state, require_torch, save_state, single_threaded
 from keras_rl.torch.networks import Actor, Critic, MountainCarActor, MountainCarCritic
 from keras_rl.torch.optimizers import KerasAdam, SeedKerasAdam
@@ -44,7 +44,7 @@ import torch  # noqa: E402
 
 class TorchDDPGLearner:
     """``keras_rl.learners.ddpg.DDPGLearner`` in PyTorch: the same ``Learner`` protocol, the
-    same update order (critic, actor, soft updates) and the same ``actor_update`` modes
+    same update order (critic, actor, soft updates) and the same ``actor_gradient`` modes
     (``mean_q``, ``dpg_intended``, ``dpg_literal``)."""
 
     loss_names = ("critic_loss", "actor_loss")
@@ -62,10 +62,10 @@ class TorchDDPGLearner:
         tau: float,
         broadcast_target: bool,
         layout: Layout,
-        actor_update: ActorUpdate = "mean_q",
+        actor_gradient: ActorGradient = "mean_q",
         dqda_at_buffer_actions: bool = False,
     ):
-        check_actor_update(actor_update)
+        check_actor_gradient(actor_gradient)
         self.actor, self.critic, self.target_actor, self.target_critic = actor, critic, target_actor, target_critic
         # KerasAdam here; a seed-batched subclass puts a SeedKerasAdam in their place
         self.actor_optimizer: KerasAdam | SeedKerasAdam = KerasAdam(actor.parameters(), lr=actor_lr)
@@ -73,7 +73,7 @@ class TorchDDPGLearner:
         self.gamma, self.tau = float(gamma), float(tau)
         self.broadcast_target = bool(broadcast_target)
         self.layout = layout
-        self.actor_update, self.dqda_at_buffer_actions = actor_update, bool(dqda_at_buffer_actions)
+        self.actor_gradient, self.dqda_at_buffer_actions = actor_gradient, bool(dqda_at_buffer_actions)
         self._actor_params = list(actor.parameters())
         # (target, source) lists for the soft updates, built once, not per update
         self._soft_pairs = [(variables(target_actor), variables(actor)), (variables(target_critic), variables(critic))]
@@ -89,7 +89,7 @@ class TorchDDPGLearner:
     def train_and_act(self, rows: np.ndarray, state: np.ndarray):
         return self.train(rows), self.act(state)
 
-    def act_without_update(self, state: np.ndarray, want_action: bool):
+    def step_without_batch(self, state: np.ndarray, want_action: bool):
         return self.act(state) if want_action else None
 
     def weights(self) -> dict[str, list[np.ndarray]]:
@@ -161,7 +161,7 @@ class TorchDDPGLearner:
     def actor_gradients(self, states, actions):
         """The actor's gradients, as in ``DDPGLearner.actor_gradients``, and -mean Q to report."""
         params = self._actor_params
-        if self.actor_update == "mean_q":
+        if self.actor_gradient == "mean_q":
             actor_loss = -self.seed_mean(self.critic(states, self.actor(states)))
             return torch.autograd.grad(self.total(actor_loss), params), actor_loss
         policy_actions = self.actor(states)  # [B, act], with its graph for the step below
@@ -169,7 +169,7 @@ class TorchDDPGLearner:
         q_values = self.critic(states, at)
         (dq_da,) = torch.autograd.grad(q_values.sum(), at)  # a constant for the actor's step
         actor_loss = -self.seed_mean(q_values)
-        if self.actor_update == "dpg_intended":
+        if self.actor_gradient == "dpg_intended":
             return torch.autograd.grad(policy_actions, params, grad_outputs=-dq_da), actor_loss
         # dpg_literal: the gradient of the sum of every entry of the first-order gradients.
         first = torch.autograd.grad(policy_actions, params, grad_outputs=-dq_da, create_graph=True)
@@ -235,6 +235,6 @@ def post001_learner(config, spec: EnvSpec) -> TorchDDPGLearner:
         tau=c.tau,
         broadcast_target=False,
         layout=Layout(spec.obs_dim, spec.action_dim),
-        actor_update=c.actor_gradient,
+        actor_gradient=c.actor_gradient,
         dqda_at_buffer_actions=c.dqda_at_buffer_actions,
     )

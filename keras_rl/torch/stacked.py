@@ -105,7 +105,7 @@ class StackedTorchDDPGLearner(TorchDDPGLearner):
     def train_and_act(self, rows: np.ndarray, states: np.ndarray, separate: bool = False):
         return self.train(rows), self.act(states)
 
-    def act_without_update(self, states: np.ndarray, separate: bool = False) -> np.ndarray:
+    def step_without_batch(self, states: np.ndarray, episode_ended: bool = False) -> np.ndarray:
         return self.act(states)
 
     def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
@@ -194,6 +194,6 @@ def stack_post001(configs: Sequence, spec: EnvSpec):
         tau=c.tau,
         broadcast_target=False,
         layout=Layout(spec.obs_dim, spec.action_dim),
-        actor_update=c.actor_gradient,
+        actor_gradient=c.actor_gradient,
         dqda_at_buffer_actions=c.dqda_at_buffer_actions,
     )

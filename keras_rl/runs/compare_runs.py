@@ -1,0 +1,81 @@
+"""The runs ``keras-rl compare`` needs: the same seeds in each framework the experiment has
+(``learners/table.frameworks``), reused where a folder holds a finished run of the same
+config and code version, made where not (``report/compare.py`` then reads and reports them).
+
+A folder made with another config or code version is never silently merged: the command
+refuses and says which field differs (``--rerun`` replaces such folders).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from keras_rl.errors import RunFolderError
+from keras_rl.experiment import Experiment
+from keras_rl.learners.table import compared_frameworks
+from keras_rl.runs.backends import backend_for
+from keras_rl.runs.files import run_folder
+from keras_rl.runs.jobs import AfterJob, SeedJob, batched, run_jobs
+from keras_rl.runs.options import RunOptions
+from keras_rl.runs.provenance import code_version
+from keras_rl.runs.reuse import check_reusable
+
+
+def framework_overrides(framework: str, matched_init: bool) -> dict[str, Any]:
+    return {"framework": framework, "matched_init": matched_init and framework == "torch"}
+
+
+def gather(
+    experiment: Experiment,
+    variant: str,
+    seeds: list[int],
+    runs_root: Path,
+    rerun: bool,
+    reuse_only: bool,
+    overrides: dict[str, Any],
+    matched_init: bool = False,
+) -> list[SeedJob]:
+    """The jobs still to run for each framework (the rest are reused)."""
+    jobs: list[SeedJob] = []
+    missing: dict[str, list[int]] = {}
+    compared = compared_frameworks(experiment.name)
+    for framework in compared:
+        base = experiment.config_cls.for_variant(variant, **framework_overrides(framework, matched_init), **overrides)
+        folder = run_folder(runs_root, experiment.name, variant, framework, matched_init)
+        for seed in seeds:
+            config = base.replace(seed=seed)
+            seed_dir = folder / f"seed_{seed}"
+            if rerun or check_reusable(seed_dir, config, code_version()) is not None:
+                jobs.append(SeedJob.of(config, seed_dir, start="overwrite"))
+                missing.setdefault(framework, []).append(seed)
+    if reuse_only and missing:
+        have = {fw: sorted(set(seeds) - set(missing.get(fw, []))) for fw in compared}
+        raise RunFolderError(
+            f"mismatched seed sets: {', '.join(f'{fw} lacks seeds {s}' for fw, s in missing.items())} "
+            f"(reusable: {have}); run without --reuse-only to make them"
+        )
+    return jobs
+
+
+def make_compare_runs(
+    experiment: Experiment,
+    variant: str,
+    seeds: list[int],
+    options: RunOptions,
+    runs_root: Path,
+    rerun: bool,
+    reuse_only: bool,
+    matched_init: bool,
+    after_job: AfterJob | None = None,
+) -> None:
+    """Run (S seeds at a time, on ``options``' backend) what ``gather`` finds missing.
+    Raises KeyboardInterrupt when Ctrl-C stopped the runs (what finished is on disk)."""
+    jobs = batched(
+        gather(experiment, variant, seeds, runs_root, rerun, reuse_only, options.config_changes(), matched_init),
+        options.seed_batch,
+        options.workers,
+    )
+    backend = backend_for(options.workers, len(jobs), options.address)
+    if run_jobs(jobs, backend, options.progress, after_job=after_job).interrupted:
+        raise KeyboardInterrupt
