@@ -1,0 +1,171 @@
+"""The sequential check against the fixed-n rule, on the same simulated checks.
+
+    python reproductions/check_sequential.py            # print the table
+    python reproductions/check_sequential.py --write    # results/checks/sequential.md and .json
+
+For each post and tier: the design of ``keras_rl/check/sequential.py`` (looks at 5, 10, ...,
+30 fresh seeds; futility above p = 0.5 from the second look), its efficacy level calibrated
+on the committed 30-seed baseline alone so that an unchanged learner is called changed at
+most 1% / 3 of the time (so the three-post command stays under 1%, Bonferroni), then run on
+the same draws as the fixed-n rule (its n fresh seeds, one look):
+
+- under no change: pooled draws from the baseline's values (``NULL_REPEATS``);
+- under each mutant of ``check/rules.MUTANTS``: fresh seeds drawn with replacement from its
+  committed runs (``MUTANT_REPEATS``), against the whole baseline.
+
+The fixed-n rule is shown at the rule's alpha (how each post's test runs; Holm over the
+posts then) and at alpha / 3 (the same family-wise guarantee as the sequential design).
+The mutants have 10 committed runs each, so a mutant's power is the power against those
+10 runs' distribution, resampled: what issue #21 asks for (30 runs per mutant, half held
+out) is not yet run, and these powers carry that caveat.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "reproductions"))
+os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
+
+from check_calibrate import load, values  # noqa: E402
+
+from keras_rl.check.command import baseline_values  # noqa: E402
+from keras_rl.check.rules import MUTANTS, RULES, TIERS  # noqa: E402
+from keras_rl.check.sequential import (  # noqa: E402
+    DESIGN,
+    calibrate,
+    fixed_rule,
+    mutant_pvalues,
+    null_pvalues,
+    simulate,
+)
+from keras_rl.registry import get_experiment  # noqa: E402
+from keras_rl.runs.files import atomic_write_text  # noqa: E402
+
+CHECKS = ROOT / "results" / "checks"
+POSTS = ("pendulum", "cartpole", "mountaincar")
+FAMILY_ALPHA = 0.01
+NULL_REPEATS, MUTANT_REPEATS = 4000, 1000
+COMMAND = "python reproductions/check_sequential.py --write"
+
+
+def study(post: str, tier: str) -> dict:
+    rule = RULES[(post, tier)]
+    experiment = get_experiment(post)
+    base_values, _ = baseline_values(experiment, rule, CHECKS / post / "baseline")
+    baseline = np.asarray(list(base_values.values()), float)
+    stages = sorted(set(DESIGN.stages) | {rule.seeds})
+    columns = [stages.index(n) for n in DESIGN.stages]
+    rng = np.random.default_rng(0)
+    alpha = FAMILY_ALPHA / len(POSTS)
+    null = null_pvalues(baseline, rule.statistic, stages, NULL_REPEATS, rng)
+    design = calibrate(DESIGN, null[:, columns], alpha)
+
+    def row(name: str, pmatrix: np.ndarray, gross: bool | None) -> dict:
+        seq = simulate(design, pmatrix[:, columns])
+        return {
+            "scenario": name,
+            "gross": gross,
+            "sequential_changed": seq.changed,
+            "sequential_seeds": seq.seeds_mean,
+            "fixed_changed_at_rule_alpha": fixed_rule(pmatrix, stages, rule.seeds, rule.alpha).changed,
+            "fixed_changed_at_family_alpha": fixed_rule(pmatrix, stages, rule.seeds, alpha).changed,
+            "repeats": len(pmatrix),
+        }
+
+    rows = [row("no change", null, None)]
+    for mutant in MUTANTS[post]:
+        folder = CHECKS / post / "mutants" / mutant.name
+        if not folder.is_dir():
+            continue
+        changed = values(post, rule.statistic, rule.episodes, load(folder))
+        pm = mutant_pvalues(baseline, changed, rule.statistic, stages, MUTANT_REPEATS, rng)
+        rows.append({**row(mutant.name, pm, mutant.gross), "mutant_runs": len(changed)})
+    mutants = [r for r in rows if r["gross"] is not None]
+    summary = {
+        "mean_power_sequential": float(np.mean([r["sequential_changed"] for r in mutants])),
+        "mean_power_fixed_family_alpha": float(np.mean([r["fixed_changed_at_family_alpha"] for r in mutants])),
+        "mean_power_fixed_rule_alpha": float(np.mean([r["fixed_changed_at_rule_alpha"] for r in mutants])),
+        "mean_seeds_sequential_mutants": float(np.mean([r["sequential_seeds"] for r in mutants])),
+        "seeds_sequential_no_change": rows[0]["sequential_seeds"],
+        "fixed_seeds": rule.seeds,
+    }
+    return {
+        "post": post,
+        "tier": tier,
+        "statistic": rule.statistic,
+        "rule_alpha": rule.alpha,
+        "family_alpha_per_post": alpha,
+        "design": {"stages": list(design.stages), "efficacy": design.efficacy, "futility": design.futility},
+        "rows": rows,
+        "summary": summary,
+    }
+
+
+def render(results: list[dict]) -> str:
+    pct = lambda v: f"{100 * v:.1f}%"  # noqa: E731
+    lines = [
+        "# The sequential check against the fixed-n rule",
+        "",
+        f"Generated by `{COMMAND}` (see its docstring for the method). The efficacy level is "
+        f"calibrated per post on the baseline alone, for at most {FAMILY_ALPHA:.0%} / {len(POSTS)} per post; "
+        "futility stops (p > 0.5 from the second look) only end checks as consistent. "
+        f"{NULL_REPEATS} simulated checks under no change, {MUTANT_REPEATS} per mutant (each drawn from its "
+        "10 committed runs: a caveat, see the docstring).",
+        "",
+    ]
+    for r in results:
+        s, d = r["summary"], r["design"]
+        lines += [
+            f"## {r['post']}, {r['tier']} tier ({r['statistic']})",
+            "",
+            f"Looks at {', '.join(map(str, d['stages']))} fresh seeds; changed below p = {d['efficacy']:.2g}; "
+            f"consistent above p = {d['futility']:g}. The fixed-n rule: {s['fixed_seeds']} seeds, one look.",
+            "",
+            "| scenario | sequential: changed | sequential: seeds (mean) | fixed-n at the rule's alpha "
+            f"({r['rule_alpha']:g}) | fixed-n at alpha / 3 ({r['family_alpha_per_post']:.3g}) |",
+            "|---|---|---|---|---|",
+        ]
+        for row in r["rows"]:
+            name = row["scenario"] + (" (gross)" if row["gross"] else "")
+            lines.append(
+                f"| {name} | {pct(row['sequential_changed'])} | {row['sequential_seeds']:.1f} | "
+                f"{pct(row['fixed_changed_at_rule_alpha'])} | {pct(row['fixed_changed_at_family_alpha'])} |"
+            )
+        ratio = s["mean_seeds_sequential_mutants"] / s["fixed_seeds"]
+        lines += [
+            "",
+            f"Mean power over the mutants: sequential {pct(s['mean_power_sequential'])} with "
+            f"{s['mean_seeds_sequential_mutants']:.1f} seeds on average ({ratio:.0%} of the fixed rule's "
+            f"{s['fixed_seeds']}); fixed-n {pct(s['mean_power_fixed_family_alpha'])} at alpha / 3, "
+            f"{pct(s['mean_power_fixed_rule_alpha'])} at the rule's alpha. Under no change the sequential "
+            f"check uses {s['seeds_sequential_no_change']:.1f} seeds on average.",
+            "",
+        ]
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--write", action="store_true", help="write results/checks/sequential.md and .json")
+    args = parser.parse_args()
+    results = [study(post, tier) for tier in TIERS for post in POSTS]
+    text = render(results)
+    if not args.write:
+        print(text)
+        return
+    atomic_write_text(CHECKS / "sequential.json", json.dumps({"command": COMMAND, "results": results}, indent=2) + "\n")
+    atomic_write_text(CHECKS / "sequential.md", text + "\n")
+    print(f"wrote {CHECKS / 'sequential.md'} and {CHECKS / 'sequential.json'}")
+
+
+if __name__ == "__main__":
+    main()
