@@ -400,3 +400,20 @@ def test_the_spread_over_baselines_averages_to_the_exact_rate():
     spread = baseline_spread(6, 30, 0.01, baselines=3_000)
     assert spread["p5"] < spread["median"] < spread["p95"] and 0 < spread["share_above_alpha"] < 1
     assert spread["mean"] == pytest.approx(exact_false_alarm_rate(6, 30, 0.01), abs=0.0008)
+
+
+def test_held_out_mutants_are_valid_changes_and_none_is_a_tuning_mutant():
+    """Issue #21's held-out list: each is a real change of the faithful config, and none
+    shares a name or a change with the mutants the rules were chosen on."""
+    from keras_rl.check.rules import HELD_OUT, MUTANTS
+    from keras_rl.registry import get_experiment
+
+    assert set(HELD_OUT) == set(MUTANTS)
+    for post, held in HELD_OUT.items():
+        base = get_experiment(post).config_cls.for_variant("faithful")
+        tuned = {(m.name, tuple(sorted(m.overrides.items()))) for m in MUTANTS[post]}
+        for mutant in held:
+            changed = base.with_text_overrides([f"{k}={v}" for k, v in mutant.overrides.items()])
+            assert changed.differs_from(base) == sorted(mutant.overrides)
+            assert mutant.name not in {name for name, _ in tuned}
+            assert tuple(sorted(mutant.overrides.items())) not in {o for _, o in tuned}
