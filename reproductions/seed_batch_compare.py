@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import sys
 from pathlib import Path
 
@@ -22,6 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from keras_rl.report.equivalence import framework_verdict  # noqa: E402
 from keras_rl.report.stats import fisher_exact, mann_whitney, median_difference_ci  # noqa: E402
 from keras_rl.runs.files import atomic_write_text  # noqa: E402
 from keras_rl.runs.summary import RunSummary  # noqa: E402
@@ -87,6 +89,8 @@ def main() -> None:
     diff = median_difference_ci(hits_b, hits_a, np.random.default_rng(0)) if hits_a and hits_b else None
     _, p = mann_whitney(hits_b, hits_a)
     fisher = fisher_exact(len(hits_b), n, len(hits_a), n)
+    budget = json.loads((args.solo / f"seed_{seeds[0]}" / "config.json").read_text())["episodes"]
+    headline, judged = framework_verdict((len(hits_b), len(hits_a)), (n, n), (hits_b, hits_a), budget)
     lines += [
         "",
         f"- Success: batched {len(hits_b)}/{n}, solo {len(hits_a)}/{n} (Fisher p = {fisher:.3g}).",
@@ -94,6 +98,9 @@ def main() -> None:
         f"{np.median(hits_a) if hits_a else 'n/a'}; batched minus solo {diff} (95% percentile bootstrap, "
         f"10000 resamples).",
         f"- Mann-Whitney U (two-sided) p = {p:.3g}.",
+        f"- Equivalence under the margins set before the 30-seed runs (docs/findings.md): {headline}: "
+        + "; ".join(e.sentence() for e in judged)
+        + ".",
         f"- Wall time: the solo seeds took {sum(s.wall_seconds for s in solo_s):.0f} s of seed time in all; "
         + _batch_walls([RunSummary.read(d) for d in args.batched.glob("seed_*")], args.batch_size)
         + ".",
