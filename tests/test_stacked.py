@@ -436,6 +436,11 @@ def test_seed_batch_on_sweep_runs_each_grid_point_as_a_batch_and_refuses_what_it
         str(tmp_path / "tutorial"),
     )
     assert bad.returncode == 2 and "--seed-batch has no torch learner for cartpole" in bad.stderr, bad.stderr
+    tutorial = cli(  # auto: where nothing batches, each seed runs alone
+        "reproduce", "cartpole", "--framework", "torch", "--seeds", "0-1", "--seed-batch", "auto", "--dry-run",
+        "--out", str(tmp_path / "tutorial"),
+    )  # fmt: skip
+    assert tutorial.returncode == 0, tutorial.stderr
     out = tmp_path / "sweep"
     proc = cli(
         "sweep",
@@ -447,7 +452,7 @@ def test_seed_batch_on_sweep_runs_each_grid_point_as_a_batch_and_refuses_what_it
         "--episodes",
         "3",
         "--seed-batch",
-        "2",
+        "auto",  # two seeds, one worker: one batch of both per grid point
         "--no-progress",
         "--out",
         str(out),
@@ -457,6 +462,7 @@ def test_seed_batch_on_sweep_runs_each_grid_point_as_a_batch_and_refuses_what_it
         for seed in (0, 1):
             summary = json.loads((out / point / f"seed_{seed}" / "summary.json").read_text())
             assert summary["status"] == "completed" and summary["episodes_run"] == 3
+            assert summary["provenance"]["seed_batch"] == [0, 1]
     again = cli(
         "sweep",
         "cartpole",
