@@ -134,6 +134,12 @@ def table(experiment: str) -> str:
     summaries = {label: _summaries(folder) for _, label, folder in rows if folder.is_dir()}
     if "faithful" not in summaries:
         return "\n".join(lines[:2] + ["Not run yet: no faithful runs in " + source["base"] + "."])
+    # Every arm on the seeds they all have: the faithful set may hold more (issue #20's
+    # 30-seed runs) than the switches' sets, and a comparison is made on the same seeds.
+    common = set.intersection(*({s.seed for s in arm} for arm in summaries.values()))
+    summaries = {label: [s for s in arm if s.seed in common] for label, arm in summaries.items()}
+    span = f"{min(common)}-{max(common)}" if common == set(range(min(common), max(common) + 1)) else str(sorted(common))
+    lines[2] = lines[2].replace("runs (seeds 0-9)", f"runs (seeds {span})")
     result = {r["point"]: r for r in analyse_sweep(summaries, "faithful")["points"]}
     budget = summaries["faithful"][0].budget_episodes
     g = lambda v: "n/a" if v is None else f"{v:g}"  # noqa: E731
