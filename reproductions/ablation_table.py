@@ -32,6 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "reproductions"))
 
+from compare_runs import runs_table  # noqa: E402
 from findings_table import replace_block  # noqa: E402
 
 FIDELITY = ROOT / "reproductions" / "FIDELITY.md"
@@ -167,6 +168,16 @@ def table(experiment: str) -> str:
     return "\n".join(lines)
 
 
+READINGS = ("results/mountaincar/faithful", "results/mountaincar/faithful-intended")
+READINGS_MARKERS = ("<!-- p001-readings:begin -->", "<!-- p001-readings:end -->")
+
+
+def readings_table() -> str:
+    """Post 001's two readings of the actor step on every committed seed (``compare_runs.py``)."""
+    command = "python reproductions/compare_runs.py " + " ".join(READINGS)
+    return f"{runs_table([ROOT / f for f in READINGS])}\n\n(`{command}`)"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("experiments", nargs="*", default=list(SOURCES), help="default: all three posts")
@@ -177,13 +188,14 @@ def main() -> None:
         parser.error(f"unknown experiment(s) {', '.join(unknown)}; choose from {', '.join(SOURCES)}")
     tables = {name: table(name) for name in args.experiments}
     if not args.write:
-        print("\n\n".join(tables.values()))
+        print("\n\n".join([*tables.values(), readings_table()]))
         return
     from keras_rl.runs.files import atomic_write_text
 
     content = FIDELITY.read_text()
     for name, text in tables.items():
         content = replace_block(content, *markers(name), text)
+    content = replace_block(content, *READINGS_MARKERS, readings_table())
     atomic_write_text(FIDELITY, content)
     print(f"updated {FIDELITY}")
 

@@ -4,10 +4,12 @@
         results/pendulum/fixed results/pendulum/ablations/*
 
 Each argument is a folder of ``seed_<n>/summary.json`` written by ``keras-rl reproduce``.
-The first is the baseline. For each folder it prints, as a Markdown table: the success
-rate with a two-sided Fisher exact p-value against the baseline's; episodes-to-threshold
-(median and IQR over successful seeds) with a two-sided Mann-Whitney U p-value against
-the baseline's; and the final metric (median) with its Mann-Whitney p-value (SciPy).
+The first is the baseline. For each folder it prints, as a Markdown table: the seeds and the
+success rate with a two-sided Fisher exact p-value against the baseline's; episodes-to-threshold
+(median and IQR over successful seeds, and their range) with a two-sided Mann-Whitney U
+p-value against the baseline's; and the final metric (median) with its Mann-Whitney p-value
+(SciPy). ``findings_table.py`` puts the same table into ``results/README.md``'s per-post
+sections (``runs_table``).
 """
 
 from __future__ import annotations
@@ -16,7 +18,8 @@ import json
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 from scipy.stats import fisher_exact, mannwhitneyu  # noqa: E402
@@ -28,41 +31,62 @@ def load(folder: Path) -> list[dict]:
     summaries = [json.loads(p.read_text()) for p in sorted(folder.glob("seed_*/summary.json"))]
     if not summaries:
         raise SystemExit(f"error: {folder} holds no seed_*/summary.json")
-    return summaries
+    return sorted(summaries, key=lambda s: s["seed"])
 
 
-def main(folders: list[str]) -> None:
-    if not folders:
-        raise SystemExit(__doc__)
-    base = load(Path(folders[0]))
+def seed_span(seeds: list[int]) -> str:
+    """``0-29`` for a run of consecutive seeds, else the list."""
+    if seeds == list(range(seeds[0], seeds[-1] + 1)):
+        return f"{seeds[0]}-{seeds[-1]}"
+    return ",".join(str(s) for s in seeds)
+
+
+def p_text(p: float) -> str:
+    return f"{p:.3f}" if p >= 0.001 else f"{p:.1e}"
+
+
+def runs_table(folders: list[Path]) -> str:
+    """The table, the first folder the baseline; a folder is shown relative to the repository
+    when it is inside it."""
+    base = load(folders[0])
     base_hits = [s["reached_at_episode"] for s in base if s["success"] and s["reached_at_episode"]]
     base_ok = sum(bool(s["success"]) for s in base)
     base_final = [s["final_metric"] for s in base]
-    print(
-        "| runs | seeds | success | Fisher p | episodes to threshold: median (IQR) | Mann-Whitney p "
-        "| final metric: median | Mann-Whitney p |"
-    )
-    print("|---|---|---|---|---|---|---|---|")
-    for folder in folders:
-        summaries = load(Path(folder))
+    lines = [
+        "| runs | seeds | success | Fisher p | episodes to threshold: median (IQR), range | Mann-Whitney p "
+        "| final metric: median | Mann-Whitney p |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for i, folder in enumerate(folders):
+        summaries = load(folder)
         st = episodes_to_threshold_stats(
             [s["reached_at_episode"] for s in summaries], [bool(s["success"]) for s in summaries]
         )
         hits = [s["reached_at_episode"] for s in summaries if s["success"] and s["reached_at_episode"]]
         final = [s["final_metric"] for s in summaries]
-        first = folder == folders[0]
-        p_hits = "-" if first or not hits or not base_hits else f"{mannwhitneyu(hits, base_hits).pvalue:.3f}"
-        p_ok = (
-            "-"
-            if first
-            else f"{fisher_exact([[st['successes'], st['seeds'] - st['successes']], [base_ok, len(base) - base_ok]]).pvalue:.3f}"  # noqa: E501
+        first = i == 0
+        p_hits = "-" if first or not hits or not base_hits else p_text(mannwhitneyu(hits, base_hits).pvalue)
+        table = [[st["successes"], st["seeds"] - st["successes"]], [base_ok, len(base) - base_ok]]
+        p_ok = "-" if first else p_text(fisher_exact(table).pvalue)
+        p_final = "-" if first else p_text(mannwhitneyu(final, base_final).pvalue)
+        med = (
+            "n/a"
+            if st["median"] is None
+            else f"{st['median']:g} ({st['q25']:g}-{st['q75']:g}), {st['min']}-{st['max']}"
         )
-        p_final = "-" if first else f"{mannwhitneyu(final, base_final).pvalue:.3f}"
-        med = "n/a" if st["median"] is None else f"{st['median']:g} ({st['q25']:g}-{st['q75']:g})"
-        print(
-            f"| `{folder}` | {st['seeds']} | {st['successes']}/{st['seeds']} | {p_ok} | {med} | {p_hits} "
-            f"| {np.median(final):.4g} | {p_final} |"
+        shown = folder.resolve()
+        shown = shown.relative_to(ROOT) if shown.is_relative_to(ROOT) else folder
+        lines.append(
+            f"| `{shown}` | {seed_span([s['seed'] for s in summaries])} | {st['successes']}/{st['seeds']} | {p_ok} "
+            f"| {med} | {p_hits} | {np.median(final):.4g} | {p_final} |"
         )
+    return "\n".join(lines)
+
+
+def main(folders: list[str]) -> None:
+    if not folders:
+        raise SystemExit(__doc__)
+    print(runs_table([Path(f) for f in folders]))
 
 
 if __name__ == "__main__":

@@ -4,7 +4,9 @@
     python reproductions/findings_table.py --write    # replace it in results/README.md and README.md
     python reproductions/findings_table.py --changes  # what seeds 0-9 said against what all the seeds say
 
-and the Keras-vs-PyTorch summary, one row per ``results/compare/**/result.json``.
+and the Keras-vs-PyTorch summary, one row per ``results/compare/**/result.json``, and the
+generated part of each per-post section (``post_block``: ``compare_runs.py``'s table of the
+post's variants, and what the seeds say about the post's own claim).
 
 One row per post x variant x framework: success rate, episodes to threshold (median and
 IQR over the seeds that got there), the post's own number, ms per env step (median over
@@ -23,10 +25,21 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "reproductions"))
+
+from compare_runs import load, runs_table, seed_span  # noqa: E402  (beside this file)
 
 BEGIN, END = "<!-- findings-table:begin -->", "<!-- findings-table:end -->"
 COMPARE_BEGIN, COMPARE_END = "<!-- compare-table:begin -->", "<!-- compare-table:end -->"
 SHORT_BEGIN, SHORT_END = "<!-- findings-short:begin -->", "<!-- findings-short:end -->"
+POSTS = ("post000", "post003", "post001")
+"""results/README.md's per-post sections: each has a generated block between these markers."""
+
+
+def post_markers(post: str) -> tuple[str, str]:
+    return f"<!-- {post}:begin -->", f"<!-- {post}:end -->"
+
+
 REPRODUCE = (
     "keras-rl reproduce {exp} --variant {variant} --framework {fw}{matched} --seeds {seeds} --workers 2 --no-progress "
     "--min-success-rate 0"
@@ -109,11 +122,86 @@ def row_numbers(folder: Path, seeds: set[int] | None = None) -> dict | None:
     }
 
 
-def seed_span(seeds: list[int]) -> str:
-    """``0-29`` for a run of consecutive seeds, else the list."""
-    if seeds == list(range(seeds[0], seeds[-1] + 1)):
-        return f"{seeds[0]}-{seeds[-1]}"
-    return ",".join(str(s) for s in seeds)
+def _listed(items: list[str]) -> str:
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
+
+
+def _seeds(summaries: list[dict]) -> str:
+    return ("seed " if len(summaries) == 1 else "seeds ") + _listed([str(s["seed"]) for s in summaries])
+
+
+def post_block(post: str) -> str:
+    """The generated part of a per-post section of results/README.md: the variants against each
+    other (``compare_runs.py``'s table, with its command), and what the seeds say about the
+    post's own claim."""
+    results = ROOT / "results"
+    if post == "post000":
+        folders = [results / "pendulum" / "faithful", results / "pendulum" / "fixed"]
+        faithful = load(folders[0])
+        hits = [s["reached_at_episode"] for s in faithful if s["success"]]
+        lo, hi, median = min(hits), max(hits), float(np.median(hits))
+        said = (
+            f"On seeds {seed_span([s['seed'] for s in faithful])} the faithful variant reaches EMA > -300 in "
+            f"{len(hits)}/{len(faithful)}, after a median of {median:g} episodes, "
+            f"{abs(153 - median):g} {'fewer' if median < 153 else 'more'} than the post's single run (153); "
+            f"153 lies {'inside' if lo <= 153 <= hi else 'outside'} the range {lo}-{hi}."
+        )
+    elif post == "post003":
+        folders = [results / "cartpole" / "faithful", results / "cartpole" / "faithful-torch"]
+        parts = []
+
+        def final(runs: list[dict]) -> str:
+            return ("final mean " if len(runs) == 1 else "final means ") + _listed(
+                [f"{s['final_metric']:.1f}" for s in runs]
+            )
+
+        for folder, name in zip(folders, ("Keras", "PyTorch")):
+            runs = load(folder)
+            hits = [s for s in runs if s["success"]]
+            never = [s for s in runs if not s["success"]]
+            fell = [s for s in hits if s["final_metric"] < 475]
+            text = (
+                f"In {name} ({len(hits)}/{len(runs)} on seeds {seed_span([s['seed'] for s in runs])}) the 100-episode "
+                f"mean passes 475 between episodes {min(s['reached_at_episode'] for s in hits)} and "
+                f"{max(s['reached_at_episode'] for s in hits)}"
+            )
+            if never:
+                text += f"; {_seeds(never)} never got there ({final(never)})"
+            if fell:
+                text += f"; {_seeds(fell)} got there and fell back ({final(fell)})"
+            parts.append(text + ".")
+        said = " ".join(parts)
+    elif post == "post001":
+        folders = [results / "mountaincar" / "faithful", results / "mountaincar" / "faithful-intended"]
+        fixed = results / "mountaincar" / "fixed"
+        evaluated = [
+            (s["seed"], json.loads((fixed / f"seed_{s['seed']}" / "evaluation.json").read_text())) for s in load(fixed)
+        ]
+        rows = []
+        for start in range(0, len(evaluated), 10):
+            chunk = evaluated[start : start + 10]
+            rows += [
+                "| seed | " + " | ".join(str(seed) for seed, _ in chunk) + " |",
+                "|---|" + "---|" * len(chunk),
+                "| mean return (100 greedy episodes) | "
+                + " | ".join(f"**{e['mean']:.2f}**" if e["mean"] >= 90 else f"{e['mean']:.2f}" for _, e in chunk)
+                + " |",
+                "",
+            ]
+        met = [seed for seed, e in evaluated if e["mean"] >= 90]
+        close = [f"{seed} ({e['mean']:.2f})" for seed, e in evaluated if 89 <= e["mean"] < 90]
+        said = (
+            "Each fixed seed's policy after 100 training episodes, played greedily by `keras-rl evaluate "
+            "results/mountaincar/fixed/seed_N --episodes 100` (its `evaluation.json`):\n\n"
+            + "\n".join(rows)
+            + f"\n{len(met)}/{len(evaluated)} seeds meet Gymnasium's bar of 90 (bold)"
+            + (f"; within 1 of it: {_listed(close)}" if close else "")
+            + "."
+        )
+    else:
+        raise ValueError(post)
+    command = "python reproductions/compare_runs.py " + " ".join(str(f.relative_to(ROOT)) for f in folders)
+    return f"{runs_table(folders)}\n\n(`{command}`)\n\n{said}"
 
 
 def table() -> str:
@@ -316,13 +404,16 @@ def main() -> None:
         return
     text, compared = table(), compare_table()
     if not args.write:
-        print(text, compared, sep="\n\n")
+        print(text, compared, *(post_block(post) for post in POSTS), sep="\n\n")
         return
     from keras_rl.runs.files import atomic_write_text
 
     readme = ROOT / "results" / "README.md"
     content = replace_block(readme.read_text(), BEGIN, END, text)
-    atomic_write_text(readme, replace_block(content, COMPARE_BEGIN, COMPARE_END, compared))
+    content = replace_block(content, COMPARE_BEGIN, COMPARE_END, compared)
+    for post in POSTS:
+        content = replace_block(content, *post_markers(post), post_block(post))
+    atomic_write_text(readme, content)
     main_readme = ROOT / "README.md"
     atomic_write_text(main_readme, replace_block(main_readme.read_text(), SHORT_BEGIN, SHORT_END, short_table()))
     print(f"updated {readme} and {main_readme}")

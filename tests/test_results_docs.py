@@ -34,21 +34,22 @@ def test_the_findings_and_compare_tables_are_up_to_date():
         assert (ROOT / "results" / "compare" / experiment / "report.md").is_file(), experiment
 
 
-def test_the_cartpole_seeds_said_to_fail_are_the_ones_that_failed():
+def test_the_per_post_sections_are_up_to_date_and_name_the_seeds_that_failed():
     import json
-    import re
 
+    gen = load_generator()
     readme = (ROOT / "results" / "README.md").read_text()
-    named = re.search(r"seeds? ([\d, and]+?) never got there", readme).group(1)
-    said = {int(s) for s in re.findall(r"\d+", named)}
-    failed = {
-        s
-        for s in range(10)
-        if not json.loads((ROOT / "results" / "cartpole" / "faithful" / f"seed_{s}" / "summary.json").read_text())[
-            "success"
-        ]
-    }
-    assert said == failed
+    for post in gen.POSTS:
+        assert block(readme, *gen.post_markers(post)) == gen.post_block(post), (
+            f"results/README.md's {post} section is stale: run python reproductions/findings_table.py --write"
+        )
+    failed = sorted(
+        json.loads(p.read_text())["seed"]
+        for p in (ROOT / "results" / "cartpole" / "faithful").glob("seed_*/summary.json")
+        if not json.loads(p.read_text())["success"]
+    )
+    said = block(readme, *gen.post_markers("post003")).split("In Keras", 1)[1].split("never got there", 1)[0]
+    assert said.rstrip().endswith(gen._seeds([{"seed": s} for s in failed]))
 
 
 def test_fidelitys_measured_effect_tables_are_up_to_date():
@@ -58,6 +59,9 @@ def test_fidelitys_measured_effect_tables_are_up_to_date():
         assert block(ledger, *gen.markers(experiment)) == gen.table(experiment), (
             f"FIDELITY.md's {experiment} table is stale: run python reproductions/ablation_table.py --write"
         )
+    assert block(ledger, *gen.READINGS_MARKERS) == gen.readings_table(), (
+        "FIDELITY.md's post 001 readings table is stale: run python reproductions/ablation_table.py --write"
+    )
     # every quirk switch of post 000 has its row, with numbers (its ablations are committed)
     pendulum = gen.table("pendulum")
     for ledger_id in ("P000-NOISE", "P000-DONE", "P000-BROADCAST", "P000-TARGETINIT"):
