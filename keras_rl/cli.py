@@ -251,6 +251,12 @@ def build_parser() -> argparse.ArgumentParser:
         "the rule's error rates are for its own number of seeds",
     )
     ck.add_argument(
+        "--sequential",
+        action="store_true",
+        help="fresh seeds in looks of 5 up to 30 per post, each post stopping where its calibrated "
+        "design decides (results/checks/sequential.md: fewer seeds under a clear change, more under none)",
+    )
+    ck.add_argument(
         "--out",
         type=_path_arg,
         default=Path("check-runs"),
@@ -750,6 +756,8 @@ def check(args: argparse.Namespace) -> int:
         raise ConfigError(f"unknown tier {args.tier!r}; choose one of {', '.join(TIERS)}")
     if len(set(names)) != len(names):
         raise ConfigError(f"an experiment is named twice: {' '.join(names)}")
+    if args.sequential and args.seeds is not None:
+        raise ConfigError("--seeds and --sequential do not go together: the sequential design runs its own fresh seeds")
     seeds = parse_seeds(args.seeds) if args.seeds is not None else None
     options = RunOptions.from_args(args)
     options.check_address()
@@ -757,7 +765,7 @@ def check(args: argparse.Namespace) -> int:
 
     against = args.against if args.against is not None else CALIBRATION.parent
     try:
-        results = run_check(names, args.tier, against, args.out, seeds, options)
+        results = run_check(names, args.tier, against, args.out, seeds, options, sequential=args.sequential)
     except KeyboardInterrupt:
         print("interrupted: no verdict", file=sys.stderr)
         return _stopped()
@@ -770,9 +778,10 @@ def check(args: argparse.Namespace) -> int:
         print(f"error: no verdict: {exc}", file=sys.stderr)
         return EXIT_NO_VERDICT
     for r in results:
+        level = f"alpha {r.rule.alpha}" if r.design is None else f"sequential, efficacy {r.design['efficacy']:.3g}"
         print(
             f"{r.experiment}: {r.verdict} ({r.rule.statistic}, {r.decision.test}, p = {r.decision.p:.3g}, "
-            f"alpha {r.rule.alpha}; baseline {len(r.baseline)} seeds, new {len(r.new)})"
+            f"{level}; baseline {len(r.baseline)} seeds, new {len(r.new)})"
         )
     print(f"report: {args.out / 'check.md'}")
     return EXIT_CRITERION if any(r.decision.changed for r in results) else EXIT_OK

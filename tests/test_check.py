@@ -361,6 +361,7 @@ def test_calibration_md_states_the_committed_family_wise_rates():
 
 
 @pytest.mark.slow
+@pytest.mark.slow  # 60-100 s: 20,000 resamples per tied statistic, 2,000 baselines per spread entry
 def test_the_committed_family_wise_rates_are_what_the_baselines_give():
     from pathlib import Path
 
@@ -417,3 +418,63 @@ def test_held_out_mutants_are_valid_changes_and_none_is_a_tuning_mutant():
             assert changed.differs_from(base) == sorted(mutant.overrides)
             assert mutant.name not in {name for name, _ in tuned}
             assert tuple(sorted(mutant.overrides.items())) not in {o for _, o in tuned}
+
+
+# -- the sequential design in the command (issue #21, item 3) ----------------------------------
+
+
+@pytest.mark.parametrize("change", [True, False])
+def test_a_sequential_check_stops_where_its_design_decides(change, tmp_path, monkeypatch, capsys):
+    """``check --sequential``: seeds in looks of 5; a clear change stops at the first look as
+    changed (exit 1), an unchanged learner at the second, where its p is above the futility
+    bound (exit 0). Training is replaced by fixed statistics; the baseline is the committed one."""
+    import keras_rl.check.command as command
+    from keras_rl.check.rules import rule_for
+    from keras_rl.cli import main
+    from keras_rl.registry import get_experiment
+
+    rule = rule_for("pendulum", "smoke")
+    baseline, _ = command.baseline_values(
+        get_experiment("pendulum"), rule, command.CALIBRATION.parent / "pendulum" / "baseline"
+    )
+    typical = sorted(baseline.values())[10:20]  # the middle of the baseline: p near 1
+    ran: list[list[int]] = []
+
+    def fake_run(out, groups, options):
+        ran.append([s for *_, seeds in groups for s in seeds])
+
+    def fake_read(folder, experiment, rule, fresh):
+        values = {s: (rule.episodes + 1.0 if change else typical[i % len(typical)]) for i, s in enumerate(fresh)}
+        return values, {s: [{"metric": -300.0}] for s in fresh}
+
+    monkeypatch.setattr(command, "_run_seeds", fake_run)
+    monkeypatch.setattr(command, "_read_new", fake_read)
+    out = tmp_path / "check"
+    code = main(["check", "pendulum", "--sequential", "--workers", "1", "--no-progress", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == (1 if change else 0), err  # the exit code before the report
+    first = rule.first_seed
+    assert ran == (
+        [list(range(first, first + 5))]
+        if change
+        else [list(range(first, first + 5)), list(range(first + 5, first + 10))]
+    )
+    report = json.loads((out / "check.json").read_text())
+    (entry,) = report["experiments"]
+    assert report["sequential"] and entry["verdict"] == ("changed" if change else "consistent")
+    assert [look["seeds"] for look in entry["looks"]] == ([5] if change else [5, 10])
+    design, null_rate = command.sequential_design(rule)
+    assert entry["design"]["efficacy"] == design.efficacy and report["false_alarm"]["family_wise"] == pytest.approx(null_rate)
+    if change:
+        assert entry["looks"][0]["p"] < design.efficacy
+    else:
+        assert entry["looks"][1]["p"] > design.futility
+    assert "sequential" in (out / "check.md").read_text()
+
+
+def test_sequential_refuses_seeds_of_its_own_with_exit_2(tmp_path, capsys):
+    from keras_rl.cli import main
+
+    code = main(["check", "pendulum", "--sequential", "--seeds", "1000-1009", "--out", str(tmp_path / "c")])
+    assert code == 2 and "--seeds and --sequential" in capsys.readouterr().err
+    assert not (tmp_path / "c").exists()

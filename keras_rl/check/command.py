@@ -12,6 +12,12 @@ that any of them is called changed when none changed at most alpha (the rules' 0
 times it. A one-post command is its own rule, unadjusted. The report gives the family-wise
 false-alarm rate of the command as it ran: each post's exact (untied statistics) or resampled
 rate at Holm's first level alpha / k against its whole baseline, combined over the posts.
+
+``--sequential`` runs the group-sequential design instead (``sequential.py``): fresh seeds in
+looks of 5 up to 30 per post, each post stopping as changed or consistent at its own look,
+with the efficacy level calibrated per post on its baseline to 1% / 3
+(``results/checks/sequential.json``, written by ``reproductions/check_sequential.py``), so the
+family-wise rate of a command of up to three posts is at most 1% without Holm.
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from keras_rl.check.rules import CheckRule, rule_for
+from keras_rl.check.sequential import SequentialDesign, run_design
 from keras_rl.check.statistics import (
     Decision,
     check_false_alarm_rate,
@@ -42,6 +49,8 @@ from keras_rl.runs.summary import RunSummary
 
 CALIBRATION = Path(__file__).resolve().parents[2] / "results" / "checks" / "calibration.json"
 """Where the measured error rates of every rule are committed (in a checkout)."""
+SEQUENTIAL = CALIBRATION.parent / "sequential.json"
+"""Where each post's calibrated sequential design and its measured rates are committed."""
 MARKER = "check.json"
 
 
@@ -58,6 +67,10 @@ class CheckResult:
     """The rule's measured false-alarm rate and power, if calibrated."""
     adjusted_p: float | None = None
     """Holm's adjusted p over the command's posts (``decision.changed`` follows it)."""
+    looks: list[dict[str, Any]] | None = None
+    """Sequential checks: each look's fresh seeds and p, in order (the last one decided)."""
+    design: dict[str, Any] | None = None
+    """Sequential checks: the calibrated design and its measured false-alarm rate."""
 
     @property
     def verdict(self) -> str:
@@ -127,6 +140,27 @@ def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, A
     return measured
 
 
+def sequential_design(rule: CheckRule, path: Path = SEQUENTIAL) -> tuple[SequentialDesign, float]:
+    """The post's calibrated design for this tier and its false-alarm rate under no change,
+    as ``reproductions/check_sequential.py --write`` committed them; a ConfigError if absent."""
+    entries = json.loads(path.read_text())["results"] if path.is_file() else []
+    entry = next(
+        (e for e in entries if (e["post"], e["tier"], e["statistic"]) == (rule.experiment, rule.tier, rule.statistic)),
+        None,
+    )
+    if entry is None:
+        raise ConfigError(
+            f"{rule.experiment} has no calibrated sequential design for the {rule.tier} tier in {path}; "
+            "run python reproductions/check_sequential.py --write, or check without --sequential"
+        )
+    design = entry["design"]
+    null = next(row for row in entry["rows"] if row["scenario"] == "no change")
+    return (
+        SequentialDesign(tuple(design["stages"]), design["efficacy"], design["futility"]),
+        float(null["sequential_changed"]),
+    )
+
+
 def prepare_out(out: Path) -> None:
     """``--out`` holds nothing, or an earlier check's output (replaced): never anything else."""
     if out.exists() and not out.is_dir():
@@ -139,18 +173,27 @@ def prepare_out(out: Path) -> None:
 
 
 def run_check(
-    names: list[str], tier: str, against: Path, out: Path, seeds: list[int] | None, options: RunOptions
+    names: list[str],
+    tier: str,
+    against: Path,
+    out: Path,
+    seeds: list[int] | None,
+    options: RunOptions,
+    sequential: bool = False,
 ) -> list[CheckResult]:
-    """Run the fresh seeds of every experiment at once, then test each against its baseline."""
-    from keras_rl.runs.backends import backend_for
-    from keras_rl.runs.jobs import SeedJob, batched, run_jobs
-
+    """Run the fresh seeds of every experiment at once, then test each against its baseline
+    (fixed-n, Holm over the posts); or, ``sequential``, look after every stage of seeds and
+    stop each post where its design decides."""
     plan = []
-    plots: list[tuple] = []
+    designs: dict[str, tuple[SequentialDesign, float]] = {}
     for name in names:
         experiment = get_experiment(name)
         rule = rule_for(name, tier)
-        fresh = seeds if seeds is not None else rule.seed_list()
+        if sequential:
+            designs[name] = sequential_design(rule)
+            fresh = list(range(rule.first_seed, rule.first_seed + designs[name][0].stages[-1]))
+        else:
+            fresh = seeds if seeds is not None else rule.seed_list()
         baseline, baseline_rows = baseline_values(experiment, rule, Path(against) / name / "baseline")
         clash = sorted(set(fresh) & set(baseline))
         if clash:
@@ -165,46 +208,109 @@ def run_check(
         )
         plan.append((experiment, rule, fresh, config, baseline, baseline_rows))
     prepare_out(out)
-    jobs = []
-    for experiment, rule, fresh, config, *_ in plan:
-        folder = out / experiment.name
-        if folder.exists():
-            shutil.rmtree(folder)
-        group = [SeedJob.of(config.replace(seed=s), folder / f"seed_{s}", start="overwrite") for s in fresh]
-        jobs += batched(group, rule.seed_batch)
+    for experiment, *_ in plan:
+        if (out / experiment.name).exists():
+            shutil.rmtree(out / experiment.name)
     atomic_write_json(out / MARKER, {"status": "running", "experiments": names})
-    from keras_rl.report.plots import draw_job_curves
-
-    backend = backend_for(options.workers, len(jobs), options.address)
-    outcome = run_jobs(jobs, backend, options.progress, after_job=draw_job_curves)
-    if outcome.interrupted:
-        raise KeyboardInterrupt
-    results = []
-    for experiment, rule, fresh, _config, baseline, baseline_rows in plan:
-        new, new_rows = {}, {}
-        for s in fresh:
-            try:
-                summary = RunSummary.read(out / experiment.name / f"seed_{s}")
-            except RunFolderError as exc:
-                raise NoVerdictError(f"{experiment.name} seed {s} left no readable summary: {exc}") from None
-            rows = (
-                read_episodes(out / experiment.name / f"seed_{s}" / "episodes.csv")
-                if (out / experiment.name / f"seed_{s}" / "episodes.csv").is_file()
-                else []
+    results: list[CheckResult] = []
+    plots: list[tuple] = []
+    if not sequential:
+        _run_seeds(out, [(experiment, rule, config, fresh) for experiment, rule, fresh, config, *_ in plan], options)
+        for experiment, rule, fresh, _config, baseline, baseline_rows in plan:
+            new, new_rows = _read_new(out / experiment.name, experiment, rule, fresh)
+            decision = decide(list(baseline.values()), list(new.values()), rule.statistic, rule.alpha)
+            result = CheckResult(
+                experiment.name, rule, baseline, new, decision, list(options.overrides), error_rates(rule)
             )
-            if summary.status not in ("completed", "non_finite_loss") or not rows:
-                raise NoVerdictError(f"{experiment.name} seed {s} did not finish ({summary.status}: {summary.message})")
-            new[s] = _statistic(experiment, rule, rows) if summary.status == "completed" else float("nan")
-            new_rows[s] = rows
-        decision = decide(list(baseline.values()), list(new.values()), rule.statistic, rule.alpha)
-        result = CheckResult(experiment.name, rule, baseline, new, decision, list(options.overrides), error_rates(rule))
-        results.append(result)
-        plots.append((out / experiment.name / "check.png", experiment, result, baseline_rows, new_rows))
-    adjust_for_family(results)
+            results.append(result)
+            plots.append((out / experiment.name / "check.png", experiment, result, baseline_rows, new_rows))
+        adjust_for_family(results)
+    else:
+        active = list(plan)
+        done: dict[str, tuple[CheckResult, tuple]] = {}
+        looks: dict[str, list[dict[str, Any]]] = {experiment.name: [] for experiment, *_ in plan}
+        stages = designs[plan[0][0].name][0].stages
+        for k, n in enumerate(stages):
+            previous = stages[k - 1] if k else 0
+            _run_seeds(
+                out,
+                [(experiment, rule, config, fresh[previous:n]) for experiment, rule, fresh, config, *_ in active],
+                options,
+            )
+            still = []
+            for entry in active:
+                experiment, rule, fresh, _config, baseline, baseline_rows = entry
+                design, null_rate = designs[experiment.name]
+                new, new_rows = _read_new(out / experiment.name, experiment, rule, fresh[:n])
+                decision = decide(list(baseline.values()), list(new.values()), rule.statistic, design.efficacy)
+                looks[experiment.name].append({"seeds": n, "p": decision.p})
+                outcome = run_design(design, [look["p"] for look in looks[experiment.name]])
+                if outcome.verdict == "continue":
+                    still.append(entry)
+                    continue
+                decision = replace(decision, changed=outcome.verdict == "changed")
+                result = CheckResult(
+                    experiment.name,
+                    rule,
+                    baseline,
+                    new,
+                    decision,
+                    list(options.overrides),
+                    error_rates(rule),
+                    looks=looks[experiment.name],
+                    design={**asdict(design), "false_alarm_rate": null_rate},
+                )
+                done[experiment.name] = (
+                    result,
+                    (out / experiment.name / "check.png", experiment, result, baseline_rows, new_rows),
+                )
+            active = still
+            if not active:
+                break
+        for experiment, *_ in plan:
+            result, plot = done[experiment.name]
+            results.append(result)
+            plots.append(plot)
     for args in plots:
         _plot(*args)
     write_report(out, results, tier)
     return results
+
+
+def _run_seeds(out: Path, groups: list[tuple], options: RunOptions) -> None:
+    """Train each (experiment, rule, config, seeds) group's seeds into ``out/<experiment>/``, in
+    the rule's seed batches, all groups' jobs at once."""
+    from keras_rl.report.plots import draw_job_curves
+    from keras_rl.runs.backends import backend_for
+    from keras_rl.runs.jobs import SeedJob, batched, run_jobs
+
+    jobs = []
+    for experiment, rule, config, fresh in groups:
+        group = [
+            SeedJob.of(config.replace(seed=s), out / experiment.name / f"seed_{s}", start="overwrite") for s in fresh
+        ]
+        jobs += batched(group, rule.seed_batch)
+    backend = backend_for(options.workers, len(jobs), options.address)
+    outcome = run_jobs(jobs, backend, options.progress, after_job=draw_job_curves)
+    if outcome.interrupted:
+        raise KeyboardInterrupt
+
+
+def _read_new(folder: Path, experiment, rule: CheckRule, fresh: list[int]) -> tuple[dict, dict]:
+    """Each fresh seed's statistic and rows; NoVerdictError for a seed that did not finish."""
+    new, new_rows = {}, {}
+    for s in fresh:
+        try:
+            summary = RunSummary.read(folder / f"seed_{s}")
+        except RunFolderError as exc:
+            raise NoVerdictError(f"{experiment.name} seed {s} left no readable summary: {exc}") from None
+        episodes = folder / f"seed_{s}" / "episodes.csv"
+        rows = read_episodes(episodes) if episodes.is_file() else []
+        if summary.status not in ("completed", "non_finite_loss") or not rows:
+            raise NoVerdictError(f"{experiment.name} seed {s} did not finish ({summary.status}: {summary.message})")
+        new[s] = _statistic(experiment, rule, rows) if summary.status == "completed" else float("nan")
+        new_rows[s] = rows
+    return new, new_rows
 
 
 def family_alpha(results: list[CheckResult]) -> float:
@@ -239,6 +345,13 @@ def command_false_alarm(results: list[CheckResult]) -> dict[str, Any]:
     return {"alpha": alpha, "posts": len(results), "level_per_post": level, "per_post": posts, "family_wise": family}
 
 
+def sequential_false_alarm(results: list[CheckResult]) -> dict[str, Any]:
+    """A sequential command's false-alarm rate: each post's calibrated design's measured rate
+    under no change (``results/checks/sequential.json``), combined as independent tests."""
+    rates = {r.experiment: float(r.design["false_alarm_rate"]) for r in results if r.design is not None}
+    return {"posts": len(rates), "per_post": rates, "family_wise": family_false_alarm_rate(list(rates.values()))}
+
+
 def write_report(out: Path, results: list[CheckResult], tier: str, command: str | None = None) -> None:
     from keras_rl.runs.provenance import command_line
 
@@ -256,13 +369,34 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         rates = r.error_rates
         fa = f"{rates['false_alarm_rate']:.2%}" if rates else "not calibrated"
         pw = f"{rates['power_gross']:.0%} / {rates['power_all']:.0%}" if rates else "not calibrated"
+        if r.design is not None:  # the fixed rule's rates are not this design's
+            fa, pw = f"{r.design['false_alarm_rate']:.2%} (sequential)", "results/checks/sequential.md"
+        alpha = r.rule.alpha if r.design is None else f"{r.design['efficacy']:.3g} (sequential)"
         lines.append(
             f"| {r.experiment} | {r.rule.statistic} (first {r.rule.episodes} episodes) | "
             f"{r.decision.test} | {_median(r.baseline)} ({len(r.baseline)}) | {_median(r.new)} "
-            f"({len(r.new)}) | {r.decision.p:.3g} | {_adjusted(r)} | {r.rule.alpha} | **{r.verdict}** | {fa} | {pw} |"
+            f"({len(r.new)}) | {r.decision.p:.3g} | {_adjusted(r)} | {alpha} | **{r.verdict}** | {fa} | {pw} |"
         )
-    family = command_false_alarm(results) if results else None
-    if family is not None:
+    sequential = bool(results) and all(r.design is not None for r in results)
+    family = (sequential_false_alarm if sequential else command_false_alarm)(results) if results else None
+    if sequential and family is not None:
+        for r in results:
+            assert r.looks is not None and r.design is not None
+            seen = "; ".join(f"{look['seeds']} seeds: p = {look['p']:.3g}" for look in r.looks)
+            lines += [
+                "",
+                f"{r.experiment}, sequential (looks at {', '.join(map(str, r.design['stages']))} fresh seeds; changed "
+                f"below p = {r.design['efficacy']:.3g}, consistent above {r.design['futility']} from the second look): "
+                f"{seen}; stopped at {len(r.new)} seeds, **{r.verdict}**.",
+            ]
+        per_post = ", ".join(f"{name} {rate:.2%}" for name, rate in family["per_post"].items())
+        lines += [
+            "",
+            f"False alarms of this command as a whole: at most **{family['family_wise']:.2%}** when nothing "
+            f"changed (each post's design calibrated on its own baseline to 1% / 3, futility stops included; "
+            f"measured: {per_post}; results/checks/sequential.md). No Holm step: the split is in the designs.",
+        ]
+    elif family is not None:
         per_post = ", ".join(f"{name} {p['rate']:.2%} ({p['method']})" for name, p in family["per_post"].items())
         lines += [
             "",
@@ -287,6 +421,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         "status": "finished",
         "changed": any(r.decision.changed for r in results),
         "false_alarm": family,
+        "sequential": sequential,
         "experiments": [
             {
                 "experiment": r.experiment,
@@ -298,6 +433,8 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
                 "baseline": {str(k): v for k, v in r.baseline.items()},
                 "new": {str(k): v for k, v in r.new.items()},
                 "error_rates": r.error_rates,
+                "looks": r.looks,
+                "design": r.design,
             }
             for r in results
         ],
