@@ -464,7 +464,9 @@ def test_a_sequential_check_stops_where_its_design_decides(change, tmp_path, mon
     assert report["sequential"] and entry["verdict"] == ("changed" if change else "consistent")
     assert [look["seeds"] for look in entry["looks"]] == ([5] if change else [5, 10])
     design, null_rate = command.sequential_design(rule)
-    assert entry["design"]["efficacy"] == design.efficacy and report["false_alarm"]["family_wise"] == pytest.approx(null_rate)
+    assert entry["design"]["efficacy"] == design.efficacy and report["false_alarm"]["family_wise"] == pytest.approx(
+        null_rate
+    )
     if change:
         assert entry["looks"][0]["p"] < design.efficacy
     else:

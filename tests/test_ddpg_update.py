@@ -77,6 +77,7 @@ def hand_target(agent, rewards, next_states, dones, broadcast):
 
 
 @pytest.mark.parametrize("variant,broadcast", [("faithful", True), ("fixed", False)])
+@pytest.mark.slow  # compiles the learner (with XLA too)
 def test_target_and_loss_match_the_hand_built_target(variant, broadcast):
     agent = make_agent(variant)
     states, actions, rewards, next_states, dones = make_batch(np.random.default_rng(1), [0, 1, 0, 0])
@@ -91,6 +92,7 @@ def test_target_and_loss_match_the_hand_built_target(variant, broadcast):
     assert losses["critic_loss"] == pytest.approx(expected_loss, rel=1e-5)
 
 
+@pytest.mark.slow  # compiles the learner (with XLA too)
 def test_broadcast_mixes_every_done_into_every_row():
     agent = make_agent("faithful")
     _, _, rewards, next_states, dones = make_batch(np.random.default_rng(2), [0, 1, 0, 0])
@@ -105,6 +107,7 @@ def test_broadcast_mixes_every_done_into_every_row():
 
 
 @pytest.mark.parametrize("variant,broadcast", [("faithful", True), ("fixed", False)])
+@pytest.mark.slow  # compiles the learner (with XLA too)
 @pytest.mark.parametrize("xla", [True, False])
 def test_one_update_matches_the_posts_eager_code(variant, broadcast, xla):
     agent = make_agent(variant, xla=xla)

@@ -100,6 +100,7 @@ def test_initial_weights_follow_nn_linear_init():
     assert not glorot.learner.q_network.get_weights()[1].any()  # Keras: zero biases
 
 
+@pytest.mark.slow  # compiles the learner; 100 float64 updates
 @pytest.mark.parametrize("xla", [True, False])
 def test_float64_one_update_then_100_updates_agree_to_rounding(xla):
     """In float64 both frameworks' rounding is ~1e-16: any difference in the arithmetic

@@ -3,6 +3,8 @@
 import importlib.util
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -52,6 +54,7 @@ def test_the_per_post_sections_are_up_to_date_and_name_the_seeds_that_failed():
     assert said.rstrip().endswith(gen._seeds([{"seed": s} for s in failed]))
 
 
+@pytest.mark.slow  # every ablation arm's 10,000-resample bootstraps
 def test_fidelitys_measured_effect_tables_are_up_to_date():
     gen = load_generator("ablation_table")
     ledger = (ROOT / "reproductions" / "FIDELITY.md").read_text()

@@ -69,6 +69,7 @@ def test_calibration_keeps_the_false_alarm_rate_at_alpha_and_is_the_largest_such
     assert 10 < seeds.mean() < 20
 
 
+@pytest.mark.slow  # thousands of simulated checks
 def test_a_clear_change_is_found_at_the_first_look_and_a_null_one_is_not():
     rng = np.random.default_rng(2)
     baseline = rng.normal(size=30)
