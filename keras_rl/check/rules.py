@@ -112,7 +112,10 @@ RULES: dict[tuple[str, str], CheckRule] = {
         seed_batch=10,
         candidates=("episodes_to_threshold", "success", "auc", "final_metric"),
     ),
-    # post 001: last-10 spread <= 2 after all 100 episodes (lower is better); no batching.
+    # post 001: last-10 spread <= 2 after all 100 episodes (lower is better). Its fresh seeds run
+    # seed-batched since issue #18 gave post 001 a stacked learner (the rules were calibrated on
+    # solo runs; batched seeds track their solo twins: in results/mountaincar/seed-batch/report.md
+    # 18 of 20 reach the threshold at the same episode, Mann-Whitney p = 0.78).
     # Calibrated: final_metric (the spread after episode 100), at both tiers: 100% against the
     # gross mutants, where auc misses exploration_ou (0%: noisy scores average out to the
     # baseline's wide range) and success misses actor_lr_x100 (a saturated actor settles too).
@@ -124,7 +127,7 @@ RULES: dict[tuple[str, str], CheckRule] = {
         seeds=6,
         episodes=100,
         first_seed=1000,
-        seed_batch=1,
+        seed_batch=6,
         candidates=("success", "auc", "final_metric"),
     ),
     ("mountaincar", "full"): CheckRule(
@@ -135,7 +138,7 @@ RULES: dict[tuple[str, str], CheckRule] = {
         seeds=20,
         episodes=100,
         first_seed=2000,
-        seed_batch=1,
+        seed_batch=10,
         candidates=("success", "auc", "final_metric"),
     ),
 }
