@@ -88,8 +88,8 @@ def compared(tmp_path_factory):
             "--out",
             str(root / "out"),
             "--workers",
-            "2",
-            "--no-progress",
+            "1",  # in this process: tests/test_ray.py covers Ray, and a Ray instance here competed
+            "--no-progress",  # with the other xdist worker for the two cores
         ],
         capture_output=True,
         text=True,
