@@ -2,7 +2,8 @@
 ablation runs.
 
     python reproductions/ablation_table.py            # print the three tables
-    python reproductions/ablation_table.py --write    # replace them in reproductions/FIDELITY.md
+    python reproductions/ablation_table.py --write    # replace them in reproductions/FIDELITY.md,
+                                                      # and rewrite each sweep folder's sweep.md
 
 Per post: the faithful runs, and for every quirk switch of its config (``QUIRKS``) the runs
 with that switch flipped alone, seeds 0-9 at the post's budget. Every number comes from
@@ -37,28 +38,64 @@ from findings_table import replace_block  # noqa: E402
 
 FIDELITY = ROOT / "reproductions" / "FIDELITY.md"
 SWEEP = "keras-rl sweep {exp} --ablate --seeds 0-9 --workers 2{batch} --no-progress --out results/{exp}/ablations"
+MORE = (
+    "`keras-rl sweep {exp} --ablate --seeds 10-29 --seed-batch auto --workers 2 --no-progress --out DIR` "
+    "(seeds 10-29, issue #20: run into a fresh folder at 662a149, its seed folders merged in)"
+)
 SOURCES = {
-    # post 000's ablations predate `sweep`: one `reproduce --set SWITCH=false` folder each
+    # post 000's first ablations predate `sweep`: one `reproduce --set SWITCH=false` folder each,
+    # against the faithful set's seeds 0-9 (copied into base/); seeds 10-29 are one sweep
     "pendulum": {
-        "base": "results/pendulum/faithful",
+        "base": "results/pendulum/ablations/base",
         "points": "results/pendulum/ablations",
         "also": {"fixed (all four off)": "results/pendulum/fixed"},
-        "command": "keras-rl reproduce pendulum --seeds 0-9 --workers 2 --no-progress --min-success-rate 0 "
-        "--set SWITCH=false --out results/pendulum/ablations/SWITCH=false",
+        "command": "`keras-rl reproduce pendulum --seeds 0-9 --workers 2 --no-progress --min-success-rate 0 "
+        "--set SWITCH=false --out results/pendulum/ablations/SWITCH=false` (seeds 0-9; base: "
+        "results/pendulum/faithful's), then " + MORE.format(exp="pendulum"),
     },
     "cartpole": {
         "base": "results/cartpole/ablations/base",
         "points": "results/cartpole/ablations",
         "also": {},
-        "command": SWEEP.format(exp="cartpole", batch=" --seed-batch 10"),
+        "command": f"`{SWEEP.format(exp='cartpole', batch=' --seed-batch 10')}`",
     },
     "mountaincar": {
         "base": "results/mountaincar/ablations/base",
         "points": "results/mountaincar/ablations",
         "also": {},
-        "command": SWEEP.format(exp="mountaincar", batch=""),
+        "command": f"`{SWEEP.format(exp='mountaincar', batch='')}`, then " + MORE.format(exp="mountaincar"),
     },
 }
+
+
+def commands(folder: Path) -> str:
+    """The distinct commands that made a folder's seeds, in seed order (a set extended by a later
+    command names both)."""
+    seen: list[str] = []
+    for summary in _summaries(folder):
+        if summary.command and summary.command not in seen:
+            seen.append(summary.command)
+    return "; ".join(f"`{c}`" for c in seen)
+
+
+def sweep_report(experiment: str) -> Path | None:
+    """Rewrite ``results/<experiment>/ablations/sweep.md`` (and each point's summary.md and
+    curves.png) from every committed seed of every grid point (``grid.json``), with the commands
+    that made them; None where the ablations are not one sweep folder (post 000's)."""
+    import json
+
+    from keras_rl.registry import get_experiment
+    from keras_rl.report.sweep import write_sweep_report
+
+    folder = ROOT / SOURCES[experiment]["points"]
+    if not (folder / "grid.json").is_file():
+        return None
+    points = [entry["name"] for entry in json.loads((folder / "grid.json").read_text())]
+    summaries = {name: _summaries(folder / name) for name in points}
+    made = commands(folder / points[0])
+    spec = get_experiment(experiment)
+    write_sweep_report(folder, spec, spec.config_cls.for_variant("faithful"), summaries, points[0], made.strip("`"))
+    return folder / "sweep.md"
 
 
 def markers(experiment: str) -> tuple[str, str]:
@@ -125,7 +162,7 @@ def table(experiment: str) -> str:
     rows += [("-", name, ROOT / folder) for name, folder in source["also"].items()]
 
     lines = [
-        f"Regenerate the runs with `{source['command']}` and this table with "
+        f"Regenerate the runs with {source['command']} and this table with "
         "`python reproductions/ablation_table.py --write`.",
         "",
         "| id | runs (seeds 0-9) | success | minus faithful [95% CI] | Fisher p | episodes to threshold: "
@@ -198,6 +235,10 @@ def main() -> None:
     content = replace_block(content, *READINGS_MARKERS, readings_table())
     atomic_write_text(FIDELITY, content)
     print(f"updated {FIDELITY}")
+    for name in args.experiments:
+        report = sweep_report(name)
+        if report is not None:
+            print(f"updated {report}")
 
 
 if __name__ == "__main__":
