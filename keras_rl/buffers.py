@@ -80,17 +80,6 @@ class ReplayBuffer:
     def __len__(self) -> int:
         return self._size
 
-    def add(self, state, action, reward: float, next_state, done: bool) -> None:
-        o, a = self.layout.obs_dim, self.layout.action_dim
-        row = self.data[self._next]
-        row[:o] = np.ravel(state)
-        row[o : o + a] = np.ravel(action)
-        row[o + a] = reward
-        row[o + a + 1 : 2 * o + a + 1] = np.ravel(next_state)
-        row[2 * o + a + 1] = float(done)
-        self._next = (self._next + 1) % self.capacity
-        self._size = min(self._size + 1, self.capacity)
-
     def add_rows(self, rows: np.ndarray) -> None:
         """Append packed rows (oldest first), evicting the oldest at capacity."""
         for row in rows:

@@ -7,8 +7,9 @@ LAYOUT = Layout(obs_dim=3, action_dim=1)
 
 
 def fill(buffer, n, start=0):
+    """Transitions ``start .. start + n - 1`` one row at a time, as the training loop adds them."""
     for i in range(start, start + n):
-        buffer.add(np.full(3, i), [i + 0.5], float(-i), np.full(3, i + 1), i % 7 == 0)
+        buffer.add_rows(LAYOUT.pack(([np.full(3, i)], [[i + 0.5]], [float(-i)], [np.full(3, i + 1)], [i % 7 == 0])))
 
 
 def test_fifo_eviction_like_deque_maxlen(rng):
