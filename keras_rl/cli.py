@@ -720,7 +720,10 @@ def sweep(args: argparse.Namespace) -> int:
         print("interrupted: finished jobs are kept; run the same sweep again to resume it", file=sys.stderr)
         return _stopped()
     failed = [s for ss in summaries.values() for s in ss if s.status in ("non_finite_loss", "error")]
-    return EXIT_CRITERION if failed else EXIT_OK
+    missing = sorted({Path(j.out_dir).parent.name for j in every if not (Path(j.out_dir) / "summary.json").is_file()})
+    if missing:
+        print(f"no runs for grid point(s) {', '.join(missing)}: see the errors above", file=sys.stderr)
+    return EXIT_CRITERION if failed or missing else EXIT_OK
 
 
 def aggregate(args: argparse.Namespace) -> int:

@@ -210,3 +210,23 @@ def test_compare_pendulum_with_matched_init_keeps_its_runs_and_report_apart(tmp_
     assert main(args) == 0
     assert (tmp_path / "runs" / "pendulum" / "faithful-torch" / "seed_0" / "actor.pt").is_file()
     assert "Initialisation: default init" in (tmp_path / "out" / "pendulum" / "report.md").read_text()
+
+
+def test_a_sweep_point_that_left_no_run_has_no_row_and_an_empty_baseline_is_named():
+    """A sweep whose grid point's jobs all failed crashed its report on "0 of 0" seeds; the
+    point now has no row (``sweep`` names it and exits 1), and an empty baseline is an error."""
+    from keras_rl.errors import RunFolderError
+    from keras_rl.report.sweep import analyse_sweep
+    from keras_rl.runs.summary import RunSummary
+
+    def run(seed, reached):
+        return RunSummary(
+            "mountaincar", "faithful", seed, "completed", reached is not None, "c", reached, 100, 100,
+            1000, None, 0.1, 0.1, 1.0,
+        )  # fmt: skip
+
+    base = [run(0, 10), run(1, 12), run(2, None)]
+    result = analyse_sweep({"base": base, "learning_phase_training=true": [], "tau=0.1": [run(0, 30)]}, "base")
+    assert [row["point"] for row in result["points"]] == ["base", "tau=0.1"]
+    with pytest.raises(RunFolderError, match="baseline grid point 'base' has no run"):
+        analyse_sweep({"base": [], "tau=0.1": base}, "base")

@@ -413,6 +413,28 @@ def test_seed_batch_auto_packs_each_post_by_its_cap(tmp_path):
     assert batched(torch, "auto", workers=2) == torch
 
 
+def test_a_config_no_stacked_learner_covers_runs_alone_under_auto_and_is_refused_under_a_fixed_size(tmp_path):
+    """Post 001 with its learning phase on has no stacked learner. ``sweep --ablate --seed-batch
+    auto`` once sent its seeds to the stacked learner, which refused each batch at run time;
+    now ``auto`` runs them alone beside the other grid points' batches, and a fixed size
+    refuses them before anything runs."""
+    from keras_rl.errors import ConfigError
+    from keras_rl.posts.mountaincar import MountainCarDDPGConfig
+    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched
+
+    def jobs(point, **overrides):
+        config = MountainCarDDPGConfig.for_variant("faithful", **overrides)
+        return [SeedJob.of(config.replace(seed=s), tmp_path / point / f"seed_{s}", command="x") for s in range(4)]
+
+    phase, base = jobs("learning_phase_training=true", learning_phase_training=True), jobs("base")
+    packed = batched(phase + base, "auto")
+    assert [j for j in packed if not isinstance(j, SeedBatchJob)] == phase  # each alone
+    assert [[m.config["seed"] for m in j.jobs] for j in packed if isinstance(j, SeedBatchJob)] == [[0, 1, 2, 3]]
+    with pytest.raises(ConfigError, match="--seed-batch 2 does not cover .*learning_phase_training=true"):
+        batched(base + phase, 2)
+    assert batched(phase, 1) == phase
+
+
 @pytest.mark.slow
 def test_seed_batch_on_sweep_runs_each_grid_point_as_a_batch_and_refuses_what_it_cannot_do(tmp_path):
     import json

@@ -49,6 +49,26 @@ STACKED: dict[tuple[str, str], Implementation] = {
 }
 """Seed-batched learners (``--seed-batch``): ``factory(configs, spec)`` for S seeds at once."""
 
+NOT_STACKED: dict[str, tuple[str, object, str]] = {
+    "mountaincar": (
+        "learning_phase_training",
+        True,
+        "its noise layer draws from one generator, so batched seeds could not keep their own draws",
+    ),
+}
+"""Configs whose seeds cannot share a stacked learner: (field, value, why), per experiment.
+``--seed-batch auto`` runs their seeds alone; a fixed ``--seed-batch N`` refuses them before
+anything runs (``runs.jobs.batched``)."""
+
+
+def batch_refusal(experiment: str, config: dict) -> str | None:
+    """Why a job of this config cannot join a seed batch, or None."""
+    if experiment not in NOT_STACKED:
+        return None
+    field, value, why = NOT_STACKED[experiment]
+    return f"{field}={str(value).lower()} ({why})" if config.get(field) == value else None
+
+
 FINISHED_SEEDS: dict[tuple[str, str], str] = {("cartpole", "keras"): "shrink"}
 """What a seed batch does with a seed that finishes before the others, where it is not
 ``mask`` (the seed stays in the stacked update on rows of zeros): ``shrink`` rebuilds the

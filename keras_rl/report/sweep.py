@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from keras_rl.errors import ConfigError
+from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.report.aggregate import write_aggregate
 from keras_rl.report.plots import plot_sweep
 from keras_rl.report.stats import (
@@ -33,9 +33,14 @@ def analyse_sweep(summaries: dict[str, list[RunSummary]], baseline: str) -> dict
     """Every number in ``sweep.md``, from the seeds' summaries."""
     if baseline not in summaries:
         raise ConfigError(f"--baseline {baseline!r} is not a grid point; the points are {', '.join(summaries)}")
+    if not summaries[baseline]:
+        raise RunFolderError(
+            f"the baseline grid point {baseline!r} has no run to compare with (its jobs' errors are above)"
+        )
     stats = {
         name: episodes_to_threshold_stats([s.reached_at_episode for s in ss], [s.success for s in ss])
         for name, ss in summaries.items()
+        if ss  # a point none of whose seeds left a summary (each job's error was printed) has no row
     }
     base = stats[baseline]
     rows = []

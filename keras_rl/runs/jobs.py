@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, Protocol
 
-from keras_rl.errors import RunFolderError
+from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.registry import get_experiment
 from keras_rl.runs.evaluate import EvalSchedule
 from keras_rl.runs.files import run_folder_locks
@@ -84,10 +84,12 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
     ``workers`` jobs at once). Only jobs that differ in
     nothing but the seed share a batch (a sweep's grid points never do), and only jobs of
     an experiment and framework with a seed-batched learner (``learners/table.py``) are
-    packed: the others (post 003's PyTorch tutorial in ``compare``, say) run alone. A job
+    packed: the others (post 003's PyTorch tutorial in ``compare``, say) run alone, and so do
+    configs no stacked learner covers (``learners/table.NOT_STACKED``) under ``"auto"``; a fixed
+    size refuses them with a ConfigError before anything runs. A job
     that resumes joins the batch its checkpoint was written by, whatever ``seed_batch`` is
     now. A group of one is the job itself."""
-    from keras_rl.learners.table import STACKED, seed_batch_cap
+    from keras_rl.learners.table import STACKED, batch_refusal, seed_batch_cap
 
     groups: dict[tuple, list[SeedJob]] = {}
     resumed: dict[tuple, list[SeedJob]] = {}
@@ -99,6 +101,15 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
                 resumed.setdefault((tuple(batch), job.command), []).append(job)
                 continue
         if seed_batch == 1 or job.start == "resume" or (job.experiment, job.config.get("framework")) not in STACKED:
+            alone.append(job)
+            continue
+        refusal = batch_refusal(job.experiment, job.config)
+        if refusal is not None:
+            if seed_batch != "auto":
+                raise ConfigError(
+                    f"--seed-batch {seed_batch} does not cover {Path(job.out_dir).parent}: {refusal}; "
+                    "pass --seed-batch auto, which runs such seeds alone, or --seed-batch 1"
+                )
             alone.append(job)
             continue
         key = (
