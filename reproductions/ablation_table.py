@@ -63,7 +63,10 @@ SOURCES = {
         "base": "results/mountaincar/ablations/base",
         "points": "results/mountaincar/ablations",
         "also": {},
-        "command": f"`{SWEEP.format(exp='mountaincar', batch='')}`, then " + MORE.format(exp="mountaincar"),
+        "command": f"`{SWEEP.format(exp='mountaincar', batch='')}`, then "
+        + MORE.format(exp="mountaincar")
+        + " and, since no stacked learner covers it, the learning-phase point alone: `keras-rl sweep mountaincar "
+        "--grid learning_phase_training=true --seeds 10-29 --workers 1 --no-progress --out DIR`",
     },
 }
 

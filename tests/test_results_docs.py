@@ -69,7 +69,7 @@ def test_fidelitys_measured_effect_tables_are_up_to_date():
     # have landed (the other posts join this set as theirs do)
     from keras_rl.registry import get_experiment
 
-    for experiment in ("pendulum",):
+    for experiment in ("pendulum", "mountaincar"):
         text = gen.table(experiment)
         for ledger_id in get_experiment(experiment).config_cls.QUIRKS.values():
             row = next(line for line in text.splitlines() if line.startswith(f"| {ledger_id[0]} |"))
