@@ -46,15 +46,17 @@ from keras_rl.runs.summary import RunSummary  # noqa: E402
 
 CHECKS = ROOT / "results" / "checks"
 MUTANT_SEEDS = "0-9"
+BASELINE_BATCH = {"pendulum": 15, "cartpole": 15, "mountaincar": 1}
+"""How each committed baseline was made (its summaries' ``--seed-batch``): 15 seeds per batch
+for posts 000 and 003, one seed per run for post 001."""
 
 
 def make_commands(name: str) -> list[list[str]]:
     """The commands that make the baseline and every mutant's runs, where missing."""
     rules = [RULES[(name, t)] for t in TIERS]
-    episodes, batch = max(r.episodes for r in rules), max(r.seed_batch for r in rules)
-    common = ["--no-progress", "--min-success-rate", "0", "--workers", "2"]
-    if batch > 1:
-        common += ["--seed-batch", "10"]
+    episodes, batch = max(r.episodes for r in rules), BASELINE_BATCH[name]
+    # mutants batch as the check's fresh seeds do (auto runs a config no stacked learner covers alone)
+    common = ["--no-progress", "--min-success-rate", "0", "--workers", "2", "--seed-batch", "auto"]
     out = []
     if not (CHECKS / name / "baseline").is_dir():
         out.append(
@@ -64,7 +66,7 @@ def make_commands(name: str) -> list[list[str]]:
                 name,
                 "--seeds",
                 "0-29",
-                *(["--seed-batch", "15"] if batch > 1 else []),
+                *(["--seed-batch", str(batch)] if batch > 1 else []),
                 "--no-progress",
                 "--min-success-rate",
                 "0",

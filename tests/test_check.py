@@ -480,3 +480,25 @@ def test_sequential_refuses_seeds_of_its_own_with_exit_2(tmp_path, capsys):
     code = main(["check", "pendulum", "--sequential", "--seeds", "1000-1009", "--out", str(tmp_path / "c")])
     assert code == 2 and "--seeds and --sequential" in capsys.readouterr().err
     assert not (tmp_path / "c").exists()
+
+
+@pytest.mark.parametrize("sets, batches", [([], [6]), (["--set", "learning_phase_training=true"], [])])
+def test_post_001s_fresh_seeds_run_in_one_batch_unless_no_stacked_learner_covers_the_change(
+    sets, batches, tmp_path, monkeypatch
+):
+    """The smoke tier's six post-001 seeds are one batch; with the learning phase on (a change
+    the check must still be able to test) each runs alone instead of being refused."""
+    import keras_rl.runs.jobs as jobs
+    from keras_rl.cli import main
+
+    seen = []
+
+    def fake_run_jobs(todo, backend, progress=True, after_job=None):
+        seen.extend(todo)
+        return jobs.JobsOutcome()
+
+    monkeypatch.setattr(jobs, "run_jobs", fake_run_jobs)
+    code = main(["check", "mountaincar", "--workers", "1", "--no-progress", *sets, "--out", str(tmp_path / "c")])
+    assert code == 3  # the fake ran nothing, so no verdict: what matters is how the seeds were sent
+    assert [len(j.jobs) for j in seen if isinstance(j, jobs.SeedBatchJob)] == batches
+    assert sum(len(jobs.members(j)) for j in seen) == 6

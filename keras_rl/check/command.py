@@ -280,6 +280,7 @@ def run_check(
 def _run_seeds(out: Path, groups: list[tuple], options: RunOptions) -> None:
     """Train each (experiment, rule, config, seeds) group's seeds into ``out/<experiment>/``, in
     the rule's seed batches, all groups' jobs at once."""
+    from keras_rl.learners.table import batch_refusal
     from keras_rl.report.plots import draw_job_curves
     from keras_rl.runs.backends import backend_for
     from keras_rl.runs.jobs import SeedJob, batched, run_jobs
@@ -289,7 +290,9 @@ def _run_seeds(out: Path, groups: list[tuple], options: RunOptions) -> None:
         group = [
             SeedJob.of(config.replace(seed=s), out / experiment.name / f"seed_{s}", start="overwrite") for s in fresh
         ]
-        jobs += batched(group, rule.seed_batch)
+        # a --set no stacked learner covers (post 001's learning phase) runs its seeds alone
+        size = rule.seed_batch if batch_refusal(experiment.name, config.to_dict()) is None else 1
+        jobs += batched(group, size)
     backend = backend_for(options.workers, len(jobs), options.address)
     outcome = run_jobs(jobs, backend, options.progress, after_job=draw_job_curves)
     if outcome.interrupted:
