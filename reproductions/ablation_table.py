@@ -2,6 +2,7 @@
 ablation runs.
 
     python reproductions/ablation_table.py            # print the three tables
+    python reproductions/ablation_table.py --changes  # each switch's reading on seeds 0-9 and on all
     python reproductions/ablation_table.py --write    # replace them in reproductions/FIDELITY.md,
                                                       # and rewrite each sweep folder's sweep.md
 
@@ -26,6 +27,7 @@ includes 0 is no evidence of no effect.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from pathlib import Path
 
@@ -143,7 +145,7 @@ def _reading(row: dict, statuses: list[str], faithful: dict, budget: int) -> str
     return f"no effect shown; inconclusive at {row['seeds']} seeds (TOST)"
 
 
-def table(experiment: str) -> str:
+def table(experiment: str, only: set[int] | None = None) -> str:
     from keras_rl.registry import get_experiment
     from keras_rl.report.sweep import analyse_sweep
     from keras_rl.runs.sweep import point_name
@@ -178,6 +180,8 @@ def table(experiment: str) -> str:
     # Every arm on the seeds they all have: the faithful set may hold more (issue #20's
     # 30-seed runs) than the switches' sets, and a comparison is made on the same seeds.
     common = set.intersection(*({s.seed for s in arm} for arm in summaries.values()))
+    if only is not None:
+        common &= only
     summaries = {label: [s for s in arm if s.seed in common] for label, arm in summaries.items()}
     span = f"{min(common)}-{max(common)}" if common == set(range(min(common), max(common) + 1)) else str(sorted(common))
     lines[2] = lines[2].replace("runs (seeds 0-9)", f"runs (seeds {span})")
@@ -208,6 +212,17 @@ def table(experiment: str) -> str:
     return "\n".join(lines)
 
 
+def changes(experiment: str) -> list[tuple[str, str, str]]:
+    """(switch, reading on seeds 0-9, reading on every seed all arms have) per row."""
+
+    def readings(text: str) -> dict[str, str]:
+        rows = [line.split("|") for line in text.splitlines() if line.startswith("| ") and "---" not in line]
+        return {f"{r[1].strip()} {r[2].strip()}": r[-2].strip() for r in rows[1:]}
+
+    ten, every = readings(table(experiment, only=set(range(10)))), readings(table(experiment))
+    return [(name, ten[name], every[name]) for name in every if every[name] != "-"]
+
+
 READINGS = ("results/mountaincar/faithful", "results/mountaincar/faithful-intended")
 READINGS_MARKERS = ("<!-- p001-readings:begin -->", "<!-- p001-readings:end -->")
 
@@ -222,10 +237,20 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("experiments", nargs="*", default=list(SOURCES), help="default: all three posts")
     parser.add_argument("--write", action="store_true", help="replace the tables in reproductions/FIDELITY.md")
+    parser.add_argument(
+        "--changes", action="store_true", help="each switch's reading on seeds 0-9 beside its reading on all seeds"
+    )
     args = parser.parse_args()
     unknown = sorted(set(args.experiments) - set(SOURCES))
     if unknown:
         parser.error(f"unknown experiment(s) {', '.join(unknown)}; choose from {', '.join(SOURCES)}")
+    if args.changes:
+        print("| post | switch | seeds 0-9 | all seeds | changed |\n|---|---|---|---|---|")
+        for name in args.experiments:
+            for switch, ten, every in changes(name):
+                same = re.sub(r"at \d+ seeds", "", ten) == re.sub(r"at \d+ seeds", "", every)
+                print(f"| {name} | {switch} | {ten} | {every} | {'no' if same else 'yes'} |")
+        return
     tables = {name: table(name) for name in args.experiments}
     if not args.write:
         print("\n\n".join([*tables.values(), readings_table()]))
