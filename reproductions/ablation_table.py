@@ -59,7 +59,7 @@ SOURCES = {
         "base": "results/cartpole/ablations/base",
         "points": "results/cartpole/ablations",
         "also": {},
-        "command": f"`{SWEEP.format(exp='cartpole', batch=' --seed-batch 10')}`",
+        "command": f"`{SWEEP.format(exp='cartpole', batch=' --seed-batch 10')}`, then " + MORE.format(exp="cartpole"),
     },
     "mountaincar": {
         "base": "results/mountaincar/ablations/base",

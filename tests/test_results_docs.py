@@ -65,11 +65,10 @@ def test_fidelitys_measured_effect_tables_are_up_to_date():
     assert block(ledger, *gen.READINGS_MARKERS) == gen.readings_table(), (
         "FIDELITY.md's post 001 readings table is stale: run python reproductions/ablation_table.py --write"
     )
-    # every quirk switch has its row, with numbers; on 30 seeds or more where issue #20's runs
-    # have landed (the other posts join this set as theirs do)
+    # every quirk switch of every post has its row, with numbers on 30 seeds or more (issue #20)
     from keras_rl.registry import get_experiment
 
-    for experiment in ("pendulum", "mountaincar"):
+    for experiment in gen.SOURCES:
         text = gen.table(experiment)
         for ledger_id in get_experiment(experiment).config_cls.QUIRKS.values():
             row = next(line for line in text.splitlines() if line.startswith(f"| {ledger_id[0]} |"))
