@@ -102,12 +102,52 @@ def describe(name: str, folders: list[Path]) -> dict:
     }
 
 
+def run_key(folder: Path) -> str:
+    """What makes two seed runs the same run: the config and every column of every episode
+    but wall time (``episodes.csv``), and the seeds it was batched with."""
+    import csv
+    import hashlib
+
+    summary = json.loads((folder / "summary.json").read_text())
+    digest = hashlib.sha256()
+    digest.update(json.dumps(json.loads((folder / "config.json").read_text()), sort_keys=True).encode())
+    digest.update(json.dumps(batch_of(summary)).encode())
+    if (folder / "episodes.csv").is_file():
+        with open(folder / "episodes.csv", newline="") as fh:
+            for row in csv.DictReader(fh):
+                digest.update(json.dumps({k: v for k, v in row.items() if k != "wall_seconds"}).encode())
+    return digest.hexdigest()
+
+
 def manifest(results: Path = RESULTS) -> list[dict]:
-    return [describe(name, folders) for name, folders in find_sets(results).items()]
+    """Every set, each with its ``copies``: the seeds that are the same run as a seed of a set
+    listed before it (``run_key``; a set extended by copying, say), counted once in the cost."""
+    entries, seen = [], {}
+    for name, folders in find_sets(results).items():
+        entry = describe(name, folders)
+        copies: dict[str, list[int]] = {}
+        for folder in folders:
+            key = run_key(folder)
+            if key in seen:
+                copies.setdefault(seen[key], []).append(seed_of(folder))
+            else:
+                seen[key] = name
+        entry["copies"] = copies
+        entries.append(entry)
+    return entries
+
+
+def cost(entry: dict) -> float:
+    """A set's process-minutes less those of its seeds that copy an earlier set's (each copied
+    seed costs its share of its set's minutes)."""
+    copied = sum(len(seeds) for seeds in entry.get("copies", {}).values())
+    return entry["process_minutes"] * (1 - copied / len(entry["seeds"]))
 
 
 def markdown(entries: list[dict]) -> str:
     total = sum(e["process_minutes"] for e in entries)
+    unique = sum(cost(e) for e in entries)
+    copied = sum(len(seeds) for e in entries for seeds in e.get("copies", {}).values())
     lines = [
         "# Every committed run set",
         "",
@@ -117,9 +157,13 @@ def markdown(entries: list[dict]) -> str:
         "",
         f"{len(entries)} sets, {sum(len(e['seeds']) for e in entries)} seed runs, {total:.0f} process-minutes "
         f"({total / 60:.1f} process-hours; with `--workers 2` on this 2-core machine, about half that in wall time).",
+        f"{copied} of those seed runs are the same runs as seeds of a set listed before them (same config, batch "
+        f'and episodes but for wall time; the "copies" column): counted once, the sets cost {unique:.0f} '
+        f"process-minutes ({unique / 60:.1f} process-hours, about {unique / 120:.1f} hours of wall time on two "
+        "workers). The minutes are the runs' recorded wall times, most measured beside other work.",
         "",
-        "| set | experiment / variant / framework | seeds | batches | process-min | made by |",
-        "|---|---|---|---|---|---|",
+        "| set | experiment / variant / framework | seeds | batches | process-min | copies | made by |",
+        "|---|---|---|---|---|---|---|",
     ]
     for e in entries:
         seeds = f"{min(e['seeds'])}-{max(e['seeds'])}" if len(e["seeds"]) > 1 else str(e["seeds"][0])
@@ -127,9 +171,14 @@ def markdown(entries: list[dict]) -> str:
         commands = "; ".join(f"`{c}`" for c in e["commands"])
         lines.append(
             f"| `{e['set']}` | {e['experiment']} / {e['variant']} / {e['framework']} | {seeds} ({len(e['seeds'])}) "
-            f"| {batch} | {e['process_minutes']:g} | {commands} |"
+            f"| {batch} | {e['process_minutes']:g} | {_copies(e)} | {commands} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def _copies(entry: dict) -> str:
+    copies = entry.get("copies", {})
+    return "; ".join(f"{len(seeds)} of `{name}`" for name, seeds in copies.items()) or "-"
 
 
 # -- rerun --------------------------------------------------------------------------------------

@@ -154,6 +154,9 @@ def test_the_manifest_lists_every_committed_run_set_as_it_is():
     for post in ("pendulum", "cartpole", "mountaincar"):
         assert f"{post}/faithful" in sets and f"checks/{post}/baseline" in sets
     assert sets["checks/cartpole/baseline"]["batches"] == [list(range(15)), list(range(15, 30))]
+    # the faithful post-001 set is the check baseline's 30 solo runs again, counted once
+    assert sets["mountaincar/faithful"]["copies"] == {"checks/mountaincar/baseline": list(range(30))}
+    assert gen.cost(sets["mountaincar/faithful"]) == 0 and not sets["checks/mountaincar/baseline"]["copies"]
 
 
 def test_a_seeds_batch_comes_from_its_summary_or_else_its_command():
