@@ -6,6 +6,7 @@ os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
 
 import numpy as np
 import pytest
+from clitools import run_cli
 
 import keras_rl  # noqa: F401  (pins KERAS_BACKEND before keras is imported anywhere)
 from keras_rl.seeding import configure_tensorflow
@@ -18,12 +19,48 @@ def rng():
     return np.random.default_rng(1234)
 
 
-# `make test` runs the suite in two processes (pytest-xdist, --dist loadgroup). A module-scoped
-# fixture that trains is built once per process that runs a test using it, so each such test
+# Runs that several test modules read, made once per process (their tests share an xdist group,
+# below, so one process makes each). Tests that change them work on a copy, but for the
+# evaluations of tests/test_evaluate.py, which add evaluation files in their module's order.
+@pytest.fixture(scope="session")
+def tiny(tmp_path_factory):
+    """A 2-episode cartpole run (seconds): (its --out folder, the finished process)."""
+    out = tmp_path_factory.mktemp("tiny") / "c"
+    proc = run_cli("reproduce", "cartpole", "--seeds", "1", "--episodes", "2", "--no-progress", "--out", str(out))
+    assert proc.returncode == 1, proc.stderr
+    return out, proc
+
+
+@pytest.fixture(scope="session")
+def short_run(tmp_path_factory):
+    """Seed 3 of a 7-episode pendulum run that trains from episode 4: its seed folder."""
+    out = tmp_path_factory.mktemp("runs") / "p"
+    proc = run_cli(
+        "reproduce",
+        "pendulum",
+        "--seeds",
+        "3",
+        "--episodes",
+        "7",
+        "--no-progress",
+        "--set",
+        "stop_at_threshold=false",
+        "--set",
+        "train_start=600",
+        "--out",
+        str(out),
+    )
+    assert proc.returncode == 1, proc.stderr  # 7 episodes cannot reach -300: criterion fails
+    return out / "seed_3"
+
+
+# `make test` runs the suite in two processes (pytest-xdist, --dist loadgroup). A module- or
+# session-scoped fixture that trains is built once per process that runs a test using it, so each such test
 # joins its fixture's group; the tests of test_ray.py (clusters, socket checks) keep to one.
 GROUP_OF_FIXTURE = {"compared": "compare-runs", "sweep_dir": "ray", "short_run": "short-run", "tiny": "tiny-runs"}
 
 
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist's hook, which reads the groups set here
 def pytest_collection_modifyitems(config, items):
     for item in items:
         groups = [GROUP_OF_FIXTURE[f] for f in getattr(item, "fixturenames", ()) if f in GROUP_OF_FIXTURE]

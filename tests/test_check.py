@@ -360,7 +360,6 @@ def test_calibration_md_states_the_committed_family_wise_rates():
         assert tier["command_holm"] < 0.01 < tier["command_unadjusted"]
 
 
-@pytest.mark.slow
 @pytest.mark.slow  # 60-100 s: 20,000 resamples per tied statistic, 2,000 baselines per spread entry
 def test_the_committed_family_wise_rates_are_what_the_baselines_give():
     from pathlib import Path

@@ -70,3 +70,11 @@ def test_the_docs_build_strictly(tmp_path):
     built = {p.relative_to(tmp_path / "site").as_posix() for p in (tmp_path / "site").rglob("index.html")}
     for page in (ROOT / "docs").glob("*.md"):
         assert (page.stem == "index" and "index.html" in built) or f"{page.stem}/index.html" in built, page.name
+
+
+def test_contributing_lists_every_test_module_once():
+    """docs/contributing.md's "Where the tests are" names each tests/test_*.py in one row."""
+    text = (ROOT / "docs" / "contributing.md").read_text().split("## Where the tests are", 1)[1].split("\n## ", 1)[0]
+    listed = re.findall(r"`(test_\w+\.py)`", text)
+    modules = sorted(p.name for p in (ROOT / "tests").glob("test_*.py"))
+    assert sorted(listed) == modules, (set(modules) - set(listed), set(listed) - set(modules))

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from clitools import default_signals, wait_for_rows
 
 ray = pytest.importorskip("ray")
 
@@ -211,11 +212,6 @@ def test_two_node_cluster_runs_jobs_on_both_nodes_and_files_land_in_the_drivers_
         cluster.shutdown()
 
 
-def _default_signals():
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-
 def test_ctrl_c_during_a_ray_sweep_keeps_episodes_marks_interrupted_and_starts_no_queued_seed(tmp_path):
     out = tmp_path / "s"
     proc = subprocess.Popen(
@@ -239,14 +235,10 @@ def test_ctrl_c_during_a_ray_sweep_keeps_episodes_marks_interrupted_and_starts_n
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
-        preexec_fn=_default_signals,
+        preexec_fn=default_signals,
     )
     csv_path = out / "tau=0.001" / "seed_0" / "episodes.csv"
-    deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and proc.poll() is None:
-        if csv_path.is_file() and len(csv_path.read_text().splitlines()) >= 4:
-            break
-        time.sleep(0.1)
+    wait_for_rows(proc, csv_path, 3, poll=0.1)
     os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the whole group
     _, stderr = proc.communicate(timeout=300)
     assert proc.returncode == 130, stderr
@@ -285,7 +277,7 @@ def test_a_killed_ray_worker_is_retried_and_its_seed_reruns_to_the_same_csv(tmp_
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        preexec_fn=_default_signals,
+        preexec_fn=default_signals,
     )
     csv_path = tmp_path / "killed" / "seed_0" / "episodes.csv"
     deadline, killed = time.monotonic() + 300, None

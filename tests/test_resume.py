@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import pytest
+from clitools import default_signals, wait_for_rows
 
 pytestmark = pytest.mark.slow  # every test here trains whole runs
 
@@ -57,7 +58,7 @@ def args(experiment, framework, episodes, out, seed=2):
 def kill_when_on_disk(command: list[str], csv_path: Path, episodes: int, timeout: float = 600) -> int:
     """Start ``command``, SIGKILL it once ``csv_path`` holds ``episodes`` rows; the rows it kept."""
     proc = subprocess.Popen(
-        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env_for_child(), preexec_fn=_default_signals
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env_for_child(), preexec_fn=default_signals
     )
     deadline = time.monotonic() + timeout
     try:
@@ -237,11 +238,6 @@ def test_a_resumed_seed_must_resume_with_its_batch(tmp_path):
         batched(jobs[:1], 4)
 
 
-def _default_signals():
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-
 def test_a_corrupt_checkpoint_is_refused_and_the_folder_left_alone(tmp_path):
     out = tmp_path / "run"
     proc = subprocess.run(args("cartpole", "keras", 7, out), capture_output=True, text=True, timeout=300)
@@ -271,12 +267,10 @@ def test_resume_with_other_options_is_refused(tmp_path):
         args("pendulum", "keras", 30, out),
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
-        preexec_fn=_default_signals,
+        preexec_fn=default_signals,
     )
     csv_path = out / "seed_2" / "episodes.csv"
-    deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and proc.poll() is None and not (csv_path.is_file() and len(rows(csv_path)) >= 4):
-        time.sleep(0.02)
+    wait_for_rows(proc, csv_path, 4, poll=0.02)
     proc.send_signal(signal.SIGTERM)  # handled like Ctrl-C: the checkpoint is written on the way out
     assert proc.wait(timeout=120) == 143  # 128 + SIGTERM, as timeout, Slurm and Kubernetes expect (#23.10)
     assert (out / "seed_2" / "checkpoint.pkl").is_file()

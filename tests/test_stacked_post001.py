@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from weights import max_gap
 
 from keras_rl.buffers import Layout
 from keras_rl.envs import EnvSpec
@@ -69,10 +70,6 @@ def stacked(seeds, **changes):
 def weights(learner) -> dict:
     """A solo learner's networks in ``slice_weights``' form (each model's variables, in order)."""
     return {name: [v.numpy() for v in model_variables(getattr(learner, name))] for name in NETWORKS}
-
-
-def max_gap(a: dict, b: dict) -> float:
-    return max(float(np.max(np.abs(x - y))) for name in a for x, y in zip(a[name], b[name], strict=True))
 
 
 @pytest.mark.slow

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from weights import max_gap
 
 pytest.importorskip("torch", reason="needs the torch extra")
 
@@ -57,10 +58,6 @@ def solo(post: str, seed: int, **changes):
 def stack(post: str, seeds, **changes):
     _, spec, _, build = POSTS[post]
     return build(configs(post, seeds, **changes), spec)
-
-
-def max_gap(a: dict, b: dict) -> float:
-    return max(float(np.max(np.abs(x - y))) for name in a for x, y in zip(a[name], b[name], strict=True))
 
 
 @pytest.mark.parametrize("post", ["000", "001"])

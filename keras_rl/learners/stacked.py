@@ -15,7 +15,7 @@ Seed k's slice starts from the very weights seed k's solo run draws: ``stack_pos
 A stack of one seed is the solo learner itself (``SoloAsStack``).
 
 The episode loop over a seed axis is ``runs/loop.py``; the equivalence tests are
-``tests/test_stacked.py``.
+``tests/test_stacked_ddpg.py``, ``tests/test_stacked_dqn.py`` and ``tests/test_stacked_post001.py``.
 """
 
 from __future__ import annotations

@@ -1,0 +1,182 @@
+"""The seed-batched episode loop (keras_rl/runs/loop.py over a seed axis): each seed writes its
+solo run's episodes.csv, stops on its own threshold, NaN or Ctrl-C, and episodes of any length."""
+
+from __future__ import annotations
+
+import pytest
+from wrappers import NaNRewardAfter, SigintAt
+
+from keras_rl.runs.files import read_episodes
+from keras_rl.runs.summary import RunSummary
+
+
+def _csv(path):
+    import csv
+
+    with open(path, newline="") as fh:
+        return [{k: v for k, v in r.items() if k != "wall_seconds"} for r in csv.DictReader(fh)]
+
+
+def _batch(tmp_path, name, seeds, **overrides):
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs.loop import run_seeds as run_seed_batch
+
+    exp = get_experiment("pendulum")
+    configs = [exp.config_cls.for_variant("faithful", seed=s, **overrides) for s in seeds]
+    return run_seed_batch(exp, configs, [tmp_path / name / f"seed_{s}" for s in seeds], progress=False)
+
+
+@pytest.mark.slow
+def test_one_seed_through_the_batched_loop_writes_the_solo_runs_episodes_csv(tmp_path):
+    import subprocess
+    import sys
+
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "keras_rl",
+            "reproduce",
+            "pendulum",
+            "--seeds",
+            "3",
+            "--episodes",
+            "12",
+            "--no-progress",
+            "--out",
+            str(tmp_path / "solo"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 1, proc.stderr
+    summaries = _batch(tmp_path, "batch", [3], episodes=12)
+    assert summaries[0].status == "completed"
+    assert _csv(tmp_path / "batch" / "seed_3" / "episodes.csv") == _csv(tmp_path / "solo" / "seed_3" / "episodes.csv")
+
+
+@pytest.mark.slow
+def test_batched_seeds_are_independent_of_their_neighbours_and_of_each_other(tmp_path):
+    first = _batch(tmp_path, "a", [0, 1, 2, 3], episodes=7)
+    second = _batch(tmp_path, "b", [3, 4, 5, 6], episodes=7)
+    assert all(s.status == "completed" for s in first + second)
+    seed3_a, seed3_b = (
+        _csv(tmp_path / "a" / "seed_3" / "episodes.csv"),
+        _csv(tmp_path / "b" / "seed_3" / "episodes.csv"),
+    )
+    assert seed3_a == seed3_b  # the same seed in another batch of the same size: the same run
+    scores = {s: [r["score"] for r in _csv(tmp_path / "a" / f"seed_{s}" / "episodes.csv")] for s in range(4)}
+    assert len({tuple(v) for v in scores.values()}) == 4  # every seed its own env, noise and weights
+    for name in ("config.json", "summary.json", "actor.weights.h5", "critic.weights.h5"):
+        assert (tmp_path / "a" / "seed_0" / name).is_file()
+    # each summary names the seeds it was trained with, since its bits depend on them
+    assert RunSummary.read(tmp_path / "b" / "seed_3").provenance["seed_batch"] == [3, 4, 5, 6]
+
+
+@pytest.mark.slow
+def test_a_seed_that_reaches_the_threshold_stops_while_the_others_go_on(tmp_path):
+    summaries = _batch(tmp_path, "t", [0, 1, 2, 3], episodes=6, threshold=-1450.0)
+    by_seed = {s.seed: s for s in summaries}
+    stopped = [s for s in summaries if s.reached_at_episode is not None and s.reached_at_episode < 6]
+    assert stopped and len(stopped) < 4, {s.seed: s.reached_at_episode for s in summaries}
+    for s in stopped:
+        rows = _csv(tmp_path / "t" / f"seed_{s.seed}" / "episodes.csv")
+        assert len(rows) == s.reached_at_episode == s.episodes_run and s.success and s.status == "completed"
+    assert max(s.episodes_run for s in by_seed.values()) == 6 or all(s.reached_at_episode for s in summaries)
+    longest = max(summaries, key=lambda s: s.episodes_run)
+    for s in stopped:  # its summary was final when it stopped: its wall time ends there
+        assert s.wall_seconds < longest.wall_seconds
+        assert RunSummary.read(tmp_path / "t" / f"seed_{s.seed}").wall_seconds == s.wall_seconds
+
+
+def _envs(seeds, wrap=None):
+    from keras_rl.registry import get_experiment
+
+    exp = get_experiment("pendulum")
+    envs = [exp.make_env(exp.config_cls()) for _ in seeds]
+    return [wrap(e) if wrap is not None and i == 1 else e for i, e in enumerate(envs)]
+
+
+@pytest.mark.slow
+def test_a_nan_in_one_seed_stops_that_seed_only(tmp_path):
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs.loop import run_seeds as run_seed_batch
+
+    exp = get_experiment("pendulum")
+    seeds = [0, 1, 2]
+    configs = [exp.config_cls.for_variant("faithful", seed=s, episodes=5, train_start=64, batch_size=16) for s in seeds]
+    envs = _envs(seeds, wrap=lambda e: NaNRewardAfter(e, after_steps=450))
+    summaries = run_seed_batch(exp, configs, [tmp_path / f"seed_{s}" for s in seeds], progress=False, envs=envs)
+    by_seed = {s.seed: s for s in summaries}
+    assert by_seed[1].status == "non_finite_loss" and "critic_loss became nan" in by_seed[1].message
+    assert by_seed[1].episodes_run == 2  # the episode that hit NaN is not recorded
+    assert by_seed[0].status == by_seed[2].status == "completed"
+    assert by_seed[0].episodes_run == by_seed[2].episodes_run == 5
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_every_seed_of_a_batch_and_keeps_their_episodes(tmp_path):
+    import signal
+
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs.loop import run_seeds as run_seed_batch
+
+    exp = get_experiment("pendulum")
+    seeds = [0, 1]
+    configs = [exp.config_cls.for_variant("faithful", seed=s, episodes=10, train_start=64) for s in seeds]
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        summaries = run_seed_batch(
+            exp,
+            configs,
+            [tmp_path / f"seed_{s}" for s in seeds],
+            progress=False,
+            envs=_envs(seeds, wrap=lambda e: SigintAt(e, at=450)),
+        )
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    for s in summaries:
+        assert s.status == "interrupted" and s.episodes_run == 2  # episode 3 was cut short
+        assert len(read_episodes(tmp_path / f"seed_{s.seed}" / "episodes.csv")) == 2
+        assert (tmp_path / f"seed_{s.seed}" / "actor.weights.h5").is_file()
+
+
+def _cartpole_runs(tmp_path, name, seeds, episodes, batch: bool):
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs.loop import run_seed
+    from keras_rl.runs.loop import run_seeds as run_seed_batch
+
+    exp = get_experiment("cartpole")
+    configs = [exp.config_cls.for_variant("faithful", seed=s, episodes=episodes) for s in seeds]
+    dirs = [tmp_path / name / f"seed_{s}" for s in seeds]
+    if batch:
+        return run_seed_batch(exp, configs, dirs, progress=False)
+    return [run_seed(exp, c, d, progress=False) for c, d in zip(configs, dirs)]
+
+
+@pytest.mark.slow
+def test_cartpole_seeds_batched_play_their_solo_episodes(tmp_path):
+    """S=1 writes the solo episodes.csv bit for bit; in a batch of 4 (episodes of different
+    lengths, seeds finishing at different env steps) every seed plays the same episodes as
+    alone, and its losses agree to 1e-6."""
+    seeds, episodes = [0, 1, 2, 3], 20
+    _cartpole_runs(tmp_path, "solo", seeds, episodes, batch=False)
+    _cartpole_runs(tmp_path, "one", [2], episodes, batch=True)
+    assert _csv(tmp_path / "one" / "seed_2" / "episodes.csv") == _csv(tmp_path / "solo" / "seed_2" / "episodes.csv")
+    summaries = _cartpole_runs(tmp_path, "four", seeds, episodes, batch=True)
+    assert all(s.status == "completed" and s.episodes_run == episodes for s in summaries)
+    assert len({s.total_steps for s in summaries}) > 1  # the seeds really finished at different env steps
+    for s in seeds:
+        batched = _csv(tmp_path / "four" / f"seed_{s}" / "episodes.csv")
+        alone = _csv(tmp_path / "solo" / f"seed_{s}" / "episodes.csv")
+        assert [(r["steps"], r["score"], r["total_steps"]) for r in batched] == [
+            (r["steps"], r["score"], r["total_steps"]) for r in alone
+        ]
+        for b, a in zip(batched, alone):
+            if a["loss"]:
+                assert float(b["loss"]) == pytest.approx(float(a["loss"]), rel=1e-6)
+        assert (tmp_path / "four" / f"seed_{s}" / "q_network.weights.h5").is_file()
+    neighbours = _cartpole_runs(tmp_path, "other", [3, 4, 5, 6], episodes, batch=True)
+    assert neighbours[0].status == "completed"
+    assert _csv(tmp_path / "other" / "seed_3" / "episodes.csv") == _csv(tmp_path / "four" / "seed_3" / "episodes.csv")
