@@ -317,11 +317,14 @@ def test_a_killed_ray_worker_is_retried_and_its_seed_reruns_to_the_same_csv(tmp_
         ),
     ],
 )
-def test_bad_sweep_input_exits_2_and_names_the_problem(argv, message, capsys, tmp_path):
-    started = time.monotonic()
+def test_bad_sweep_input_exits_2_and_names_the_problem(argv, message, capsys, tmp_path, monkeypatch):
+    import ray
+
+    # refused before Ray starts: an unreachable address is named by a bounded socket probe
+    # (ray_backend.check_reachable, 5 s), not after Ray's own long retries
+    monkeypatch.setattr(ray, "init", lambda *a, **k: pytest.fail("Ray was started for input that is refused"))
     assert main(["sweep", "pendulum", *argv, "--out", str(tmp_path / "s")]) == 2
     assert message in capsys.readouterr().err
-    assert time.monotonic() - started < 30  # an unreachable address is named promptly, not after a hang
 
 
 def test_ablate_flips_each_quirk_switch_alone():
