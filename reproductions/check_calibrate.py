@@ -305,6 +305,15 @@ def family_block() -> str:
     return f"{BEGIN}\n{text}\n{END}"
 
 
+def held_out_block() -> str:
+    """The held-out section (``reproductions/check_held_out.py --write``), kept across rewrites."""
+    from check_held_out import BEGIN, END, render
+
+    path = CHECKS / "held_out.json"
+    text = render(json.loads(path.read_text()) if path.is_file() else {})
+    return f"## Held-out mutants\n\n{BEGIN}\n{text}\n{END}"
+
+
 def markdown(results: dict) -> str:
     lines = [
         "# Error rates of `keras-rl check`'s rules",
@@ -397,6 +406,7 @@ def markdown(results: dict) -> str:
                     + (f"{d} episodes." if d is not None else f"none up to {rule.episodes} episodes.")
                 )
             lines.append("")
+    lines.append(held_out_block())
     return "\n".join(lines)
 
 

@@ -501,3 +501,29 @@ def test_post_001s_fresh_seeds_run_in_one_batch_unless_no_stacked_learner_covers
     assert code == 3  # the fake ran nothing, so no verdict: what matters is how the seeds were sent
     assert [len(j.jobs) for j in seen if isinstance(j, jobs.SeedBatchJob)] == batches
     assert sum(len(jobs.members(j)) for j in seen) == 6
+
+
+def test_calibration_md_states_the_committed_held_out_power():
+    """Issue #21's held-out mutants: calibration.md's block is rendered from results/checks/held_out.json,
+    and every held-out mutant with runs has 30 seeds of the faithful config but its own change."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    held = _load_script(root / "reproductions" / "check_held_out.py")
+    text = (root / "results" / "checks" / "calibration.md").read_text()
+    stated = text.split(held.BEGIN, 1)[1].split(held.END, 1)[0].strip()
+    committed = json.loads((root / "results" / "checks" / "held_out.json").read_text())
+    assert stated == held.render(committed), "calibration.md is stale: python reproductions/check_held_out.py --write"
+    for post, entry in committed.items():
+        for name, mutant in entry["mutants"].items():
+            assert all(t["seeds"] >= 30 for t in mutant["tiers"].values()), (post, name)
+            assert held.folder(post, name).is_dir(), (post, name)
+
+
+def test_clopper_pearson_by_hand():
+    from pathlib import Path
+
+    held = _load_script(Path(__file__).resolve().parents[1] / "reproductions" / "check_held_out.py")
+    assert held.clopper_pearson(0, 1) == pytest.approx((0.0, 0.975))  # 1 - 0.025 ** (1/1)
+    low, high = held.clopper_pearson(3, 3)
+    assert low == pytest.approx(0.025 ** (1 / 3)) and high == 1.0
