@@ -151,6 +151,27 @@ def render(results: dict) -> str:
                     f"[{r['bootstrap95'][0]:.0%}, {r['bootstrap95'][1]:.0%}] | {r['power_holm_first']:.0%} | "
                     f"{disjoint} |"
                 )
+    seen, unseen = [], []
+    for post, entry in results.items():
+        for name, m in entry["mutants"].items():
+            best = max(r["power_alpha"] for r in m["tiers"].values())
+            r = m["tiers"]["smoke"]
+            shift = (
+                ""
+                if r["median_mutant"] is None
+                else f" ({r['statistic']} median {r['median_mutant']:.4g} against {r['median_baseline']:.4g})"
+            )
+            if best >= 0.8:
+                seen.append(f"{post} {name}{shift}")
+            elif best < 0.2:
+                unseen.append(f"{post} {name}{shift}")
+    lines += [
+        "",
+        "What the check sees: flagged at least 80% of the time by a tier: "
+        + ("; ".join(seen) if seen else "none")
+        + ". What it cannot see: under 20% at both tiers, about its false-alarm rate when the change barely "
+        "moves the statistic: " + ("; ".join(unseen) if unseen else "none") + ".",
+    ]
     missing = [f"{p}: {m.name}" for p in POSTS for m in HELD_OUT[p] if not folder(p, m.name).is_dir()]
     if missing:
         lines += ["", "Held-out mutants without runs yet: " + "; ".join(missing) + "."]
