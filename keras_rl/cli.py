@@ -534,6 +534,9 @@ def reproduce(args: argparse.Namespace) -> int:
     failures = [s for s in summaries if s.status in ("non_finite_loss", "error")]
     for s in failures:
         print(f"error: seed {s.seed}: {s.message}", file=sys.stderr)
+    # a seed whose worker raised before its folder held a summary (the error was printed as it
+    # happened) has no verdict: it fails the command whatever --min-success-rate says
+    unsaid = [] if outcome.interrupted else sorted(set(seeds) - {s.seed for s in summaries})
     if summaries and len(seeds) > 1:
         write_aggregate(
             out,
@@ -558,8 +561,12 @@ def reproduce(args: argparse.Namespace) -> int:
     if outcome.interrupted:
         print("interrupted: partial results are on disk, marked unfinished; --resume continues them", file=sys.stderr)
         return _stopped()
-    if failures:
-        print(f"exit 1: {len(failures)} of {len(seeds)} seeds stopped with an error", file=sys.stderr)
+    if failures or unsaid:
+        print(
+            f"exit 1: {len(failures) + len(unsaid)} of {len(seeds)} seeds stopped with an error"
+            + (f" (seeds {', '.join(map(str, unsaid))} left no summary.json)" if unsaid else ""),
+            file=sys.stderr,
+        )
         return EXIT_CRITERION
     successes = sum(s.success for s in summaries)
     if successes / len(seeds) >= args.min_success_rate:

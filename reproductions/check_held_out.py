@@ -169,8 +169,10 @@ def render(results: dict) -> str:
         "",
         "What the check sees: flagged at least 80% of the time by a tier: "
         + ("; ".join(seen) if seen else "none")
-        + ". What it cannot see: under 20% at both tiers, about its false-alarm rate when the change barely "
-        "moves the statistic: " + ("; ".join(unseen) if unseen else "none") + ".",
+        + ". What it cannot see: under 20% at both tiers, near its false-alarm rate, either because the "
+        "change barely moves the statistic or because the baseline's seeds spread wider than it moves: "
+        + ("; ".join(unseen) if unseen else "none")
+        + ".",
     ]
     missing = [f"{p}: {m.name}" for p in POSTS for m in HELD_OUT[p] if not folder(p, m.name).is_dir()]
     if missing:

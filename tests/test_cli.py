@@ -35,6 +35,7 @@ BEFORE_TF = [
     (["reproduce", "pendulum", "--set", "buffer_size=500"], "would never train"),
     (["reproduce", "cartpole", "--set", "buffer_size=100"], "would never train"),
     (["reproduce", "mountaincar", "--set", "batch_size=200"], "train_down_to + 1"),
+    (["reproduce", "mountaincar", "--set", "actor_input_noise=2"], "actor_input_noise must be at most 1"),
     (["reproduce", "pendulum", "--out", "/proc/version"], "is a file, not a folder"),
     (["reproduce", "pendulum", "--out", "/proc/no-such-dir/out"], "not a writable folder"),
     (["reproduce", "pendulum", "--set", "hidden_units=32"], "was renamed; use actor_hidden_units"),
@@ -187,3 +188,19 @@ def test_reproduce_reruns_a_recorded_config_and_dry_run_trains_nothing(tmp_path)
     assert rows(tmp_path / "again" / "seed_0" / "episodes.csv") == rows(committed / "episodes.csv")[:20]
     wrong = run_cli("reproduce", "pendulum", "--config", str(committed), "--dry-run")
     assert wrong.returncode == 2 and "is a config of 'cartpole', not of pendulum" in wrong.stderr
+
+
+def test_seeds_that_leave_no_summary_fail_the_command_whatever_min_success_rate_says(tmp_path, monkeypatch, capsys):
+    """Under Ray, a seed whose worker raised before writing summary.json (Keras refusing a layer
+    argument, say) printed its error and left no verdict; reproduce exited 0 with
+    --min-success-rate 0 (found running a held-out mutant of issue #21)."""
+    import keras_rl.runs.backends as backends
+
+    class Silent:  # a backend whose seeds all die before their first file
+        def run(self, jobs, progress, after_job=None):
+            return False
+
+    monkeypatch.setattr(backends, "backend_for", lambda *a, **k: Silent())
+    argv = ["reproduce", "cartpole", "--seeds", "0-1", "--episodes", "2", "--min-success-rate", "0", "--no-progress"]
+    assert main([*argv, "--out", str(tmp_path / "r")]) == 1
+    assert "seeds 0, 1 left no summary.json" in capsys.readouterr().err

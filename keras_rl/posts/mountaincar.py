@@ -169,6 +169,13 @@ class MountainCarDDPGConfig(ExperimentConfig):
                 f"{self.train_down_to + 1}: a burst pops batches while more than train_down_to "
                 "transitions remain, so the last pop would come up short"
             )
+        if self.actor_input_noise > 1:
+            # Keras 3's GaussianNoise refuses a stddev above 1 when the actor is built: say so
+            # before any seed starts, not once per seed at run time
+            raise ConfigError(
+                f"actor_input_noise must be at most 1 (Keras 3's GaussianNoise takes a stddev in [0, 1]), "
+                f"got {self.actor_input_noise}"
+            )
         if len(self.critic_hidden_units) != 2:
             raise ConfigError(
                 "critic_hidden_units takes two widths (before and after the action joins), "
