@@ -182,6 +182,22 @@ def render(family: dict) -> str:
     return "\n".join(lines)
 
 
+def write_with_block(json_path: Path, data: dict, begin: str, end: str, text: str, heading: str = "") -> None:
+    """Write ``data`` to ``json_path`` and ``text`` between ``begin`` and ``end`` in calibration.md
+    (added at its end under ``heading`` if the page has no such block yet)."""
+    from findings_table import replace_block
+
+    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+
+    atomic_write_json(json_path, data)
+    md = CHECKS / "calibration.md"
+    current = md.read_text()
+    if begin not in current:
+        current = current.rstrip("\n") + f"\n\n{heading}\n\n{begin}\n{end}\n"
+    atomic_write_text(md, replace_block(current, begin, end, text))
+    print(f"updated {json_path} and {md}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument(
@@ -193,14 +209,7 @@ def main() -> None:
     if not args.write:
         print(text)
         return
-    from findings_table import replace_block
-
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
-
-    atomic_write_json(CHECKS / "family.json", family)
-    md = CHECKS / "calibration.md"
-    atomic_write_text(md, replace_block(md.read_text(), BEGIN, END, text))
-    print(f"updated {CHECKS / 'family.json'} and {md}")
+    write_with_block(CHECKS / "family.json", family, BEGIN, END, text)
 
 
 if __name__ == "__main__":

@@ -194,17 +194,9 @@ def main() -> None:
     if not args.write:
         print(text)
         return
-    from findings_table import replace_block
+    from check_family import write_with_block
 
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
-
-    atomic_write_json(CHECKS / "held_out.json", results)
-    md = CHECKS / "calibration.md"
-    current = md.read_text()
-    if BEGIN not in current:
-        current = current.rstrip("\n") + f"\n\n## Held-out mutants\n\n{BEGIN}\n{END}\n"
-    atomic_write_text(md, replace_block(current, BEGIN, END, text))
-    print(f"updated {CHECKS / 'held_out.json'} and {md}")
+    write_with_block(CHECKS / "held_out.json", results, BEGIN, END, text, "## Held-out mutants")
 
 
 if __name__ == "__main__":
