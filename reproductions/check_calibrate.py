@@ -38,14 +38,21 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "reproductions"))
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
+from check_runs import CHECKS, budget, load, measure, power_cells, seed_dirs, values  # noqa: E402
+
 from keras_rl.check.rules import ALPHAS, MUTANTS, RULES, TIERS  # noqa: E402
-from keras_rl.check.statistics import false_alarm_rate, power, seed_statistic  # noqa: E402
-from keras_rl.registry import get_experiment  # noqa: E402
-from keras_rl.runs.files import atomic_write_text, read_episodes  # noqa: E402
+from keras_rl.check.statistics import false_alarm_rate, power  # noqa: E402
+from keras_rl.runs.files import atomic_write_text  # noqa: E402
 from keras_rl.runs.summary import RunSummary  # noqa: E402
 
-CHECKS = ROOT / "results" / "checks"
 MUTANT_SEEDS = "0-9"
+MUTANT_BATCH = 10
+"""Mutant seeds 10-29 run in batches of 10 (``--seed-batch 10``), as the check's fresh seeds
+do: posts 000 and 003's seeds 0-9 were one such batch; post 001's ran solo, before it could
+batch (batched against solo for post 001: ``results/mountaincar/seed-batch/report.md``)."""
+TUNE, REPORT = range(0, 15), range(15, 30)
+"""Issue #21, item 4: once every mutant of a post has 30 runs, seeds 0-14 choose the rule (the
+criterion below) and seeds 15-29, never looked at in that choice, report its power."""
 BASELINE_BATCH = {"pendulum": 15, "cartpole": 15, "mountaincar": 1}
 """How each committed baseline was made (its summaries' ``--seed-batch``): 15 seeds per batch
 for posts 000 and 003, one seed per run for post 001."""
@@ -77,8 +84,16 @@ def make_commands(name: str) -> list[list[str]]:
             ]
         )
     for m in MUTANTS[name]:
-        if not (CHECKS / name / "mutants" / m.name).is_dir():
-            sets = [a for k, v in m.overrides.items() for a in ("--set", f"{k}={v}")]
+        folder = CHECKS / name / "mutants" / m.name
+        sets = [a for k, v in m.overrides.items() for a in ("--set", f"{k}={v}")]
+        if folder.is_dir() and len(seed_dirs(folder)) < len(TUNE) + len(REPORT):
+            # seeds 10-29 beside the committed 0-9, made alike; their seed folders are then moved in
+            out.append(
+                ["keras-rl", "reproduce", name, "--seeds", "10-29", "--episodes", str(episodes), *sets,
+                 "--no-progress", "--min-success-rate", "0", "--workers", "2", "--seed-batch", str(MUTANT_BATCH),
+                 "--out", f"results/checks/{name}/mutants-seeds-10-29/{m.name}"]
+            )  # fmt: skip
+        if not folder.is_dir():
             out.append(
                 [
                     "keras-rl",
@@ -95,40 +110,6 @@ def make_commands(name: str) -> list[list[str]]:
                 ]
             )
     return out
-
-
-def budget(folder: Path) -> int:
-    """The episode budget the runs in ``folder`` were made with (the smallest, if they differ)."""
-    return min(json.loads((d / "config.json").read_text())["episodes"] for d in folder.glob("seed_*"))
-
-
-def load(folder: Path) -> list[list[dict]]:
-    runs = []
-    for seed_dir in sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1])):
-        summary = RunSummary.read(seed_dir)
-        if summary.status not in ("completed", "non_finite_loss"):
-            raise SystemExit(f"error: {seed_dir} did not finish ({summary.status})")
-        runs.append(read_episodes(seed_dir / "episodes.csv") if summary.status == "completed" else None)
-    if not runs:
-        raise SystemExit(f"error: no runs under {folder}")
-    return runs
-
-
-def values(name: str, statistic: str, episodes: int, runs: list, delay: int = 0) -> np.ndarray:
-    """Each run's statistic (NaN for a run that blew up), its curve optionally ``delay`` episodes late."""
-    experiment = get_experiment(name)
-    config = experiment.config_cls.for_variant("faithful")
-    metric = experiment.make_metric(config)
-
-    def one(rows):
-        if rows is None:
-            return float("nan")
-        rows = [rows[0]] * delay + rows if delay else rows
-        return seed_statistic(
-            statistic, rows, episodes, lambda m: metric.passes(m, config.threshold), experiment.success_at_end
-        )
-
-    return np.asarray([one(r) for r in runs], float)
 
 
 def smallest_delay(name: str, rule, baseline_runs: list, target: float = 0.8) -> int | None:
@@ -230,7 +211,10 @@ def calibrate(name: str) -> dict:
             }
         out["smoke"]["old_k_of_n_test"] = old_test(name, baseline, None)
         return out
-    mutants = {m.name: (m, load(CHECKS / name / "mutants" / m.name)) for m in MUTANTS[name]}
+    folders = {m.name: CHECKS / name / "mutants" / m.name for m in MUTANTS[name]}
+    halved = all(len(seed_dirs(f)) >= len(TUNE) + len(REPORT) for f in folders.values())
+    mutants = {m.name: (m, load(folders[m.name], TUNE if halved else None)) for m in MUTANTS[name]}
+    held_back = {m.name: load(folders[m.name], REPORT) for m in MUTANTS[name]} if halved else None
     shortest = min(budget(CHECKS / name / "mutants" / m.name) for m in MUTANTS[name])
     out = {}
     for tier in TIERS:
@@ -264,12 +248,26 @@ def calibrate(name: str) -> dict:
         entry = {
             "baseline_seeds": len(baseline),
             "mutant_seeds": {k: len(v[1]) for k, v in mutants.items()},
+            "chosen_on": f"seeds {TUNE.start}-{TUNE.stop - 1}" if halved else "every seed",
             "candidates": rows,
             "chosen": chosen and {"statistic": chosen["statistic"], "alpha": chosen["alpha"]},
             "rule": {"statistic": rule.statistic, "alpha": rule.alpha},
         }
         if chosen and (chosen["statistic"], chosen["alpha"]) == (rule.statistic, rule.alpha):
             entry["detectable_delay_80"] = smallest_delay(name, rule, baseline)
+        if held_back:  # the rule as committed, on the seeds no choice looked at
+            base = values(name, rule.statistic, rule.episodes, baseline)
+            report = {
+                k: measure(name, tier, base, values(name, rule.statistic, rule.episodes, runs))
+                for k, runs in held_back.items()
+            }
+            gross = [report[m.name]["power_alpha"] for m, _ in mutants.values() if m.gross]
+            entry["held_back"] = {
+                "seeds": f"{REPORT.start}-{REPORT.stop - 1}",
+                "mutants": report,
+                "power_gross": float(np.mean(gross)),
+                "power_all": float(np.mean([r["power_alpha"] for r in report.values()])),
+            }
         out[tier] = entry
     if "candidates" in out["smoke"]:  # power only where the mutants ran as long as the old test looks
         out["smoke"]["old_k_of_n_test"] = old_test(name, baseline, mutants if shortest >= OLD_TESTS[name][4] else None)
@@ -318,9 +316,11 @@ def markdown(results: dict) -> str:
     lines = [
         "# Error rates of `keras-rl check`'s rules",
         "",
-        "False alarms: the tier's n seeds drawn from the 30-seed baseline and tested against the other "
-        "30 - n, 10,000 times. Power: n seeds drawn with replacement from a mutant's 10 seeds, tested against "
-        "the whole baseline, 2,000 times. Delay: the smallest delay of every baseline curve (in episodes) "
+        "False alarms: the tier's n seeds drawn from the baseline and tested against its other seeds, "
+        "10,000 times. Power: n seeds drawn with replacement from a mutant's runs (where a post's mutants "
+        f"have 30, the rule is chosen on seeds {TUNE.start}-{TUNE.stop - 1} and its power reported on seeds "
+        f"{REPORT.start}-{REPORT.stop - 1}, which the choice never saw), tested against the whole baseline, "
+        "2,000 times. Delay: the smallest delay of every baseline curve (in episodes) "
         "the rule flags 80% of the time. These are one post's rates at its own alpha; the whole",
         "command's are in the next section.",
         "",
@@ -365,8 +365,12 @@ def markdown(results: dict) -> str:
                     ]
                 continue
             mutants = list(entry["mutant_seeds"])
+            sizes = sorted(set(entry["mutant_seeds"].values()))
             lines += [
                 f"## {name}, {tier} tier ({rule.seeds} fresh seeds, {rule.episodes} episodes)",
+                "",
+                f"Baseline: {entry['baseline_seeds']} seeds. Chosen on: {entry.get('chosen_on', 'every seed')} "
+                f"of each mutant ({' or '.join(map(str, sizes))} runs).",
                 "",
                 "| statistic | alpha | false alarms | gross | all | " + " | ".join(mutants) + " |",
                 "|---|---|---|---|---|" + "---|" * len(mutants),
@@ -406,8 +410,24 @@ def markdown(results: dict) -> str:
                     + (f"{d} episodes." if d is not None else f"none up to {rule.episodes} episodes.")
                 )
             lines.append("")
+            if "held_back" in entry:
+                lines += held_back_table(entry["held_back"], rule)
     lines.append(held_out_block())
     return "\n".join(lines)
+
+
+def held_back_table(held: dict, rule) -> list[str]:
+    """The rule's power on the mutants' held-back seeds, as the held-out block reports it."""
+    lines = [
+        f"The rule on each mutant's held-back seeds {held['seeds']} (never used to choose it): power at alpha "
+        f"{rule.alpha} [seed bootstrap 95%], at alpha / 3, and the seeds as disjoint real checks of {rule.seeds} "
+        f"[Clopper-Pearson 95%]. Gross: {held['power_gross']:.0%}; all: {held['power_all']:.0%}.",
+        "",
+        "| mutant | median: mutant / baseline | power at alpha [seed bootstrap 95%] | at alpha / 3 | disjoint checks |",
+        "|---|---|---|---|---|",
+    ]
+    lines += ["| " + " | ".join([name, *power_cells(r)]) + " |" for name, r in held["mutants"].items()]
+    return [*lines, ""]
 
 
 RULES_BEGIN, RULES_END = "<!-- check-rules:begin -->", "<!-- check-rules:end -->"
@@ -450,9 +470,11 @@ def rules_table(merged: dict) -> str:
             )
             continue
         delay = entry.get("detectable_delay_80", "not measured")
+        power_of = entry.get("held_back", mine)  # the held-back seeds' power, once the mutants have them
+        held = f" (seeds {entry['held_back']['seeds']}, held back)" if "held_back" in entry else ""
         lines.append(
             head
-            + f" {mine['false_alarm_rate']:.2%} | {mine['power_gross']:.0%} | {mine['power_all']:.0%} | "
+            + f" {mine['false_alarm_rate']:.2%} | {power_of['power_gross']:.0%}{held} | {power_of['power_all']:.0%} | "
             + (
                 f"{delay} episodes"
                 if isinstance(delay, int)

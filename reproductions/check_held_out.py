@@ -29,22 +29,18 @@ import os
 import sys
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "reproductions"))
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
-from keras_rl.check.rules import HELD_OUT, RULES, TIERS  # noqa: E402
-from keras_rl.check.statistics import decide, power  # noqa: E402
+from check_runs import CHECKS, load, measure, power_cells, values  # noqa: E402
 
-CHECKS = ROOT / "results" / "checks"
+from keras_rl.check.rules import HELD_OUT, RULES, TIERS  # noqa: E402
+
 SEEDS = "0-29"
 POSTS = ("pendulum", "cartpole", "mountaincar")
 BEGIN, END = "<!-- held-out:begin -->", "<!-- held-out:end -->"
-HOLM_LEVEL = 3
-"""Posts in the default command: a change to one post must clear alpha / 3 (Holm's first level)."""
 
 
 def folder(post: str, name: str) -> Path:
@@ -68,43 +64,7 @@ def make_commands() -> list[list[str]]:
     return out
 
 
-def clopper_pearson(k: int, n: int) -> tuple[float, float]:
-    from scipy.stats import binomtest
-
-    ci = binomtest(k, n).proportion_ci(confidence_level=0.95, method="exact")
-    return float(ci.low), float(ci.high)
-
-
-def measure(post: str, tier: str, baseline: np.ndarray, runs: np.ndarray) -> dict:
-    """One held-out mutant under one tier's rule (``baseline`` and ``runs``: each seed's statistic)."""
-    rule = RULES[(post, tier)]
-    levels = {"alpha": rule.alpha, "holm_first": rule.alpha / HOLM_LEVEL}
-    out: dict = {"seeds": len(runs), "n": rule.seeds, "statistic": rule.statistic}
-    for key, alpha in levels.items():
-        out[f"power_{key}"] = power(baseline, runs, rule.seeds, rule.statistic, alpha, rng=np.random.default_rng(11))
-    groups = len(runs) // rule.seeds
-    flagged = sum(
-        decide(baseline, runs[g * rule.seeds : (g + 1) * rule.seeds], rule.statistic, rule.alpha).changed
-        for g in range(groups)
-    )
-    out["disjoint"] = (
-        {"checks": groups, "flagged": int(flagged), "ci95": clopper_pearson(int(flagged), groups)} if groups else None
-    )
-    rng = np.random.default_rng(12)
-    boot = [
-        power(baseline, runs[rng.integers(0, len(runs), len(runs))], rule.seeds, rule.statistic, rule.alpha, 500, rng)
-        for _ in range(200)
-    ]
-    out["bootstrap95"] = (float(np.percentile(boot, 2.5)), float(np.percentile(boot, 97.5)))
-    finite = np.isfinite
-    out["median_mutant"] = float(np.median(runs[finite(runs)])) if finite(runs).any() else None
-    out["median_baseline"] = float(np.median(baseline[finite(baseline)]))
-    return out
-
-
 def compute() -> dict:
-    from check_calibrate import load, values
-
     results: dict = {}
     for post in POSTS:
         present = [m for m in HELD_OUT[post] if folder(post, m.name).is_dir()]
@@ -142,15 +102,8 @@ def render(results: dict) -> str:
     for post, entry in results.items():
         for name, m in entry["mutants"].items():
             for tier, r in m["tiers"].items():
-                med = "-" if r["median_mutant"] is None else f"{r['median_mutant']:.4g}"
-                d = r["disjoint"]
-                disjoint = f"{d['flagged']}/{d['checks']} [{d['ci95'][0]:.0%}, {d['ci95'][1]:.0%}]" if d else "none"
-                lines.append(
-                    f"| {post} | {name} ({m['what']}) | {tier} | {r['statistic']} ({r['n']}) | "
-                    f"{med} / {r['median_baseline']:.4g} | {r['power_alpha']:.0%} "
-                    f"[{r['bootstrap95'][0]:.0%}, {r['bootstrap95'][1]:.0%}] | {r['power_holm_first']:.0%} | "
-                    f"{disjoint} |"
-                )
+                cells = [post, f"{name} ({m['what']})", tier, f"{r['statistic']} ({r['n']})", *power_cells(r)]
+                lines.append("| " + " | ".join(cells) + " |")
     seen, unseen = [], []
     for post, entry in results.items():
         for name, m in entry["mutants"].items():

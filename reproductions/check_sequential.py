@@ -35,7 +35,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "reproductions"))
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
-from check_calibrate import load, values  # noqa: E402
+from check_runs import load, values  # noqa: E402
 
 from keras_rl.check.command import baseline_values  # noqa: E402
 from keras_rl.check.rules import MUTANTS, RULES, TIERS  # noqa: E402

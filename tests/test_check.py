@@ -523,7 +523,24 @@ def test_calibration_md_states_the_committed_held_out_power():
 def test_clopper_pearson_by_hand():
     from pathlib import Path
 
-    held = _load_script(Path(__file__).resolve().parents[1] / "reproductions" / "check_held_out.py")
-    assert held.clopper_pearson(0, 1) == pytest.approx((0.0, 0.975))  # 1 - 0.025 ** (1/1)
-    low, high = held.clopper_pearson(3, 3)
+    runs = _load_script(Path(__file__).resolve().parents[1] / "reproductions" / "check_runs.py")
+    assert runs.clopper_pearson(0, 1) == pytest.approx((0.0, 0.975))  # 1 - 0.025 ** (1/1)
+    low, high = runs.clopper_pearson(3, 3)
     assert low == pytest.approx(0.025 ** (1 / 3)) and high == 1.0
+
+
+def test_calibration_reads_the_halves_it_names_and_refuses_a_missing_seed(tmp_path):
+    """Issue #21, item 4: the rule is chosen on mutant seeds 0-14 and reported on 15-29, so
+    ``check_runs.load`` reads exactly the seeds asked for, and a gap is an error that names it."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    runs = _load_script(root / "reproductions" / "check_runs.py")
+    calibrate = _load_script(root / "reproductions" / "check_calibrate.py")
+    assert not set(calibrate.TUNE) & set(calibrate.REPORT) and len(calibrate.TUNE) == len(calibrate.REPORT) == 15
+    baseline = root / "results" / "checks" / "pendulum" / "baseline"
+    assert len(runs.load(baseline, range(3, 5))) == 2
+    for seed in (0, 2):
+        (tmp_path / f"seed_{seed}").symlink_to(baseline / f"seed_{seed}")
+    with pytest.raises(SystemExit, match="has no seed_1"):
+        runs.load(tmp_path, range(0, 3))

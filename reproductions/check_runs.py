@@ -1,0 +1,125 @@
+"""What the check's calibration scripts share: committed runs read back, each run's statistic,
+and the power report of a rule against a set of changed runs.
+
+``check_calibrate.py``, ``check_held_out.py`` and ``check_sequential.py`` import from here
+(and from nothing of each other's but the blocks they render), so there is one reader of the
+runs and one power report.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from keras_rl.check.rules import RULES  # noqa: E402
+from keras_rl.check.statistics import decide, power, seed_statistic  # noqa: E402
+from keras_rl.registry import get_experiment  # noqa: E402
+from keras_rl.runs.files import read_episodes  # noqa: E402
+from keras_rl.runs.summary import RunSummary  # noqa: E402
+
+CHECKS = ROOT / "results" / "checks"
+HOLM_LEVEL = 3
+"""Posts in the default command: a change to one post must clear alpha / 3 (Holm's first level)."""
+
+
+def seed_dirs(folder: Path) -> list[Path]:
+    return sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1]))
+
+
+def budget(folder: Path) -> int:
+    """The episode budget the runs in ``folder`` were made with (the smallest, if they differ)."""
+    return min(json.loads((d / "config.json").read_text())["episodes"] for d in folder.glob("seed_*"))
+
+
+def load(folder: Path, seeds: range | None = None) -> list[list[dict] | None]:
+    """Each run's episode rows, in seed order (``None`` for a run that blew up); only
+    ``seeds`` if given, and then every one of them must be there."""
+    dirs = seed_dirs(folder)
+    if seeds is not None:
+        have = {int(d.name.split("_")[1]): d for d in dirs}
+        missing = [s for s in seeds if s not in have]
+        if missing:
+            raise SystemExit(f"error: {folder} has no seed_{missing[0]} ({len(missing)} of seeds {seeds} missing)")
+        dirs = [have[s] for s in seeds]
+    runs = []
+    for seed_dir in dirs:
+        summary = RunSummary.read(seed_dir)
+        if summary.status not in ("completed", "non_finite_loss"):
+            raise SystemExit(f"error: {seed_dir} did not finish ({summary.status})")
+        runs.append(read_episodes(seed_dir / "episodes.csv") if summary.status == "completed" else None)
+    if not runs:
+        raise SystemExit(f"error: no runs under {folder}")
+    return runs
+
+
+def values(name: str, statistic: str, episodes: int, runs: list, delay: int = 0) -> np.ndarray:
+    """Each run's statistic (NaN for a run that blew up), its curve optionally ``delay`` episodes late."""
+    experiment = get_experiment(name)
+    config = experiment.config_cls.for_variant("faithful")
+    metric = experiment.make_metric(config)
+
+    def one(rows):
+        if rows is None:
+            return float("nan")
+        rows = [rows[0]] * delay + rows if delay else rows
+        return seed_statistic(
+            statistic, rows, episodes, lambda m: metric.passes(m, config.threshold), experiment.success_at_end
+        )
+
+    return np.asarray([one(r) for r in runs], float)
+
+
+def clopper_pearson(k: int, n: int) -> tuple[float, float]:
+    from scipy.stats import binomtest
+
+    ci = binomtest(k, n).proportion_ci(confidence_level=0.95, method="exact")
+    return float(ci.low), float(ci.high)
+
+
+def measure(post: str, tier: str, baseline: np.ndarray, runs: np.ndarray) -> dict:
+    """A tier's rule, as the check runs it, against one set of changed runs (``baseline`` and
+    ``runs``: each seed's statistic): power at alpha and at alpha / 3 (n seeds drawn with
+    replacement, 2,000 times), the runs cut into disjoint real checks with their exact
+    (Clopper-Pearson) 95% interval, a seed bootstrap of the power, and both medians."""
+    rule = RULES[(post, tier)]
+    levels = {"alpha": rule.alpha, "holm_first": rule.alpha / HOLM_LEVEL}
+    out: dict = {"seeds": len(runs), "n": rule.seeds, "statistic": rule.statistic}
+    for key, alpha in levels.items():
+        out[f"power_{key}"] = power(baseline, runs, rule.seeds, rule.statistic, alpha, rng=np.random.default_rng(11))
+    groups = len(runs) // rule.seeds
+    flagged = sum(
+        decide(baseline, runs[g * rule.seeds : (g + 1) * rule.seeds], rule.statistic, rule.alpha).changed
+        for g in range(groups)
+    )
+    out["disjoint"] = (
+        {"checks": groups, "flagged": int(flagged), "ci95": clopper_pearson(int(flagged), groups)} if groups else None
+    )
+    rng = np.random.default_rng(12)
+    boot = [
+        power(baseline, runs[rng.integers(0, len(runs), len(runs))], rule.seeds, rule.statistic, rule.alpha, 500, rng)
+        for _ in range(200)
+    ]
+    out["bootstrap95"] = (float(np.percentile(boot, 2.5)), float(np.percentile(boot, 97.5)))
+    finite = np.isfinite
+    out["median_mutant"] = float(np.median(runs[finite(runs)])) if finite(runs).any() else None
+    out["median_baseline"] = float(np.median(baseline[finite(baseline)]))
+    return out
+
+
+def power_cells(r: dict) -> list[str]:
+    """A ``measure`` result as table cells: the medians, power at alpha [seed bootstrap 95%],
+    at alpha / 3, and the disjoint checks flagged [Clopper-Pearson 95%]."""
+    med = "-" if r["median_mutant"] is None else f"{r['median_mutant']:.4g}"
+    d = r["disjoint"]
+    return [
+        f"{med} / {r['median_baseline']:.4g}",
+        f"{r['power_alpha']:.0%} [{r['bootstrap95'][0]:.0%}, {r['bootstrap95'][1]:.0%}]",
+        f"{r['power_holm_first']:.0%}",
+        f"{d['flagged']}/{d['checks']} [{d['ci95'][0]:.0%}, {d['ci95'][1]:.0%}]" if d else "none (n > seeds)",
+    ]
