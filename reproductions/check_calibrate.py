@@ -3,6 +3,7 @@ pre-registered criterion picks (``keras_rl/check/rules.py``).
 
     python reproductions/check_calibrate.py pendulum mountaincar --write
     python reproductions/check_calibrate.py cartpole --make --workers 2 --write
+    python reproductions/check_calibrate.py --write     # rerender calibration.md from calibration.json
 
 Inputs, all committed: the 30-seed faithful baseline ``results/checks/<exp>/baseline`` and
 each mutant's 10 seeds ``results/checks/<exp>/mutants/<name>`` (``--make`` runs the missing
@@ -87,7 +88,7 @@ def make_commands(name: str) -> list[list[str]]:
         folder = CHECKS / name / "mutants" / m.name
         sets = [a for k, v in m.overrides.items() for a in ("--set", f"{k}={v}")]
         if folder.is_dir() and len(seed_dirs(folder)) < len(TUNE) + len(REPORT):
-            # seeds 10-29 beside the committed 0-9, made alike; their seed folders are then moved in
+            # seeds 10-29 beside the committed 0-9, made alike; --make then moves them in (move_seeds)
             out.append(
                 ["keras-rl", "reproduce", name, "--seeds", "10-29", "--episodes", str(episodes), *sets,
                  "--no-progress", "--min-success-rate", "0", "--workers", "2", "--seed-batch", str(MUTANT_BATCH),
@@ -110,6 +111,18 @@ def make_commands(name: str) -> list[list[str]]:
                 ]
             )
     return out
+
+
+def move_seeds(src: Path, dst: Path) -> None:
+    """Seeds made apart (a mutant's seeds 10-29) moved into the mutant's folder, whose
+    summary.md and curves.png are then rebuilt; a seed already there is an error, before any moves."""
+    moving = seed_dirs(src)
+    clash = [d.name for d in moving if (dst / d.name).exists()]
+    if clash:
+        raise SystemExit(f"error: {dst} already has {', '.join(clash)}; nothing moved")
+    for d in moving:
+        d.rename(dst / d.name)
+    subprocess.run([sys.executable, "-m", "keras_rl", "aggregate", str(dst)], cwd=ROOT, check=True)
 
 
 def smallest_delay(name: str, rule, baseline_runs: list, target: float = 0.8) -> int | None:
@@ -489,18 +502,26 @@ def rules_table(merged: dict) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("experiments", nargs="+", choices=sorted(MUTANTS))
+    parser.add_argument(
+        "experiments", nargs="*", help=f"posts to recalibrate, of {sorted(MUTANTS)} (none: rerender calibration.md)"
+    )
     parser.add_argument("--make", action="store_true", help="run the missing baseline and mutant sets first")
     parser.add_argument("--write", action="store_true", help="update results/checks/calibration.json and .md")
     args = parser.parse_args()
+    unknown = sorted(set(args.experiments) - set(MUTANTS))
+    if unknown:
+        parser.error(f"unknown post {', '.join(unknown)} (choose from {', '.join(sorted(MUTANTS))})")
     for name in args.experiments:
         for cmd in make_commands(name):
             print(("running: " if args.make else "missing; make it with: ") + " ".join(cmd), file=sys.stderr)
             if args.make:
                 subprocess.run([sys.executable, "-m", "keras_rl", *cmd[1:]], cwd=ROOT, check=True)
+                made = ROOT / cmd[-1]
+                if made.parent.name == "mutants-seeds-10-29":
+                    move_seeds(made, CHECKS / name / "mutants" / made.name)
         if not (CHECKS / name / "baseline").is_dir():
             raise SystemExit(2)
-    command = "python reproductions/check_calibrate.py " + " ".join(sys.argv[1:])
+    command = "python reproductions/check_calibrate.py " + " ".join(sys.argv[1:])  # kept per post it measured
     results = {
         name: {"command": command, "criterion_by_seeds": criterion_by_seeds(name), "tiers": calibrate(name)}
         for name in args.experiments

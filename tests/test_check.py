@@ -228,6 +228,19 @@ def test_results_readme_states_the_calibrated_error_rates():
     )
 
 
+def test_calibration_md_is_rendered_from_calibration_json():
+    from pathlib import Path
+
+    from keras_rl.check.command import CALIBRATION
+
+    root = Path(__file__).resolve().parents[1]
+    module = _load_script(root / "reproductions" / "check_calibrate.py")
+    measured = json.loads(CALIBRATION.read_text())
+    assert (root / "results" / "checks" / "calibration.md").read_text() == module.markdown(
+        {k: measured[k] for k in sorted(measured)}
+    ), "calibration.md is stale: python reproductions/check_calibrate.py --write"
+
+
 def test_check_names_an_unknown_experiment_before_tensorflow_loads():
     """#23.10: `check cartpool` imported TensorFlow before saying the name was unknown."""
     import subprocess
