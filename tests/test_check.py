@@ -241,6 +241,17 @@ def test_calibration_md_is_rendered_from_calibration_json():
     ), "calibration.md is stale: python reproductions/check_calibrate.py --write"
 
 
+def test_sequential_md_is_rendered_from_sequential_json():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    module = _load_script(root / "reproductions" / "check_sequential.py")
+    committed = json.loads((root / "results" / "checks" / "sequential.json").read_text())
+    assert (root / "results" / "checks" / "sequential.md").read_text() == module.render(committed["results"]) + "\n", (
+        "sequential.md is stale: python reproductions/check_sequential.py --write"
+    )
+
+
 def test_check_names_an_unknown_experiment_before_tensorflow_loads():
     """#23.10: `check cartpool` imported TensorFlow before saying the name was unknown."""
     import subprocess
