@@ -39,7 +39,18 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "reproductions"))
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
-from check_runs import CHECKS, budget, load, measure, power_cells, seed_dirs, values  # noqa: E402
+from check_runs import (  # noqa: E402
+    CHECKS,
+    REPORT,
+    TUNE,
+    budget,
+    halved,
+    load,
+    measure,
+    power_cells,
+    seed_dirs,
+    values,
+)
 
 from keras_rl.check.rules import ALPHAS, MUTANTS, RULES, TIERS  # noqa: E402
 from keras_rl.check.statistics import false_alarm_rate, power  # noqa: E402
@@ -51,9 +62,6 @@ MUTANT_BATCH = 10
 """Mutant seeds 10-29 run in batches of 10 (``--seed-batch 10``), as the check's fresh seeds
 do: posts 000 and 003's seeds 0-9 were one such batch; post 001's ran solo, before it could
 batch (batched against solo for post 001: ``results/mountaincar/seed-batch/report.md``)."""
-TUNE, REPORT = range(0, 15), range(15, 30)
-"""Issue #21, item 4: once every mutant of a post has 30 runs, seeds 0-14 choose the rule (the
-criterion below) and seeds 15-29, never looked at in that choice, report its power."""
 BASELINE_BATCH = {"pendulum": 15, "cartpole": 15, "mountaincar": 1}
 """How each committed baseline was made (its summaries' ``--seed-batch``): 15 seeds per batch
 for posts 000 and 003, one seed per run for post 001."""
@@ -225,9 +233,9 @@ def calibrate(name: str) -> dict:
         out["smoke"]["old_k_of_n_test"] = old_test(name, baseline, None)
         return out
     folders = {m.name: CHECKS / name / "mutants" / m.name for m in MUTANTS[name]}
-    halved = all(len(seed_dirs(f)) >= len(TUNE) + len(REPORT) for f in folders.values())
-    mutants = {m.name: (m, load(folders[m.name], TUNE if halved else None)) for m in MUTANTS[name]}
-    held_back = {m.name: load(folders[m.name], REPORT) for m in MUTANTS[name]} if halved else None
+    halves = halved(list(folders.values()))
+    mutants = {m.name: (m, load(folders[m.name], TUNE if halves else None)) for m in MUTANTS[name]}
+    held_back = {m.name: load(folders[m.name], REPORT) for m in MUTANTS[name]} if halves else None
     shortest = min(budget(CHECKS / name / "mutants" / m.name) for m in MUTANTS[name])
     out = {}
     for tier in TIERS:
@@ -261,7 +269,7 @@ def calibrate(name: str) -> dict:
         entry = {
             "baseline_seeds": len(baseline),
             "mutant_seeds": {k: len(v[1]) for k, v in mutants.items()},
-            "chosen_on": f"seeds {TUNE.start}-{TUNE.stop - 1}" if halved else "every seed",
+            "chosen_on": f"seeds {TUNE.start}-{TUNE.stop - 1}" if halves else "every seed",
             "candidates": rows,
             "chosen": chosen and {"statistic": chosen["statistic"], "alpha": chosen["alpha"]},
             "rule": {"statistic": rule.statistic, "alpha": rule.alpha},

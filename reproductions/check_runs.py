@@ -26,6 +26,10 @@ from keras_rl.runs.summary import RunSummary  # noqa: E402
 CHECKS = ROOT / "results" / "checks"
 HOLM_LEVEL = 3
 """Posts in the default command: a change to one post must clear alpha / 3 (Holm's first level)."""
+TUNE, REPORT = range(0, 15), range(15, 30)
+"""Issue #21, item 4: once every mutant of a post has 30 runs, seeds 0-14 choose (the rule in
+``check_calibrate.py``, the futility bound in ``check_sequential.py``) and seeds 15-29, never
+looked at in those choices, report the power."""
 
 
 def seed_dirs(folder: Path) -> list[Path]:
@@ -73,6 +77,11 @@ def values(name: str, statistic: str, episodes: int, runs: list, delay: int = 0)
         )
 
     return np.asarray([one(r) for r in runs], float)
+
+
+def halved(folders: list[Path]) -> bool:
+    """Whether every mutant folder holds the 30 runs the tuning and reporting halves need."""
+    return all(len(seed_dirs(f)) >= len(TUNE) + len(REPORT) for f in folders)
 
 
 def clopper_pearson(k: int, n: int) -> tuple[float, float]:

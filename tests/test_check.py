@@ -560,11 +560,11 @@ def test_calibration_reads_the_halves_it_names_and_refuses_a_missing_seed(tmp_pa
 
     root = Path(__file__).resolve().parents[1]
     runs = _load_script(root / "reproductions" / "check_runs.py")
-    calibrate = _load_script(root / "reproductions" / "check_calibrate.py")
-    assert not set(calibrate.TUNE) & set(calibrate.REPORT) and len(calibrate.TUNE) == len(calibrate.REPORT) == 15
+    assert not set(runs.TUNE) & set(runs.REPORT) and len(runs.TUNE) == len(runs.REPORT) == 15
     baseline = root / "results" / "checks" / "pendulum" / "baseline"
     assert len(runs.load(baseline, range(3, 5))) == 2
     for seed in (0, 2):
         (tmp_path / f"seed_{seed}").symlink_to(baseline / f"seed_{seed}")
     with pytest.raises(SystemExit, match="has no seed_1"):
         runs.load(tmp_path, range(0, 3))
+    assert not runs.halved([tmp_path]) and runs.halved([])

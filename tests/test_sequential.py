@@ -89,3 +89,40 @@ def test_look_pvalues_are_the_checks_own_test_at_each_look():
     baseline, fresh = rng.normal(size=30), rng.normal(0.5, 1, size=20)
     got = look_pvalues(baseline, fresh, "auc", (5, 20))
     assert got[0] == decide(baseline, fresh[:5], "auc", 0.01).p and got[1] == decide(baseline, fresh, "auc", 0.01).p
+
+
+def _choice_inputs():
+    rng = np.random.default_rng(5)
+    baseline = rng.normal(size=30)
+    stages = (5, 10, 15, 20)
+    null = null_pvalues(baseline, "final_metric", stages, 800, rng)
+    gross = mutant_pvalues(baseline, rng.normal(3.0, 1.0, 15), "final_metric", stages, 300, rng)
+    return SequentialDesign(stages=stages), null, gross
+
+
+def test_futility_is_chosen_by_its_written_criterion():
+    """Issue #21, item 4: against a change every bound finds, the criterion picks the bound
+    that spends the fewest seeds (the lowest: it ends unchanged checks soonest), and every
+    candidate keeps its false-alarm rate at alpha."""
+    from keras_rl.check.sequential import FUTILITY_CANDIDATES, choose_futility
+
+    base, null, gross = _choice_inputs()
+    design, table = choose_futility(null, [gross], fixed_power=0.9, alpha=0.02, base=base)
+    assert [r["futility"] for r in table] == list(FUTILITY_CANDIDATES)
+    assert all(r["false_alarm_rate"] <= 0.02 and r["power"] > 0.95 for r in table)
+    assert design.futility == min(FUTILITY_CANDIDATES)
+    # no futility stop: an unchanged check runs to the last look unless it raises a false alarm
+    assert table[0]["seeds_no_change"] < base.stages[-1] - 1 < table[-1]["seeds_no_change"]
+    chosen = next(r for r in table if r["futility"] == design.futility)
+    assert design.efficacy == chosen["efficacy"]
+
+
+def test_without_a_bound_as_powerful_as_the_fixed_rule_the_most_powerful_is_chosen():
+    from keras_rl.check.sequential import choose_futility
+
+    base, null, gross = _choice_inputs()
+    design, table = choose_futility(null, [gross], fixed_power=1.01, alpha=0.02, base=base)
+    best = max(r["power"] for r in table)
+    assert next(r for r in table if r["futility"] == design.futility)["power"] == best
+    with pytest.raises(ValueError, match="at least one mutant"):
+        choose_futility(null, [], fixed_power=0.5, alpha=0.02, base=base)

@@ -169,3 +169,48 @@ def fixed_rule(pmatrix: np.ndarray, stages: Sequence[int], n: int, alpha: float)
     """The fixed-n rule on the same draws: its one look at ``n`` fresh seeds (a stage)."""
     k = list(stages).index(n)
     return Operating(float((pmatrix[:, k] < alpha).mean()), float(n), len(pmatrix))
+
+
+FUTILITY_CANDIDATES = (0.2, 0.3, 0.5, 0.7, 1.0)
+"""Futility bounds ``choose_futility`` tries (1.0: no futility stop), written down with its
+criterion on 2026-11-24, before any mutant's seeds 10-29 were run (issue #21, item 4)."""
+
+
+def choose_futility(
+    null: np.ndarray,
+    mutants: Sequence[np.ndarray],
+    fixed_power: float,
+    alpha: float,
+    base: SequentialDesign = DESIGN,
+) -> tuple[SequentialDesign, list[dict[str, float]]]:
+    """The futility bound, chosen on the tuning half of the mutants' runs (``mutants``: one
+    look-p matrix each). Each candidate of ``FUTILITY_CANDIDATES`` gets its efficacy level
+    calibrated on ``null`` to ``alpha``. The criterion: among candidates whose mean power over
+    the mutants is at least ``fixed_power`` (the fixed-n rule's, at the same family level, on
+    the same draws), the fewest seeds on average over two cases weighted equally, no change and
+    the mean over the mutants; with none that powerful, the most power. Ties go to the larger
+    bound (fewer stops for futility). Returns the design and every candidate's figures."""
+    if not mutants:
+        raise ValueError("choose_futility needs at least one mutant's look p-values")
+    table = []
+    for futility in FUTILITY_CANDIDATES:
+        design = calibrate(replace(base, futility=futility), null, alpha)
+        under = [simulate(design, pm) for pm in mutants]
+        table.append(
+            {
+                "futility": futility,
+                "efficacy": design.efficacy,
+                "false_alarm_rate": simulate(design, null).changed,
+                "power": float(np.mean([o.changed for o in under])),
+                "seeds_no_change": simulate(design, null).seeds_mean,
+                "seeds_mutants": float(np.mean([o.seeds_mean for o in under])),
+            }
+        )
+    for row in table:
+        row["seeds_cost"] = (row["seeds_no_change"] + row["seeds_mutants"]) / 2
+    powerful = [r for r in table if r["power"] >= fixed_power]
+    if powerful:
+        best = min(powerful, key=lambda r: (r["seeds_cost"], -r["futility"]))
+    else:
+        best = max(table, key=lambda r: (r["power"], r["futility"]))
+    return replace(base, futility=best["futility"], efficacy=best["efficacy"]), table
