@@ -637,7 +637,10 @@ def compare(args: argparse.Namespace) -> int:
             after_job=draw_job_curves,
         )
     except KeyboardInterrupt:
-        print("interrupted: the runs so far are on disk; run compare again to reuse them", file=sys.stderr)
+        print(
+            "interrupted: the runs so far are on disk; run compare again to reuse them and resume the rest",
+            file=sys.stderr,
+        )
         return _stopped()
     result = write_compare(
         experiment.name,

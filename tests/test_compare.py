@@ -170,6 +170,35 @@ def test_compare_reuses_matching_runs_and_refuses_mismatched_ones(compared, caps
     assert "(no commit recorded), this is" in capsys.readouterr().err
 
 
+def test_compare_resumes_an_interrupted_seed_from_its_checkpoint_and_restarts_one_without(compared, tmp_path):
+    """An interrupted run of the same config and code version goes on from its checkpoint, as
+    ``reproduce --resume`` would (it was restarted from scratch before); without a checkpoint it
+    starts again; finished ones are reused."""
+    import shutil
+
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs.checkpoint import write_checkpoint
+    from keras_rl.runs.compare_runs import gather
+
+    runs = tmp_path / "runs"
+    shutil.copytree(compared / "runs", runs)
+    for seed, checkpointed in ((0, True), (1, False)):
+        seed_dir = runs / "cartpole" / "faithful-torch" / f"seed_{seed}"
+        summary = json.loads((seed_dir / "summary.json").read_text())
+        (seed_dir / "summary.json").write_text(json.dumps({**summary, "status": "interrupted", "finished": False}))
+        for old in seed_dir.glob("checkpoint*.pkl"):  # a finished solo run keeps its last one
+            old.unlink()
+        if checkpointed:
+            write_checkpoint(seed_dir, {"version": 2, "batch": [seed], "vector_step": 5})
+    jobs = gather(get_experiment("cartpole"), "faithful", [0, 1], runs, False, False, {"episodes": 20})
+    assert [(j.config["framework"], j.config["seed"], j.start) for j in jobs] == [
+        ("torch", 0, "resume"),
+        ("torch", 1, "overwrite"),
+    ]
+    rerun = gather(get_experiment("cartpole"), "faithful", [0], runs, True, False, {"episodes": 20})
+    assert {j.start for j in rerun} == {"overwrite"}  # --rerun replaces, checkpoint or not
+
+
 @pytest.mark.parametrize("experiment", ["cartpole", "pendulum", "mountaincar"])
 def test_compare_without_torch_is_a_clear_error(monkeypatch, capsys, tmp_path, experiment):
     monkeypatch.setitem(sys.modules, "torch", None)

@@ -3,7 +3,9 @@
 config and code version, made where not (``report/compare.py`` then reads and reports them).
 
 A folder made with another config or code version is never silently merged: the command
-refuses and says which field differs (``--rerun`` replaces such folders).
+refuses and says which field differs (``--rerun`` replaces such folders). An interrupted run
+of the same config and code version resumes from its checkpoint, as ``reproduce --resume``
+would resume it (a batch with its whole batch); one without a checkpoint starts again.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from keras_rl.errors import RunFolderError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import compared_frameworks
 from keras_rl.runs.backends import backend_for
+from keras_rl.runs.checkpoint import CHECKPOINT
 from keras_rl.runs.files import run_folder
 from keras_rl.runs.jobs import AfterJob, SeedJob, batched, run_jobs
 from keras_rl.runs.options import RunOptions
@@ -46,8 +49,11 @@ def gather(
         for seed in seeds:
             config = base.replace(seed=seed)
             seed_dir = folder / f"seed_{seed}"
-            if rerun or check_reusable(seed_dir, config, code_version()) is not None:
-                jobs.append(SeedJob.of(config, seed_dir, start="overwrite"))
+            why = None if rerun else check_reusable(seed_dir, config, code_version())
+            if rerun or why is not None:
+                # an interrupted run of this config and code version goes on from its checkpoint
+                resume = why is not None and why.startswith("unfinished") and (seed_dir / CHECKPOINT).is_file()
+                jobs.append(SeedJob.of(config, seed_dir, start="resume" if resume else "overwrite"))
                 missing.setdefault(framework, []).append(seed)
     if reuse_only and missing:
         have = {fw: sorted(set(seeds) - set(missing.get(fw, []))) for fw in compared}
