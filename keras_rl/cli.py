@@ -698,7 +698,8 @@ def sweep(args: argparse.Namespace) -> int:
         require_torch()
     print(
         f"sweep: {len(points)} grid points x {len(seeds)} seeds = {len(every)} jobs; "
-        f"{len(every) - len(todo)} already done, {len(todo)} to run",
+        f"{len(every) - len(todo)} already done, {len(todo)} to run"
+        + (f" ({resumed} resuming from a checkpoint)" if (resumed := sum(j.start == "resume" for j in todo)) else ""),
         file=sys.stderr,
     )
     from keras_rl.report.plots import draw_job_curves

@@ -199,6 +199,26 @@ def test_compare_resumes_an_interrupted_seed_from_its_checkpoint_and_restarts_on
     assert {j.start for j in rerun} == {"overwrite"}  # --rerun replaces, checkpoint or not
 
 
+def test_a_sweep_resumes_an_interrupted_seed_from_its_checkpoint(compared, tmp_path):
+    """The same for ``sweep`` (it restarted interrupted seeds from scratch as well)."""
+    import shutil
+
+    from keras_rl.posts.cartpole import CartPoleDQNConfig
+    from keras_rl.runs.checkpoint import write_checkpoint
+    from keras_rl.runs.sweep import GridPoint, sweep_jobs
+
+    point = tmp_path / "sweep" / "episodes=20"
+    for seed in (0, 1):
+        shutil.copytree(compared / "runs" / "cartpole" / "faithful" / f"seed_{seed}", point / f"seed_{seed}")
+    seed_dir = point / "seed_1"
+    summary = json.loads((seed_dir / "summary.json").read_text())
+    (seed_dir / "summary.json").write_text(json.dumps({**summary, "status": "interrupted", "finished": False}))
+    write_checkpoint(seed_dir, {"version": 2, "batch": [1], "vector_step": 5})
+    base = CartPoleDQNConfig.for_variant("faithful")
+    every, todo, _ = sweep_jobs(base, [GridPoint("episodes=20", {"episodes": 20})], [0, 1], tmp_path / "sweep")
+    assert len(every) == 2 and [(j.config["seed"], j.start) for j in todo] == [(1, "resume")]
+
+
 @pytest.mark.parametrize("experiment", ["cartpole", "pendulum", "mountaincar"])
 def test_compare_without_torch_is_a_clear_error(monkeypatch, capsys, tmp_path, experiment):
     monkeypatch.setitem(sys.modules, "torch", None)

@@ -17,12 +17,11 @@ from keras_rl.errors import RunFolderError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import compared_frameworks
 from keras_rl.runs.backends import backend_for
-from keras_rl.runs.checkpoint import CHECKPOINT
 from keras_rl.runs.files import run_folder
 from keras_rl.runs.jobs import AfterJob, SeedJob, batched, run_jobs
 from keras_rl.runs.options import RunOptions
 from keras_rl.runs.provenance import code_version
-from keras_rl.runs.reuse import check_reusable
+from keras_rl.runs.reuse import check_reusable, start_of
 
 
 def framework_overrides(framework: str, matched_init: bool) -> dict[str, Any]:
@@ -51,9 +50,7 @@ def gather(
             seed_dir = folder / f"seed_{seed}"
             why = None if rerun else check_reusable(seed_dir, config, code_version())
             if rerun or why is not None:
-                # an interrupted run of this config and code version goes on from its checkpoint
-                resume = why is not None and why.startswith("unfinished") and (seed_dir / CHECKPOINT).is_file()
-                jobs.append(SeedJob.of(config, seed_dir, start="resume" if resume else "overwrite"))
+                jobs.append(SeedJob.of(config, seed_dir, start="overwrite" if rerun else start_of(seed_dir, why)))
                 missing.setdefault(framework, []).append(seed)
     if reuse_only and missing:
         have = {fw: sorted(set(seeds) - set(missing.get(fw, []))) for fw in compared}

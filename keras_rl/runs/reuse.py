@@ -55,3 +55,13 @@ def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
     if summary.status not in OUTCOMES:
         return f"unfinished ({summary.status})"
     return None
+
+
+def start_of(seed_dir: Path, reason: str | None) -> str:
+    """How a seed that ``check_reusable`` did not pass (``reason``) starts again: an interrupted
+    run of the same config and code version resumes from its checkpoint (with its batch whole,
+    as ``reproduce --resume`` would), anything else is run anew."""
+    from keras_rl.runs.checkpoint import CHECKPOINT
+
+    unfinished = reason is not None and reason.startswith("unfinished")
+    return "resume" if unfinished and (seed_dir / CHECKPOINT).is_file() else "overwrite"

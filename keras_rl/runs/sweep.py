@@ -18,7 +18,7 @@ from keras_rl.config import overrides_name, value_text
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.runs.jobs import SeedJob
 from keras_rl.runs.provenance import code_version
-from keras_rl.runs.reuse import check_reusable
+from keras_rl.runs.reuse import check_reusable, start_of
 
 MAX_JOBS_WITHOUT_YES = 10_000
 BASE = "base"
@@ -80,14 +80,14 @@ def sweep_jobs(
         configs[point.name] = config
         for seed in seeds:
             seed_dir = Path(out) / point.name / f"seed_{seed}"
-            job = SeedJob.of(config.replace(seed=seed), seed_dir, start="overwrite", **job_options)
-            every.append(job)
             try:
                 reason = check_reusable(seed_dir, config.replace(seed=seed), version)
             except RunFolderError as exc:
                 raise RunFolderError(
                     f"{exc} (this sweep's folder {out} holds runs of another sweep or code version: use another --out)"
                 ) from None
+            job = SeedJob.of(config.replace(seed=seed), seed_dir, start=start_of(seed_dir, reason), **job_options)
+            every.append(job)
             if reason is not None:
                 todo.append(job)
     return every, todo, configs
