@@ -70,6 +70,15 @@ ROWS = [
         '"500 within 600" (no number)',
     ),
     (
+        "003 CartPole DQN",
+        "cartpole",
+        "faithful",
+        "torch",
+        True,
+        "100-ep. mean >= 475 in 600",
+        '"500 within 600" (no number)',
+    ),
+    (
         "001 MountainCar DDPG",
         "mountaincar",
         "faithful",
