@@ -54,6 +54,8 @@ from check_runs import (  # noqa: E402
 
 from keras_rl.check.rules import ALPHAS, MUTANTS, RULES, TIERS  # noqa: E402
 from keras_rl.check.statistics import false_alarm_rate, power  # noqa: E402
+from keras_rl.learners.table import batch_refusal  # noqa: E402
+from keras_rl.registry import get_experiment  # noqa: E402
 from keras_rl.runs.files import atomic_write_text  # noqa: E402
 from keras_rl.runs.summary import RunSummary  # noqa: E402
 
@@ -61,7 +63,8 @@ MUTANT_SEEDS = "0-9"
 MUTANT_BATCH = 10
 """Mutant seeds 10-29 run in batches of 10 (``--seed-batch 10``), as the check's fresh seeds
 do: posts 000 and 003's seeds 0-9 were one such batch; post 001's ran solo, before it could
-batch (batched against solo for post 001: ``results/mountaincar/seed-batch/report.md``)."""
+batch (batched against solo for post 001: ``results/mountaincar/seed-batch/report.md``). A
+config no stacked learner covers (post 001's learning phase) runs solo."""
 BASELINE_BATCH = {"pendulum": 15, "cartpole": 15, "mountaincar": 1}
 """How each committed baseline was made (its summaries' ``--seed-batch``): 15 seeds per batch
 for posts 000 and 003, one seed per run for post 001."""
@@ -97,9 +100,11 @@ def make_commands(name: str) -> list[list[str]]:
         sets = [a for k, v in m.overrides.items() for a in ("--set", f"{k}={v}")]
         if folder.is_dir() and len(seed_dirs(folder)) < len(TUNE) + len(REPORT):
             # seeds 10-29 beside the committed 0-9, made alike; --make then moves them in (move_seeds)
+            config = get_experiment(name).config_cls.for_variant("faithful").with_text_overrides(sets[1::2])
+            batch = [] if batch_refusal(name, config.to_dict()) else ["--seed-batch", str(MUTANT_BATCH)]
             out.append(
                 ["keras-rl", "reproduce", name, "--seeds", "10-29", "--episodes", str(episodes), *sets,
-                 "--no-progress", "--min-success-rate", "0", "--workers", "2", "--seed-batch", str(MUTANT_BATCH),
+                 "--no-progress", "--min-success-rate", "0", "--workers", "2", *batch,
                  "--out", f"results/checks/{name}/mutants-seeds-10-29/{m.name}"]
             )  # fmt: skip
         if not folder.is_dir():

@@ -71,12 +71,13 @@ RULES: dict[tuple[str, str], CheckRule] = {
         seed_batch=10,
         candidates=("episodes_to_threshold", "success", "auc", "final_metric"),
     ),
-    # Calibrated: auc edges out episodes_to_threshold here by a hair (both 100% against the
-    # gross mutants and 85% against all; auc flags actor_lr x0.3 13% of the time, against 12%).
+    # Calibrated on the mutants' seeds 0-14 (issue #21): episodes_to_threshold edges out auc by
+    # a hair (both 100% against the gross mutants; 83% against 82% over all, from gamma 0.9's
+    # 99% against 93%). On the 10-run mutants auc had led by the same hair; the criterion decides.
     ("pendulum", "full"): CheckRule(
         "pendulum",
         "full",
-        "auc",
+        "episodes_to_threshold",
         0.01,
         seeds=20,
         episodes=1000,

@@ -2,14 +2,15 @@
 soon as the evidence says "changed" or says that more seeds would not find what the check
 is for.
 
-The design is fixed before it meets any mutant (``DESIGN``): stages of 5 fresh seeds up to
+The stages are fixed before any mutant is met (``DESIGN``): stages of 5 fresh seeds up to
 30; at each stage the rule's own test (``statistics.decide``: Mann-Whitney, or Fisher for
 ``success``) of all the fresh seeds so far against the whole baseline gives a p-value;
 
 - **changed** when p < ``efficacy`` (one nominal level at every stage, Pocock's shape);
 - **consistent** when p > ``futility`` (from the second stage on): an unchanged learner's
-  p is uniform, so half its checks stop at 10 seeds, while a change the check should find
-  keeps p small;
+  p is uniform, so most of its checks stop early, while a change the check should find
+  keeps p small. ``DESIGN`` starts at 0.5; the committed designs use the bound
+  ``choose_futility`` picked on the mutants' tuning seeds (``results/checks/sequential.json``);
 - at the last stage, changed if p < ``efficacy``, else consistent.
 
 The efficacy level is calibrated so that the whole sequence, futility stops included,
