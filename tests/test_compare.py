@@ -130,8 +130,11 @@ def test_compare_writes_a_well_formed_report_whose_numbers_the_csvs_reproduce(co
         assert result["frameworks"][fw]["final_iqm"]["estimate"] == pytest.approx(iqm(finals))
 
 
-def test_compare_reuses_matching_runs_and_refuses_mismatched_ones(compared, capsys):
-    runs, out = compared / "runs", compared / "out2"
+def test_compare_reuses_matching_runs_and_refuses_mismatched_ones(compared, capsys, tmp_path):
+    import shutil
+
+    runs, out = tmp_path / "runs", tmp_path / "out2"
+    shutil.copytree(compared / "runs", runs)  # it edits runs: the module's fixture stays as made
     args = [
         "compare",
         "cartpole",
