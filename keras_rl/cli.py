@@ -337,6 +337,7 @@ def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool, episodes:
     if overwrite and resume:
         raise ConfigError("--overwrite and --resume contradict each other; pick one")
     from keras_rl.runs.checkpoint import CHECKPOINT
+    from keras_rl.runs.reuse import joins_its_stopped_batch
 
     modes, occupied = [], []
     for seed_dir in seed_dirs:
@@ -344,7 +345,9 @@ def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool, episodes:
         status, held = state if state is not None else (None, None)
         if resume:
             extend = status == "completed" and episodes is not None and _extendable(seed_dir, episodes)
-            if (seed_dir / CHECKPOINT).is_file() and (status != "completed" or extend):
+            # a finished seed of a stopped batch resumes with it
+            rejoins = status == "completed" and joins_its_stopped_batch(seed_dir)
+            if (seed_dir / CHECKPOINT).is_file() and (status != "completed" or extend or rejoins):
                 modes.append("resume")
             elif held is None:
                 modes.append("new")  # nothing to resume: start it

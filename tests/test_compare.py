@@ -220,6 +220,11 @@ def test_a_sweep_resumes_an_interrupted_seed_from_its_checkpoint(compared, tmp_p
     base = CartPoleDQNConfig.for_variant("faithful")
     every, todo, _ = sweep_jobs(base, [GridPoint("episodes=20", {"episodes": 20})], [0, 1], tmp_path / "sweep")
     assert len(every) == 2 and [(j.config["seed"], j.start) for j in todo] == [(1, "resume")]
+    # seed 0 finished inside a batch with seed 1 that was stopped after: it rejoins the batch
+    for seed in (0, 1):
+        write_checkpoint(point / f"seed_{seed}", {"version": 2, "batch": [0, 1], "vector_step": 5})
+    _, todo, _ = sweep_jobs(base, [GridPoint("episodes=20", {"episodes": 20})], [0, 1], tmp_path / "sweep")
+    assert [(j.config["seed"], j.start) for j in todo] == [(0, "resume"), (1, "resume")]
 
 
 @pytest.mark.parametrize("experiment", ["cartpole", "pendulum", "mountaincar"])

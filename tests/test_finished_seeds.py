@@ -96,3 +96,28 @@ def test_a_batch_stopped_after_a_shrink_resumes_from_its_shrunk_stack(tmp_path, 
     assert [s.status for s in resumed] == ["completed"] * 4
     for c in cs:
         assert episodes(tmp_path / "cut" / f"seed_{c.seed}") == episodes(tmp_path / "straight" / f"seed_{c.seed}")
+
+
+def test_reproduce_resume_takes_the_finished_seeds_of_a_stopped_batch_back_into_it(tmp_path, capsys):
+    """The same stop, resumed by ``reproduce --resume``: the seeds that had finished before the
+    stop rejoin their batch (it was refused as "resume them together" when they were kept as
+    completed runs), and every seed ends as in an uninterrupted batch, bit for bit."""
+    from keras_rl.cli import main
+
+    exp, cs = configs("cartpole", [1, 2, 3], episodes=30)
+    straight = run_seeds(exp, cs, [tmp_path / "straight" / f"seed_{c.seed}" for c in cs], progress=False)
+    first = min(straight, key=lambda s: s.total_steps).seed
+    dirs = [tmp_path / "cut" / f"seed_{c.seed}" for c in cs]
+
+    def first_has_finished() -> bool:
+        return json.loads((tmp_path / "cut" / f"seed_{first}" / "summary.json").read_text())["status"] == "completed"
+
+    run_seeds(exp, cs, dirs, should_stop=first_has_finished, progress=False)
+    assert (dirs[0] / "checkpoint.pkl").is_file() and (tmp_path / "cut" / f"seed_{first}" / "checkpoint.pkl").is_file()
+    args = ["reproduce", "cartpole", "--seeds", "1-3", "--episodes", "30", "--seed-batch", "3"]
+    args += ["--out", str(tmp_path / "cut"), "--resume", "--no-progress", "--min-success-rate", "0", "--workers", "1"]
+    assert main(args) == 0, capsys.readouterr().err
+    for c in cs:
+        assert episodes(tmp_path / "cut" / f"seed_{c.seed}") == episodes(tmp_path / "straight" / f"seed_{c.seed}")
+        assert json.loads((tmp_path / "cut" / f"seed_{c.seed}" / "summary.json").read_text())["status"] == "completed"
+        assert not (tmp_path / "cut" / f"seed_{c.seed}" / "checkpoint.pkl").exists()  # the batch ended

@@ -53,6 +53,14 @@ def write_checkpoint(run_dir: Path, state: dict[str, Any]) -> None:
     os.replace(tmp, run_dir / CHECKPOINT)
 
 
+def checkpoint_batch(run_dir: Path) -> list[int]:
+    """The seeds whose batch wrote the folder's checkpoint (one seed for a solo run; none
+    where there is no checkpoint)."""
+    if not (Path(run_dir) / CHECKPOINT).is_file():
+        return []
+    return list(read_checkpoint(run_dir).get("batch", []))
+
+
 def delete_checkpoints(run_dir: Path) -> None:
     for name in (CHECKPOINT, PREVIOUS, f".next-{CHECKPOINT}", f".prev-{CHECKPOINT}"):
         (Path(run_dir) / name).unlink(missing_ok=True)

@@ -22,6 +22,7 @@ from typing import Any, Literal, Protocol
 
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.registry import get_experiment
+from keras_rl.runs.checkpoint import checkpoint_batch
 from keras_rl.runs.evaluate import EvalSchedule
 from keras_rl.runs.files import run_folder_locks
 from keras_rl.runs.loop import run_seeds
@@ -140,16 +141,6 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
             )
         out.append(SeedBatchJob(tuple(sorted(group, key=lambda j: list(batch).index(j.config["seed"])))))
     return out + alone
-
-
-def checkpoint_batch(run_dir: Path) -> list[int]:
-    """The seeds whose batch wrote the folder's checkpoint (one seed for a solo run; none
-    where there is no checkpoint)."""
-    from keras_rl.runs.checkpoint import CHECKPOINT, read_checkpoint
-
-    if not (Path(run_dir) / CHECKPOINT).is_file():
-        return []
-    return list(read_checkpoint(run_dir).get("batch", []))
 
 
 @dataclass

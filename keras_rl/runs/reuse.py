@@ -54,7 +54,21 @@ def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
         )
     if summary.status not in OUTCOMES:
         return f"unfinished ({summary.status})"
+    if joins_its_stopped_batch(seed_dir):
+        return JOINS_BATCH
     return None
+
+
+JOINS_BATCH = "finished inside a batch that was stopped (it resumes with its batch)"
+
+
+def joins_its_stopped_batch(seed_dir: Path) -> bool:
+    """A finished seed whose folder still holds its batch's checkpoint: the batch was stopped
+    after this seed had finished (a batch that ends removes them), and it resumes whole, this
+    seed included, from the stack its checkpoints recorded."""
+    from keras_rl.runs.checkpoint import checkpoint_batch
+
+    return len(checkpoint_batch(seed_dir)) > 1
 
 
 def start_of(seed_dir: Path, reason: str | None) -> str:
@@ -63,5 +77,5 @@ def start_of(seed_dir: Path, reason: str | None) -> str:
     as ``reproduce --resume`` would), anything else is run anew."""
     from keras_rl.runs.checkpoint import CHECKPOINT
 
-    unfinished = reason is not None and reason.startswith("unfinished")
+    unfinished = reason is not None and (reason.startswith("unfinished") or reason == JOINS_BATCH)
     return "resume" if unfinished and (seed_dir / CHECKPOINT).is_file() else "overwrite"
