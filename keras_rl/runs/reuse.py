@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 from keras_rl.errors import RunFolderError
+from keras_rl.runs.checkpoint import CHECKPOINT, checkpoint_batch
 from keras_rl.runs.provenance import code_version_of
 from keras_rl.runs.summary import RunSummary
 
@@ -66,8 +67,6 @@ def joins_its_stopped_batch(seed_dir: Path) -> bool:
     """A finished seed whose folder still holds its batch's checkpoint: the batch was stopped
     after this seed had finished (a batch that ends removes them), and it resumes whole, this
     seed included, from the stack its checkpoints recorded."""
-    from keras_rl.runs.checkpoint import checkpoint_batch
-
     return len(checkpoint_batch(seed_dir)) > 1
 
 
@@ -75,7 +74,5 @@ def start_of(seed_dir: Path, reason: str | None) -> str:
     """How a seed that ``check_reusable`` did not pass (``reason``) starts again: an interrupted
     run of the same config and code version resumes from its checkpoint (with its batch whole,
     as ``reproduce --resume`` would), anything else is run anew."""
-    from keras_rl.runs.checkpoint import CHECKPOINT
-
     unfinished = reason is not None and (reason.startswith("unfinished") or reason == JOINS_BATCH)
     return "resume" if unfinished and (seed_dir / CHECKPOINT).is_file() else "overwrite"
