@@ -5,13 +5,13 @@ pre-registered criterion picks (``keras_rl/check/rules.py``).
     python reproductions/check_calibrate.py cartpole --make --workers 2 --write
     python reproductions/check_calibrate.py --write     # rerender calibration.md from calibration.json
 
-Inputs, all committed: the 30-seed faithful baseline ``results/checks/<exp>/baseline`` and
+Inputs, all committed: the faithful baseline ``results/checks/<exp>/baseline`` (every seed it holds) and
 each mutant's 10 seeds ``results/checks/<exp>/mutants/<name>`` (``--make`` runs the missing
 ones with the commands it prints). For every tier and every candidate rule (each statistic
 the tier lists, at each alpha of ``ALPHAS``), with the tier's number of fresh seeds n:
 
-- false-alarm rate: n baseline seeds drawn as the "new" runs and tested against the other
-  30 - n, 10,000 times;
+- false-alarm rate: n baseline seeds drawn as the "new" runs and tested against the rest of
+  the baseline, 10,000 times;
 - power against each mutant: n seeds drawn with replacement from the mutant's runs, tested
   against the whole baseline, 2,000 times; "gross" and "all" are the means over the mutants;
 - for the chosen rule, the smallest delay d (in episodes) of the baseline's learning curves
@@ -138,31 +138,50 @@ def move_seeds(src: Path, dst: Path) -> None:
     subprocess.run([sys.executable, "-m", "keras_rl", "aggregate", str(dst)], cwd=ROOT, check=True)
 
 
-def smallest_delay(name: str, rule, baseline_runs: list, target: float = 0.8) -> int | None:
-    """The smallest delay of the baseline's curves the rule flags ``target`` of the time."""
+def smallest_delay(name: str, rule, baseline_runs: list, target: float = 0.8) -> dict:
+    """The smallest delay of the baseline's curves the rule flags ``target`` of the time.
+
+    Searched only over the delays at which every run's delayed statistic is still defined
+    (a final-window metric is undefined once the delay pushes the whole window before the
+    first episode): a NaN there would count as a change and report a delay the rule never
+    saw. Returns ``delay`` (None: not reached), ``defined_up_to`` and the tier's ``episodes``."""
     base = values(name, rule.statistic, rule.episodes, baseline_runs)
+    ran = np.isfinite(base)  # a run that blew up is NaN at every delay
+
+    def delayed(d: int) -> np.ndarray:
+        return values(name, rule.statistic, rule.episodes, baseline_runs, d)
+
+    def defined(d: int) -> bool:
+        return bool(np.isfinite(delayed(d)[ran]).all())
 
     def flagged(d: int) -> bool:
-        return (
-            power(
-                base,
-                values(name, rule.statistic, rule.episodes, baseline_runs, d),
-                rule.seeds,
-                rule.statistic,
-                rule.alpha,
-                repeats=500,
-            )
-            >= target
-        )
+        return power(base, delayed(d), rule.seeds, rule.statistic, rule.alpha, repeats=500) >= target
 
-    hi = rule.episodes
-    if not flagged(hi):
-        return None
-    lo = 0
+    top = rule.episodes
+    if not defined(top):  # the largest delay where the statistic is defined (it is at 0)
+        lo, hi = 0, top
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            lo, hi = (mid, hi) if defined(mid) else (lo, mid)
+        top = lo
+    out: dict = {"delay": None, "defined_up_to": top, "episodes": rule.episodes}
+    if top == 0 or not flagged(top):
+        return out
+    lo, hi = 0, top
     while hi - lo > 1:
         mid = (lo + hi) // 2
         lo, hi = (lo, mid) if flagged(mid) else (mid, hi)
-    return hi
+    out["delay"] = hi
+    return out
+
+
+def delay_text(found: dict) -> str:
+    """A ``smallest_delay`` result in words."""
+    if found["delay"] is not None:
+        return f"{found['delay']} of {found['episodes']} episodes"
+    if found["defined_up_to"] < found["episodes"]:
+        return f"none up to {found['defined_up_to']} of {found['episodes']} episodes (later, the metric is undefined)"
+    return f"none up to {found['episodes']} episodes"
 
 
 OLD_TESTS = {  # the k-of-n threshold tests the smoke tier replaces: (passes k of n seeds, per-seed pass on rows)
@@ -302,17 +321,19 @@ def calibrate(name: str) -> dict:
 
 def criterion_by_seeds(name: str) -> dict:
     """The post's own success criterion on baseline seeds 0-9 (where post 001's was chosen)
-    beside seeds 10-29 (where it was not)."""
+    beside the rest of the committed baseline (where it was not)."""
     from keras_rl.report.stats import fisher_exact
 
-    summaries = [RunSummary.read(d) for d in (CHECKS / name / "baseline").glob("seed_*")]
+    summaries = sorted((RunSummary.read(d) for d in (CHECKS / name / "baseline").glob("seed_*")), key=lambda s: s.seed)
     first = [s.success for s in summaries if s.seed < 10]
-    rest = [s.success for s in summaries if s.seed >= 10]
+    rest = [s for s in summaries if s.seed >= 10]
+    won = sum(s.success for s in rest)
     return {
         "criterion": summaries[0].criterion,
         "0-9": f"{sum(first)}/{len(first)}",
-        "10-29": f"{sum(rest)}/{len(rest)}",
-        "fisher_p": fisher_exact(sum(first), len(first), sum(rest), len(rest)),
+        "rest_seeds": f"{rest[0].seed}-{rest[-1].seed}" if rest else "none",
+        "rest": f"{won}/{len(rest)}",
+        "fisher_p": fisher_exact(sum(first), len(first), won, len(rest)),
     }
 
 
@@ -361,7 +382,7 @@ def markdown(results: dict) -> str:
         if split:
             lines += [
                 f"The post's own criterion on the baseline ({split['criterion']}): seeds 0-9 "
-                f"{split['0-9']}, seeds 10-29 {split['10-29']} (Fisher p = {split['fisher_p']:.3g}).",
+                f"{split['0-9']}, seeds {split['rest_seeds']} {split['rest']} (Fisher p = {split['fisher_p']:.3g}).",
                 "",
             ]
         for tier, entry in measured["tiers"].items():
@@ -430,11 +451,7 @@ def markdown(results: dict) -> str:
                 else "No candidate keeps false alarms at or below 1%.",
             ]
             if "detectable_delay_80" in entry:
-                d = entry["detectable_delay_80"]
-                lines.append(
-                    "Smallest delay detected 80% of the time: "
-                    + (f"{d} episodes." if d is not None else f"none up to {rule.episodes} episodes.")
-                )
+                lines.append(f"Smallest delay detected 80% of the time: {delay_text(entry['detectable_delay_80'])}.")
             lines.append("")
             if "held_back" in entry:
                 lines += held_back_table(entry["held_back"], rule)
@@ -495,19 +512,13 @@ def rules_table(merged: dict) -> str:
                 )
             )
             continue
-        delay = entry.get("detectable_delay_80", "not measured")
+        found = entry.get("detectable_delay_80")
         power_of = entry.get("held_back", mine)  # the held-back seeds' power, once the mutants have them
         held = f" (seeds {entry['held_back']['seeds']}, held back)" if "held_back" in entry else ""
         lines.append(
             head
             + f" {mine['false_alarm_rate']:.2%} | {power_of['power_gross']:.0%}{held} | {power_of['power_all']:.0%} | "
-            + (
-                f"{delay} episodes"
-                if isinstance(delay, int)
-                else "none within the tier's episodes"
-                if delay is None
-                else delay
-            )
+            + (delay_text(found) if found else "not measured")
             + " |"
         )
     return "\n".join(lines)

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,6 +23,8 @@ from keras_rl.check.statistics import (
     power,
     seed_statistic,
 )
+
+CHECKS = Path(__file__).resolve().parents[1] / "results" / "checks"
 
 
 def rows(metrics, scores=None):
@@ -174,7 +178,7 @@ def test_each_calibrated_rule_is_the_one_the_pre_registered_criterion_picks():
 def test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline(tmp_path):
     """``keras-rl check --tier smoke`` on this code: fresh seeds of all three posts against
     the committed baselines, Holm-adjusted over the three. Its false-alarm rate as a whole is
-    0.75% (results/checks/calibration.md, "The whole command": exact or resampled for the rules'
+    0.75% (results/checks/family.json, calibration.md, "The whole command": exact or resampled for the rules'
     n fresh seeds against the whole baseline; it was 2.49% before Holm), so this fails on an
     unchanged learner about once in 130 code bases, and on a grossly broken one (the smoke
     tier's measured power) nearly always. It replaces the k-of-n threshold tests of posts 000,
@@ -204,7 +208,9 @@ def test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline(
     report = json.loads((out / "check.json").read_text())
     assert [e["experiment"] for e in report["experiments"]] == ["pendulum", "cartpole", "mountaincar"]
     for e in report["experiments"]:
-        assert e["verdict"] == "consistent" and len(e["baseline"]) == 30 and len(e["new"]) == e["rule"]["seeds"]
+        committed = len(list((CHECKS / e["experiment"] / "baseline").glob("seed_*")))
+        assert e["verdict"] == "consistent" and len(e["new"]) == e["rule"]["seeds"]
+        assert len(e["baseline"]) == committed >= 30  # the whole committed baseline
         assert not set(e["new"]) & set(e["baseline"])  # fresh seeds
         assert (out / e["experiment"] / "check.png").is_file()
     assert (out / "check.md").read_text().count("consistent") == 3
@@ -460,7 +466,9 @@ def test_a_sequential_check_stops_where_its_design_decides(change, tmp_path, mon
     baseline, _ = command.baseline_values(
         get_experiment("pendulum"), rule, command.CALIBRATION.parent / "pendulum" / "baseline"
     )
-    typical = sorted(baseline.values())[10:20]  # the middle of the baseline: p near 1
+    ranked = sorted(baseline.values())
+    middle = len(ranked) // 2
+    typical = ranked[middle - 5 : middle + 5]  # the middle of the baseline, whatever its size: p near 1
     ran: list[list[int]] = []
 
     def fake_run(out, groups, options):
@@ -568,3 +576,62 @@ def test_calibration_reads_the_halves_it_names_and_refuses_a_missing_seed(tmp_pa
     with pytest.raises(SystemExit, match="has no seed_1"):
         runs.load(tmp_path, range(0, 3))
     assert not runs.halved([tmp_path]) and runs.halved([])
+
+
+def test_the_smoke_tests_docstring_states_the_committed_family_wise_rate():
+    """The smoke test's docstring quotes the command's rate; it must be the one ``family.json``
+    holds now (``reproductions/check_family.py --write``), not an older baseline's."""
+    doc = test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline.__doc__
+    stated = re.search(r"as a whole is\s+([0-9.]+)%", doc)
+    assert stated, doc
+    family = json.loads((CHECKS / "family.json").read_text())
+    assert stated.group(1) == f"{family['tiers']['smoke']['command_holm'] * 100:.2f}"
+
+
+def test_every_committed_error_rate_was_computed_on_the_whole_committed_baseline():
+    """A baseline that grew (issue #21: 30 seeds to 100) leaves every rate computed on the old
+    one stale: each results JSON records the baseline size it used, which must be the seed
+    folders committed now."""
+    committed = {p.parent.name: len(list(p.glob("seed_*"))) for p in CHECKS.glob("*/baseline")}
+    assert committed and all(n >= 30 for n in committed.values()), committed
+    calibration = json.loads((CHECKS / "calibration.json").read_text())
+    for post, entry in calibration.items():
+        for tier, result in entry["tiers"].items():
+            assert result["baseline_seeds"] == committed[post], ("calibration", post, tier)
+    family = json.loads((CHECKS / "family.json").read_text())
+    for tier, entry in family["tiers"].items():
+        for post, p in entry["posts"].items():
+            assert p["baseline_seeds"] == committed[post], ("family", post, tier)
+    for result in json.loads((CHECKS / "sequential.json").read_text())["results"]:
+        assert result["baseline_seeds"] == committed[result["post"]], ("sequential", result["post"], result["tier"])
+    for post, entry in json.loads((CHECKS / "held_out.json").read_text()).items():
+        assert entry["baseline_seeds"] == committed[post], ("held_out", post)
+
+
+def test_the_smallest_delay_is_searched_only_where_the_delayed_metric_is_defined(monkeypatch):
+    """``check_calibrate.smallest_delay``: past the delay where a final-window metric is
+    undefined (NaN), a run looks changed to the rank test; the search must stop before it and
+    say so, not report that delay. Fake statistics: every run's value is its delay, NaN beyond
+    60 of 100 episodes; the rule flags a delay of at least ``shift`` (and any NaN)."""
+    from types import SimpleNamespace
+
+    root = Path(__file__).resolve().parents[1]
+    module = _load_script(root / "reproductions" / "check_calibrate.py")
+    runs = [object()] * 8
+
+    def fake_values(name, statistic, episodes, baseline_runs, delay=0):
+        return np.full(len(baseline_runs), float(delay) if delay <= 60 else np.nan)
+
+    monkeypatch.setattr(module, "values", fake_values)
+    rule = SimpleNamespace(statistic="final_metric", episodes=100, seeds=6, alpha=0.01)
+    for shift, expected in ((40, 40), (70, None)):
+
+        def fake_power(base, new, seeds, statistic, alpha, repeats, shift=shift):
+            return 1.0 if (np.isnan(new) | (new >= shift)).all() else 0.0
+
+        monkeypatch.setattr(module, "power", fake_power)
+        found = module.smallest_delay("mountaincar", rule, runs)
+        assert found == {"delay": expected, "defined_up_to": 60, "episodes": 100}
+    assert module.delay_text(found) == "none up to 60 of 100 episodes (later, the metric is undefined)"
+    assert module.delay_text({"delay": 23, "defined_up_to": 250, "episodes": 250}) == "23 of 250 episodes"
+    assert module.delay_text({"delay": None, "defined_up_to": 250, "episodes": 250}) == "none up to 250 episodes"
