@@ -178,9 +178,9 @@ def test_each_calibrated_rule_is_the_one_the_pre_registered_criterion_picks():
 def test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline(tmp_path):
     """``keras-rl check --tier smoke`` on this code: fresh seeds of all three posts against
     the committed baselines, Holm-adjusted over the three. Its false-alarm rate as a whole is
-    0.75% (results/checks/family.json, calibration.md, "The whole command": exact or resampled for the rules'
-    n fresh seeds against the whole baseline; it was 2.49% before Holm), so this fails on an
-    unchanged learner about once in 130 code bases, and on a grossly broken one (the smoke
+    0.87% (results/checks/family.json, calibration.md, "The whole command": exact or resampled for the rules'
+    n fresh seeds against the whole 100-seed baselines; it was 2.76% before Holm), so this fails on an
+    unchanged learner about once in 115 code bases, and on a grossly broken one (the smoke
     tier's measured power) nearly always. It replaces the k-of-n threshold tests of posts 000,
     001 and 003 (Keras)."""
     out = tmp_path / "check"
