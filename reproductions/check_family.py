@@ -1,7 +1,7 @@
 """The false-alarm rate of ``keras-rl check`` as a whole command, for the default three posts.
 
     python reproductions/check_family.py            # print the table
-    python reproductions/check_family.py --write    # results/checks/family.json and its block in calibration.md
+    python reproductions/check_family.py --write    # results/checks/family.json, its calibration.md block, spread.png
 
 For each tier, each post's rule is run the way the check runs it: its n fresh seeds against the
 whole committed baseline (every seed it holds). Its false-alarm rate is computed exactly where the statistic
@@ -40,6 +40,7 @@ CHECKS = ROOT / "results" / "checks"
 POSTS = ("pendulum", "cartpole", "mountaincar")
 REPEATS = 20_000
 BEGIN, END = "<!-- family-wise:begin -->", "<!-- family-wise:end -->"
+SPREAD_FIGURE = CHECKS / "spread.png"
 
 
 def compute(with_spread: bool = True) -> dict:
@@ -89,9 +90,9 @@ def spread() -> dict:
     return {f"{tier}/{m}": spread_entry(tier, m) for tier in TIERS for m in SPREAD_SIZES}
 
 
-def spread_entry(tier: str, m: int) -> dict:
-    """Per post at alpha / 3 (Holm's first level), and for the three-post command, each post
-    with a baseline of ``m`` seeds of its own, over ``BASELINES`` baselines."""
+def command_rates(tier: str, m: int):
+    """The three-post command's false-alarm rate at Holm given each of ``BASELINES`` simulated
+    baselines, each post with ``m`` seeds of its own (an array, one rate per baseline)."""
     import numpy as np
 
     rules = [RULES[(post, tier)] for post in POSTS]
@@ -102,7 +103,17 @@ def spread_entry(tier: str, m: int) -> dict:
     for _ in range(BASELINES):
         rates = [false_alarm_rate_given_baseline(rng.random(m), r.seeds, reg) for r, reg in zip(rules, regions)]
         command.append(family_false_alarm_rate(rates))
-    rates = np.array(command)
+    return np.array(command)
+
+
+def spread_entry(tier: str, m: int) -> dict:
+    """Per post at alpha / 3 (Holm's first level), and for the three-post command, each post
+    with a baseline of ``m`` seeds of its own, over ``BASELINES`` baselines."""
+    import numpy as np
+
+    rules = [RULES[(post, tier)] for post in POSTS]
+    level = rules[0].alpha / len(rules)
+    rates = command_rates(tier, m)
     p5, p50, p95 = np.percentile(rates, [5, 50, 95])
     return {
         "tier": tier,
@@ -175,8 +186,16 @@ def render(family: dict) -> str:
         )
     lines += [
         "",
-        "Before Holm, each post was tested at 0.01 and the three-post command raised a false alarm about",
-        "2.5% of the time. The check now adjusts the posts' p-values with Holm's step-down method",
+        f"![The command's false-alarm rate given its baseline, over {BASELINES:,} simulated baselines]"
+        f"({SPREAD_FIGURE.name})",
+        "",
+        f"`{SPREAD_FIGURE.name}` (drawn by `--write`): where each curve crosses the dashed 1% line, one minus",
+        "its height is the share of baselines above 1%.",
+        "",
+        "Before Holm, each post was tested at 0.01 and the three-post command raised a false alarm",
+        f"{family['tiers']['smoke']['command_unadjusted']:.2%} of the time at the smoke tier and "
+        f"{family['tiers']['full']['command_unadjusted']:.2%} at the full tier,",
+        "on these baselines. The check now adjusts the posts' p-values with Holm's step-down method",
         "(`keras_rl/check/command.py`), which keeps the command's rate under 1%; the price is power,",
         "since under a real change a post must clear 0.01 / 3 when it has the smallest p. A one-post",
         "command is unadjusted. With one fixed baseline per post the command's own rate is uncertain",
@@ -216,6 +235,19 @@ def main() -> None:
         print(text)
         return
     write_with_block(CHECKS / "family.json", family, BEGIN, END, text)
+    draw_spread(SPREAD_FIGURE)
+
+
+def draw_spread(path: Path) -> None:
+    """The figure of the spread table: each tier's command rate over the simulated baselines."""
+    from keras_rl.report.plots import plot_false_alarm_spread
+
+    rates = {tier: {m: command_rates(tier, m) for m in SPREAD_SIZES} for tier in TIERS}
+    alpha = RULES[(POSTS[0], next(iter(TIERS)))].alpha
+    plot_false_alarm_spread(
+        path, rates, alpha, "keras-rl check pendulum cartpole mountaincar (Holm): false-alarm rate given its baseline"
+    )
+    print(f"drew {path}")
 
 
 if __name__ == "__main__":

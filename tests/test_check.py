@@ -390,6 +390,26 @@ def test_calibration_md_states_the_committed_family_wise_rates():
         assert tier["command_holm"] < 0.01 < tier["command_unadjusted"]
 
 
+def test_calibration_md_shows_the_spread_figure_and_the_figure_marks_the_bound(tmp_path):
+    """The spread table has its figure beside it, committed; the figure draws one curve per
+    baseline size and refuses nothing to draw."""
+    from pathlib import Path
+
+    from keras_rl.report.plots import plot_false_alarm_spread
+
+    root = Path(__file__).resolve().parents[1]
+    family = _load_script(root / "reproductions" / "check_family.py")
+    text = (root / "results" / "checks" / "calibration.md").read_text()
+    assert f"]({family.SPREAD_FIGURE.name})" in text and family.SPREAD_FIGURE.is_file()
+    out = tmp_path / "spread.png"
+    rates = {"smoke": {30: [0.001, 0.02, 0.005], 100: [0.004, 0.008, 0.012]}}
+    plot_false_alarm_spread(out, rates, 0.01, "test")
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(ValueError, match="no spread"):
+        plot_false_alarm_spread(tmp_path / "none.png", {}, 0.01, "test")
+    assert not (tmp_path / "none.png").exists()
+
+
 @pytest.mark.slow  # 60-100 s: 20,000 resamples per tied statistic, 2,000 baselines per spread entry
 def test_the_committed_family_wise_rates_are_what_the_baselines_give():
     from pathlib import Path

@@ -78,6 +78,37 @@ def plot_curve(
     save_figure(fig, path)
 
 
+def plot_false_alarm_spread(path: Path, rates: dict[str, dict[int, Any]], alpha: float, title: str) -> None:
+    """The spread of a check's false-alarm rate over the baselines it could have been given:
+    one panel per tier, the empirical CDF of the rate given the baseline for each baseline
+    size (``rates[tier][seeds]``: one rate per simulated baseline), with ``alpha`` marked, so
+    the share of baselines above it reads off where each curve crosses the line."""
+    import numpy as np
+
+    if not rates:
+        raise ValueError("no spread to plot")
+    fig, axes = plt.subplots(1, len(rates), figsize=(5 * len(rates), 3.8), sharey=True, squeeze=False)
+    for ax, (tier, by_size) in zip(axes[0], rates.items()):
+        for seeds, values in sorted(by_size.items()):
+            v = np.sort(np.asarray(values, dtype=float)) * 100
+            share = float((v > alpha * 100).mean())
+            ax.step(
+                v,
+                np.arange(1, len(v) + 1) / len(v),
+                where="post",
+                label=f"{seeds}-seed baselines: median {np.median(v):.2f}%, {share:.0%} above {alpha:.0%}",
+            )
+        ax.axvline(alpha * 100, color="k", ls="--", lw=0.8)
+        ax.set_xscale("log")
+        ax.set_xlabel("false-alarm rate given the baseline (%)")
+        ax.set_title(f"{tier} tier", fontsize=10)
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8, loc="lower right")
+    axes[0][0].set_ylabel("share of baselines")
+    fig.suptitle(title, fontsize=10)
+    save_figure(fig, path)
+
+
 def plot_seed_curve(run_dir: Path, experiment, config, x_axis: str = "episode") -> None:
     """A seed folder's ``curve.png`` from its ``episodes.csv`` (nothing if it has no episode),
     the episode where it met its criterion marked (from ``summary.json``, when there is one)."""
