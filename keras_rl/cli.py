@@ -257,6 +257,13 @@ def build_parser() -> argparse.ArgumentParser:
         "design decides (results/checks/sequential.md: fewer seeds under a clear change, more under none)",
     )
     ck.add_argument(
+        "--alpha",
+        type=float,
+        default=None,
+        help="with --sequential: the command's false-alarm bound, split over its posts and each post's looks "
+        "(union bound) instead of the committed designs' 1%% (what a bisect step uses)",
+    )
+    ck.add_argument(
         "--out",
         type=_path_arg,
         default=Path("check-runs"),
@@ -284,6 +291,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     bi.add_argument(
         "--out", type=_path_arg, default=Path("bisect-runs"), help="the steps' reports (default bisect-runs)"
+    )
+    bi.add_argument(
+        "--fixed-n",
+        action="store_true",
+        help="each step runs the fixed rule's seeds (Holm over the posts) instead of the sequential check, "
+        "for commits whose check has no --sequential --alpha",
     )
     bi.add_argument("--workers", type=int, default=2, help="--workers of each step's check (default 2)")
     bi.add_argument("--repo", type=Path, default=Path("."), help="the git repository (default: here)")
@@ -775,6 +788,12 @@ def check(args: argparse.Namespace) -> int:
         raise ConfigError(f"an experiment is named twice: {' '.join(names)}")
     if args.sequential and args.seeds is not None:
         raise ConfigError("--seeds and --sequential do not go together: the sequential design runs its own fresh seeds")
+    if args.alpha is not None and not args.sequential:
+        raise ConfigError(
+            "--alpha goes with --sequential: the fixed rule's alpha is pre-registered (keras_rl/check/rules.py)"
+        )
+    if args.alpha is not None and not 0 < args.alpha < 1:
+        raise ConfigError(f"--alpha must lie in (0, 1), got {args.alpha}")
     seeds = parse_seeds(args.seeds) if args.seeds is not None else None
     options = RunOptions.from_args(args)
     options.check_address()
@@ -782,7 +801,9 @@ def check(args: argparse.Namespace) -> int:
 
     against = args.against if args.against is not None else CALIBRATION.parent
     try:
-        results = run_check(names, args.tier, against, args.out, seeds, options, sequential=args.sequential)
+        results = run_check(
+            names, args.tier, against, args.out, seeds, options, sequential=args.sequential, sequential_alpha=args.alpha
+        )
     except KeyboardInterrupt:
         print("interrupted: no verdict", file=sys.stderr)
         return _stopped()
@@ -834,6 +855,7 @@ def bisect(args: argparse.Namespace) -> int:
             args.alpha,
             ["--workers", str(args.workers), "--no-progress"],
             log=lambda line: print(line, file=sys.stderr),
+            sequential=not args.fixed_n,
         )
     except KeyboardInterrupt:
         print("interrupted: no verdict", file=sys.stderr)

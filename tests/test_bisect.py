@@ -24,11 +24,17 @@ names = [a for a in args[1:args.index("--tier")]]
 state = Path("learner.txt").read_text().strip()
 if state == "crash":
     sys.exit(3)
-p = {"broken": 1e-6, "slightly": 0.006}.get(state, 0.5)
+p = {"broken": 1e-6, "slightly": 0.006, "moderately": 0.001}.get(state, 0.5)
 out.mkdir(parents=True, exist_ok=True)
-experiments = [{"experiment": n, "decision": {"p": p if n == "pendulum" else 0.5}} for n in names]
+# the real check's levels: --sequential --alpha splits alpha over the posts and 6 looks; else 0.01
+level = float(args[args.index("--alpha") + 1]) / len(names) / 6 if "--sequential" in args else 0.01
+experiments = [
+    {"experiment": n, "decision": {"p": q, "changed": q < level}, "new": {"1000": 0.0}}
+    for n, q in ((n, p if n == "pendulum" else 0.5) for n in names)
+]
 (out / "check.json").write_text(json.dumps({"experiments": experiments}))
-sys.exit(1 if p < 0.01 else 0)
+(out / "args.json").write_text(json.dumps(args))
+sys.exit(1 if any(e["decision"]["changed"] for e in experiments) else 0)
 """
 
 
@@ -76,6 +82,9 @@ def test_bisect_finds_the_planted_regression_and_leaves_the_repository_alone(tmp
     assert report["first_changed"] == shas[5] and report["outcome"] == "found"
     assert report["commits"] == 8 and report["alpha_per_step"] == pytest.approx(0.01 / 4)  # BAD + ceil(log2 8)
     assert report["steps"][0]["commit"] == shas[-1] and report["steps"][0]["verdict"] == "changed"
+    assert report["sequential"]  # each step ran the sequential check at its share of alpha
+    args = json.loads((tmp_path / "out" / "step_1" / "args.json").read_text())
+    assert args[args.index("--alpha") - 1] == "--sequential" and float(args[args.index("--alpha") + 1]) == 0.01 / 4
     assert len(report["steps"]) <= step_budget(8)
     assert (tmp_path / "out" / "baseline" / "pendulum" / "baseline").is_dir()  # the baseline copied out of the tree
     assert "the first changed commit" in (tmp_path / "out" / "bisect.md").read_text()
@@ -85,12 +94,28 @@ def test_bisect_finds_the_planted_regression_and_leaves_the_repository_alone(tmp
     assert len(worktrees.stdout.strip().splitlines()) == 1  # its temporary worktree is gone
 
 
-def test_a_change_below_the_per_step_alpha_is_not_a_regression(tmp_path, baseline, capsys):
+@pytest.mark.parametrize("fixed", [False, True])
+def test_a_change_below_the_per_step_alpha_is_not_a_regression(fixed, tmp_path, baseline, capsys):
     """p = 0.006 clears the check's own 0.01 but not bisect's 0.01 / 2 per step (2 commits: BAD
-    and one more): BAD is consistent."""
+    and one more), with the fixed rule or the sequential check: BAD is consistent."""
     shas = make_repo(tmp_path / "repo", ["ok", "ok", "slightly"])
-    assert run(tmp_path / "repo", baseline, tmp_path / "out", shas[0], shas[-1]) == 1
+    flags = ["--fixed-n"] if fixed else []
+    assert run(tmp_path / "repo", baseline, tmp_path / "out", *flags, shas[0], shas[-1]) == 1
     assert "nothing to bisect" in capsys.readouterr().out
+
+
+def test_the_sequential_step_splits_its_share_over_the_looks(tmp_path, baseline, capsys):
+    """p = 0.001 at the last look clears a fixed-rule step's 0.005 but not the sequential step's
+    0.005 / 6 looks: the two modes differ exactly by the union bound, and the report says which ran."""
+    shas = make_repo(tmp_path / "repo", ["ok", "ok", "moderately"])
+    assert run(tmp_path / "repo", baseline, tmp_path / "seq", shas[0], shas[-1]) == 1
+    assert run(tmp_path / "repo", baseline, tmp_path / "fixed", "--fixed-n", shas[0], shas[-1]) == 0
+    assert "p at the last look" in (tmp_path / "seq" / "bisect.md").read_text()
+    assert "Holm" in (tmp_path / "fixed" / "bisect.md").read_text()
+    fixed = json.loads((tmp_path / "fixed" / "bisect.json").read_text())
+    assert not fixed["sequential"] and fixed["first_changed"] == shas[2]
+    args = json.loads((tmp_path / "fixed" / "step_1" / "args.json").read_text())
+    assert "--sequential" not in args and "--alpha" not in args
 
 
 def test_a_commit_whose_check_crashes_is_skipped(tmp_path, baseline, capsys):

@@ -525,6 +525,44 @@ def test_a_sequential_check_stops_where_its_design_decides(change, tmp_path, mon
     assert "sequential" in (out / "check.md").read_text()
 
 
+def test_a_sequential_check_at_a_given_alpha_splits_it_over_its_looks(tmp_path, monkeypatch, capsys):
+    """``check --sequential --alpha A`` (what a bisect step runs): each of the k posts stops as
+    changed below A / k / looks, the union bound, instead of its committed calibrated level;
+    the report states the bound."""
+    import keras_rl.check.command as command
+    from keras_rl.check.rules import rule_for
+    from keras_rl.cli import main
+
+    def fake_read(folder, experiment, rule, fresh):
+        return {s: rule.episodes + 1.0 for s in fresh}, {s: [{"metric": -300.0}] for s in fresh}
+
+    monkeypatch.setattr(command, "_run_seeds", lambda out, groups, options: None)
+    monkeypatch.setattr(command, "_read_new", fake_read)
+    out = tmp_path / "check"
+    args = ["check", "pendulum", "cartpole", "--sequential", "--alpha", "0.003", "--workers", "1", "--no-progress"]
+    code = main([*args, "--out", str(out)])
+    assert code == 1, capsys.readouterr().err
+    report = json.loads((out / "check.json").read_text())
+    design, _ = command.sequential_design(rule_for("pendulum", "smoke"))
+    for entry in report["experiments"]:
+        assert entry["design"]["efficacy"] == pytest.approx(0.003 / 2 / len(design.stages))
+        assert entry["design"]["level"] == "union bound" and entry["design"]["futility"] == design.futility
+    assert report["false_alarm"]["family_wise"] <= 0.003
+    assert "union bound" in (out / "check.md").read_text()
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [(["--alpha", "0.01"], "--alpha goes with --sequential"), (["--sequential", "--alpha", "1.5"], "must lie in")],
+)
+def test_check_alpha_outside_a_sequential_check_or_out_of_range_exits_2(extra, message, tmp_path, capsys):
+    from keras_rl.cli import main
+
+    assert main(["check", "pendulum", *extra, "--out", str(tmp_path / "c")]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "c").exists()
+
+
 def test_sequential_refuses_seeds_of_its_own_with_exit_2(tmp_path, capsys):
     from keras_rl.cli import main
 

@@ -9,6 +9,7 @@ import pytest
 from keras_rl.check.sequential import (
     SequentialDesign,
     _outcomes,
+    at_level,
     calibrate,
     fixed_rule,
     look_pvalues,
@@ -51,6 +52,20 @@ def test_invalid_designs_are_refused():
         SequentialDesign(stages=(10, 5))
     with pytest.raises(ValueError, match="efficacy < futility"):
         SequentialDesign(efficacy=0.6, futility=0.5)
+
+
+def test_a_design_at_a_given_level_splits_it_over_its_looks_and_stays_under_it():
+    """``at_level`` (a bisect step's share): efficacy alpha / looks, so the null rate, futility
+    stops included, stays under alpha by the union bound; here about half of it, since the
+    looks' p-values are correlated."""
+    design = at_level(DESIGN, 0.08)
+    assert design.efficacy == pytest.approx(0.02) and design.futility == DESIGN.futility
+    rng = np.random.default_rng(2)
+    null = null_pvalues(rng.normal(size=100), "final_metric", design.stages, 1500, rng)
+    rate = _outcomes(design, null)[0].mean()
+    assert 0 < rate <= 0.08
+    with pytest.raises(ValueError, match="alpha must lie"):
+        at_level(DESIGN, 0)
 
 
 def test_calibration_keeps_the_false_alarm_rate_at_alpha_and_is_the_largest_such_level():

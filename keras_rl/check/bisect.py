@@ -1,5 +1,6 @@
 """``keras-rl bisect GOOD BAD [EXPERIMENT ...]``: the first commit whose learner the check calls
-changed, found by ``git bisect`` with ``keras-rl check`` as its test.
+changed, found by ``git bisect`` with the sequential ``keras-rl check --sequential`` as its test
+(``--fixed-n``: the fixed rule instead).
 
 - The repository is never touched: bisect runs in a temporary ``git worktree`` at each commit,
   and the commit's own ``keras-rl check`` runs there (``python -m keras_rl`` from the worktree).
@@ -7,9 +8,11 @@ changed, found by ``git bisect`` with ``keras-rl check`` as its test.
   ``results/checks``) is copied to ``<out>/baseline`` before the first step.
 - The error is controlled over all the steps: a bisect of n commits tests at most
   ceil(log2 n) of them, plus BAD itself, which is checked first (is there anything to find?).
-  Each step tests at ``alpha / steps`` (Bonferroni), and within a step the posts are adjusted
-  by Holm, so the chance that any step of the whole bisect raises a false alarm is at most
-  alpha.
+  Each step tests at ``alpha / steps`` (Bonferroni), so the chance that any step of the whole
+  bisect raises a false alarm is at most alpha. Within a step, the sequential check splits its
+  share over the posts and each post's looks (``check --sequential --alpha``: seeds in looks of
+  5, a clear regression stops at the first look, so a step costs few seeds where bisect needs
+  it); the fixed rule adjusts the posts by Holm.
 - Each step's evidence (commit, subject, each post's p and adjusted p, the verdict) goes to
   ``<out>/bisect.json`` and ``bisect.md``; the step's own check report to ``<out>/step_<k>``.
 - A step whose check gives no verdict (a crash, exit 3, or a commit whose check cannot run) is
@@ -43,7 +46,11 @@ class Step:
     subject: str
     verdict: str  # "changed", "consistent" or "no verdict"
     p: dict[str, float] = field(default_factory=dict)
+    """Each post's p: the fixed rule's, or the sequential check's at its last look."""
     adjusted_p: dict[str, float] = field(default_factory=dict)
+    """Holm-adjusted (the fixed rule only)."""
+    seeds: dict[str, int] = field(default_factory=dict)
+    """Fresh seeds each post used (the sequential check stops early)."""
     note: str = ""
 
 
@@ -57,6 +64,7 @@ class BisectResult:
     steps: list[Step]
     first_changed: str | None
     outcome: str  # "found", "bad is consistent", "no verdict"
+    sequential: bool = True
     candidates: list[str] = field(default_factory=list)
     """Where skipped commits leave git unable to choose: the first changed commit is one of these."""
 
@@ -94,7 +102,7 @@ def step_budget(commits: int) -> int:
 
 
 def check_commit(worktree: Path, experiments: list[str], tier: str, against: Path, out: Path, extra: list[str]):
-    """Run the worktree's own ``keras-rl check``; each post's p, or None (no verdict) and why."""
+    """Run the worktree's own ``keras-rl check``; its report's posts, or None (no verdict) and why."""
     shutil.rmtree(out, ignore_errors=True)
     command = [sys.executable, "-m", "keras_rl", "check", *experiments, "--tier", tier, "--against", str(against)]
     done = subprocess.run(
@@ -103,8 +111,7 @@ def check_commit(worktree: Path, experiments: list[str], tier: str, against: Pat
     report = out / "check.json"
     if done.returncode not in (0, 1) or not report.is_file():
         return None, f"check exited {done.returncode}: {done.stderr.strip().splitlines()[-1:] or ''}"
-    payload = json.loads(report.read_text())
-    return {e["experiment"]: float(e["decision"]["p"]) for e in payload["experiments"]}, ""
+    return json.loads(report.read_text())["experiments"], ""
 
 
 def _env(worktree: Path) -> dict[str, str]:
@@ -130,6 +137,7 @@ def bisect(
     alpha: float = 0.01,
     extra: list[str] | None = None,
     log=print,
+    sequential: bool = True,
 ) -> BisectResult:
     good_sha, bad_sha, commits = resolve(repo, good, bad)
     if not (against / experiments[0] / "baseline").is_dir():
@@ -140,7 +148,9 @@ def bisect(
         shutil.rmtree(baseline)
     shutil.copytree(against, baseline)  # outside the tree bisect rewrites
     per_step = alpha / step_budget(commits)
-    result = BisectResult(good_sha, bad_sha, commits, alpha, per_step, [], None, "no verdict")
+    result = BisectResult(good_sha, bad_sha, commits, alpha, per_step, [], None, "no verdict", sequential=sequential)
+    if sequential:  # each step's check spends exactly its share: the union bound over posts and looks
+        extra = ["--sequential", "--alpha", repr(per_step), *(extra or [])]
     worktree = Path(tempfile.mkdtemp(prefix="keras-rl-bisect-"))
     shutil.rmtree(worktree)
     git(repo, "worktree", "add", "--detach", str(worktree), bad_sha)
@@ -178,17 +188,33 @@ def _step(result: BisectResult, worktree: Path, experiments, tier, baseline, out
     commit = git(worktree, "rev-parse", "HEAD")
     subject = git(worktree, "log", "-1", "--format=%s")
     k = len(result.steps) + 1
-    p, why = check_commit(worktree, experiments, tier, baseline, out / f"step_{k}", extra)
-    if p is None:
+    posts, why = check_commit(worktree, experiments, tier, baseline, out / f"step_{k}", extra)
+    if posts is None:
         step = Step(commit, subject, "no verdict", note=why)
     else:
-        verdict, adjusted = judge(p, result.alpha_per_step)
-        step = Step(commit, subject, verdict, p, adjusted)
+        p = {e["experiment"]: float(e["decision"]["p"]) for e in posts}
+        seeds = {e["experiment"]: len(e["new"]) for e in posts}
+        if result.sequential:  # the check's own verdict: its levels already carry this step's share
+            verdict = "changed" if any(e["decision"]["changed"] for e in posts) else "consistent"
+            step = Step(commit, subject, verdict, p, seeds=seeds)
+        else:
+            verdict, adjusted = judge(p, result.alpha_per_step)
+            step = Step(commit, subject, verdict, p, adjusted, seeds)
     result.steps.append(step)
     write_report(out, result)
-    shown = ", ".join(f"{n} p={v:.3g}" for n, v in step.adjusted_p.items()) or step.note
+    shown = evidence(step)
     log(f"step {k}: {commit[:10]} {subject[:50]!r}: {step.verdict} ({shown})")
     return step.verdict
+
+
+def evidence(step: Step) -> str:
+    """One step's evidence by post: the Holm-adjusted p (fixed rule), or the last look's p and
+    the seeds it took (sequential); or why the step gave no verdict."""
+    if step.adjusted_p:
+        return ", ".join(f"{n} {v:.3g}" for n, v in step.adjusted_p.items())
+    if step.p:
+        return ", ".join(f"{n} {v:.3g} ({step.seeds.get(n, '?')} seeds)" for n, v in step.p.items())
+    return step.note
 
 
 def write_report(out: Path, result: BisectResult) -> None:
@@ -198,14 +224,20 @@ def write_report(out: Path, result: BisectResult) -> None:
         "",
         f"GOOD {result.good[:10]}, BAD {result.bad[:10]}: {result.commits} commits. Overall alpha "
         f"{result.alpha}, each check at {result.alpha_per_step:.3g} (alpha over the {step_budget(result.commits)} "
-        "checks a bisect may make, Bonferroni); the posts within a check adjusted by Holm.",
+        "checks a bisect may make, Bonferroni); "
+        + (
+            "each check sequential (`check --sequential --alpha`: its share split over the posts and each "
+            "post's looks of 5 seeds).",
+            "the posts within a check adjusted by Holm.",
+        )[not result.sequential],
         "",
-        "| step | commit | subject | Holm-adjusted p by post | verdict |",
+        "| step | commit | subject | "
+        + ("p at the last look (seeds)", "Holm-adjusted p by post")[not result.sequential]
+        + " | verdict |",
         "|---|---|---|---|---|",
     ]
     for k, s in enumerate(result.steps, 1):
-        ps = ", ".join(f"{n} {v:.3g}" for n, v in s.adjusted_p.items()) or s.note
-        lines.append(f"| {k} | `{s.commit[:10]}` | {s.subject} | {ps} | {s.verdict} |")
+        lines.append(f"| {k} | `{s.commit[:10]}` | {s.subject} | {evidence(s)} | {s.verdict} |")
     found = f"the first changed commit is `{result.first_changed}`" if result.first_changed else result.outcome
     if result.candidates:
         found += "; the first changed commit is one of " + ", ".join(f"`{c[:10]}`" for c in result.candidates)

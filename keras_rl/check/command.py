@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from keras_rl.check.rules import CheckRule, rule_for
-from keras_rl.check.sequential import SequentialDesign, run_design
+from keras_rl.check.sequential import SequentialDesign, at_level, run_design
 from keras_rl.check.statistics import (
     Decision,
     check_false_alarm_rate,
@@ -180,10 +180,13 @@ def run_check(
     seeds: list[int] | None,
     options: RunOptions,
     sequential: bool = False,
+    sequential_alpha: float | None = None,
 ) -> list[CheckResult]:
     """Run the fresh seeds of every experiment at once, then test each against its baseline
     (fixed-n, Holm over the posts); or, ``sequential``, look after every stage of seeds and
-    stop each post where its design decides."""
+    stop each post where its design decides. ``sequential_alpha``: the command's false-alarm
+    bound instead of the committed designs' 1%, split over the posts and each post's looks
+    (``sequential.at_level``; a bisect step's share of its alpha)."""
     plan = []
     designs: dict[str, tuple[SequentialDesign, float]] = {}
     for name in names:
@@ -191,6 +194,9 @@ def run_check(
         rule = rule_for(name, tier)
         if sequential:
             designs[name] = sequential_design(rule)
+            if sequential_alpha is not None:
+                share = sequential_alpha / len(names)
+                designs[name] = (at_level(designs[name][0], share), share)
             fresh = list(range(rule.first_seed, rule.first_seed + designs[name][0].stages[-1]))
         else:
             fresh = seeds if seeds is not None else rule.seed_list()
@@ -258,7 +264,11 @@ def run_check(
                     list(options.overrides),
                     error_rates(rule),
                     looks=looks[experiment.name],
-                    design={**asdict(design), "false_alarm_rate": null_rate},
+                    design={
+                        **asdict(design),
+                        "false_alarm_rate": null_rate,
+                        "level": "committed" if sequential_alpha is None else "union bound",
+                    },
                 )
                 done[experiment.name] = (
                     result,
@@ -393,11 +403,20 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
                 f"{seen}; stopped at {len(r.new)} seeds, **{r.verdict}**.",
             ]
         per_post = ", ".join(f"{name} {rate:.2%}" for name, rate in family["per_post"].items())
+        if all(r.design.get("level") == "union bound" for r in results if r.design is not None):
+            how = (
+                "each post's share of the command's --alpha split over its looks, the union bound, with no "
+                f"simulation: at most {per_post}"
+            )
+        else:
+            how = (
+                "each post's design calibrated on its own baseline to 1% / 3, futility stops included; "
+                f"measured: {per_post}; results/checks/sequential.md"
+            )
         lines += [
             "",
             f"False alarms of this command as a whole: at most **{family['family_wise']:.2%}** when nothing "
-            f"changed (each post's design calibrated on its own baseline to 1% / 3, futility stops included; "
-            f"measured: {per_post}; results/checks/sequential.md). No Holm step: the split is in the designs.",
+            f"changed ({how}). No Holm step: the split is in the designs.",
         ]
     elif family is not None:
         per_post = ", ".join(f"{name} {p['rate']:.2%} ({p['method']})" for name, p in family["per_post"].items())

@@ -150,6 +150,17 @@ def calibrate(design: SequentialDesign, null: np.ndarray, alpha: float) -> Seque
     return best
 
 
+def at_level(design: SequentialDesign, alpha: float) -> SequentialDesign:
+    """The design with its efficacy level set to ``alpha`` / its number of looks. By the union
+    bound over the looks, an unchanged learner is then called changed at most ``alpha`` of the
+    time, whatever the futility bound (futility stops only end checks as consistent), as far as
+    each look's p-value is valid. No simulation: for a level the committed calibration was not
+    made at, such as a bisect step's share of the bisect's alpha."""
+    if not 0 < alpha < 1:
+        raise ValueError(f"alpha must lie in (0, 1), got {alpha}")
+    return replace(design, efficacy=min(alpha / len(design.stages), design.futility / 2))
+
+
 @dataclass(frozen=True)
 class Operating:
     """A design's (or the fixed-n rule's) behaviour on one scenario's simulated checks."""
