@@ -26,7 +26,7 @@ os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 from keras_rl.check.bisect import step_budget  # noqa: E402
 from keras_rl.check.command import CALIBRATION, baseline_values, sequential_design  # noqa: E402
 from keras_rl.check.rules import rule_for  # noqa: E402
-from keras_rl.check.sequential import _outcomes, at_level, null_pvalues  # noqa: E402
+from keras_rl.check.sequential import at_level, null_pvalues, simulate  # noqa: E402
 from keras_rl.registry import get_experiment  # noqa: E402
 
 POSTS = ("pendulum", "cartpole", "mountaincar")
@@ -53,7 +53,7 @@ def measure(draws: int = DRAWS) -> list[dict]:
             for posts in (1, len(POSTS)):
                 share = ALPHA / step_budget(commits) / posts
                 level = at_level(design, share)
-                k = int(_outcomes(level, null)[0].sum())
+                k = round(simulate(level, null).changed * draws)
                 interval = binomtest(k, draws).proportion_ci(method="exact")
                 rows.append(
                     {

@@ -16,6 +16,7 @@ smallest p clears alpha / 3).
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import sys
 from pathlib import Path
@@ -90,6 +91,7 @@ def spread() -> dict:
     return {f"{tier}/{m}": spread_entry(tier, m) for tier in TIERS for m in SPREAD_SIZES}
 
 
+@functools.cache  # --write draws the figure from the arrays the table was computed from
 def command_rates(tier: str, m: int):
     """The three-post command's false-alarm rate at Holm given each of ``BASELINES`` simulated
     baselines, each post with ``m`` seeds of its own (an array, one rate per baseline)."""

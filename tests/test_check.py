@@ -218,15 +218,12 @@ def test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline(
 
 
 def test_results_readme_states_the_calibrated_error_rates():
-    import importlib.util
     from pathlib import Path
 
     from keras_rl.check.command import CALIBRATION
 
     root = Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("check_calibrate", root / "reproductions" / "check_calibrate.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = _load_script(root / "reproductions" / "check_calibrate.py")
     readme = (root / "results" / "README.md").read_text()
     stated = readme.split(module.RULES_BEGIN, 1)[1].split(module.RULES_END, 1)[0].strip()
     assert stated == module.rules_table(json.loads(CALIBRATION.read_text())), (
@@ -423,12 +420,9 @@ def test_the_committed_family_wise_rates_are_what_the_baselines_give():
 
 
 def _load_script(path):
-    import importlib.util
+    from scripts import load_reproduction
 
-    spec = importlib.util.spec_from_file_location(path.stem, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_reproduction(path.stem)
 
 
 @pytest.mark.slow

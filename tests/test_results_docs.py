@@ -1,18 +1,15 @@
 """results/README.md's generated tables match the committed run folders and reports."""
 
-import importlib.util
 from pathlib import Path
 
 import pytest
+from scripts import load_reproduction
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def load_generator(name: str = "findings_table"):
-    spec = importlib.util.spec_from_file_location(name, ROOT / "reproductions" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_reproduction(name)
 
 
 def block(text: str, begin: str, end: str) -> str:
