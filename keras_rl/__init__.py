@@ -19,4 +19,8 @@ os.environ["KERAS_BACKEND"] = "tensorflow"
 # TensorFlow's C++ start-up chatter (CPU feature notices) hides our own output.
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
+from keras_rl import quiet  # noqa: E402
+
+quiet.install()
+
 __version__ = "0.1.0"

@@ -35,12 +35,19 @@ def _stopped() -> int:
 
 
 def parse_seeds(text: str) -> list[int]:
-    """``"0-9"``, ``"1,3,5"``, ``"0-2,7"`` -> a sorted list of distinct seeds."""
+    """``"0-9"``, ``"1,3,5"``, ``"0-2,7"`` -> a sorted list of distinct seeds.
+
+    Refused, each with a ConfigError naming it: an empty item (``1,,2``), a seed named twice
+    (``1,1``), digits other than ASCII ones, and more than ``MAX_SEEDS`` seeds, which is
+    checked from the range's ends before any list is built (``0-4294967295`` would not fit
+    in memory)."""
     seeds: set[int] = set()
     for part in text.split(","):
         part = part.strip()
         if not part:
-            continue
+            raise ConfigError(f"seeds {text!r} has an empty item; write a list like 0,1,2 or a range like 0-9")
+        if not part.isascii():
+            raise ConfigError(f"seeds {text!r}: {part!r} is not written in ASCII digits")
         lo_text, dash, hi_text = part.partition("-") if "-" in part[1:] else (part, "", part)
         try:
             lo, hi = int(lo_text), int(hi_text)
@@ -48,15 +55,17 @@ def parse_seeds(text: str) -> list[int]:
             raise ConfigError(f"cannot read seeds {text!r}: use a list like 0,1,2 or a range like 0-9") from None
         if lo > hi:
             raise ConfigError(f"seed range {part!r} runs backwards; write {hi}-{lo}")
+        if lo < 0:
+            raise ConfigError(f"seeds must be zero or more, got {lo}")
         if hi >= 2**32:
             raise ConfigError(f"seeds must be below 2**32 (NumPy's and Gymnasium's limit), got {hi}")
-        seeds.update(range(lo, hi + 1))
-        if len(seeds) > MAX_SEEDS:
+        if len(seeds) + hi - lo + 1 > MAX_SEEDS:
             raise ConfigError(f"{text!r} names more than {MAX_SEEDS} seeds; split the run into smaller commands")
-    if not seeds:
-        raise ConfigError(f"no seeds in {text!r}")
-    if min(seeds) < 0:
-        raise ConfigError(f"seeds must be zero or more, got {min(seeds)}")
+        part_seeds = range(lo, hi + 1)
+        twice = seeds.intersection(part_seeds)
+        if twice:
+            raise ConfigError(f"seeds {text!r} names seed {min(twice)} twice")
+        seeds.update(part_seeds)
     return sorted(seeds)
 
 
@@ -154,9 +163,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument(
         "--eval-episodes",
         type=int,
-        default=10,
+        default=None,
         metavar="K",
-        help="greedy episodes per evaluation of --eval-every (default 10)",
+        help="greedy episodes per evaluation of --eval-every (default 10; only with --eval-every)",
     )
 
     ev = sub.add_parser("evaluate", help="reload a run's saved policy and play greedy episodes")
@@ -194,6 +203,9 @@ def build_parser() -> argparse.ArgumentParser:
     sw = sub.add_parser(
         "sweep",
         help="a grid of config values x seeds, resumable, with a report per grid point",
+        description="A grid of config values x seeds, resumable, with a report per grid point. A run "
+        "whose loss turns NaN is a result of its config (the report shows it, and the console names "
+        "it): it does not fail the command; a run that stops with an error does (exit 1).",
         parents=[run_options_parser()],
     )
     sw.add_argument("experiment", help="experiment name (see `keras-rl list`)")
@@ -322,6 +334,17 @@ def _check_writable_dir(path: Path, flag: str) -> None:
         raise ConfigError(f"{flag} {path}: {probe} is not a writable folder") from None
 
 
+def _check_not_inside_a_run(out: Path) -> None:
+    """``--out`` names the folder that holds ``seed_<n>/`` folders: one inside a run folder
+    would nest runs in a run."""
+    for folder in (out, *out.parents):
+        if folder.name.startswith("seed_") and (folder / "config.json").is_file():
+            raise ConfigError(
+                f"--out {out} is inside the run folder {folder}; name the folder that holds the "
+                "seed_<n>/ folders (its parent), or another one"
+            )
+
+
 def _check_writable_file(path: Path, flag: str) -> None:
     if path.is_dir():
         raise ConfigError(f"{flag} {path} is a folder; name a file")
@@ -443,12 +466,21 @@ def _recorded_config(experiment, args: argparse.Namespace):
         values = json.loads(path.read_text())
     except OSError as exc:
         raise ConfigError(f"--config {path}: cannot read it ({exc.strerror or exc})") from None
-    except json.JSONDecodeError as exc:
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ConfigError(f"--config {path} is not JSON ({exc})") from None
     if not isinstance(values, dict) or values.get("experiment") != experiment.name:
         theirs = values.get("experiment") if isinstance(values, dict) else None
         raise ConfigError(f"--config {path} is a config of {theirs!r}, not of {experiment.name}")
-    return experiment.config_cls.from_dict(values)
+    import dataclasses
+
+    cls = experiment.config_cls
+    lacking = sorted({f.name for f in dataclasses.fields(cls)} - set(cls.upgrade(values)))
+    if lacking:
+        raise ConfigError(
+            f"--config {path} lacks field(s) {', '.join(lacking)}: a recorded config.json names every "
+            "field, so none is filled in silently; add them, or use --variant and --set"
+        )
+    return cls.from_dict(values)
 
 
 def _set_suffix(config_cls, assignments: tuple[str, ...]) -> str:
@@ -477,7 +509,10 @@ def reproduce(args: argparse.Namespace) -> int:
         raise ConfigError(f"--eval-every must be zero (no evaluations) or more, got {args.eval_every}")
     from keras_rl.runs.evaluate import EvalSchedule
 
-    evaluation = EvalSchedule(args.eval_every, args.eval_episodes) if args.eval_every else None
+    if args.eval_episodes is not None and not args.eval_every:
+        raise ConfigError("--eval-episodes sets the size of each --eval-every evaluation; give --eval-every N too")
+    eval_episodes = 10 if args.eval_episodes is None else args.eval_episodes
+    evaluation = EvalSchedule(args.eval_every, eval_episodes) if args.eval_every else None
     if not 0 <= args.min_success_rate <= 1:
         raise ConfigError(f"--min-success-rate must be in [0, 1], got {args.min_success_rate}")
     if recorded is not None:
@@ -495,6 +530,7 @@ def reproduce(args: argparse.Namespace) -> int:
         out = run_folder(Path("results"), experiment.name, args.variant, args.framework, args.matched_init)
         if options.overrides:  # a modified config never lands in the variant's own folder
             out = out.with_name(out.name + _set_suffix(experiment.config_cls, options.overrides))
+    _check_not_inside_a_run(out)
     _check_writable_dir(out, "--out")
     if args.tensorboard is not None:
         _check_writable_dir(args.tensorboard, "--tensorboard")
@@ -504,6 +540,16 @@ def reproduce(args: argparse.Namespace) -> int:
             "--eval-every does not cover learning_phase_training=true: its noise layer draws from "
             "TensorFlow's generator when the policy acts, which would change the training run"
         )
+    if not args.overwrite:
+        from keras_rl.runs.reuse import made_by_experiment
+
+        for seed_dir in seed_dirs:
+            made_by = made_by_experiment(seed_dir)
+            if made_by is not None and made_by != experiment.name:
+                raise ConfigError(
+                    f"{seed_dir} holds a run made by {made_by}, not {experiment.name}; it is left as it "
+                    "is: pass --out for another folder"
+                )
     modes = _start_modes(seed_dirs, args.overwrite, args.resume, base.episodes)
     options.check_address()  # now that the input is good: is the cluster there?
     _check_seed_batch(options.seed_batch, experiment.name, args.framework)
@@ -572,6 +618,10 @@ def reproduce(args: argparse.Namespace) -> int:
             f"({s.criterion}: {where}; {s.episodes_run} episodes, {s.total_steps} steps, {s.wall_seconds:.1f} s)"
             f"\n  {seed_dir}/: {files}"
         )
+    if summaries and len(seeds) > 1:
+        print(f"all seeds: {out / 'summary.md'} and {out / 'curves.png'}")
+    if args.tensorboard is not None:
+        print(f"TensorBoard: tensorboard --logdir {args.tensorboard}")
     if experiment.post_reference:
         print(experiment.post_reference)
     if outcome.interrupted:
@@ -626,13 +676,29 @@ def compare(args: argparse.Namespace) -> int:
         )
     seeds = parse_seeds(args.seeds)
     options = RunOptions.from_args(args)
+    _check_writable_dir(args.out, "--out")  # before any training
+    if not args.reuse_only:
+        _check_writable_dir(args.runs, "--runs")
     options.check_address()
     _check_seed_batch(options.seed_batch, args.experiment, "keras")
-    from keras_rl.learners.table import compared_frameworks
+    from keras_rl.learners.table import compared_frameworks, stacked_implementation
     from keras_rl.registry import get_experiment
 
     experiment = get_experiment(args.experiment)
-    compared_frameworks(experiment.name)  # a clear error where there is nothing to compare
+    compared = compared_frameworks(experiment.name)  # a clear error where there is nothing to compare
+    if options.seed_batch == "auto" or int(options.seed_batch) > 1:
+        alone = []
+        for framework in compared:
+            try:
+                stacked_implementation(experiment.name, framework)
+            except ConfigError:
+                alone.append(framework)
+        if alone:  # reproduce refuses --seed-batch there; compare batches what it can, and says so
+            print(
+                f"warning: --seed-batch {options.seed_batch}: {experiment.name} in {', '.join(alone)} has no "
+                "seed-batched version, so its seeds run alone",
+                file=sys.stderr,
+            )
     from keras_rl.report.compare import compare as write_compare
     from keras_rl.report.plots import draw_job_curves
     from keras_rl.runs.compare_runs import make_compare_runs
@@ -697,6 +763,14 @@ def sweep(args: argparse.Namespace) -> int:
     if not args.ablate and not args.grid:
         raise ConfigError("a sweep needs --grid FIELD=V1,V2 (repeatable) or --ablate")
     points = ablation_grid(experiment.config_cls, base) if args.ablate else parse_grid(experiment.config_cls, args.grid)
+    both = sorted(
+        set(experiment.config_cls.parse_assignments(options.overrides)) & {k for p in points for k in p.overrides}
+    )
+    if both:
+        raise ConfigError(
+            f"{', '.join(both)} given both by --set and by the {'ablation' if args.ablate else '--grid'}; "
+            "the grid would silently win: give each field one way"
+        )
     for point in points:  # every point must be a valid config before anything runs
         base.replace(**point.overrides)
     baseline = args.baseline or points[0].name
@@ -746,7 +820,13 @@ def sweep(args: argparse.Namespace) -> int:
     if outcome.interrupted:
         print("interrupted: finished jobs are kept; run the same sweep again to resume it", file=sys.stderr)
         return _stopped()
-    failed = [s for ss in summaries.values() for s in ss if s.status in ("non_finite_loss", "error")]
+    # a loss that turns NaN is what that config does (a finding the report shows), not a failure
+    # of the command; an error is
+    for name, ss in summaries.items():
+        for s in ss:
+            if s.status in ("non_finite_loss", "error"):
+                print(f"  {name} seed {s.seed} stopped ({s.status}): {s.message}", file=sys.stderr)
+    failed = [s for ss in summaries.values() for s in ss if s.status == "error"]
     missing = sorted({Path(j.out_dir).parent.name for j in every if not (Path(j.out_dir) / "summary.json").is_file()})
     if missing:
         print(f"no runs for grid point(s) {', '.join(missing)}: see the errors above", file=sys.stderr)
@@ -796,6 +876,7 @@ def check(args: argparse.Namespace) -> int:
         raise ConfigError(f"--alpha must lie in (0, 1), got {args.alpha}")
     seeds = parse_seeds(args.seeds) if args.seeds is not None else None
     options = RunOptions.from_args(args)
+    _check_writable_dir(args.out, "--out")  # bad input (exit 2), found before any training
     options.check_address()
     from keras_rl.check.command import CALIBRATION, run_check
 
@@ -821,6 +902,8 @@ def check(args: argparse.Namespace) -> int:
             f"{r.experiment}: {r.verdict} ({r.rule.statistic}, {r.decision.test}, p = {r.decision.p:.3g}, "
             f"{level}; baseline {len(r.baseline)} seeds, new {len(r.new)})"
         )
+        if r.config_changes:
+            print(f"  {r.experiment}: the faithful config differs from the baseline's: {'; '.join(r.config_changes)}")
     print(f"report: {args.out / 'check.md'}")
     return EXIT_CRITERION if any(r.decision.changed for r in results) else EXIT_OK
 
@@ -839,6 +922,7 @@ def bisect(args: argparse.Namespace) -> int:
         raise ConfigError(f"--alpha must lie in (0, 1), got {args.alpha}")
     if args.workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {args.workers}")
+    _check_writable_dir(args.out, "--out")  # exit 2, not one of the verdicts' exit codes
     from keras_rl.check.bisect import bisect as run_bisect
     from keras_rl.check.command import CALIBRATION
 

@@ -187,6 +187,15 @@ class ExperimentConfig:
             value = getattr(self, f.name)
             if typing.get_origin(hints[f.name]) is Literal and value not in typing.get_args(hints[f.name]):
                 raise ConfigError(f"{f.name} must be one of {', '.join(typing.get_args(hints[f.name]))}, got {value!r}")
+            if hints[f.name] in (int, float):  # every number, checked or not, is a finite number
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    raise ConfigError(f"{f.name} must be a number, got {value!r}")
+                if hints[f.name] is int and not isinstance(value, int):
+                    raise ConfigError(f"{f.name} must be a whole number, got {value!r}")
+                if not math.isfinite(value):
+                    raise ConfigError(f"{f.name} must be finite, got {value!r}")
+            if hints[f.name] is bool and not isinstance(value, bool):
+                raise ConfigError(f"{f.name} must be true or false, got {value!r}")
             kind = f.metadata.get("check")
             if kind is None:
                 continue
@@ -206,6 +215,10 @@ class ExperimentConfig:
                 raise ConfigError(f"{f.name} must be in (0, 1], got {value!r}")
             if kind == "fraction" and not 0 <= value < 1:
                 raise ConfigError(f"{f.name} must be in [0, 1), got {value!r}")
+        if self.variant not in self.VARIANTS:
+            raise ConfigError(
+                f"unknown variant {self.variant!r} for {self.experiment}; choose one of {', '.join(self.VARIANTS)}"
+            )
         if not 0 <= self.seed < 2**32:
             raise ConfigError(f"seed must be in [0, 2**32), got {self.seed}")
         if self.framework not in frameworks(self.experiment):
@@ -272,12 +285,17 @@ def _parse_value(name: str, hint: Any, text: str) -> Any:
         if hint is int:
             return int(text)
         if hint is float:
-            return float(text)
+            number = float(text)
+            if not math.isfinite(number):
+                raise ConfigError(f"{name} must be finite, got {text!r}")
+            return number
         if typing.get_origin(hint) is tuple:
             return tuple(int(part) for part in text.split(",") if part.strip())
         if typing.get_origin(hint) is Literal and text not in typing.get_args(hint):
             raise ConfigError(f"{name} must be one of {', '.join(typing.get_args(hint))}, got {text!r}")
         return text
+    except ConfigError:
+        raise
     except ValueError:
         kind = getattr(hint, "__name__", None) or (
             "comma-separated list of ints" if typing.get_origin(hint) is tuple else str(hint)

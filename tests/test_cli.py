@@ -94,7 +94,7 @@ def test_every_option_has_help_text():
 
 def test_parse_seeds():
     assert parse_seeds("0-3") == [0, 1, 2, 3]
-    assert parse_seeds("5,1,1,2-3") == [1, 2, 3, 5]
+    assert parse_seeds("5,1,2-3") == [1, 2, 3, 5]
     assert parse_seeds("13") == [13]
 
 
@@ -204,3 +204,13 @@ def test_seeds_that_leave_no_summary_fail_the_command_whatever_min_success_rate_
     argv = ["reproduce", "cartpole", "--seeds", "0-1", "--episodes", "2", "--min-success-rate", "0", "--no-progress"]
     assert main([*argv, "--out", str(tmp_path / "r")]) == 1
     assert "seeds 0, 1 left no summary.json" in capsys.readouterr().err
+
+
+def test_tensorflows_start_up_lines_are_quiet(tmp_path):
+    import subprocess
+    import sys
+
+    code = "import keras_rl, tensorflow as tf; print(tf.constant(2.0).numpy())"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert done.returncode == 0 and done.stdout.strip() == "2.0"
+    assert "absl::InitializeLog" not in done.stderr and "cuda drivers" not in done.stderr, done.stderr

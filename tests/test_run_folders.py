@@ -289,3 +289,12 @@ def test_a_second_command_writing_the_same_run_folder_is_refused(tmp_path):
     assert len(read_episodes(csv_path)) == 60
     again = run_cli(*argv[3:], "--episodes", "2", "--overwrite")
     assert again.returncode == 0, again.stderr  # the lock went with the first command
+
+
+def test_the_lock_files_go_when_the_block_ends(tmp_path):
+    from keras_rl.runs.files import run_folder_locks
+
+    runs = [tmp_path / "out" / f"seed_{s}" for s in range(3)]
+    with run_folder_locks(runs):
+        assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [f".seed_{s}.lock" for s in range(3)]
+    assert list((tmp_path / "out").iterdir()) == []

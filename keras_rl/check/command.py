@@ -71,6 +71,9 @@ class CheckResult:
     """Sequential checks: each look's fresh seeds and p, in order (the last one decided)."""
     design: dict[str, Any] | None = None
     """Sequential checks: the calibrated design and its measured false-alarm rate."""
+    config_changes: tuple[str, ...] = ()
+    """Fields of the code's faithful config that differ from the baseline's recorded one
+    (``field: was -> now``): a changed default, reported beside the verdict."""
 
     @property
     def verdict(self) -> str:
@@ -88,8 +91,8 @@ def baseline_values(
             f"no baseline at {folder} (expected seed_<n>/ folders); --against names the folder "
             "that holds <experiment>/baseline"
         )
-    faithful = experiment.config_cls.for_variant("faithful")
     values, rows_of = {}, {}
+    first = None
     for seed_dir in seed_dirs:
         summary = RunSummary.read(seed_dir)
         if summary.experiment != experiment.name:
@@ -98,17 +101,56 @@ def baseline_values(
                 f"--against names the folder that holds {experiment.name}/baseline"
             )
         made = experiment.config_cls.from_dict(json.loads((seed_dir / "config.json").read_text()))
-        differing = made.differs_from(faithful)
+        # The faithful variant as the code that made the baseline had it: a default changed since
+        # is what the check exists to see, so it is reported (config_changes), never refused.
+        if made.variant != "faithful":
+            raise RunFolderError(
+                f"{seed_dir} is a run of the {made.variant!r} variant; a baseline must be the faithful variant"
+            )
+        first = made if first is None else first
+        differing = made.differs_from(first)
         if differing:
             raise RunFolderError(
-                f"{seed_dir} is not a faithful run ({', '.join(differing[:3])} differ); "
-                "a baseline must be the faithful variant"
+                f"{seed_dir} was made with another config than {seed_dirs[0]} ({', '.join(differing[:3])} "
+                "differ); a baseline's runs share one config but for the seed"
             )
         if summary.status != "completed":
             raise RunFolderError(f"{seed_dir} did not finish ({summary.status}); a baseline needs finished runs")
         rows = read_episodes(seed_dir / "episodes.csv", expected_rows=summary.rows_expected)
         values[summary.seed], rows_of[summary.seed] = _statistic(experiment, rule, rows), rows
     return values, rows_of
+
+
+def baseline_config(experiment, folder: Path):
+    """The config the baseline's runs share (its first seed's ``config.json``)."""
+    seed_dir = min(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1]))
+    return experiment.config_cls.from_dict(json.loads((seed_dir / "config.json").read_text()))
+
+
+def config_changes(experiment, folder: Path) -> list[str]:
+    """``field: baseline's value -> the code's value`` for each field where the code's faithful
+    config now differs from the one the baseline recorded (a changed default shows here,
+    beside the verdict that says whether it changed the behaviour)."""
+    made = baseline_config(experiment, folder)
+    now = experiment.config_cls.for_variant("faithful", episodes=made.episodes)
+    was, wanted = made.to_dict(), now.to_dict()
+    return [f"{k}: {was.get(k)!r} -> {wanted.get(k)!r}" for k in made.differs_from(now)]
+
+
+def check_baseline_size(name: str, statistic: str, n_baseline: int, n_new: int, alpha: float) -> None:
+    """A ConfigError when no outcome of ``n_new`` fresh seeds could give p < alpha against a
+    baseline of ``n_baseline`` seeds (the most extreme one, computed by the rule's own test),
+    naming the smallest baseline that could."""
+    from keras_rl.check.statistics import smallest_p
+
+    if smallest_p(statistic, n_baseline, n_new) < alpha:
+        return
+    minimum = next((m for m in range(n_baseline + 1, 10_001) if smallest_p(statistic, m, n_new) < alpha), None)
+    raise ConfigError(
+        f"{name}: a baseline of {n_baseline} seed(s) cannot flag anything with {n_new} fresh seeds at "
+        f"alpha {alpha:.3g} (the smallest p the test can give is {smallest_p(statistic, n_baseline, n_new):.3g}); "
+        + (f"it needs at least {minimum} seeds" if minimum else "no baseline size is enough at this alpha")
+    )
 
 
 def _statistic(experiment, rule: CheckRule, rows: list[dict[str, Any]]) -> float:
@@ -209,6 +251,8 @@ def run_check(
             )
         if len(fresh) < 2:
             raise ConfigError(f"{name}: a check needs at least 2 fresh seeds, got {len(fresh)}")
+        level = designs[name][0].efficacy if sequential else rule.alpha
+        check_baseline_size(name, rule.statistic, len(baseline), len(fresh), level)
         config = experiment.config_cls.for_variant("faithful", episodes=rule.episodes).with_text_overrides(
             options.overrides
         )
@@ -281,6 +325,11 @@ def run_check(
             result, plot = done[experiment.name]
             results.append(result)
             plots.append(plot)
+    changes = {
+        experiment.name: tuple(config_changes(experiment, Path(against) / experiment.name / "baseline"))
+        for experiment, *_ in plan
+    }
+    results = [replace(r, config_changes=changes[r.experiment]) for r in results]
     for args in plots:
         _plot(*args)
     write_report(out, results, tier)
@@ -427,6 +476,14 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
             f"alpha / {family['posts']} against its whole baseline: {per_post}). The last two columns are the "
             "rule's own rates at alpha for one post (results/checks/calibration.md).",
         ]
+    for r in results:
+        if r.config_changes:
+            lines += [
+                "",
+                f"{r.experiment}: the code's faithful config differs from the baseline's recorded one: "
+                + "; ".join(f"`{c}`" for c in r.config_changes)
+                + f". The verdict ({r.verdict}) says whether the behaviour changed with it.",
+            ]
     if any(r.overrides for r in results):
         lines += ["", "New runs with: " + ", ".join(f"`--set {o}`" for o in results[0].overrides)]
     lines += [
@@ -457,6 +514,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
                 "error_rates": r.error_rates,
                 "looks": r.looks,
                 "design": r.design,
+                "config_changes": list(r.config_changes),
             }
             for r in results
         ],

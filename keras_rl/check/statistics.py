@@ -88,6 +88,14 @@ def decide(
     return Decision(p, p < alpha, "Mann-Whitney U (two-sided)", u)
 
 
+def smallest_p(statistic: str, n_baseline: int, n_new: int) -> float:
+    """The smallest p ``decide`` can give for these sample sizes: the most extreme outcome
+    (every fresh seed beyond every baseline seed, or the success rates 0 against 1)."""
+    if statistic == "success":
+        return decide(np.ones(n_baseline), np.zeros(n_new), statistic, 0.5).p
+    return decide(np.arange(n_baseline), np.arange(n_baseline, n_baseline + n_new), statistic, 0.5).p
+
+
 def false_alarm_rate(
     baseline: Sequence[float] | np.ndarray,
     n: int,

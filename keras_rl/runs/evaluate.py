@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from keras_rl.errors import ConfigError, RunFolderError
-from keras_rl.runs.files import atomic_write_bytes, atomic_write_json
+from keras_rl.runs.files import atomic_write_bytes, atomic_write_json, run_folder_locks
 from keras_rl.runs.signals import sigterm_as_interrupt
 
 
@@ -54,6 +54,30 @@ def evaluate_run(
     replaces a finished one: it goes to ``evaluation.interrupted.json``."""
     if episodes <= 0:
         raise ConfigError(f"--episodes must be positive, got {episodes}")
+    load_run_config(run_dir)  # a clear error for a folder that is not a run, before any lock file
+    with run_folder_locks([Path(run_dir)]):  # a command extending the run would change its weights
+        return _evaluate_held(Path(run_dir), episodes, gif, seed, progress, overwrite)
+
+
+def _stopped_before_weights(run_dir: Path) -> str | None:
+    """Why a run holds no weights, where its summary says: it stopped at a NaN loss."""
+    from keras_rl.runs.summary import RunSummary
+
+    try:
+        summary = RunSummary.read(run_dir)
+    except RunFolderError:
+        return None
+    if summary.status != "non_finite_loss":
+        return None
+    return (
+        f"{run_dir} stopped at a NaN loss ({summary.message or 'non-finite loss'}) before saving "
+        "weights: there is no policy to evaluate"
+    )
+
+
+def _evaluate_held(
+    run_dir: Path, episodes: int, gif: Path | None, seed: int | None, progress: bool, overwrite: bool
+) -> dict[str, Any]:
     from keras_rl.registry import build_agent
     from keras_rl.seeding import configure_tensorflow, seed_everything
 
@@ -65,11 +89,22 @@ def evaluate_run(
             f"{episodes} would replace it. Ask for {held} or more, or pass --overwrite"
         )
     configure_tensorflow(1)
+    if gif:  # off-screen frames: SDL needs no display, and says nothing about XDG_RUNTIME_DIR
+        import os
+
+        os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+        os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     seed = config.seed + 10_000 if seed is None else seed
     seed_everything(seed)
     env = experiment.make_env(config, render_mode="rgb_array" if gif else None)
     agent = build_agent(experiment, config, env)
-    agent.load_policy(run_dir)
+    try:
+        agent.load_policy(run_dir)
+    except RunFolderError:
+        why = _stopped_before_weights(run_dir)
+        if why is None:
+            raise
+        raise RunFolderError(why) from None
 
     scores, frames, interrupted = [], [], False
     try:

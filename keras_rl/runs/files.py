@@ -187,33 +187,46 @@ def run_folder_locks(run_dirs: Iterable[Path]):
     folder (beside it, so clearing the folder for ``--overwrite`` keeps the lock), held for
     the block. A folder another process holds raises a RunFolderError that names it and
     the holder's pid, before anything in any of the folders is touched. The lock goes with
-    the process, however it ends (``kill -9`` included)."""
+    the process, however it ends (``kill -9`` included); a block that ends removes its lock
+    files, so output folders do not keep them (a process that locked a file just removed
+    sees that the name now points elsewhere, and locks again)."""
     import fcntl
 
     from keras_rl.errors import RunFolderError
 
-    handles = []
+    handles: list[tuple[Path, Any]] = []
     try:
         for run_dir in run_dirs:
             run_dir = Path(run_dir)
             run_dir.parent.mkdir(parents=True, exist_ok=True)
-            handle = open(run_dir.parent / f".{run_dir.name}.lock", "a+")
-            try:
-                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                handle.seek(0)
-                holder = handle.read().strip() or "another process"
-                handle.close()
-                raise RunFolderError(
-                    f"{run_dir} is being written by another keras-rl command ({holder}); wait for "
-                    "it to end, or pass another --out"
-                ) from None
+            path = run_dir.parent / f".{run_dir.name}.lock"
+            while True:
+                handle = open(path, "a+")
+                try:
+                    fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    handle.seek(0)
+                    holder = handle.read().strip() or "another process"
+                    handle.close()
+                    raise RunFolderError(
+                        f"{run_dir} is being written by another keras-rl command ({holder}); wait for "
+                        "it to end, or pass another --out"
+                    ) from None
+                try:
+                    same = os.stat(path).st_ino == os.fstat(handle.fileno()).st_ino
+                except FileNotFoundError:
+                    same = False
+                if same:
+                    break
+                handle.close()  # its holder removed the file as we opened it: lock the new one
             handle.seek(0)
             handle.truncate()
             handle.write(f"pid {os.getpid()}")
             handle.flush()
-            handles.append(handle)
+            handles.append((path, handle))
         yield
     finally:
-        for handle in handles:
+        for path, handle in handles:
+            with contextlib.suppress(OSError):
+                path.unlink()  # while still held, so no other process holds this file
             handle.close()  # releases the lock

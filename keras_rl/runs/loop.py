@@ -42,6 +42,7 @@ from __future__ import annotations
 import datetime
 import json
 import math
+import sys
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -597,6 +598,11 @@ class _Seed:
             state["saved"],
         )
         _load_env_state(self.env, state["env"])
+        print(
+            f"seed {self.config.seed}: resumed in {self.recorder.out_dir} after episode {len(self.recorder.rows)} "
+            f"(its checkpoint; {int(state['total_steps'])} steps)",
+            file=sys.stderr,
+        )
         budget, stopped_early = int(theirs["episodes"]), run.reached_at is not None and self.config.stop_at_threshold
         if self.status == "completed" and len(self.recorder.rows) == budget < wanted["episodes"] and not stopped_early:
             # it played its whole budget; the larger one continues it from the state it ended in

@@ -37,6 +37,8 @@ class RunOptions:
     overrides: tuple[str, ...] = ()
     """``FIELD=VALUE`` texts from ``--set``, parsed by ``config.parse_assignments``."""
     progress: bool = True
+    address_source: str = "--address"
+    """Where ``address`` came from, for messages: ``--address`` or ``$RAY_ADDRESS``."""
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> RunOptions:
@@ -57,9 +59,10 @@ class RunOptions:
                 file=sys.stderr,
             )
             workers = cores
-        address = None
+        address, source = None, "--address"
         if hasattr(args, "address"):
             address = args.address or os.environ.get("RAY_ADDRESS") or None
+            source = "--address" if args.address else "$RAY_ADDRESS"
         return cls(
             workers=workers,
             address=address,
@@ -67,6 +70,7 @@ class RunOptions:
             episodes=episodes,
             overrides=tuple(getattr(args, "overrides", ())),
             progress=not getattr(args, "no_progress", False),
+            address_source=source,
         )
 
     def check_address(self) -> None:
@@ -75,7 +79,7 @@ class RunOptions:
         if self.address:
             from keras_rl.runs.ray_backend import check_reachable
 
-            check_reachable(self.address)
+            check_reachable(self.address, source=self.address_source)
 
     def config_changes(self) -> dict[str, int]:
         """The config fields these options set (``episodes``), for ``for_variant``."""

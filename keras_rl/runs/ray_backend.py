@@ -116,20 +116,22 @@ class _StopFlag:
         return self.value
 
 
-def check_reachable(address: str, timeout: float = 5.0) -> None:
+def check_reachable(address: str, timeout: float = 5.0, source: str = "--address") -> None:
     """A ConfigError within ``timeout`` seconds if nothing listens at ``HOST:PORT``, instead of
-    Ray's own long retries."""
+    Ray's own long retries. ``source`` names where the address came from (``--address`` or
+    ``$RAY_ADDRESS``), as the message says."""
     if address in ("auto", "local") or address.startswith("ray://"):
         return
     host, _, port = address.rpartition(":")
     if not host or not port.isdigit():
-        raise ConfigError(f"--address {address!r} is not HOST:PORT (for example 127.0.0.1:6379)")
+        raise ConfigError(f"{source} {address!r} is not HOST:PORT (for example 127.0.0.1:6379)")
     try:
         with socket.create_connection((host, int(port)), timeout=timeout):
             pass
     except OSError as exc:
         raise ConfigError(
-            f"no Ray cluster answers at {address} ({exc}); start one with `ray start --head` or check the address"
+            f"no Ray cluster answers at {address} (from {source}; {exc}); start one with `ray start --head` "
+            "or check the address"
         ) from None
 
 

@@ -35,6 +35,12 @@ def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
             )
         return "missing"
     summary = RunSummary.read(seed_dir)
+    made_by = made_by_experiment(seed_dir)
+    if made_by is not None and made_by != expected.experiment:
+        raise RunFolderError(
+            f"{seed_dir} holds a run made by {made_by}, not {expected.experiment}; "
+            "pass --out (or --runs) for another folder"
+        )
     try:
         made_config = type(expected).from_dict(json.loads((seed_dir / "config.json").read_text()))
     except (OSError, ValueError) as exc:
@@ -58,6 +64,16 @@ def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
     if joins_its_stopped_batch(seed_dir):
         return JOINS_BATCH
     return None
+
+
+def made_by_experiment(seed_dir: Path) -> str | None:
+    """The experiment whose run a seed folder holds (its config.json says), or None where it
+    cannot say."""
+    try:
+        values = json.loads((seed_dir / "config.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return values.get("experiment") if isinstance(values, dict) else None
 
 
 JOINS_BATCH = "finished inside a batch that was stopped (it resumes with its batch)"
