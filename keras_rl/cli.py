@@ -405,12 +405,17 @@ def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool, episodes:
         else:
             modes.append("overwrite" if held is not None else "new")
     if occupied:
+        committed = any("results" in Path(d).parts for d in seed_dirs)
         raise ConfigError(
             "these seed folders already hold a run and are left untouched: "
             + "; ".join(occupied[:5])
             + (f" and {len(occupied) - 5} more" if len(occupied) > 5 else "")
-            + ". Pass --overwrite to replace them, --resume to continue unfinished ones, "
-            "or --out for another folder"
+            + (
+                ". They are results: pass --out for a folder of your own (for example --out runs/mine)"
+                if committed
+                else ". Pass --overwrite to replace them, --resume to continue unfinished ones, "
+                "or --out for another folder"
+            )
         )
     return modes
 

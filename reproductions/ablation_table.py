@@ -42,7 +42,7 @@ FIDELITY = ROOT / "reproductions" / "FIDELITY.md"
 SWEEP = "keras-rl sweep {exp} --ablate --seeds 0-9 --workers 2{batch} --no-progress --out results/{exp}/ablations"
 MORE = (
     "`keras-rl sweep {exp} --ablate --seeds 10-29 --seed-batch auto --workers 2 --no-progress --out DIR` "
-    "(seeds 10-29, issue #20: run into a fresh folder at 662a149, its seed folders merged in)"
+    "(seeds 10-29, run into a fresh folder at 662a149, its seed folders merged in)"
 )
 SOURCES = {
     # post 000's first ablations predate `sweep`: one `reproduce --set SWITCH=false` folder each,

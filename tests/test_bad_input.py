@@ -244,3 +244,31 @@ def test_a_bad_ray_address_from_the_environment_is_named_as_such(capsys, tmp_pat
         ["reproduce", "pendulum", "--dry-run", "--out", str(tmp_path / "o")], capsys, "$RAY_ADDRESS 'garbage'"
     )
     assert "--address" not in err.split("is not HOST:PORT")[0]
+
+
+# -- 9. a sweep point whose loss turns NaN is a result, named, not a failed command ------------------
+def test_a_sweep_names_each_nan_stop_and_does_not_fail_on_it(capsys, tmp_path, monkeypatch):
+    import keras_rl.runs.jobs as jobs
+
+    template = ROOT / "results" / "mountaincar" / "faithful" / "seed_0"
+
+    def fake_run_jobs(todo, backend, progress=True, after_job=None):
+        for job in todo:
+            job.out_dir.mkdir(parents=True, exist_ok=True)
+            (job.out_dir / "config.json").write_text(json.dumps(job.config))
+            summary = json.loads((template / "summary.json").read_text())
+            if job.config["learning_phase_training"]:
+                summary.update(status="non_finite_loss", success=False, message="loss is nan at update 1")
+            summary["seed"] = job.config["seed"]
+            (job.out_dir / "summary.json").write_text(json.dumps(summary))
+            shutil.copy(template / "episodes.csv", job.out_dir / "episodes.csv")
+        return jobs.JobsOutcome()
+
+    monkeypatch.setattr(jobs, "run_jobs", fake_run_jobs)
+    code = main(
+        ["sweep", "mountaincar", "--grid", "learning_phase_training=false,true", "--seeds", "0", "--no-progress"]
+        + ["--out", str(tmp_path / "sweep")]
+    )
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "learning_phase_training=true seed 0 stopped (non_finite_loss): loss is nan at update 1" in err

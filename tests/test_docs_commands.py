@@ -24,6 +24,14 @@ def shown_commands() -> list[tuple[str, list[str]]]:
     """(page, argv) for each `keras-rl ...` line of a fenced block in the README or the docs."""
     commands = []
     for page in PAGES:
+        # a `keras-rl reproduce ...` written inline in the text is an example a reader runs too
+        for inline in re.findall(r"(?<!`)`(keras-rl reproduce [^`]+)`", page.read_text()):
+            # not a syntax line, nor the record of how a committed set was made (no --out, or one
+            # under results/: its folder holds that set)
+            inline = " ".join(inline.split())  # a span may wrap over lines
+            record = "--out" not in inline or "--out results/" in inline
+            if not record and not any(mark in inline for mark in ("<", "...", "…")):
+                commands.append((page.name, shlex.split(inline)[1:]))
         for block in re.findall(r"```[a-z]*\n(.*?)```", page.read_text(), re.S):
             for line in block.splitlines():
                 for part in line.split(" && "):
@@ -78,3 +86,45 @@ def test_contributing_lists_every_test_module_once():
     listed = re.findall(r"`(test_\w+\.py)`", text)
     modules = sorted(p.name for p in (ROOT / "tests").glob("test_*.py"))
     assert sorted(listed) == modules, (set(modules) - set(listed), set(listed) - set(modules))
+
+
+def test_users_pages_speak_of_the_project_not_of_its_issue_tracker():
+    """A user's page cites no internal issue number ("issue #20", "before #18"); upstream
+    issues and pull requests are named with their repository (pytorch/tutorials #3080)."""
+    pages = [ROOT / "README.md", ROOT / "results" / "README.md", ROOT / "reproductions" / "FIDELITY.md"]
+    pages += sorted((ROOT / "docs").glob("*.md"))
+    found = []
+    for page in pages:
+        text = page.read_text()
+        for match in re.finditer(r"#\d+\b", text):
+            before = text[max(0, match.start() - 40) : match.start()]
+            if "tutorials" in before or "PR" in before[-6:]:
+                continue
+            found.append(f"{page.relative_to(ROOT)}: ...{before[-30:]}{match.group()}")
+    assert found == [], found
+
+
+def test_the_readmes_commands_chain():
+    """What ``reproduce --out`` writes is what ``compare --runs`` and ``evaluate`` then read: the
+    README's compare reuses its reproduce folder (run_folder's layout) instead of retraining."""
+    from keras_rl.runs.files import run_folder
+
+    readme = [argv for page, argv in shown_commands() if page == "README.md"]
+    made = {Path(a[a.index("--out") + 1]) for a in readme if a[0] == "reproduce" and "--out" in a}
+    compares = [a for a in readme if a[0] == "compare"]
+    assert compares
+    for argv in compares:
+        runs = Path(argv[argv.index("--runs") + 1])
+        assert run_folder(runs, argv[1], "faithful", "keras") in made, (argv, made)
+    for argv in (a for a in readme if a[0] == "evaluate"):
+        assert Path(argv[1]).parent in made, argv
+
+
+def test_no_message_advises_overwriting_committed_results(capsys):
+    """A command aimed at a committed results/ folder is told to use its own --out, not
+    --overwrite, which would replace committed results."""
+    seed = ROOT / "results" / "pendulum" / "faithful" / "seed_0"
+    assert seed.is_dir()
+    assert main(["reproduce", "pendulum", "--seeds", "0", "--dry-run", "--out", str(seed.parent)]) == 2
+    err = capsys.readouterr().err
+    assert "--overwrite" not in err and "pass --out for a folder of your own" in err

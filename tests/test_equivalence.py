@@ -58,3 +58,12 @@ def test_the_margins_are_the_ones_docs_findings_states_were_set_before_the_runs(
     text = (Path(__file__).resolve().parents[1] / "docs" / "findings.md").read_text().lower()
     assert (SUCCESS_RATE_MARGIN, MEDIAN_RATIO_MARGIN) == (0.15, 0.10)
     assert "success rates within ±0.15" in text and "within ±10%" in text and "2026-11-23" in text
+
+
+def test_a_ratio_with_no_median_says_why_without_printing_nan():
+    from keras_rl.report.equivalence import median_ratio_equivalence
+
+    judged = median_ratio_equivalence([None, None, 5], [3, 4, 5], budget=10)
+    assert judged.reading == "inconclusive"
+    sentence = judged.sentence()
+    assert "nan" not in sentence and "no median to compare" in sentence

@@ -71,3 +71,47 @@ def test_a_curve_that_cannot_be_drawn_is_a_warning_not_an_error(tmp_path, monkey
     plots.draw_job_curves(job)
     err = capsys.readouterr().err
     assert "warning: could not draw" in err and "ValueError: Axis limits" in err and "seed_4" in err
+
+
+def test_quantiles_per_episode_leave_out_what_no_seed_played():
+    import numpy as np
+
+    runs = [rows(4), rows(2)]
+    episodes, (q50,) = plots.metric_quantiles(runs, (50,))
+    assert list(episodes) == [1, 2, 3, 4]
+    assert q50[0] == -992.0 and q50[3] == -968.0  # episode 4: only the longer run
+    cut, (q,) = plots.metric_quantiles(runs, (50,), episodes=2)
+    assert list(cut) == [1, 2] and np.allclose(q, [-992.0, -984.0])
+    assert len(plots.metric_quantiles([], (50,))[0]) == 0
+
+
+def test_a_sweep_with_no_data_says_so_instead_of_an_empty_frame(drawn, tmp_path):
+    plots.plot_sweep(tmp_path / "sweep.png", {"tau=0.001": [], "tau=0.01": []}, -300, "EMA", "t")
+    texts = [t.get_text() for t in drawn[0].axes[0].texts]
+    assert texts == ["no grid point has an episode yet"]
+
+
+def test_the_check_figure_draws_the_baseline_as_a_band_and_each_fresh_seed(monkeypatch, tmp_path):
+    from keras_rl.check import command
+    from keras_rl.check.rules import rule_for
+    from keras_rl.check.statistics import Decision
+    from keras_rl.registry import get_experiment
+
+    figures = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, path: figures.append(fig))
+    baseline = {s: rows(60) for s in range(100)}
+    new = {s: rows(50) for s in range(100, 110)}
+    result = command.CheckResult(
+        "pendulum",
+        rule_for("pendulum", "smoke"),
+        {s: 50.0 for s in baseline},
+        {s: 50.0 for s in new},
+        Decision(0.5, False, "Mann-Whitney U (two-sided)", 1.0),
+        [],
+        None,
+    )
+    command._plot(tmp_path / "check.png", get_experiment("pendulum"), result, baseline, new)
+    curves = figures[0].axes[0]
+    drawn_lines = [line for line in curves.get_lines() if len(line.get_xdata())]
+    assert len(drawn_lines) <= len(new) + 2  # the fresh seeds, the baseline's median, the threshold
+    assert len(curves.collections) >= 2  # the baseline's bands

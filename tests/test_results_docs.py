@@ -1,5 +1,7 @@
 """results/README.md's generated tables match the committed run folders and reports."""
 
+import re
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -167,3 +169,15 @@ def test_a_seeds_batch_comes_from_its_summary_or_else_its_command():
     tutorial = {"seed": 5, "experiment": "cartpole", "framework": "torch", "command": command}
     assert gen.batch_of(tutorial) == [5]  # the tutorial's own code never batches
     assert gen.batch_of({"seed": 5, "experiment": "pendulum", "command": "keras-rl reproduce pendulum"}) == [5]
+
+
+def test_no_picture_is_committed_inside_a_seed_folder():
+    """Per-seed curve.png files were 146 MB of results/ that `keras-rl aggregate` redraws from
+    episodes.csv: results/ commits the aggregate figures only (.gitignore keeps the rest out)."""
+    tracked = subprocess.run(
+        ["git", "ls-files", "results"], cwd=ROOT, capture_output=True, text=True, check=True
+    ).stdout.splitlines()
+    if not tracked:
+        pytest.skip("not a git checkout")
+    pictures = [p for p in tracked if re.search(r"/seed_\d+/", p) and p.lower().endswith((".png", ".gif", ".jpg"))]
+    assert pictures == [], pictures[:5]

@@ -541,11 +541,17 @@ def _plot(path: Path, experiment, result: CheckResult, baseline_rows: dict, new_
 
     episodes = result.rule.episodes
     fig, (curves, dist) = plt.subplots(1, 2, figsize=(10, 4), gridspec_kw={"width_ratios": [2, 1]})
-    for label, runs, color in (("baseline", baseline_rows, "tab:blue"), ("new", new_rows, "tab:orange")):
-        for rows in runs.values():
-            metric = [r["metric"] for r in rows[:episodes]]
-            curves.plot(range(1, len(metric) + 1), metric, color=color, alpha=0.25, lw=0.8)
-        curves.plot([], [], color=color, label=f"{label} ({len(runs)} seeds)")
+    from keras_rl.report.plots import metric_quantiles
+
+    # the baseline as a band (its 100 curves would hide the fresh seeds), the fresh seeds one by one
+    x, (q05, q25, q50, q75, q95) = metric_quantiles(list(baseline_rows.values()), (5, 25, 50, 75, 95), episodes)
+    curves.fill_between(x, q05, q95, color="tab:blue", alpha=0.12, lw=0, label="baseline 5-95%")
+    curves.fill_between(x, q25, q75, color="tab:blue", alpha=0.3, lw=0, label="baseline IQR")
+    curves.plot(x, q50, color="tab:blue", lw=1.4, label=f"baseline median ({len(baseline_rows)} seeds)")
+    for rows in new_rows.values():
+        metric = [r["metric"] for r in rows[:episodes]]
+        curves.plot(range(1, len(metric) + 1), metric, color="tab:orange", alpha=0.7, lw=0.9)
+    curves.plot([], [], color="tab:orange", label=f"new ({len(new_rows)} seeds, one line each)")
     config = experiment.config_cls.for_variant("faithful")
     curves.axhline(config.threshold, color="k", ls="--", lw=0.8, label="threshold")
     curves.set_xlabel("episode")

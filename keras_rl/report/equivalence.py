@@ -54,6 +54,8 @@ class Equivalence:
         """The reading with its numbers, as a report states it."""
         n = f"{self.n[0]} and {self.n[1]} seeds" if self.n[0] != self.n[1] else f"{self.n[0]} seeds each"
         said = "inconclusive at " + n if self.reading == "inconclusive" else self.reading
+        if not np.isfinite(self.estimate):  # nothing to estimate: say why, not "nan; nan to nan"
+            return f"{self.quantity}: **{said}** (no estimate; {n})" + (f". {self.note}" if self.note else "")
         return (
             f"{self.quantity}: **{said}** ({self.estimate:.3g}; 90% interval {self.tost.low:.3g} to "
             f"{self.tost.high:.3g}, 95% {self.test.low:.3g} to {self.test.high:.3g}; margin "

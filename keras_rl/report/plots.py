@@ -134,29 +134,42 @@ def plot_seed_curve(run_dir: Path, experiment, config, x_axis: str = "episode") 
         )
 
 
+def metric_quantiles(runs: list[list[dict[str, Any]]], qs: tuple[float, ...], episodes: int | None = None):
+    """Per episode, the given percentiles of the runs' finite metrics: (episode numbers, one
+    array per percentile). Episodes no run played (after every seed stopped) are left out, and
+    a run that stopped early leaves the later episodes' quantiles to the others."""
+    import numpy as np
+
+    length = max((len(rows) for rows in runs), default=0)
+    length = length if episodes is None else min(length, episodes)
+    if not length:
+        return np.zeros(0, int), [np.zeros(0) for _ in qs]
+    grid = np.full((len(runs), length), np.nan)
+    for i, rows in enumerate(runs):
+        for j, r in enumerate(rows[:length]):
+            if r["metric"] is not None and math.isfinite(r["metric"]):
+                grid[i, j] = r["metric"]
+    played = ~np.all(np.isnan(grid), axis=0)
+    return np.arange(1, length + 1)[played], [np.nanpercentile(grid[:, played], q, axis=0) for q in qs]
+
+
 def plot_sweep(
     path: Path, curves: dict[str, list[list[dict[str, Any]]]], threshold: float, metric_label: str, title: str
 ) -> None:
     """One figure for a sweep: per grid point, the median of its seeds' metric per episode
     with the interquartile band (episodes a seed did not play, after it stopped, are left
     out of that episode's quantiles)."""
-    import numpy as np
-
     fig, ax = plt.subplots(figsize=(8, 4.5))
+    drawn = 0
     for name, runs in curves.items():
-        length = max((len(rows) for rows in runs), default=0)
-        if not length:
+        episodes, (q25, q50, q75) = metric_quantiles(runs, (25, 50, 75))
+        if not len(episodes):
             continue
-        grid = np.full((len(runs), length), np.nan)
-        for i, rows in enumerate(runs):
-            for j, r in enumerate(rows):
-                if r["metric"] is not None and math.isfinite(r["metric"]):
-                    grid[i, j] = r["metric"]
-        played = ~np.all(np.isnan(grid), axis=0)
-        episodes = np.arange(1, length + 1)[played]
-        q25, q50, q75 = (np.nanpercentile(grid[:, played], q, axis=0) for q in (25, 50, 75))
         (line,) = ax.plot(episodes, q50, lw=1.4, label=f"{name} (median of {len(runs)} seeds)")
         ax.fill_between(episodes, q25, q75, color=line.get_color(), alpha=0.2, lw=0)
+        drawn += 1
+    if not drawn:  # say so, rather than draw an empty frame
+        ax.text(0.5, 0.5, "no grid point has an episode yet", ha="center", va="center", transform=ax.transAxes)
     ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("episode")

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import os
 import platform
 import subprocess
 import sys
@@ -101,4 +100,4 @@ def command_line() -> str:
 
 def provenance() -> dict[str, object]:
     """The machine and code version a run was made with (``summary.json``'s ``provenance``)."""
-    return {"cpu_model": cpu_model(), **git_state(), "cwd": os.getcwd()}
+    return {"cpu_model": cpu_model(), **git_state()}  # no working folder: it tells a reader nothing and leaks a path
