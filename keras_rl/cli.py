@@ -930,22 +930,24 @@ def bisect(args: argparse.Namespace) -> int:
     _check_writable_dir(args.out, "--out")  # exit 2, not one of the verdicts' exit codes
     from keras_rl.check.bisect import bisect as run_bisect
     from keras_rl.check.command import CALIBRATION
+    from keras_rl.runs.signals import sigterm_as_interrupt
 
     against = (args.against if args.against is not None else CALIBRATION.parent).resolve()
     try:
-        result = run_bisect(
-            args.repo.resolve(),
-            args.good,
-            args.bad,
-            names,
-            args.tier,
-            against,
-            args.out.resolve(),
-            args.alpha,
-            ["--workers", str(args.workers), "--no-progress"],
-            log=lambda line: print(line, file=sys.stderr),
-            sequential=not args.fixed_n,
-        )
+        with sigterm_as_interrupt():  # SIGTERM unwinds like Ctrl-C, so the temporary worktree goes
+            result = run_bisect(
+                args.repo.resolve(),
+                args.good,
+                args.bad,
+                names,
+                args.tier,
+                against,
+                args.out.resolve(),
+                args.alpha,
+                ["--workers", str(args.workers), "--no-progress"],
+                log=lambda line: print(line, file=sys.stderr),
+                sequential=not args.fixed_n,
+            )
     except KeyboardInterrupt:
         print("interrupted: no verdict", file=sys.stderr)
         return _stopped()

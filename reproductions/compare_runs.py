@@ -7,7 +7,9 @@ Each argument is a folder of ``seed_<n>/summary.json`` written by ``keras-rl rep
 The first is the baseline. For each folder it prints, as a Markdown table: the seeds and the
 success rate with a two-sided Fisher exact p-value against the baseline's; episodes-to-threshold
 (median and IQR over successful seeds, and their range) with a two-sided Mann-Whitney U
-p-value against the baseline's; and the final metric (median) with its Mann-Whitney p-value
+p-value against the baseline's over every seed, a seed that never reached the threshold counting
+as the budget + 1 (``report/stats.censored_mann_whitney``, as ``compare`` and ``check`` treat it);
+and the final metric (median) with its Mann-Whitney p-value
 (SciPy). ``findings_table.py`` puts the same table into ``results/README.md``'s per-post
 sections (``runs_table``).
 """
@@ -24,7 +26,8 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 from scipy.stats import fisher_exact, mannwhitneyu  # noqa: E402
 
-from keras_rl.report.stats import episodes_to_threshold_stats  # noqa: E402
+from keras_rl.report.equivalence import episodes_with_censoring  # noqa: E402
+from keras_rl.report.stats import censored_mann_whitney, episodes_to_threshold_stats  # noqa: E402
 
 
 def load(folder: Path) -> list[dict]:
@@ -65,7 +68,16 @@ def runs_table(folders: list[Path]) -> str:
         hits = [s["reached_at_episode"] for s in summaries if s["success"] and s["reached_at_episode"]]
         final = [s["final_metric"] for s in summaries]
         first = i == 0
-        p_hits = "-" if first or not hits or not base_hits else p_text(mannwhitneyu(hits, base_hits).pvalue)
+        budget = max(int(x["budget_episodes"]) for x in [*summaries, *base])
+        p_hits = (
+            "-"
+            if first or not hits or not base_hits
+            else p_text(
+                censored_mann_whitney(
+                    episodes_with_censoring(hits, len(summaries)), episodes_with_censoring(base_hits, len(base)), budget
+                )[1]
+            )
+        )
         table = [[st["successes"], st["seeds"] - st["successes"]], [base_ok, len(base) - base_ok]]
         p_ok = "-" if first else p_text(fisher_exact(table).pvalue)
         p_final = "-" if first else p_text(mannwhitneyu(final, base_final).pvalue)

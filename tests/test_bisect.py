@@ -24,6 +24,9 @@ names = [a for a in args[1:args.index("--tier")]]
 state = Path("learner.txt").read_text().strip()
 if state == "crash":
     sys.exit(3)
+if state == "sleep":  # a check that takes long: bisect is stopped while it runs
+    import time
+    time.sleep(120)
 p = {"broken": 1e-6, "slightly": 0.006, "moderately": 0.001}.get(state, 0.5)
 out.mkdir(parents=True, exist_ok=True)
 # the real check's levels: --sequential --alpha splits alpha over the posts and 6 looks; else 0.01
@@ -160,3 +163,38 @@ def test_the_bisect_levels_page_says_when_a_rate_is_over_its_share():
     assert "the bound holds" in module.render([fine])
     text = module.render([fine, over])
     assert "Above its share beyond its interval: cartpole at 0.0025" in text and "bound holds" not in text
+
+
+@pytest.mark.slow
+def test_sigterm_during_a_step_exits_143_and_removes_the_temporary_worktree(tmp_path, baseline):
+    import signal
+    import time
+
+    from clitools import CLI, default_signals
+
+    shas = make_repo(tmp_path / "repo", ["ok", "sleep"])
+    repo = tmp_path / "repo"
+
+    def worktrees() -> list[str]:
+        listed = subprocess.run(["git", "worktree", "list", "--porcelain"], cwd=repo, capture_output=True, text=True)
+        return [line.split(" ", 1)[1] for line in listed.stdout.splitlines() if line.startswith("worktree ")]
+
+    argv = ["bisect", shas[0], shas[1], "pendulum", "--repo", str(repo), "--against", str(baseline)]
+    proc = subprocess.Popen(
+        [*CLI, *argv, "--out", str(tmp_path / "out")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=default_signals,
+    )
+    deadline = time.monotonic() + 120
+    while len(worktrees()) < 2 and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.1)
+    added = [w for w in worktrees() if Path(w) != repo.resolve()]
+    assert len(added) == 1, worktrees()
+    time.sleep(1.0)  # the step's check is running
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err
+    assert worktrees() == [str(repo.resolve())]
+    assert not Path(added[0]).exists()

@@ -67,3 +67,27 @@ def test_a_ratio_with_no_median_says_why_without_printing_nan():
     assert judged.reading == "inconclusive"
     sentence = judged.sentence()
     assert "nan" not in sentence and "no median to compare" in sentence
+
+
+def test_mann_whitney_counts_the_seeds_that_never_reached_the_threshold_as_the_median_does():
+    """One treatment of censoring everywhere: a seed that never reached the threshold is
+    budget + 1 in the test as in the median ratio (it was dropped from the test before,
+    so CartPole's Keras-against-PyTorch p read 0.35 on the successes alone)."""
+    import json
+
+    from scipy.stats import mannwhitneyu
+
+    from keras_rl.report.stats import censored_mann_whitney
+
+    by_hand = mannwhitneyu([3, 11], [4, 5], alternative="two-sided")
+    assert censored_mann_whitney([3, None], [4, 5], budget=10) == pytest.approx((by_hand.statistic, by_hand.pvalue))
+    assert censored_mann_whitney([None, None], [None], budget=10)[1] == 1.0
+    root = Path(__file__).resolve().parent.parent
+    committed = json.loads((root / "results" / "compare" / "cartpole" / "result.json").read_text())
+    k, t = (committed["frameworks"][fw] for fw in ("keras", "torch"))
+    with_censored = censored_mann_whitney(
+        k["episodes_to_threshold"] + [None] * (30 - k["successes"]),
+        t["episodes_to_threshold"] + [None] * (30 - t["successes"]),
+        budget=600,
+    )
+    assert committed["mann_whitney"][1] == pytest.approx(with_censored[1]) == pytest.approx(0.6275, abs=1e-3)

@@ -15,9 +15,15 @@ from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import compared_frameworks, frameworks
 from keras_rl.registry import get_experiment
-from keras_rl.report.equivalence import framework_verdict
+from keras_rl.report.equivalence import episodes_with_censoring, framework_verdict
 from keras_rl.report.plots import plt, save_figure
-from keras_rl.report.stats import episodes_to_threshold_stats, fisher_exact, iqm_ci, mann_whitney, median_difference_ci
+from keras_rl.report.stats import (
+    censored_mann_whitney,
+    episodes_to_threshold_stats,
+    fisher_exact,
+    iqm_ci,
+    median_difference_ci,
+)
 from keras_rl.runs.files import atomic_write_json, atomic_write_text, finite_or_none, read_episodes, run_folder
 from keras_rl.runs.summary import RunSummary
 
@@ -61,7 +67,10 @@ def analyse(runs: dict[str, list[dict[str, Any]]], budget: int) -> dict[str, Any
         }
     a, b = (out["frameworks"][fw]["episodes_to_threshold"] for fw in FRAMEWORKS)
     out["median_difference"] = median_difference_ci(a, b, np.random.default_rng(0)) if a and b else None
-    out["mann_whitney"] = mann_whitney(a, b)
+    seeds = [len(out["frameworks"][fw]["seeds"]) for fw in FRAMEWORKS]
+    out["mann_whitney"] = censored_mann_whitney(
+        episodes_with_censoring(a, seeds[0]), episodes_with_censoring(b, seeds[1]), budget
+    )
     k, t = out["frameworks"]["keras"], out["frameworks"]["torch"]
     out["fisher_p"] = fisher_exact(k["successes"], len(k["seeds"]), t["successes"], len(t["seeds"]))
     out["budget"] = budget
@@ -101,6 +110,15 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
+def _code_versions(runs: dict[str, list[dict[str, Any]]]) -> dict[str, list[str]]:
+    from keras_rl.runs.provenance import code_version_of
+
+    return {
+        fw: sorted({code_version_of(r["summary"].provenance, r["summary"].versions.get("keras_rl"))[:12] for r in rs})
+        for fw, rs in runs.items()
+    }
+
+
 def write_report(
     out_dir: Path,
     experiment: Experiment,
@@ -128,6 +146,10 @@ def write_report(
         f"Seeds: {', '.join(str(r['seed']) for r in runs['keras'])}. "
         f"Success: {runs['keras'][0]['summary'].criterion}. Command: `{command}`",
         "",
+        "Made by code version: "
+        + "; ".join(f"{fw} {', '.join(versions)}" for fw, versions in _code_versions(runs).items())
+        + " (the package's tree hash at the commit each run recorded).",
+        "",
         "| framework | success | episodes to threshold: median | IQR | final metric IQM [95% CI] "
         "| wall s per seed (median) | ms/step (median) |",
         "|---|---|---|---|---|---|---|",
@@ -144,7 +166,9 @@ def write_report(
         f"- Success rates, keras vs torch: Fisher exact test (two-sided) p = {fmt(result['fisher_p'])}.",
         f"- Median episodes-to-threshold, keras minus torch: {result['median_difference'] or 'n/a'} "
         "(percentile bootstrap, 10000 resamples, 95%).",
-        f"- Mann-Whitney U (keras vs torch episodes-to-threshold, two-sided): U = {fmt(u)}, p = {fmt(p)}.",
+        f"- Mann-Whitney U (keras vs torch episodes-to-threshold over every seed, two-sided; a seed that never "
+        f"reached the threshold counts as {result['budget'] + 1}, the budget + 1, as in the median ratio): "
+        f"U = {fmt(u)}, p = {fmt(p)}.",
         "- Final metric IQM: interquartile mean over seeds with a stratified-bootstrap 95% CI (rliable's method; "
         "one task, so the strata are the one task).",
         "- Wall time and ms/step come from each run's summary, as the runs ran"

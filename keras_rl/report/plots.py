@@ -162,12 +162,13 @@ def plot_sweep(
     fig, ax = plt.subplots(figsize=(8, 4.5))
     drawn = 0
     for name, runs in curves.items():
-        episodes, (q25, q50, q75) = metric_quantiles(runs, (25, 50, 75))
-        if not len(episodes):
+        if not any(runs):
             continue
+        episodes, (q25, q50, q75) = metric_quantiles(runs, (25, 50, 75))
+        # a point whose every metric is NaN keeps its legend entry, with nothing drawn
         (line,) = ax.plot(episodes, q50, lw=1.4, label=f"{name} (median of {len(runs)} seeds)")
         ax.fill_between(episodes, q25, q75, color=line.get_color(), alpha=0.2, lw=0)
-        drawn += 1
+        drawn += bool(len(episodes))
     if not drawn:  # say so, rather than draw an empty frame
         ax.text(0.5, 0.5, "no grid point has an episode yet", ha="center", va="center", transform=ax.transAxes)
     ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")

@@ -81,6 +81,18 @@ def mann_whitney(a, b) -> tuple[float, float]:
     return float(res.statistic), float(res.pvalue)
 
 
+def censored_mann_whitney(a, b, budget: int) -> tuple[float, float]:
+    """``mann_whitney`` over every seed: a seed that never reached the threshold (None) counts
+    as ``budget + 1``, tied with the others that never did and ranked after every seed that
+    did. With all censoring at one time this is Gehan's test, the treatment ``check`` uses and
+    the one the median ratio's ``budget + 1`` matches; dropping those seeds instead would test
+    the successes only."""
+    x, y = ([budget + 1 if v is None else v for v in arm] for arm in (a, b))
+    if len(x) and len(y) and len(set(x) | set(y)) == 1:
+        return float("nan"), 1.0  # every seed tied: nothing tells the arms apart
+    return mann_whitney(x, y)
+
+
 def fisher_exact(successes_a: int, n_a: int, successes_b: int, n_b: int) -> float:
     """Two-sided Fisher exact test p-value for two success rates (SciPy's ``fisher_exact``)."""
     for s, n in ((successes_a, n_a), (successes_b, n_b)):

@@ -17,11 +17,12 @@ import numpy as np
 
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.report.aggregate import write_aggregate
+from keras_rl.report.equivalence import episodes_with_censoring
 from keras_rl.report.plots import plot_sweep
 from keras_rl.report.stats import (
+    censored_mann_whitney,
     episodes_to_threshold_stats,
     fisher_exact,
-    mann_whitney,
     median_difference_ci,
     success_difference_ci,
 )
@@ -43,6 +44,7 @@ def analyse_sweep(summaries: dict[str, list[RunSummary]], baseline: str) -> dict
         if ss  # a point none of whose seeds left a summary (each job's error was printed) has no row
     }
     base = stats[baseline]
+    budget = max(s.budget_episodes for ss in summaries.values() for s in ss)
     rows = []
     for name, st in stats.items():
         row = {
@@ -66,7 +68,9 @@ def analyse_sweep(summaries: dict[str, list[RunSummary]], baseline: str) -> dict
                 success_difference=dataclasses.asdict(
                     success_difference_ci(st["successes"], st["seeds"], base["successes"], base["seeds"])
                 ),
-                mann_whitney_p=mann_whitney(a, b)[1],
+                mann_whitney_p=censored_mann_whitney(
+                    episodes_with_censoring(a, st["seeds"]), episodes_with_censoring(b, base["seeds"]), budget
+                )[1],
                 fisher_p=fisher_exact(st["successes"], st["seeds"], base["successes"], base["seeds"]),
             )
         rows.append(row)
@@ -145,7 +149,8 @@ def write_sweep_report(
         "The success difference is a point's success rate minus the baseline's, with Newcombe's hybrid "
         "score interval; Fisher's exact test compares the success counts. Episodes to threshold are over the "
         "seeds that succeeded; their difference is the median of a point minus the baseline's, with a "
-        "percentile bootstrap (10000 resamples); Mann-Whitney U is two-sided on the same samples. At "
+        "percentile bootstrap (10000 resamples); Mann-Whitney U is two-sided over every seed, one that never "
+        "reached the threshold counting as the budget + 1 (Gehan's treatment of censoring, as in `check`). At "
         f"{_seed_count(result)} seeds a point only effects large enough for these intervals to exclude 0 are "
         "detectable: an interval that includes 0 is no evidence of no effect.",
         "",

@@ -48,7 +48,8 @@ def gather(
         for seed in seeds:
             config = base.replace(seed=seed)
             seed_dir = folder / f"seed_{seed}"
-            why = None if rerun else check_reusable(seed_dir, config, code_version())
+            # a report of existing runs trains nothing, so it mixes no code versions: it names them
+            why = None if rerun else check_reusable(seed_dir, config, None if reuse_only else code_version())
             if rerun or why is not None:
                 jobs.append(SeedJob.of(config, seed_dir, start="overwrite" if rerun else start_of(seed_dir, why)))
                 missing.setdefault(framework, []).append(seed)

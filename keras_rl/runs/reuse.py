@@ -16,11 +16,12 @@ that turns NaN is the run's result (post 001 with the learning phase on, at upda
 an accident like an interruption or a failed write."""
 
 
-def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
+def check_reusable(seed_dir: Path, expected, code_version: str | None) -> str | None:
     """None if ``seed_dir`` holds a finished run of config ``expected`` (``OUTCOMES``); else why
     it cannot be reused.
 
-    Raises RunFolderError for a run of a *different* config or code version. A folder made
+    Raises RunFolderError for a run of a *different* config or code version (``code_version``
+    None: any code version, for a command that only reports the runs, ``compare --reuse-only``). A folder made
     before a field existed (or under an older field name) is read through the config's
     ``from_dict``, which fills today's defaults and maps renamed fields: it matches only
     if the default is wanted.
@@ -54,7 +55,7 @@ def check_reusable(seed_dir: Path, expected, code_version: str) -> str | None:
             "refusing to mix runs: pass --rerun to replace it, or --runs to use another folder"
         )
     theirs = code_version_of(summary.provenance, summary.versions.get("keras_rl"))
-    if theirs != code_version:
+    if code_version is not None and theirs != code_version:  # None: report what is there (--reuse-only)
         raise RunFolderError(
             f"{seed_dir} was made by code version {theirs}, this is {code_version}; "
             "refusing to mix code versions: pass --rerun to replace it"
