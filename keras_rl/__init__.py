@@ -1,5 +1,8 @@
 """keras-rl-repro: faithful, fast, tested reruns of classic deep-RL blog posts.
 
+The public Python API is ``keras_rl.api`` (``load``, ``reproduce``, ``compare``, ``check``;
+``docs/api.md``); the command line is ``keras-rl``.
+
 Keras 3 must run on the TensorFlow backend, so the backend is pinned here,
 before anything in the package imports keras.
 """
@@ -24,3 +27,4 @@ from keras_rl import quiet  # noqa: E402
 quiet.install()
 
 __version__ = "0.1.0"
+__all__ = ["__version__", "api"]

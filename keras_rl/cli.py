@@ -675,6 +675,22 @@ def evaluate(args: argparse.Namespace) -> int:
 
 
 def compare(args: argparse.Namespace) -> int:
+    try:
+        result = compare_result(args)
+    except KeyboardInterrupt:
+        print(
+            "interrupted: the runs so far are on disk; run compare again to reuse them and resume the rest",
+            file=sys.stderr,
+        )
+        return _stopped()
+    print(f"report: {result.out_dir / 'report.md'}")
+    print(result.verdict)
+    return EXIT_OK
+
+
+def compare_result(args: argparse.Namespace):
+    """``compare``'s work (``api.compare`` too): the runs made or reused, the report written;
+    its ``CompareResult``. KeyboardInterrupt when a signal stopped the runs."""
     if args.rerun and args.reuse_only:
         raise ConfigError(
             "--rerun and --reuse-only contradict each other (one reruns every seed, the other runs none); pick one"
@@ -711,25 +727,18 @@ def compare(args: argparse.Namespace) -> int:
     from keras_rl.torch import require_torch
 
     require_torch()
-    try:
-        make_compare_runs(
-            experiment,
-            args.variant,
-            seeds,
-            options,
-            runs_root=args.runs,
-            rerun=args.rerun,
-            reuse_only=args.reuse_only,
-            matched_init=args.matched_init,
-            after_job=draw_job_curves,
-        )
-    except KeyboardInterrupt:
-        print(
-            "interrupted: the runs so far are on disk; run compare again to reuse them and resume the rest",
-            file=sys.stderr,
-        )
-        return _stopped()
-    result = write_compare(
+    make_compare_runs(
+        experiment,
+        args.variant,
+        seeds,
+        options,
+        runs_root=args.runs,
+        rerun=args.rerun,
+        reuse_only=args.reuse_only,
+        matched_init=args.matched_init,
+        after_job=draw_job_curves,
+    )
+    return write_compare(
         experiment.name,
         seeds,
         variant=args.variant,
@@ -740,9 +749,6 @@ def compare(args: argparse.Namespace) -> int:
         command=command_line(),
         workers=options.workers,
     )
-    print(f"report: {result.out_dir / 'report.md'}")
-    print(result.verdict)
-    return EXIT_OK
 
 
 def _check_seed_batch(seed_batch: int | str, experiment: str, framework: str) -> None:
@@ -860,6 +866,33 @@ def list_experiments(args: argparse.Namespace) -> int:
 
 
 def check(args: argparse.Namespace) -> int:
+    try:
+        results = check_results(args)
+    except KeyboardInterrupt:
+        print("interrupted: no verdict", file=sys.stderr)
+        return _stopped()
+    except NoVerdictError as exc:  # neither "consistent" nor "changed"
+        print(f"error: no verdict: {exc}", file=sys.stderr)
+        return EXIT_NO_VERDICT
+    except KerasRLError:  # the user's input (a RunFolderError is an OSError too): exit 2, from main
+        raise
+    except OSError as exc:  # a full disk or a vanished folder mid-check: no verdict either
+        print(f"error: no verdict: {exc}", file=sys.stderr)
+        return EXIT_NO_VERDICT
+    for r in results:
+        level = f"alpha {r.rule.alpha}" if r.design is None else f"sequential, efficacy {r.design['efficacy']:.3g}"
+        print(
+            f"{r.experiment}: {r.verdict} ({r.rule.statistic}, {r.decision.test}, p = {r.decision.p:.3g}, "
+            f"{level}; baseline {len(r.baseline)} seeds, new {len(r.new)})"
+        )
+        if r.config_changes:
+            print(f"  {r.experiment}: the faithful config differs from the baseline's: {'; '.join(r.config_changes)}")
+    print(f"report: {args.out / 'check.md'}")
+    return EXIT_CRITERION if any(r.decision.changed for r in results) else EXIT_OK
+
+
+def check_results(args: argparse.Namespace) -> list:
+    """``check``'s work (``api.check`` too): each post's ``CheckResult``, the report written."""
     from keras_rl.check.rules import RULES, TIERS
 
     known = sorted({e for e, _ in RULES}, key=["pendulum", "cartpole", "mountaincar"].index)
@@ -886,31 +919,9 @@ def check(args: argparse.Namespace) -> int:
     from keras_rl.check.command import CALIBRATION, run_check
 
     against = args.against if args.against is not None else CALIBRATION.parent
-    try:
-        results = run_check(
-            names, args.tier, against, args.out, seeds, options, sequential=args.sequential, sequential_alpha=args.alpha
-        )
-    except KeyboardInterrupt:
-        print("interrupted: no verdict", file=sys.stderr)
-        return _stopped()
-    except NoVerdictError as exc:  # neither "consistent" nor "changed"
-        print(f"error: no verdict: {exc}", file=sys.stderr)
-        return EXIT_NO_VERDICT
-    except KerasRLError:  # the user's input (a RunFolderError is an OSError too): exit 2, from main
-        raise
-    except OSError as exc:  # a full disk or a vanished folder mid-check: no verdict either
-        print(f"error: no verdict: {exc}", file=sys.stderr)
-        return EXIT_NO_VERDICT
-    for r in results:
-        level = f"alpha {r.rule.alpha}" if r.design is None else f"sequential, efficacy {r.design['efficacy']:.3g}"
-        print(
-            f"{r.experiment}: {r.verdict} ({r.rule.statistic}, {r.decision.test}, p = {r.decision.p:.3g}, "
-            f"{level}; baseline {len(r.baseline)} seeds, new {len(r.new)})"
-        )
-        if r.config_changes:
-            print(f"  {r.experiment}: the faithful config differs from the baseline's: {'; '.join(r.config_changes)}")
-    print(f"report: {args.out / 'check.md'}")
-    return EXIT_CRITERION if any(r.decision.changed for r in results) else EXIT_OK
+    return run_check(
+        names, args.tier, against, args.out, seeds, options, sequential=args.sequential, sequential_alpha=args.alpha
+    )
 
 
 def bisect(args: argparse.Namespace) -> int:

@@ -38,6 +38,8 @@ sys.path.insert(0, str(ROOT / "reproductions"))
 from compare_runs import runs_table  # noqa: E402
 from findings_table import replace_block  # noqa: E402
 
+from keras_rl.runs.run_set import RunSet  # noqa: E402
+
 FIDELITY = ROOT / "reproductions" / "FIDELITY.md"
 SWEEP = "keras-rl sweep {exp} --ablate --seeds 0-9 --workers 2{batch} --no-progress --out results/{exp}/ablations"
 MORE = (
@@ -108,9 +110,8 @@ def markers(experiment: str) -> tuple[str, str]:
 
 
 def _summaries(folder: Path) -> list:
-    from keras_rl.runs.summary import RunSummary
 
-    return [RunSummary.read(d) for d in sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1]))]
+    return RunSet(folder).summaries()
 
 
 def _reading(row: dict, statuses: list[str], faithful: dict, budget: int) -> str:

@@ -57,7 +57,7 @@ from keras_rl.check.statistics import false_alarm_rate, power  # noqa: E402
 from keras_rl.learners.table import batch_refusal  # noqa: E402
 from keras_rl.registry import get_experiment  # noqa: E402
 from keras_rl.runs.files import atomic_write_text  # noqa: E402
-from keras_rl.runs.summary import RunSummary  # noqa: E402
+from keras_rl.runs.run_set import RunSet  # noqa: E402
 
 MUTANT_SEEDS = "0-9"
 MUTANT_BATCH = 10
@@ -324,7 +324,7 @@ def criterion_by_seeds(name: str) -> dict:
     beside the rest of the committed baseline (where it was not)."""
     from keras_rl.report.stats import fisher_exact
 
-    summaries = sorted((RunSummary.read(d) for d in (CHECKS / name / "baseline").glob("seed_*")), key=lambda s: s.seed)
+    summaries = RunSet(CHECKS / name / "baseline").summaries()
     first = [s.success for s in summaries if s.seed < 10]
     rest = [s for s in summaries if s.seed >= 10]
     won = sum(s.success for s in rest)

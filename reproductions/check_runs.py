@@ -8,7 +8,6 @@ runs and one power report.
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -21,6 +20,7 @@ from keras_rl.check.rules import RULES  # noqa: E402
 from keras_rl.check.statistics import decide, power, seed_statistic  # noqa: E402
 from keras_rl.registry import get_experiment  # noqa: E402
 from keras_rl.runs.files import read_episodes  # noqa: E402
+from keras_rl.runs.run_set import RunSet  # noqa: E402
 from keras_rl.runs.summary import RunSummary  # noqa: E402
 
 CHECKS = ROOT / "results" / "checks"
@@ -33,12 +33,12 @@ looked at in those choices, report the power."""
 
 
 def seed_dirs(folder: Path) -> list[Path]:
-    return sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1]))
+    return RunSet(folder).seed_dirs()
 
 
 def budget(folder: Path) -> int:
     """The episode budget the runs in ``folder`` were made with (the smallest, if they differ)."""
-    return min(json.loads((d / "config.json").read_text())["episodes"] for d in folder.glob("seed_*"))
+    return min(config["episodes"] for config in RunSet(folder).configs())
 
 
 def load(folder: Path, seeds: range | None = None) -> list[list[dict] | None]:

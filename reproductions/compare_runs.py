@@ -16,7 +16,6 @@ sections (``runs_table``).
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -28,10 +27,11 @@ from scipy.stats import fisher_exact, mannwhitneyu  # noqa: E402
 
 from keras_rl.report.equivalence import episodes_with_censoring  # noqa: E402
 from keras_rl.report.stats import censored_mann_whitney, episodes_to_threshold_stats  # noqa: E402
+from keras_rl.runs.run_set import RunSet  # noqa: E402
 
 
 def load(folder: Path) -> list[dict]:
-    summaries = [json.loads(p.read_text()) for p in sorted(folder.glob("seed_*/summary.json"))]
+    summaries = RunSet(folder).summary_records()
     if not summaries:
         raise SystemExit(f"error: {folder} holds no seed_*/summary.json")
     return sorted(summaries, key=lambda s: s["seed"])

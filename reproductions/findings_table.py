@@ -29,6 +29,9 @@ sys.path.insert(0, str(ROOT / "reproductions"))
 
 from compare_runs import load, runs_table, seed_span  # noqa: E402  (beside this file)
 
+from keras_rl.report.stats import wilson_interval  # noqa: E402
+from keras_rl.runs.run_set import RunSet  # noqa: E402
+
 BEGIN, END = "<!-- findings-table:begin -->", "<!-- findings-table:end -->"
 COMPARE_BEGIN, COMPARE_END = "<!-- compare-table:begin -->", "<!-- compare-table:end -->"
 SHORT_BEGIN, SHORT_END = "<!-- findings-short:begin -->", "<!-- findings-short:end -->"
@@ -112,7 +115,7 @@ ROWS = [
 
 def row_numbers(folder: Path, seeds: set[int] | None = None) -> dict | None:
     """A folder's numbers over its seeds (only ``seeds``, when given)."""
-    summaries = [json.loads(p.read_text()) for p in sorted(folder.glob("seed_*/summary.json"))]
+    summaries = RunSet(folder).summary_records()
     summaries = [s for s in summaries if seeds is None or s["seed"] in seeds]
     if not summaries:
         return None
@@ -248,7 +251,6 @@ def table() -> str:
 
 def short_table() -> str:
     """The README's version: success and median episodes to threshold per row, with the seeds."""
-    from scipy.stats import binomtest
 
     from keras_rl.runs.files import run_folder
 
@@ -266,10 +268,10 @@ def short_table() -> str:
         seeds = numbers["seeds"]
         span = seed_span(seeds) if seeds == list(range(seeds[0], seeds[-1] + 1)) else f"{len(seeds)} seeds"
         median = "-" if not np.isfinite(numbers["median"]) else f"{numbers['median']:g}"
-        ci = binomtest(numbers["successes"], numbers["n"]).proportion_ci(method="wilson")
+        low, high = wilson_interval(numbers["successes"], numbers["n"])
         lines.append(
             f"| {post} | {variant} | {framework} | {span} | {numbers['successes']}/{numbers['n']} "
-            f"({ci.low:.2f}-{ci.high:.2f}) | {median} | {theirs} |"
+            f"({low:.2f}-{high:.2f}) | {median} | {theirs} |"
         )
     return "\n".join(lines)
 
@@ -310,13 +312,6 @@ def compare_table() -> str:
 FIRST_TEN = set(range(10))
 
 
-def wilson(successes: int, n: int) -> tuple[float, float]:
-    from scipy.stats import binomtest
-
-    ci = binomtest(successes, n).proportion_ci(method="wilson")
-    return ci.low, ci.high
-
-
 def changes_table() -> str:
     """Every findings row and Keras-vs-PyTorch verdict on seeds 0-9 (what the findings said
     before issue #20) beside all of its seeds, and whether the reading changed: a success
@@ -339,7 +334,7 @@ def changes_table() -> str:
         if ten is None or every is None or every["n"] <= 10:
             lines.append(f"| {name} | - | - | {every['n'] if every else 0} seeds | - | not yet on more seeds |")
             continue
-        low, high = wilson(ten["successes"], ten["n"])
+        low, high = wilson_interval(ten["successes"], ten["n"])
         rate = every["successes"] / every["n"]
         why = []
         if not low <= rate <= high:
@@ -347,7 +342,7 @@ def changes_table() -> str:
         if kind(ten["successes"], ten["n"]) != kind(every["successes"], every["n"]):
             why.append(f"{kind(ten['successes'], ten['n'])} -> {kind(every['successes'], every['n'])}")
         g = lambda v: "-" if not np.isfinite(v) else f"{v:g}"  # noqa: E731
-        lo2, hi2 = wilson(every["successes"], every["n"])
+        lo2, hi2 = wilson_interval(every["successes"], every["n"])
         lines.append(
             f"| {name} | {ten['successes']}/{ten['n']} ({low:.2f}-{high:.2f}) | {g(ten['median'])} "
             f"| {every['successes']}/{every['n']} ({lo2:.2f}-{hi2:.2f}) | {g(every['median'])} "
@@ -387,7 +382,7 @@ def changes_table() -> str:
 
 def _arm(folder: Path, seeds: set[int]) -> tuple[int, int, list[int]]:
     """(successes, seeds, episodes to threshold of the successes) of a run folder's ``seeds``."""
-    summaries = [json.loads(p.read_text()) for p in folder.glob("seed_*/summary.json")]
+    summaries = RunSet(folder).summary_records()
     summaries = [s for s in summaries if s["seed"] in seeds]
     hits = [s["reached_at_episode"] for s in summaries if s["success"]]
     return len(hits), len(summaries), hits

@@ -27,29 +27,26 @@ import json
 import shlex
 import subprocess
 import sys
-from collections import defaultdict
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "reproductions"))
 
+from keras_rl.runs.run_set import RunSet, seed_of  # noqa: E402
+
 RESULTS = ROOT / "results"
 NOT_COMMITTED = ("make-reproduce",)  # `make reproduce` writes here; .gitignore keeps it out of results/
 
 
-def seed_of(folder: Path) -> int:
-    return int(folder.name.split("_", 1)[1])
-
-
 def find_sets(results: Path = RESULTS) -> dict[str, list[Path]]:
     """Set (its path under results/) -> its seed folders, in seed order."""
-    sets: dict[str, list[Path]] = defaultdict(list)
-    for summary in results.rglob("seed_*/summary.json"):
-        if summary.relative_to(results).parts[0] in NOT_COMMITTED:
-            continue
-        sets[summary.parent.parent.relative_to(results).as_posix()].append(summary.parent)
-    return {k: sorted(v, key=seed_of) for k, v in sorted(sets.items())}
+    sets = {
+        run_set.folder.relative_to(results).as_posix(): run_set.seed_dirs(holding="summary.json")
+        for run_set in RunSet.find(results)
+        if run_set.folder.relative_to(results).parts[0] not in NOT_COMMITTED
+    }
+    return dict(sorted(sets.items()))
 
 
 def _flag(argv: list[str], name: str) -> str | None:

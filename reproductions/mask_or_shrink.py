@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from keras_rl.runs.files import atomic_write_text  # noqa: E402
-from keras_rl.runs.summary import RunSummary  # noqa: E402
+from keras_rl.runs.run_set import RunSet  # noqa: E402
 
 
 def rebuild_seconds(experiment: str, seeds: int) -> float:
@@ -65,7 +65,7 @@ def main() -> None:
     parser.add_argument("--batch-size", type=int, required=True, help="the --seed-batch the runs used")
     parser.add_argument("--write", type=Path, default=None, help="also write the table here (markdown)")
     args = parser.parse_args()
-    summaries = sorted((RunSummary.read(p) for p in args.batched.glob("seed_*")), key=lambda s: s.seed)
+    summaries = RunSet(args.batched).summaries()
     if not summaries:
         raise SystemExit(f"error: no seed_<n>/summary.json under {args.batched}")
     experiment = summaries[0].experiment

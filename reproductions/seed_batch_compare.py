@@ -26,6 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from keras_rl.report.equivalence import episodes_with_censoring, framework_verdict  # noqa: E402
 from keras_rl.report.stats import censored_mann_whitney, fisher_exact, median_difference_ci  # noqa: E402
 from keras_rl.runs.files import atomic_write_text  # noqa: E402
+from keras_rl.runs.run_set import RunSet  # noqa: E402
 from keras_rl.runs.summary import RunSummary  # noqa: E402
 
 
@@ -61,7 +62,7 @@ def main() -> None:
     parser.add_argument("--batch-size", type=int, required=True, help="the --seed-batch the batched runs used")
     parser.add_argument("--write", type=Path, default=None, help="also write the report here (markdown)")
     args = parser.parse_args()
-    seeds = sorted(int(p.name.split("_")[1]) for p in args.solo.glob("seed_*"))
+    seeds = RunSet(args.solo).seeds
     lines = [
         f"# Seed-batched vs solo: `{args.batched}` against `{args.solo}`",
         "",
@@ -103,7 +104,7 @@ def main() -> None:
         + "; ".join(e.sentence() for e in judged)
         + ".",
         f"- Wall time: the solo seeds took {sum(s.wall_seconds for s in solo_s):.0f} s of seed time in all; "
-        + _batch_walls([RunSummary.read(d) for d in args.batched.glob("seed_*")], args.batch_size)
+        + _batch_walls(RunSet(args.batched).summaries(), args.batch_size)
         + ".",
         "",
     ]

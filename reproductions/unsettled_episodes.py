@@ -18,11 +18,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from keras_rl.report.stats import mann_whitney  # noqa: E402
 from keras_rl.runs.files import read_episodes  # noqa: E402
+from keras_rl.runs.run_set import RunSet  # noqa: E402
 
 
 def unsettled(folder: Path, first: int, last: int, threshold: float) -> dict[int, int]:
     counts = {}
-    for seed_dir in sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1])):
+    for seed_dir in RunSet(folder).seed_dirs():
         rows = read_episodes(seed_dir / "episodes.csv")
         counts[int(seed_dir.name.split("_")[1])] = sum(
             row["metric"] > threshold for row in rows if first <= row["episode"] <= last

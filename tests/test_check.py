@@ -23,6 +23,7 @@ from keras_rl.check.statistics import (
     power,
     seed_statistic,
 )
+from keras_rl.runs.run_set import RunSet
 
 CHECKS = Path(__file__).resolve().parents[1] / "results" / "checks"
 
@@ -208,7 +209,7 @@ def test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline(
     report = json.loads((out / "check.json").read_text())
     assert [e["experiment"] for e in report["experiments"]] == ["pendulum", "cartpole", "mountaincar"]
     for e in report["experiments"]:
-        committed = len(list((CHECKS / e["experiment"] / "baseline").glob("seed_*")))
+        committed = len(RunSet(CHECKS / e["experiment"] / "baseline").seed_dirs())
         assert e["verdict"] == "consistent" and len(e["new"]) == e["rule"]["seeds"]
         assert len(e["baseline"]) == committed >= 30  # the whole committed baseline
         assert not set(e["new"]) & set(e["baseline"])  # fresh seeds
@@ -644,7 +645,7 @@ def test_every_committed_error_rate_was_computed_on_the_whole_committed_baseline
     """A baseline that grew (issue #21: 30 seeds to 100) leaves every rate computed on the old
     one stale: each results JSON records the baseline size it used, which must be the seed
     folders committed now."""
-    committed = {p.parent.name: len(list(p.glob("seed_*"))) for p in CHECKS.glob("*/baseline")}
+    committed = {p.parent.name: len(RunSet(p).seed_dirs()) for p in CHECKS.glob("*/baseline")}
     assert committed and all(n >= 30 for n in committed.values()), committed
     calibration = json.loads((CHECKS / "calibration.json").read_text())
     for post, entry in calibration.items():

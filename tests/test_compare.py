@@ -163,13 +163,17 @@ def test_compare_reuses_matching_runs_and_refuses_mismatched_ones(compared, caps
     summary = json.loads(summary_path.read_text())
     summary["provenance"]["code_tree"] = "0" * 40  # made from other package files
     summary_path.write_text(json.dumps(summary))
-    assert main(args) == 2
+    training = [a for a in args if a != "--reuse-only"]
+    assert main(training) == 2  # a command that would train beside it refuses to mix
     assert re.search(
         r"made by code version 0{40}\S*, this is \S+; refusing to mix code versions", capsys.readouterr().err
     )
+    # a report of the runs there trains nothing: it reports them, naming each code version
+    assert main(args) == 0
+    assert "torch 000000000000, " in (out / "cartpole" / "report.md").read_text()
     del summary["provenance"]  # a run from before commits were recorded
     summary_path.write_text(json.dumps(summary))
-    assert main(args) == 2
+    assert main(training) == 2
     assert "(no commit recorded), this is" in capsys.readouterr().err
 
 

@@ -128,3 +128,14 @@ def test_no_message_advises_overwriting_committed_results(capsys):
     assert main(["reproduce", "pendulum", "--seeds", "0", "--dry-run", "--out", str(seed.parent)]) == 2
     err = capsys.readouterr().err
     assert "--overwrite" not in err and "pass --out for a folder of your own" in err
+
+
+def test_the_python_apis_example_runs_as_the_docs_show_it(monkeypatch, capsys):
+    """docs/api.md's example, executed as it stands, from the repository (the committed runs)."""
+    text = (ROOT / "docs" / "api.md").read_text()
+    (example,) = re.findall(r"```python\n(.*?)```", text, re.S)
+    monkeypatch.chdir(ROOT)
+    exec(compile(example, "docs/api.md", "exec"), {})
+    out = capsys.readouterr().out
+    assert "30/30 seeds reached EMA > -300" in out
+    assert "The frameworks differ" in out  # post 000's committed verdict (default init)

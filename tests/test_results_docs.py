@@ -7,6 +7,8 @@ from pathlib import Path
 import pytest
 from scripts import load_reproduction
 
+from keras_rl.runs.run_set import RunSet
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -36,7 +38,6 @@ def test_the_findings_and_compare_tables_are_up_to_date():
 
 
 def test_the_per_post_sections_are_up_to_date_and_name_the_seeds_that_failed():
-    import json
 
     gen = load_generator()
     readme = (ROOT / "results" / "README.md").read_text()
@@ -44,11 +45,9 @@ def test_the_per_post_sections_are_up_to_date_and_name_the_seeds_that_failed():
         assert block(readme, *gen.post_markers(post)) == gen.post_block(post), (
             f"results/README.md's {post} section is stale: run python reproductions/findings_table.py --write"
         )
-    failed = sorted(
-        json.loads(p.read_text())["seed"]
-        for p in (ROOT / "results" / "cartpole" / "faithful").glob("seed_*/summary.json")
-        if not json.loads(p.read_text())["success"]
-    )
+    failed = [
+        s["seed"] for s in RunSet(ROOT / "results" / "cartpole" / "faithful").summary_records() if not s["success"]
+    ]
     said = block(readme, *gen.post_markers("post003")).split("In Keras", 1)[1].split("never got there", 1)[0]
     assert said.rstrip().endswith(gen._seeds([{"seed": s} for s in failed]))
 

@@ -185,3 +185,19 @@ def test_a_contradictory_old_and_new_field_is_refused():
 
     with pytest.raises(ConfigError, match="train_above.*contradicts train_start"):
         MountainCarDDPGConfig.from_dict({"train_above": 500, "train_start": 1000})
+
+
+def test_one_reader_of_seed_folders_and_one_wilson_interval():
+    """A set of seed folders is read through ``runs/run_set.RunSet`` and a success rate's Wilson
+    interval comes from ``report/stats.wilson_interval``: nowhere else globs ``seed_*`` or asks
+    SciPy for a Wilson interval."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    sources = [p for d in ("keras_rl", "reproductions", "tests", "benchmarks") for p in (root / d).rglob("*.py")]
+    sources.append(root / "noxfile.py")
+    this = Path(__file__).resolve()
+    globbers = [p for p in sources if p != this and 'glob("seed_' in p.read_text()]
+    wilsons = [p for p in sources if p != this and 'method="wilson"' in p.read_text()]
+    assert [p.relative_to(root).as_posix() for p in globbers] == ["keras_rl/runs/run_set.py"]
+    assert [p.relative_to(root).as_posix() for p in wilsons] == ["keras_rl/report/stats.py"]

@@ -45,6 +45,7 @@ from keras_rl.errors import ConfigError, NoVerdictError, RunFolderError
 from keras_rl.registry import get_experiment
 from keras_rl.runs.files import atomic_write_json, atomic_write_text, read_episodes
 from keras_rl.runs.options import RunOptions
+from keras_rl.runs.run_set import RunSet
 from keras_rl.runs.summary import RunSummary
 
 CALIBRATION = Path(__file__).resolve().parents[2] / "results" / "checks" / "calibration.json"
@@ -85,7 +86,7 @@ def baseline_values(
 ) -> tuple[dict[int, float], dict[int, list[dict[str, Any]]]]:
     """Each baseline seed's statistic (and its rows, for the plot); a clear error if the
     folder is not a finished faithful baseline."""
-    seed_dirs = sorted(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1]))
+    seed_dirs = RunSet(folder).seed_dirs()
     if not seed_dirs:
         raise RunFolderError(
             f"no baseline at {folder} (expected seed_<n>/ folders); --against names the folder "
@@ -123,7 +124,7 @@ def baseline_values(
 
 def baseline_config(experiment, folder: Path):
     """The config the baseline's runs share (its first seed's ``config.json``)."""
-    seed_dir = min(folder.glob("seed_*"), key=lambda p: int(p.name.split("_")[1]))
+    seed_dir = RunSet(folder).seed_dirs()[0]
     return experiment.config_cls.from_dict(json.loads((seed_dir / "config.json").read_text()))
 
 

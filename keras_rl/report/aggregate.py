@@ -13,6 +13,7 @@ from keras_rl.registry import get_experiment
 from keras_rl.report.plots import plot_seed_curve, plt, save_figure
 from keras_rl.report.stats import episodes_to_threshold_stats
 from keras_rl.runs.files import atomic_write_text, read_episodes
+from keras_rl.runs.run_set import RunSet
 from keras_rl.runs.summary import RunSummary
 
 
@@ -84,7 +85,7 @@ def rebuild(parent: Path, x_axis: str = "episode") -> dict[str, Any]:
     """Rewrite ``summary.md``, ``curves.png`` and each seed's ``curve.png`` of a multi-seed
     folder from its seeds' files."""
     parent = Path(parent)
-    seed_dirs = sorted(p.parent for p in parent.glob("seed_*/config.json"))
+    seed_dirs = RunSet(parent).seed_dirs(holding="config.json")
     if not seed_dirs:
         raise RunFolderError(f"{parent} holds no seed_*/ run folders")
     summaries, configs = [], []

@@ -102,6 +102,13 @@ def fisher_exact(successes_a: int, n_a: int, successes_b: int, n_b: int) -> floa
     return float(stats.fisher_exact(table, alternative="two-sided").pvalue)
 
 
+def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """A success rate's Wilson score interval (``scipy.stats.binomtest``): the one place it is
+    computed (tables and Newcombe's difference use it)."""
+    ci = stats.binomtest(successes, n).proportion_ci(confidence_level=confidence, method="wilson")
+    return float(ci.low), float(ci.high)
+
+
 def success_difference_ci(successes_a: int, n_a: int, successes_b: int, n_b: int, confidence: float = 0.95) -> Interval:
     """rate(a) - rate(b) with Newcombe's (1998, method 10) hybrid score interval:
     ``d - sqrt((p_a - l_a)^2 + (u_b - p_b)^2)`` to ``d + sqrt((u_a - p_a)^2 + (p_b - l_b)^2)``,
@@ -110,9 +117,8 @@ def success_difference_ci(successes_a: int, n_a: int, successes_b: int, n_b: int
     for k, n in ((successes_a, n_a), (successes_b, n_b)):
         if n < 1 or not 0 <= k <= n:
             raise ValueError(f"successes must lie in [0, n] with n >= 1, got {k} of {n}")
-        ci = stats.binomtest(k, n).proportion_ci(confidence_level=confidence, method="wilson")
         rates.append(k / n)
-        bounds.append((float(ci.low), float(ci.high)))
+        bounds.append(wilson_interval(k, n, confidence))
     (pa, pb), ((la, ua), (lb, ub)) = rates, bounds
     d = pa - pb
     return Interval(d, d - float(np.hypot(pa - la, ub - pb)), d + float(np.hypot(ua - pa, pb - lb)))

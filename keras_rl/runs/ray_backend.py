@@ -156,6 +156,9 @@ class RayBackend:
         # address. Set after Ray was imported it is too late, and Ray then listens on every
         # interface (measured), so that case is refused.
         os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
+        # Token authentication, which a new local instance turns on by default, asked for by name:
+        # the same protection, without Ray's warning on every run (a user's own setting stands).
+        os.environ.setdefault("RAY_AUTH_MODE", "token")
         import ray
         from ray._private import ray_constants
 
