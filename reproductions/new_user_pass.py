@@ -1,4 +1,4 @@
-"""A new user's pass over a fresh clone: the commands issue #23 reported, run again.
+"""A new user's pass over a fresh clone: the commands two rounds of new users reported, run again.
 
     python reproductions/new_user_pass.py [--write]
 
@@ -271,6 +271,37 @@ def scenarios(p: Pass) -> None:
     )
 
 
+def round_two(p: Pass) -> None:
+    """The second round's bad inputs: each refused with exit 2 before anything is trained."""
+    w = p.work
+    out = ["--out", str(w / "R2")]
+    p.expect(
+        "r2.1 a huge seed range", ["reproduce", "pendulum", "--seeds", "0-4294967295", "--dry-run", *out], 2, "10000"
+    )
+    p.expect("r2.2 NaN threshold", ["reproduce", "pendulum", "--set", "threshold=nan", "--dry-run", *out], 2, "finite")
+    p.expect("r2.2 inf threshold", ["reproduce", "pendulum", "--set", "threshold=inf", "--dry-run", *out], 2, "finite")
+    ro = "/proc/no-such-dir/out"
+    p.expect("r2.3 compare --out read-only", ["compare", "pendulum", "--seeds", "0", "--out", ro], 2, "writable")
+    bad = w / "latin1.json"
+    bad.write_bytes(b"\xff\xfe{")
+    p.expect(
+        "r2.5 --config not UTF-8", ["reproduce", "pendulum", "--config", str(bad), "--dry-run", *out], 2, "not JSON"
+    )
+    config = (p.clone / "results" / "pendulum" / "faithful" / "seed_0" / "config.json").read_text()
+    nosuch = w / "nosuch.json"
+    nosuch.write_text(config.replace('"variant": "faithful"', '"variant": "nosuch"'))
+    p.expect(
+        "r2.6 --config variant nosuch", ["reproduce", "pendulum", "--config", str(nosuch), "--dry-run"], 2, "nosuch"
+    )
+    p.expect("r2.7 check --out read-only", ["check", "pendulum", "--out", ro], 2, "writable")
+    p.expect("r2.7 bisect --out read-only", ["bisect", "HEAD", "HEAD", "pendulum", "--out", ro], 2, "writable")
+    grid = ["sweep", "pendulum", "--grid", "tau=0.001,0.01", "--set", "tau=0.005", "--out", str(w / "S2")]
+    p.expect("r2.10 --grid and --set one field", grid, 2, "given both")
+    p.expect("r2.15 --eval-episodes alone", ["reproduce", "pendulum", "--eval-episodes", "3", *out], 2, "--eval-every")
+    p.expect("r2.15 seeds 1,,2", ["reproduce", "pendulum", "--seeds", "1,,2", "--dry-run", *out], 2, "empty item")
+    p.expect("r2.15 seeds 1,1", ["reproduce", "pendulum", "--seeds", "1,1", "--dry-run", *out], 2, "twice")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--write", action="store_true", help="write results/new-user-pass.md")
@@ -283,13 +314,14 @@ def main() -> None:
     p = Pass(clone, work)
     try:
         scenarios(p)
+        round_two(p)
     finally:
         lines = [
             "# A new user's pass over a fresh clone",
             "",
             f"`python reproductions/new_user_pass.py --write` on a fresh clone of commit `{commit.strip()}`: the",
-            "commands issue #23 reported, each with what a user must see (the exit code, a message naming",
-            "the problem, no traceback, none of their files lost).",
+            "commands two rounds of new users reported, each with what a user must see (the exit code, a",
+            "message naming the problem, no traceback, none of their files lost).",
             "",
             "| item | command | as it should be | seen |",
             "|---|---|---|---|",

@@ -39,3 +39,10 @@ def wait_for_rows(proc: subprocess.Popen, csv_path: Path, rows: int, seconds: fl
         if csv_path.is_file() and len(csv_path.read_text().splitlines()) - 1 >= rows:
             return
         time.sleep(poll)
+
+
+def start_cli(*args, **kwargs) -> subprocess.Popen:
+    """The CLI started in a subprocess that a test will signal: text pipes, default handlers."""
+    return subprocess.Popen(
+        [*CLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=default_signals, **kwargs
+    )

@@ -170,7 +170,7 @@ def test_sigterm_during_a_step_exits_143_and_removes_the_temporary_worktree(tmp_
     import signal
     import time
 
-    from clitools import CLI, default_signals
+    from clitools import start_cli
 
     shas = make_repo(tmp_path / "repo", ["ok", "sleep"])
     repo = tmp_path / "repo"
@@ -180,13 +180,7 @@ def test_sigterm_during_a_step_exits_143_and_removes_the_temporary_worktree(tmp_
         return [line.split(" ", 1)[1] for line in listed.stdout.splitlines() if line.startswith("worktree ")]
 
     argv = ["bisect", shas[0], shas[1], "pendulum", "--repo", str(repo), "--against", str(baseline)]
-    proc = subprocess.Popen(
-        [*CLI, *argv, "--out", str(tmp_path / "out")],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=default_signals,
-    )
+    proc = start_cli(*argv, "--out", str(tmp_path / "out"))
     deadline = time.monotonic() + 120
     while len(worktrees()) < 2 and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.1)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from clitools import default_signals, wait_for_rows
+from clitools import default_signals, start_cli, wait_for_rows
 
 ray = pytest.importorskip("ray")
 
@@ -272,13 +272,7 @@ def test_a_killed_ray_worker_is_retried_and_its_seed_reruns_to_the_same_csv(tmp_
         [*CLI, *in_process, "--out", str(tmp_path / "straight")], capture_output=True, text=True, timeout=900
     )
     assert straight.returncode in (0, 1), straight.stderr
-    proc = subprocess.Popen(
-        [*CLI, *args, "--out", str(tmp_path / "killed")],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=default_signals,
-    )
+    proc = start_cli(*args, "--out", str(tmp_path / "killed"))
     csv_path = tmp_path / "killed" / "seed_0" / "episodes.csv"
     deadline, killed = time.monotonic() + 300, None
     while time.monotonic() < deadline and proc.poll() is None and killed is None:
