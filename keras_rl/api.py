@@ -72,7 +72,7 @@ def reproduce(
     argv += [] if episodes is None else ["--episodes", str(episodes)]
     argv += [a for k, v in (overrides or {}).items() for a in ("--set", f"{k}={v}")]
     argv += (["--resume"] if resume else []) + ([] if progress else ["--no-progress"])
-    from keras_rl.cli import reproduce as run_reproduce
+    from keras_rl.commands.reproduce import reproduce as run_reproduce
 
     return Reproduced(RunSet(Path(out)), run_reproduce(_args(argv)))
 
@@ -90,7 +90,7 @@ def compare(
     """``keras-rl compare``: the Keras and PyTorch runs of ``seeds`` under ``runs`` (made where
     missing unless ``reuse_only``), reported under ``out``; returns the ``CompareResult``
     (``.verdict``, ``.result`` with every number, ``.out_dir``)."""
-    from keras_rl.cli import compare_result
+    from keras_rl.commands.compare import compare_result
 
     argv = ["compare", experiment, "--seeds", _seeds(seeds), "--runs", str(runs), "--out", str(out), "--no-progress"]
     argv += ["--workers", str(workers)] + (["--matched-init"] if matched_init else [])
@@ -101,7 +101,7 @@ def compare(
 def check(experiments: Iterable[str], *, out: str | Path, tier: str = "smoke", workers: int = 1) -> list:
     """``keras-rl check``: fresh seeds against the committed baselines; each post's
     ``CheckResult`` (``.verdict``, ``.decision.p``, ``.config_changes``)."""
-    from keras_rl.cli import check_results
+    from keras_rl.commands.check import check_results
 
     argv = ["check", *experiments, "--tier", tier, "--out", str(out), "--workers", str(workers), "--no-progress"]
     return check_results(_args(argv))

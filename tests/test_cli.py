@@ -3,6 +3,7 @@ help texts, --version, and what the end of a run tells the user."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -185,7 +186,16 @@ def test_reproduce_reruns_a_recorded_config_and_dry_run_trains_nothing(tmp_path)
         with open(path, newline="") as fh:
             return [{k: v for k, v in r.items() if k != "wall_seconds"} for r in csv.DictReader(fh)]
 
-    assert rows(tmp_path / "again" / "seed_0" / "episodes.csv") == rows(committed / "episodes.csv")[:20]
+    from keras_rl.runs.replay import why_not_bit_exact
+
+    again = rows(tmp_path / "again" / "seed_0" / "episodes.csv")
+    if why_not_bit_exact(json.loads((committed / "summary.json").read_text())["provenance"]) is None:
+        assert again == rows(committed / "episodes.csv")[:20]
+    else:  # a machine measured to round differently: the counts agree, and the episodes' lengths
+        key = ("episode", "steps", "total_steps", "score")
+        assert [[r[k] for k in key] for r in again[:5]] == [
+            [r[k] for k in key] for r in rows(committed / "episodes.csv")[:5]
+        ]
     wrong = run_cli("reproduce", "pendulum", "--config", str(committed), "--dry-run")
     assert wrong.returncode == 2 and "is a config of 'cartpole', not of pendulum" in wrong.stderr
 

@@ -51,3 +51,22 @@ def test_a_whole_run_replays_with_its_own_budget_and_a_cut_one_with_its_length()
     command = first.command(Path("OUT"), "--framework", "torch", python="py")
     assert command[:5] == ["py", "-m", "keras_rl", "reproduce", "pendulum"]
     assert command[command.index("--episodes") + 1] == "7" and command[-2:] == ["--framework", "torch"]
+
+
+def test_a_machine_listed_as_not_bit_exact_or_another_isa_is_named(tmp_path, monkeypatch):
+    import json
+
+    from keras_rl.runs import provenance
+    from keras_rl.runs.replay import why_not_bit_exact
+
+    monkeypatch.setattr(provenance, "cpu_model", lambda: "AMD EPYC")
+    monkeypatch.setattr(provenance, "cpu_isa", lambda: ["avx2", "fma"])
+    listed = tmp_path / "PLATFORMS.json"
+    listed.write_text(json.dumps({"not_bit_exact": []}))
+    assert why_not_bit_exact({"cpu_model": "AMD EPYC"}, listed) is None
+    assert "made on 'Intel Xeon'" in why_not_bit_exact({"cpu_model": "Intel Xeon"}, listed)
+    assert "avx512f" in why_not_bit_exact({"cpu_model": "AMD EPYC", "cpu_isa": ["avx2", "avx512f"]}, listed)
+    listed.write_text(
+        json.dumps({"not_bit_exact": [{"cpu_model": "AMD EPYC", "cpu_isa": ["avx2", "fma"], "measured": "x"}]})
+    )
+    assert "measured not to" in why_not_bit_exact({"cpu_model": "AMD EPYC"}, listed)

@@ -22,6 +22,34 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine() or "unknown"
 
 
+SIMD_FLAGS = (
+    "sse4_2",
+    "avx",
+    "avx2",
+    "fma",
+    "avx512f",
+    "avx512bw",
+    "avx512vl",
+    "avx512_vnni",
+    "avx512_bf16",
+    "amx_tile",
+)
+"""The instruction-set flags that choose TensorFlow's and oneDNN's kernels (and so how a sum
+rounds): two CPUs of one model name can differ here, and then in the last bits of a run."""
+
+
+def cpu_isa() -> list[str]:
+    """The ``SIMD_FLAGS`` this CPU has (``/proc/cpuinfo``); empty where it cannot be read."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("flags"):
+                have = set(line.split(":", 1)[1].split())
+                return [f for f in SIMD_FLAGS if f in have]
+    except OSError:
+        pass
+    return []
+
+
 @functools.lru_cache(maxsize=1)
 def git_state() -> dict[str, object]:
     """``{"commit": sha, "code_tree": git's hash of keras_rl/ at that commit, "dirty": bool,
@@ -100,4 +128,8 @@ def command_line() -> str:
 
 def provenance() -> dict[str, object]:
     """The machine and code version a run was made with (``summary.json``'s ``provenance``)."""
-    return {"cpu_model": cpu_model(), **git_state()}  # no working folder: it tells a reader nothing and leaks a path
+    return {
+        "cpu_model": cpu_model(),
+        "cpu_isa": cpu_isa(),
+        **git_state(),
+    }  # no working folder: it tells a reader nothing and leaks a path

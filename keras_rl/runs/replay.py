@@ -96,3 +96,26 @@ def plan_replay(folder: Path, experiment: str, episodes: int | None = None) -> R
     expected = rows[:episodes] if episodes is not None else rows
     budget = len(expected) if episodes is not None else int(config["episodes"])
     return Replay(folder, experiment, str(config["variant"]), int(config["seed"]), budget, expected)
+
+
+PLATFORMS = Path(__file__).resolve().parents[2] / "results" / "PLATFORMS.json"
+"""Machines measured not to reproduce the committed runs' bits (``not_bit_exact``), with the
+evidence: a CPU of the same model name but another instruction set rounds differently."""
+
+
+def why_not_bit_exact(recorded: dict, platforms: Path = PLATFORMS) -> str | None:
+    """None where this machine is expected to rerun a run with provenance ``recorded`` bit for
+    bit; else why not: another CPU model, another instruction set (runs record ``cpu_isa``
+    from 2026-11-24 on), or this machine is listed in ``platforms`` as measured not to."""
+    from keras_rl.runs.provenance import cpu_isa, cpu_model
+
+    theirs = recorded.get("cpu_model")
+    if theirs is not None and theirs != cpu_model():
+        return f"made on {theirs!r}, this is {cpu_model()!r}"
+    if recorded.get("cpu_isa") is not None and recorded["cpu_isa"] != cpu_isa():
+        return f"made on a CPU with {', '.join(recorded['cpu_isa'])}; this one has {', '.join(cpu_isa())}"
+    known = json.loads(platforms.read_text())["not_bit_exact"] if platforms.is_file() else []
+    for entry in known:
+        if entry["cpu_model"] == cpu_model() and entry["cpu_isa"] == cpu_isa():
+            return f"this machine ({cpu_model()}; {', '.join(cpu_isa())}) is measured not to: {entry['measured']}"
+    return None

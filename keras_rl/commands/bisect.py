@@ -1,0 +1,100 @@
+"""``keras-rl bisect``: the first commit whose check changed."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from keras_rl.commands.common import (
+    EXIT_CRITERION,
+    EXIT_NO_VERDICT,
+    EXIT_OK,
+    _check_writable_dir,
+    _path_arg,
+    _stopped,
+)
+from keras_rl.errors import ConfigError
+
+
+def add_parser(sub) -> None:
+    """``bisect``'s arguments."""
+    bi = sub.add_parser(
+        "bisect",
+        help="find the first commit between GOOD and BAD whose learner `check` calls changed "
+        "(git bisect in a temporary worktree; exit 0 found, 1 BAD consistent, 3 no verdict)",
+    )
+    bi.add_argument("good", help="a commit whose learner is consistent with the baseline")
+    bi.add_argument("bad", help="a later commit whose learner is not")
+    bi.add_argument("experiments", nargs="*", default=None, help="experiments to check (default: all three)")
+    bi.add_argument("--tier", default="smoke", help="the check's tier at each step (default smoke)")
+    bi.add_argument(
+        "--alpha", type=float, default=0.01, help="false-alarm rate of the whole bisect, split over its steps (0.01)"
+    )
+    bi.add_argument(
+        "--against",
+        type=Path,
+        default=None,
+        help="the folder holding <experiment>/baseline (default results/checks of this checkout; copied to OUT)",
+    )
+    bi.add_argument(
+        "--out", type=_path_arg, default=Path("bisect-runs"), help="the steps' reports (default bisect-runs)"
+    )
+    bi.add_argument(
+        "--fixed-n",
+        action="store_true",
+        help="each step runs the fixed rule's seeds (Holm over the posts) instead of the sequential check, "
+        "for commits whose check has no --sequential --alpha",
+    )
+    bi.add_argument("--workers", type=int, default=2, help="--workers of each step's check (default 2)")
+    bi.add_argument("--repo", type=Path, default=Path("."), help="the git repository (default: here)")
+
+
+def bisect(args: argparse.Namespace) -> int:
+    from keras_rl.check.rules import RULES, TIERS
+
+    known = sorted({e for e, _ in RULES}, key=["pendulum", "cartpole", "mountaincar"].index)
+    names = args.experiments or known
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise ConfigError(f"unknown experiment {unknown[0]!r}; bisect checks {', '.join(known)}")
+    if args.tier not in TIERS:
+        raise ConfigError(f"unknown tier {args.tier!r}; choose one of {', '.join(TIERS)}")
+    if not 0 < args.alpha < 1:
+        raise ConfigError(f"--alpha must lie in (0, 1), got {args.alpha}")
+    if args.workers < 1:
+        raise ConfigError(f"--workers must be at least 1, got {args.workers}")
+    _check_writable_dir(args.out, "--out")  # exit 2, not one of the verdicts' exit codes
+    from keras_rl.check.bisect import bisect as run_bisect
+    from keras_rl.check.command import CALIBRATION
+    from keras_rl.runs.signals import sigterm_as_interrupt
+
+    against = (args.against if args.against is not None else CALIBRATION.parent).resolve()
+    try:
+        with sigterm_as_interrupt():  # SIGTERM unwinds like Ctrl-C, so the temporary worktree goes
+            result = run_bisect(
+                args.repo.resolve(),
+                args.good,
+                args.bad,
+                names,
+                args.tier,
+                against,
+                args.out.resolve(),
+                args.alpha,
+                ["--workers", str(args.workers), "--no-progress"],
+                log=lambda line: print(line, file=sys.stderr),
+                sequential=not args.fixed_n,
+            )
+    except KeyboardInterrupt:
+        print("interrupted: no verdict", file=sys.stderr)
+        return _stopped()
+    print(f"report: {args.out / 'bisect.md'}")
+    if result.outcome == "found":
+        print(f"first changed commit: {result.first_changed}")
+        return EXIT_OK
+    if result.outcome == "bad is consistent":
+        print(f"BAD {args.bad} is consistent with the baseline at alpha {result.alpha_per_step:.3g}: nothing to bisect")
+        return EXIT_CRITERION
+    among = f"; it is one of {' '.join(c[:10] for c in result.candidates)}" if result.candidates else ""
+    print(f"no verdict: the checks that could run did not settle the first changed commit{among}", file=sys.stderr)
+    return EXIT_NO_VERDICT

@@ -1,0 +1,125 @@
+"""``keras-rl check``: fresh seeds against the committed baselines."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from keras_rl.commands.common import (
+    EXIT_CRITERION,
+    EXIT_NO_VERDICT,
+    EXIT_OK,
+    _check_writable_dir,
+    _path_arg,
+    _stopped,
+    parse_seeds,
+)
+from keras_rl.errors import ConfigError, KerasRLError, NoVerdictError
+from keras_rl.runs.options import RunOptions, run_options_parser
+
+
+def add_parser(sub) -> None:
+    """``check``'s arguments."""
+    ck = sub.add_parser(
+        "check",
+        help="regression-test the reproductions: fresh seeds against the committed "
+        "baseline, by each post's pre-registered rule (exit 0 consistent, 1 changed)",
+        parents=[run_options_parser("workers", "address", "set", "no_progress", workers_default=2)],
+    )
+    ck.add_argument(
+        "experiments", nargs="*", default=None, help="experiments to check (default: pendulum cartpole mountaincar)"
+    )
+    ck.add_argument("--tier", default="smoke", help="smoke (minutes, in `make test`) or full (default smoke)")
+    ck.add_argument(
+        "--against",
+        type=Path,
+        default=None,
+        help="the folder holding <experiment>/baseline/seed_<n> (default results/checks of this "
+        "checkout; copy it outside the tree for `git bisect run`)",
+    )
+    ck.add_argument(
+        "--seeds",
+        default=None,
+        help="fresh seeds instead of the rule's (never the baseline's); "
+        "the rule's error rates are for its own number of seeds",
+    )
+    ck.add_argument(
+        "--sequential",
+        action="store_true",
+        help="fresh seeds in looks of 5 up to 30 per post, each post stopping where its calibrated "
+        "design decides (results/checks/sequential.md: fewer seeds under a clear change, more under none)",
+    )
+    ck.add_argument(
+        "--alpha",
+        type=float,
+        default=None,
+        help="with --sequential: the command's false-alarm bound, split over its posts and each post's looks "
+        "(union bound) instead of the committed designs' 1%% (what a bisect step uses)",
+    )
+    ck.add_argument(
+        "--out",
+        type=_path_arg,
+        default=Path("check-runs"),
+        help="where the fresh runs, check.md, check.json and the plots go (default check-runs; "
+        "an earlier check's output there is replaced, anything else is refused)",
+    )
+
+
+def check(args: argparse.Namespace) -> int:
+    try:
+        results = check_results(args)
+    except KeyboardInterrupt:
+        print("interrupted: no verdict", file=sys.stderr)
+        return _stopped()
+    except NoVerdictError as exc:  # neither "consistent" nor "changed"
+        print(f"error: no verdict: {exc}", file=sys.stderr)
+        return EXIT_NO_VERDICT
+    except KerasRLError:  # the user's input (a RunFolderError is an OSError too): exit 2, from main
+        raise
+    except OSError as exc:  # a full disk or a vanished folder mid-check: no verdict either
+        print(f"error: no verdict: {exc}", file=sys.stderr)
+        return EXIT_NO_VERDICT
+    for r in results:
+        level = f"alpha {r.rule.alpha}" if r.design is None else f"sequential, efficacy {r.design['efficacy']:.3g}"
+        print(
+            f"{r.experiment}: {r.verdict} ({r.rule.statistic}, {r.decision.test}, p = {r.decision.p:.3g}, "
+            f"{level}; baseline {len(r.baseline)} seeds, new {len(r.new)})"
+        )
+        if r.config_changes:
+            print(f"  {r.experiment}: the faithful config differs from the baseline's: {'; '.join(r.config_changes)}")
+    print(f"report: {args.out / 'check.md'}")
+    return EXIT_CRITERION if any(r.decision.changed for r in results) else EXIT_OK
+
+
+def check_results(args: argparse.Namespace) -> list:
+    """``check``'s work (``api.check`` too): each post's ``CheckResult``, the report written."""
+    from keras_rl.check.rules import RULES, TIERS
+
+    known = sorted({e for e, _ in RULES}, key=["pendulum", "cartpole", "mountaincar"].index)
+    names = args.experiments or known
+    unknown = [n for n in names if n not in known]
+    if unknown:  # before TensorFlow loads: a typo is named in a second, not after the imports
+        raise ConfigError(f"unknown experiment {unknown[0]!r}; check knows {', '.join(known)}")
+    if args.tier not in TIERS:
+        raise ConfigError(f"unknown tier {args.tier!r}; choose one of {', '.join(TIERS)}")
+    if len(set(names)) != len(names):
+        raise ConfigError(f"an experiment is named twice: {' '.join(names)}")
+    if args.sequential and args.seeds is not None:
+        raise ConfigError("--seeds and --sequential do not go together: the sequential design runs its own fresh seeds")
+    if args.alpha is not None and not args.sequential:
+        raise ConfigError(
+            "--alpha goes with --sequential: the fixed rule's alpha is pre-registered (keras_rl/check/rules.py)"
+        )
+    if args.alpha is not None and not 0 < args.alpha < 1:
+        raise ConfigError(f"--alpha must lie in (0, 1), got {args.alpha}")
+    seeds = parse_seeds(args.seeds) if args.seeds is not None else None
+    options = RunOptions.from_args(args)
+    _check_writable_dir(args.out, "--out")  # bad input (exit 2), found before any training
+    options.check_address()
+    from keras_rl.check.command import CALIBRATION, run_check
+
+    against = args.against if args.against is not None else CALIBRATION.parent
+    return run_check(
+        names, args.tier, against, args.out, seeds, options, sequential=args.sequential, sequential_alpha=args.alpha
+    )

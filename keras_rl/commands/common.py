@@ -1,0 +1,106 @@
+"""What every command shares: exit codes, the seed list, output-folder checks, the stop code."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+from pathlib import Path
+
+from keras_rl.errors import ConfigError
+
+EXIT_OK, EXIT_CRITERION, EXIT_USAGE, EXIT_NO_VERDICT = 0, 1, 2, 3
+MAX_SEEDS = 10_000
+"""More seeds than this in one command is taken for a typo (``0-100000``) and refused."""
+
+
+def _stopped() -> int:
+    """The exit code of a command a signal stopped (130 Ctrl-C, 143 SIGTERM)."""
+    from keras_rl.runs.signals import stop_exit_code
+
+    return stop_exit_code()
+
+
+def parse_seeds(text: str) -> list[int]:
+    """``"0-9"``, ``"1,3,5"``, ``"0-2,7"`` -> a sorted list of distinct seeds.
+
+    Refused, each with a ConfigError naming it: an empty item (``1,,2``), a seed named twice
+    (``1,1``), digits other than ASCII ones, and more than ``MAX_SEEDS`` seeds, which is
+    checked from the range's ends before any list is built (``0-4294967295`` would not fit
+    in memory)."""
+    seeds: set[int] = set()
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            raise ConfigError(f"seeds {text!r} has an empty item; write a list like 0,1,2 or a range like 0-9")
+        if not part.isascii():
+            raise ConfigError(f"seeds {text!r}: {part!r} is not written in ASCII digits")
+        lo_text, dash, hi_text = part.partition("-") if "-" in part[1:] else (part, "", part)
+        try:
+            lo, hi = int(lo_text), int(hi_text)
+        except ValueError:
+            raise ConfigError(f"cannot read seeds {text!r}: use a list like 0,1,2 or a range like 0-9") from None
+        if lo > hi:
+            raise ConfigError(f"seed range {part!r} runs backwards; write {hi}-{lo}")
+        if lo < 0:
+            raise ConfigError(f"seeds must be zero or more, got {lo}")
+        if hi >= 2**32:
+            raise ConfigError(f"seeds must be below 2**32 (NumPy's and Gymnasium's limit), got {hi}")
+        if len(seeds) + hi - lo + 1 > MAX_SEEDS:
+            raise ConfigError(f"{text!r} names more than {MAX_SEEDS} seeds; split the run into smaller commands")
+        part_seeds = range(lo, hi + 1)
+        twice = seeds.intersection(part_seeds)
+        if twice:
+            raise ConfigError(f"seeds {text!r} names seed {min(twice)} twice")
+        seeds.update(part_seeds)
+    return sorted(seeds)
+
+
+def _path_arg(text: str) -> Path:
+    """A path option; an empty one is an error (``Path("")`` would silently mean the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("is empty; name a path")
+    return Path(text)
+
+
+def _check_writable_dir(path: Path, flag: str) -> None:
+    """A folder that exists and is writable, or can be made: else a ConfigError naming it."""
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{flag} {path} is a file, not a folder")
+    probe = path
+    while not probe.exists():
+        probe = probe.parent
+    try:  # really write (root passes os.access everywhere, /proc included)
+        if not probe.is_dir():
+            raise OSError("not a folder")
+        fd, name = tempfile.mkstemp(dir=probe, prefix=".keras-rl-probe-")
+        os.close(fd)
+        os.unlink(name)
+    except OSError:
+        raise ConfigError(f"{flag} {path}: {probe} is not a writable folder") from None
+
+
+def _check_not_inside_a_run(out: Path) -> None:
+    """``--out`` names the folder that holds ``seed_<n>/`` folders: one inside a run folder
+    would nest runs in a run."""
+    for folder in (out, *out.parents):
+        if folder.name.startswith("seed_") and (folder / "config.json").is_file():
+            raise ConfigError(
+                f"--out {out} is inside the run folder {folder}; name the folder that holds the "
+                "seed_<n>/ folders (its parent), or another one"
+            )
+
+
+def _check_writable_file(path: Path, flag: str) -> None:
+    if path.is_dir():
+        raise ConfigError(f"{flag} {path} is a folder; name a file")
+    _check_writable_dir(path.parent if str(path.parent) else Path("."), f"{flag}'s folder")
+
+
+def _check_seed_batch(seed_batch: int | str, experiment: str, framework: str) -> None:
+    """``--seed-batch S`` (S > 1): a clear error before anything runs when it cannot apply
+    (``auto`` runs seeds alone where nothing batches)."""
+    if seed_batch != "auto" and int(seed_batch) > 1:
+        from keras_rl.learners.table import stacked_implementation
+
+        stacked_implementation(experiment, framework)  # a clear error if there is none

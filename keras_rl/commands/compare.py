@@ -1,0 +1,115 @@
+"""``keras-rl compare``: the same seeds in Keras and PyTorch, and what differs."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from keras_rl.commands.common import (
+    EXIT_OK,
+    _check_seed_batch,
+    _check_writable_dir,
+    _stopped,
+    parse_seeds,
+)
+from keras_rl.errors import ConfigError
+from keras_rl.runs.options import RunOptions, run_options_parser
+
+
+def add_parser(sub) -> None:
+    """``compare``'s arguments."""
+    cp = sub.add_parser(
+        "compare",
+        help="run or reuse the same seeds in Keras and PyTorch and report the difference",
+        parents=[run_options_parser("workers", "address", "seed_batch", "episodes", "no_progress")],
+    )
+    cp.add_argument("experiment", help="experiment name (see `keras-rl list`)")
+    cp.add_argument("--seeds", default="0-9", help="seed list or range, the same for both frameworks (default 0-9)")
+    cp.add_argument("--variant", default="faithful", help="the variant to compare (default faithful)")
+    cp.add_argument(
+        "--matched-init",
+        action="store_true",
+        help="torch runs start from the Keras runs' initial weights (report in <out>/<experiment>/matched-init)",
+    )
+    cp.add_argument("--runs", type=Path, default=Path("results"), help="where run folders are found and made")
+    cp.add_argument("--out", type=Path, default=Path("results/compare"), help="report folder root")
+    cp.add_argument("--rerun", action="store_true", help="replace existing run folders instead of reusing them")
+    cp.add_argument("--reuse-only", action="store_true", help="run nothing; fail if a seed is missing")
+
+
+def compare(args: argparse.Namespace) -> int:
+    try:
+        result = compare_result(args)
+    except KeyboardInterrupt:
+        print(
+            "interrupted: the runs so far are on disk; run compare again to reuse them and resume the rest",
+            file=sys.stderr,
+        )
+        return _stopped()
+    print(f"report: {result.out_dir / 'report.md'}")
+    print(result.verdict)
+    return EXIT_OK
+
+
+def compare_result(args: argparse.Namespace):
+    """``compare``'s work (``api.compare`` too): the runs made or reused, the report written;
+    its ``CompareResult``. KeyboardInterrupt when a signal stopped the runs."""
+    if args.rerun and args.reuse_only:
+        raise ConfigError(
+            "--rerun and --reuse-only contradict each other (one reruns every seed, the other runs none); pick one"
+        )
+    seeds = parse_seeds(args.seeds)
+    options = RunOptions.from_args(args)
+    _check_writable_dir(args.out, "--out")  # before any training
+    if not args.reuse_only:
+        _check_writable_dir(args.runs, "--runs")
+    options.check_address()
+    _check_seed_batch(options.seed_batch, args.experiment, "keras")
+    from keras_rl.learners.table import compared_frameworks, stacked_implementation
+    from keras_rl.registry import get_experiment
+
+    experiment = get_experiment(args.experiment)
+    compared = compared_frameworks(experiment.name)  # a clear error where there is nothing to compare
+    if options.seed_batch == "auto" or int(options.seed_batch) > 1:
+        alone = []
+        for framework in compared:
+            try:
+                stacked_implementation(experiment.name, framework)
+            except ConfigError:
+                alone.append(framework)
+        if alone:  # reproduce refuses --seed-batch there; compare batches what it can, and says so
+            print(
+                f"warning: --seed-batch {options.seed_batch}: {experiment.name} in {', '.join(alone)} has no "
+                "seed-batched version, so its seeds run alone",
+                file=sys.stderr,
+            )
+    from keras_rl.report.compare import compare as write_compare
+    from keras_rl.report.plots import draw_job_curves
+    from keras_rl.runs.compare_runs import make_compare_runs
+    from keras_rl.runs.provenance import command_line
+    from keras_rl.torch import require_torch
+
+    require_torch()
+    make_compare_runs(
+        experiment,
+        args.variant,
+        seeds,
+        options,
+        runs_root=args.runs,
+        rerun=args.rerun,
+        reuse_only=args.reuse_only,
+        matched_init=args.matched_init,
+        after_job=draw_job_curves,
+    )
+    return write_compare(
+        experiment.name,
+        seeds,
+        variant=args.variant,
+        runs_root=args.runs,
+        out_root=args.out,
+        matched_init=args.matched_init,
+        episodes=options.episodes,
+        command=command_line(),
+        workers=options.workers,
+    )

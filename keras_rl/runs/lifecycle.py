@@ -1,0 +1,114 @@
+"""How each seed folder of a command starts: new, cleared, resumed, kept (``reproduce``)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from keras_rl.errors import ConfigError
+
+
+def _seed_folder_state(seed_dir: Path) -> tuple[str, str] | None:
+    """None for a folder that does not exist or is empty; else (its summary's status, or
+    "unreadable", and what it holds, for messages)."""
+    if not seed_dir.is_dir() or not any(seed_dir.iterdir()):
+        return None
+    from keras_rl.errors import RunFolderError
+    from keras_rl.runs.summary import RunSummary
+
+    try:
+        s = RunSummary.read(seed_dir)
+        return s.status, f"a {s.status} run, {s.episodes_run} episodes"
+    except RunFolderError:
+        return "unreadable", "files of an earlier run"
+
+
+def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool, episodes: int | None = None) -> list[str]:
+    """How each seed folder starts (new, overwrite, resume, keep), or a ConfigError before
+    anything runs. With ``--resume``, a completed run asked for more episodes than it played
+    is extended from its final checkpoint (``resume``); one that has none is refused."""
+    if overwrite and resume:
+        raise ConfigError("--overwrite and --resume contradict each other; pick one")
+    from keras_rl.runs.checkpoint import CHECKPOINT
+    from keras_rl.runs.reuse import joins_its_stopped_batch
+
+    modes, occupied = [], []
+    for seed_dir in seed_dirs:
+        state = _seed_folder_state(seed_dir)
+        status, held = state if state is not None else (None, None)
+        if resume:
+            extend = status == "completed" and episodes is not None and _extendable(seed_dir, episodes)
+            # a finished seed of a stopped batch resumes with it
+            rejoins = status == "completed" and joins_its_stopped_batch(seed_dir)
+            if (seed_dir / CHECKPOINT).is_file() and (status != "completed" or extend or rejoins):
+                modes.append("resume")
+            elif held is None:
+                modes.append("new")  # nothing to resume: start it
+            elif extend:
+                raise ConfigError(
+                    f"--resume --episodes {episodes}: {seed_dir} completed its budget but holds no final "
+                    f"{CHECKPOINT} (a seed-batched run keeps none), so it cannot be extended; "
+                    "--overwrite reruns it"
+                )
+            elif status == "completed":
+                modes.append("keep")  # finishing an interrupted set: its finished seeds stay as they are
+            else:
+                raise ConfigError(
+                    f"--resume: {seed_dir} holds {held} but no {CHECKPOINT}, so it cannot be "
+                    "continued (use --overwrite to run it again)"
+                )
+        elif held is not None and not overwrite:
+            occupied.append(f"{seed_dir} ({held})")
+        else:
+            modes.append("overwrite" if held is not None else "new")
+    if occupied:
+        committed = any("results" in Path(d).parts for d in seed_dirs)
+        raise ConfigError(
+            "these seed folders already hold a run and are left untouched: "
+            + "; ".join(occupied[:5])
+            + (f" and {len(occupied) - 5} more" if len(occupied) > 5 else "")
+            + (
+                ". They are results: pass --out for a folder of your own (for example --out runs/mine)"
+                if committed
+                else ". Pass --overwrite to replace them, --resume to continue unfinished ones, "
+                "or --out for another folder"
+            )
+        )
+    return modes
+
+
+def _extendable(seed_dir: Path, episodes: int) -> bool:
+    """A completed run that played its whole budget, fewer episodes than ``episodes`` (one
+    stopped at its threshold stops there again in a straight run of any budget: it is kept)."""
+    import json
+
+    from keras_rl.runs.summary import RunSummary
+
+    summary = RunSummary.read(seed_dir)
+    stop = json.loads((seed_dir / "config.json").read_text()).get("stop_at_threshold", True)
+    stopped_early = summary.reached_at_episode is not None and stop
+    return summary.episodes_run == summary.budget_episodes < episodes and not stopped_early
+
+
+def _kept_runs(base, seeds_and_dirs: list) -> list:
+    """The summaries of the completed seeds ``--resume`` keeps; refuses a completed run made
+    by another config or code version, which must not join the set unnoticed."""
+    from keras_rl.errors import RunFolderError
+    from keras_rl.runs.provenance import code_version
+    from keras_rl.runs.reuse import check_reusable
+    from keras_rl.runs.summary import RunSummary
+
+    if not seeds_and_dirs:
+        return []
+    kept, version = [], code_version()
+    for seed, seed_dir in seeds_and_dirs:
+        try:
+            check_reusable(seed_dir, base.replace(seed=seed), version)
+        except RunFolderError as exc:
+            raise ConfigError(
+                f"--resume keeps completed seeds, but {str(exc).split('; ')[0]}; "
+                "use --overwrite to run it again, or --out for another folder"
+            ) from None
+        print(f"seed {seed}: already completed in {seed_dir}, kept", file=sys.stderr)
+        kept.append(RunSummary.read(seed_dir))
+    return kept
