@@ -272,3 +272,35 @@ def test_a_sweep_names_each_nan_stop_and_does_not_fail_on_it(capsys, tmp_path, m
     err = capsys.readouterr().err
     assert code == 0, err
     assert "learning_phase_training=true seed 0 stopped (non_finite_loss): loss is nan at update 1" in err
+
+
+# -- 14, 15, 21: what a command prints --------------------------------------------------------------
+@pytest.mark.slow
+def test_a_run_names_its_files_a_resume_says_where_and_a_gif_prints_no_error(tmp_path):
+    import os
+
+    from clitools import run_cli
+
+    out = tmp_path / "runs"
+    base = ["reproduce", "pendulum", "--seeds", "0-1", "--no-progress", "--min-success-rate", "0", "--out", str(out)]
+    first = run_cli(*base, "--episodes", "2")
+    assert first.returncode == 0, first.stderr
+    assert f"all seeds: {out / 'summary.md'} and {out / 'curves.png'}" in first.stdout
+    assert not list(out.glob(".*.lock"))  # the lock files went with the command
+    more = run_cli(*base, "--episodes", "3", "--resume")
+    assert more.returncode == 0, more.stderr
+    assert f"seed 0: resumed in {out / 'seed_0'} after episode 2" in more.stderr
+    env = {k: v for k, v in os.environ.items() if k not in ("XDG_RUNTIME_DIR", "SDL_VIDEODRIVER")}
+    gif = run_cli("evaluate", str(out / "seed_0"), "--episodes", "1", "--gif", str(tmp_path / "a.gif"), env=env)
+    assert gif.returncode == 0, gif.stderr
+    assert "error" not in (gif.stdout + gif.stderr).lower() and (tmp_path / "a.gif").is_file()
+
+
+@pytest.mark.slow
+def test_compare_says_which_framework_runs_its_seeds_alone_under_seed_batch(tmp_path, capsys):
+    code = main(
+        ["compare", "cartpole", "--seeds", "0-29", "--seed-batch", "2", "--reuse-only", "--no-progress"]
+        + ["--out", str(tmp_path / "c")]
+    )
+    assert code == 0
+    assert "warning: --seed-batch 2: cartpole in torch has no seed-batched version" in capsys.readouterr().err
