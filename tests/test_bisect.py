@@ -192,3 +192,40 @@ def test_sigterm_during_a_step_exits_143_and_removes_the_temporary_worktree(tmp_
     assert proc.returncode == 143, err
     assert worktrees() == [str(repo.resolve())]
     assert not Path(added[0]).exists()
+
+
+@pytest.mark.slow
+def test_a_default_changed_by_accident_is_checked_and_bisected_in_the_real_package(tmp_path):
+    """The regression check exists for: post 000's actor_lr default changed from 1e-3 to 1e-5 in
+    a commit of a throwaway clone of the real package. The real ``bisect`` runs that commit's own
+    ``check`` (sequential, its first look of 5 fresh seeds against the committed baseline): the
+    check runs the changed default (it was refused: "not a faithful run"), names the field beside
+    its verdict, and bisect names the commit."""
+    import sys
+
+    root = Path(__file__).resolve().parent.parent
+    repo = tmp_path / "clone"
+    subprocess.run(["git", "clone", "-q", str(root), str(repo)], check=True)
+
+    def git(*args):
+        return subprocess.run(["git", *args], cwd=repo, check=True, capture_output=True, text=True).stdout.strip()
+
+    git("config", "user.email", "t@example.invalid")
+    git("config", "user.name", "t")
+    good = git("rev-parse", "HEAD")
+    post = repo / "keras_rl" / "posts" / "pendulum.py"
+    text = post.read_text()
+    assert "    actor_lr: float = positive(1e-3)" in text
+    post.write_text(text.replace("    actor_lr: float = positive(1e-3)", "    actor_lr: float = positive(1e-5)"))
+    git("commit", "-q", "-am", "posts: a default changed by accident")
+    bad = git("rev-parse", "HEAD")
+    out = tmp_path / "bisect"
+    argv = [sys.executable, "-m", "keras_rl", "bisect", good, bad, "pendulum", "--repo", str(repo)]
+    argv += ["--against", str(root / "results" / "checks"), "--out", str(out), "--workers", "1"]
+    done = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=1200)
+    assert done.returncode == 0, done.stderr
+    assert f"first changed commit: {bad}" in done.stdout
+    (step,) = [json.loads(p.read_text()) for p in out.glob("step_*/check.json")]
+    (pendulum,) = step["experiments"]
+    assert pendulum["verdict"] == "changed"
+    assert pendulum["config_changes"] == ["actor_lr: 0.001 -> 1e-05"]
