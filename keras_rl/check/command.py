@@ -230,6 +230,7 @@ def run_check(
     stop each post where its design decides. ``sequential_alpha``: the command's false-alarm
     bound instead of the committed designs' 1%, split over the posts and each post's looks
     (``sequential.at_level``; a bisect step's share of its alpha)."""
+    prepare_out(out)  # a folder of someone else's files is named before anything else
     plan = []
     designs: dict[str, tuple[SequentialDesign, float]] = {}
     for name in names:
@@ -258,7 +259,6 @@ def run_check(
             options.overrides
         )
         plan.append((experiment, rule, fresh, config, baseline, baseline_rows))
-    prepare_out(out)
     for experiment, *_ in plan:
         if (out / experiment.name).exists():
             shutil.rmtree(out / experiment.name)
