@@ -62,7 +62,7 @@ def sb3_model():
 
 
 class Ours:
-    """Post 000's faithful agent, solo (S=1), driven step by step as ``runs.loop`` drives it."""
+    """Post 000's faithful agent, solo (S=1), driven step by step as ``train.loop`` drives it."""
 
     def __init__(self) -> None:
         from keras_rl.registry import build_agent, get_experiment

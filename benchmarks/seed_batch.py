@@ -63,13 +63,16 @@ def _configs(experiment: str, seeds, episodes: int):
 
 def solo_seconds(experiment: str, episodes: int) -> tuple[float, int]:
     """One solo seed's wall time and env steps (seed 0)."""
-    from keras_rl.runs.loop import run_seed
+    from keras_rl.train.loop import run_seed
+    from keras_rl.train.settings import TrainSettings
 
     exp, (config,) = _configs(experiment, [0], episodes)
     with tempfile.TemporaryDirectory() as tmp:
-        run_seed(exp, config.replace(episodes=1), Path(tmp) / "warm", progress=False)  # import, trace: untimed
+        run_seed(
+            exp, config.replace(episodes=1), Path(tmp) / "warm", TrainSettings(progress=False)
+        )  # import, trace: untimed
         start = time.perf_counter()
-        summary = run_seed(exp, config, Path(tmp) / "solo", progress=False)
+        summary = run_seed(exp, config, Path(tmp) / "solo", TrainSettings(progress=False))
         return time.perf_counter() - start, summary.total_steps
 
 
@@ -79,13 +82,14 @@ def batch_seconds(
     """A batch's wall time and vector steps (its longest seed's env steps). ``keep``: a list
     that gets each seed's episodes (all columns but the wall time)."""
     from keras_rl.runs.files import read_episodes
-    from keras_rl.runs.loop import run_seeds as run_seed_batch
+    from keras_rl.train.loop import run_seeds as run_seed_batch
+    from keras_rl.train.settings import TrainSettings
 
     exp, configs = _configs(experiment, range(seeds), episodes)
     with tempfile.TemporaryDirectory() as tmp:
         dirs = [Path(tmp) / f"seed_{s}" for s in range(seeds)]
         start = time.perf_counter()
-        summaries = run_seed_batch(exp, configs, dirs, progress=False, finished_seeds=finished_seeds)
+        summaries = run_seed_batch(exp, configs, dirs, TrainSettings(progress=False, finished_seeds=finished_seeds))
         wall = time.perf_counter() - start
         if keep is not None:
             keep.extend(

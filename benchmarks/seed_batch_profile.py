@@ -50,9 +50,10 @@ def main() -> None:
     args = parser.parse_args()
 
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.loop import run_seed
-    from keras_rl.runs.loop import run_seeds as run_seed_batch
     from keras_rl.seeding import configure_tensorflow
+    from keras_rl.train.loop import run_seed
+    from keras_rl.train.loop import run_seeds as run_seed_batch
+    from keras_rl.train.settings import TrainSettings
 
     configure_tensorflow(1)
     exp = get_experiment(args.experiment)
@@ -60,16 +61,18 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp())
     warm = [c.replace(episodes=min(args.episodes, 15)) for c in configs]
     if args.seeds == 1:
-        run_seed(exp, warm[0], tmp / "warm", progress=False)
+        run_seed(exp, warm[0], tmp / "warm", TrainSettings(progress=False))
     else:
-        run_seed_batch(exp, warm, [tmp / "warm" / f"seed_{c.seed}" for c in warm], progress=False)
+        run_seed_batch(exp, warm, [tmp / "warm" / f"seed_{c.seed}" for c in warm], TrainSettings(progress=False))
     profile = cProfile.Profile()
     start = time.perf_counter()
     profile.enable()
     if args.seeds == 1:
-        summaries = [run_seed(exp, configs[0], tmp / "solo", progress=False)]
+        summaries = [run_seed(exp, configs[0], tmp / "solo", TrainSettings(progress=False))]
     else:
-        summaries = run_seed_batch(exp, configs, [tmp / f"seed_{c.seed}" for c in configs], progress=False)
+        summaries = run_seed_batch(
+            exp, configs, [tmp / f"seed_{c.seed}" for c in configs], TrainSettings(progress=False)
+        )
     profile.disable()
     wall = time.perf_counter() - start
     vector_steps = max(s.total_steps for s in summaries)

@@ -29,7 +29,7 @@ from keras_rl.seeding import configure_tensorflow, seed_everything  # noqa: E402
 
 
 def time_agent(experiment: str, steps: int, warmup: int, **overrides) -> float:
-    """ms per env step of one of our agents (the same loop body as ``keras_rl.runs.loop.run_seed``)."""
+    """ms per env step of one of our agents (the same loop body as ``keras_rl.train.loop.run_seed``)."""
     from keras_rl.registry import build_agent, get_experiment
 
     exp = get_experiment(experiment)

@@ -1,4 +1,4 @@
-"""A new user's pass over a fresh clone: the commands two rounds of new users reported, run again.
+"""A new user's pass over a fresh clone: what two rounds of new users reported (every item of the second), run again.
 
     python reproductions/new_user_pass.py [--write]
 
@@ -11,6 +11,7 @@ and no file of theirs lost. ``--write`` puts the table in ``results/new-user-pas
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import signal
@@ -37,19 +38,21 @@ class Pass:
         self.clone, self.work, self.outcomes = clone, work, []
         self.env = {**os.environ, "PYTHONPATH": str(clone), "PYTHONUNBUFFERED": "1", "TF_CPP_MIN_LOG_LEVEL": "3"}
 
-    def cli(self, *args: str, timeout: float = 600) -> subprocess.CompletedProcess:
+    def cli(self, *args: str, timeout: float = 600, env=None) -> subprocess.CompletedProcess:
         return subprocess.run(
             [sys.executable, "-m", "keras_rl", *args],
             cwd=self.work,
-            env=self.env,
+            env=env or self.env,
             capture_output=True,
             text=True,
             timeout=timeout,
         )
 
-    def expect(self, item: str, args: list[str], code: int, message: str, keep: list[Path] = (), timeout=600):
+    def expect(
+        self, item: str, args: list[str], code: int, message: str, keep: list[Path] = (), timeout=600, env=None
+    ) -> subprocess.CompletedProcess:
         before = {p: p.read_bytes() for p in keep if p.is_file()}
-        done = self.cli(*args, timeout=timeout)
+        done = self.cli(*args, timeout=timeout, env=env)
         out = done.stdout + done.stderr
         lost = [str(p) for p, data in before.items() if not p.is_file() or p.read_bytes() != data]
         ok = done.returncode == code and message in out and "Traceback" not in out and not lost
@@ -61,6 +64,10 @@ class Pass:
         seen = f"exit {done.returncode}; {last[:160]}" + (f"; LOST {lost}" if lost else "")
         self.outcomes.append(Outcome(item, "keras-rl " + " ".join(args), ok, seen))
         return done
+
+    def judge(self, item: str, command: str, ok: bool, seen: str) -> None:
+        """A scenario whose outcome is not one command's exit code and message."""
+        self.outcomes.append(Outcome(item, command, ok, seen))
 
     def run_set(self, folder: str, seeds: str = "0-1", episodes: int = 3) -> Path:
         out = self.work / folder
@@ -300,6 +307,248 @@ def round_two(p: Pass) -> None:
     p.expect("r2.15 --eval-episodes alone", ["reproduce", "pendulum", "--eval-episodes", "3", *out], 2, "--eval-every")
     p.expect("r2.15 seeds 1,,2", ["reproduce", "pendulum", "--seeds", "1,,2", "--dry-run", *out], 2, "empty item")
     p.expect("r2.15 seeds 1,1", ["reproduce", "pendulum", "--seeds", "1,1", "--dry-run", *out], 2, "twice")
+    p.expect(
+        "r2.15 --out inside a seed folder",
+        ["reproduce", "pendulum", "--dry-run", "--out", str(seed_folder(p))],
+        2,
+        "is inside the run folder",
+    )
+    outputs_and_files(p)
+    statistics_and_sweeps(p)
+    the_check_against_its_regression(p)
+    docs_and_weight(p)
+
+
+def seed_folder(p: Pass) -> Path:
+    """A folder inside a seed folder of a pendulum run (item 15's ``--out``)."""
+    return p.work / "X" / "pendulum" / "faithful" / "seed_1" / "more"
+
+
+def a_pendulum_run_without_weights(p: Pass, status: str) -> Path:
+    committed = p.clone / "results" / "pendulum" / "faithful" / "seed_0"
+    run = p.work / f"no-weights-{status}" / "seed_0"
+    run.mkdir(parents=True)
+    shutil.copy(committed / "config.json", run / "config.json")
+    summary = json.loads((committed / "summary.json").read_text())
+    summary.update(status=status, success=False, message="non-finite loss at update 1")
+    (run / "summary.json").write_text(json.dumps(summary))
+    return run
+
+
+def outputs_and_files(p: Pass) -> None:
+    """Items 11-14, 18 and 21: what a run prints and leaves, evaluate's refusals, the README's chain."""
+    w = p.work
+    pendulum_runs = w / "X" / "pendulum" / "faithful"
+    p.expect(
+        "r2.11 cartpole --resume into a pendulum folder",
+        ["reproduce", "cartpole", "--resume", "--dry-run", "--out", str(pendulum_runs)],
+        2,
+        "made by pendulum, not cartpole",
+        keep=[pendulum_runs / "seed_1" / "summary.json"],
+    )
+    stopped = a_pendulum_run_without_weights(p, "non_finite_loss")
+    p.expect(
+        "r2.12 evaluate a NaN-stopped run", ["evaluate", str(stopped), "--episodes", "1"], 2, "stopped at a NaN loss"
+    )
+    held = a_pendulum_run_without_weights(p, "running")
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLD_LOCK, str(held)], env=p.env, stdout=subprocess.PIPE, text=True, cwd=w
+    )
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
+        p.expect(
+            "r2.13 evaluate a folder another command writes",
+            ["evaluate", str(held), "--episodes", "1"],
+            2,
+            "is being written by another keras-rl command",
+        )
+    finally:
+        holder.kill()
+        holder.wait()
+    # 21 and 14: a run names its files and leaves no lock; a resume says from where; --gif prints no error
+    runs = w / "runs" / "pendulum" / "faithful"
+    base = ["reproduce", "pendulum", "--seeds", "0-1", "--no-progress", "--min-success-rate", "0", "--out", str(runs)]
+    quiet = {k: v for k, v in p.env.items() if k != "TF_CPP_MIN_LOG_LEVEL"}
+    done = p.expect("r2.21 a run names its files", [*base, "--episodes", "2"], 0, str(runs / "summary.md"), env=quiet)
+    p.judge(
+        "r2.21 TensorFlow's start-up lines and lock files",
+        "(the run above)",
+        "cuda drivers" not in done.stderr
+        and "absl::InitializeLog" not in done.stderr
+        and not list(runs.glob(".*.lock")),
+        f"{sum('cuda' in line for line in done.stderr.splitlines())} CUDA lines; locks {list(runs.glob('.*.lock'))}",
+    )
+    p.expect("r2.21 a resume says from where", [*base, "--episodes", "3", "--resume"], 0, "after episode 2")
+    gif_env = {k: v for k, v in p.env.items() if k not in ("XDG_RUNTIME_DIR", "SDL_VIDEODRIVER")}
+    gif = w / "a.gif"
+    done = p.expect(
+        "r2.14 evaluate --gif",
+        ["evaluate", str(runs / "seed_0"), "--episodes", "1", "--gif", str(gif)],
+        0,
+        "",
+        env=gif_env,
+    )
+    p.judge(
+        "r2.14 no error line on success",
+        "(the evaluate above)",
+        "error" not in (done.stdout + done.stderr).lower() and gif.is_file(),
+        f"gif written: {gif.is_file()}",
+    )
+    # 18: the README's reproduce then compare --runs chain: compare reuses the Keras run, retrains nothing of it
+    p.expect(
+        "r2.18 the README's commands chain",
+        ["compare", "pendulum", "--seeds", "0", "--episodes", "3", "--runs", str(w / "runs"), "--no-progress"]
+        + ["--out", str(w / "runs" / "compare")],
+        0,
+        "",
+        keep=[runs / "seed_0" / "summary.json", runs / "seed_0" / "episodes.csv"],
+    )
+    p.judge(
+        "r2.18 one layout in the folder",
+        "(the compare above)",
+        not (runs / "faithful").exists() and not (w / "runs" / "pendulum" / "seed_0").exists(),
+        ", ".join(sorted(str(q.relative_to(w / "runs")) for q in (w / "runs").glob("pendulum/*"))),
+    )
+
+
+HOLD_LOCK = """
+import sys, time
+from pathlib import Path
+from keras_rl.runs.files import run_folder_locks
+with run_folder_locks([Path(sys.argv[1])]):
+    print("held", flush=True)
+    time.sleep(600)
+"""
+
+
+def statistics_and_sweeps(p: Pass) -> None:
+    """Items 8, 9, 16 and 22: a baseline too small, a sweep's NaN stop, censoring in compare."""
+    w = p.work
+    against = w / "against1" / "pendulum" / "baseline"
+    against.mkdir(parents=True)
+    shutil.copytree(p.clone / "results" / "checks" / "pendulum" / "baseline" / "seed_0", against / "seed_0")
+    p.expect(
+        "r2.8 check against a 1-seed baseline",
+        ["check", "pendulum", "--against", str(w / "against1"), "--out", str(w / "C8")],
+        2,
+        "cannot flag anything",
+    )
+    p.expect(
+        "r2.9 a sweep point that stops at NaN",
+        ["sweep", "mountaincar", "--grid", "learning_phase_training=false,true", "--seeds", "0", "--episodes", "2"]
+        + ["--no-progress", "--out", str(w / "S9")],
+        0,
+        "learning_phase_training=true seed 0 stopped (non_finite_loss)",
+    )
+    done = p.expect(
+        "r2.16 compare counts censored seeds in Mann-Whitney",
+        ["compare", "cartpole", "--seeds", "0-29", "--reuse-only", "--no-progress"]
+        + ["--runs", str(p.clone / "results"), "--out", str(w / "C16")],
+        0,
+        "",
+    )
+    report = (
+        (w / "C16" / "cartpole" / "report.md").read_text() if (w / "C16" / "cartpole" / "report.md").is_file() else ""
+    )
+    p.judge(
+        "r2.16 and r2.22 censored seeds at budget + 1; no 'nan to nan'",
+        "(the compare above)",
+        "counts as 601" in report and "p = 0.627542" in report and "nan to nan" not in done.stdout + done.stderr,
+        "report: " + next((line[:150] for line in report.splitlines() if "Mann-Whitney U" in line), "missing"),
+    )
+
+
+def the_check_against_its_regression(p: Pass) -> None:
+    """Items 4 and 17, in a clone of the clone with a planted commit: post 000's actor_lr default
+    changed from 1e-3 to 1e-5. bisect finds it; bisect stopped by SIGTERM exits 143 and leaves no
+    worktree."""
+    repo = p.work / "planted"
+    subprocess.run(["git", "clone", "-q", str(p.clone), str(repo)], check=True)
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", *args], cwd=repo, check=True, capture_output=True, text=True).stdout.strip()
+
+    git("config", "user.email", "t@example.invalid")
+    git("config", "user.name", "t")
+    good = git("rev-parse", "HEAD")
+    post = repo / "keras_rl" / "posts" / "pendulum.py"
+    post.write_text(post.read_text().replace("actor_lr: float = positive(1e-3)", "actor_lr: float = positive(1e-5)"))
+    git("commit", "-q", "-am", "posts: a default changed by accident")
+    bad = git("rev-parse", "HEAD")
+    bisect = ["bisect", good, bad, "pendulum", "--repo", str(repo), "--workers", "1"]
+    bisect += ["--against", str(p.clone / "results" / "checks")]
+    b17 = p.work / "B17"
+    p.expect(
+        "r2.17 bisect names a changed default",
+        [*bisect, "--out", str(b17)],
+        0,
+        f"first changed commit: {bad}",
+        timeout=1800,
+    )
+    step = next(iter(b17.glob("step_*/check.json")), None)
+    changes = json.loads(step.read_text())["experiments"][0].get("config_changes") if step else None
+    p.judge(
+        "r2.17 the check names the field",
+        "(the bisect above)",
+        changes == ["actor_lr: 0.001 -> 1e-05"],
+        f"config_changes {changes}",
+    )
+    # 4: SIGTERM while a step runs
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "keras_rl", *bisect, "--out", str(p.work / "B4")],
+        cwd=p.work,
+        env=p.env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    started = time.monotonic()
+    while len(git("worktree", "list").splitlines()) < 2 and time.monotonic() - started < 300 and proc.poll() is None:
+        time.sleep(1)
+    added = git("worktree", "list").splitlines()[1:]
+    proc.send_signal(signal.SIGTERM)
+    try:
+        proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+    left = git("worktree", "list").splitlines()[1:]
+    gone = all(not Path(line.split()[0]).exists() for line in added)
+    p.judge(
+        "r2.4 bisect stopped by SIGTERM",
+        "keras-rl " + " ".join(bisect) + " (SIGTERM during its first step)",
+        proc.returncode == 143 and bool(added) and not left and gone,
+        f"exit {proc.returncode}; worktree added {len(added)}, left {len(left)}, its folder removed {gone}",
+    )
+
+
+def docs_and_weight(p: Pass) -> None:
+    """Items 19, 20, 22 and 23: the docs' examples and text, the plots' tests, no per-seed PNG."""
+    tests = ["tests/test_docs_commands.py", "tests/test_results_docs.py", "tests/test_plots.py"]
+    done = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *tests],
+        cwd=p.clone,
+        env=p.env,
+        capture_output=True,
+        text=True,
+        timeout=1800,
+    )
+    tail = (done.stdout.strip().splitlines() or [""])[-1]
+    p.judge(
+        "r2.19, r2.20, r2.22 the docs' examples, text and the plots",
+        "pytest " + " ".join(tests),
+        done.returncode == 0,
+        tail,
+    )
+    files = subprocess.run(["git", "ls-files", "results"], cwd=p.clone, capture_output=True, text=True).stdout.split()
+    pictures = [f for f in files if "/seed_" in f and f.endswith(".png")]
+    size = subprocess.run(["du", "-sh", "results"], cwd=p.clone, capture_output=True, text=True).stdout.split()[0]
+    p.judge(
+        "r2.23 no per-seed PNG under results/",
+        "git ls-files results",
+        not pictures,
+        f"{len(pictures)} per-seed PNGs; du -sh results: {size}",
+    )
 
 
 def main() -> None:

@@ -1,4 +1,4 @@
-"""The seed-batched episode loop (keras_rl/runs/loop.py over a seed axis): each seed writes its
+"""The seed-batched episode loop (keras_rl/train/loop.py over a seed axis): each seed writes its
 solo run's episodes.csv, stops on its own threshold, NaN or Ctrl-C, and episodes of any length."""
 
 from __future__ import annotations
@@ -19,11 +19,12 @@ def _csv(path):
 
 def _batch(tmp_path, name, seeds, **overrides):
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.loop import run_seeds as run_seed_batch
+    from keras_rl.train.loop import run_seeds as run_seed_batch
+    from keras_rl.train.settings import TrainSettings
 
     exp = get_experiment("pendulum")
     configs = [exp.config_cls.for_variant("faithful", seed=s, **overrides) for s in seeds]
-    return run_seed_batch(exp, configs, [tmp_path / name / f"seed_{s}" for s in seeds], progress=False)
+    return run_seed_batch(exp, configs, [tmp_path / name / f"seed_{s}" for s in seeds], TrainSettings(progress=False))
 
 
 @pytest.mark.slow
@@ -101,13 +102,16 @@ def _envs(seeds, wrap=None):
 @pytest.mark.slow
 def test_a_nan_in_one_seed_stops_that_seed_only(tmp_path):
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.loop import run_seeds as run_seed_batch
+    from keras_rl.train.loop import run_seeds as run_seed_batch
+    from keras_rl.train.settings import TrainSettings
 
     exp = get_experiment("pendulum")
     seeds = [0, 1, 2]
     configs = [exp.config_cls.for_variant("faithful", seed=s, episodes=5, train_start=64, batch_size=16) for s in seeds]
     envs = _envs(seeds, wrap=lambda e: NaNRewardAfter(e, after_steps=450))
-    summaries = run_seed_batch(exp, configs, [tmp_path / f"seed_{s}" for s in seeds], progress=False, envs=envs)
+    summaries = run_seed_batch(
+        exp, configs, [tmp_path / f"seed_{s}" for s in seeds], TrainSettings(progress=False), envs=envs
+    )
     by_seed = {s.seed: s for s in summaries}
     assert by_seed[1].status == "non_finite_loss" and "critic_loss became nan" in by_seed[1].message
     assert by_seed[1].episodes_run == 2  # the episode that hit NaN is not recorded
@@ -120,7 +124,8 @@ def test_ctrl_c_stops_every_seed_of_a_batch_and_keeps_their_episodes(tmp_path):
     import signal
 
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.loop import run_seeds as run_seed_batch
+    from keras_rl.train.loop import run_seeds as run_seed_batch
+    from keras_rl.train.settings import TrainSettings
 
     exp = get_experiment("pendulum")
     seeds = [0, 1]
@@ -131,7 +136,7 @@ def test_ctrl_c_stops_every_seed_of_a_batch_and_keeps_their_episodes(tmp_path):
             exp,
             configs,
             [tmp_path / f"seed_{s}" for s in seeds],
-            progress=False,
+            TrainSettings(progress=False),
             envs=_envs(seeds, wrap=lambda e: SigintAt(e, at=450)),
         )
     finally:
@@ -144,15 +149,16 @@ def test_ctrl_c_stops_every_seed_of_a_batch_and_keeps_their_episodes(tmp_path):
 
 def _cartpole_runs(tmp_path, name, seeds, episodes, batch: bool):
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.loop import run_seed
-    from keras_rl.runs.loop import run_seeds as run_seed_batch
+    from keras_rl.train.loop import run_seed
+    from keras_rl.train.loop import run_seeds as run_seed_batch
+    from keras_rl.train.settings import TrainSettings
 
     exp = get_experiment("cartpole")
     configs = [exp.config_cls.for_variant("faithful", seed=s, episodes=episodes) for s in seeds]
     dirs = [tmp_path / name / f"seed_{s}" for s in seeds]
     if batch:
-        return run_seed_batch(exp, configs, dirs, progress=False)
-    return [run_seed(exp, c, d, progress=False) for c, d in zip(configs, dirs)]
+        return run_seed_batch(exp, configs, dirs, TrainSettings(progress=False))
+    return [run_seed(exp, c, d, TrainSettings(progress=False)) for c, d in zip(configs, dirs)]
 
 
 @pytest.mark.slow

@@ -229,3 +229,29 @@ def test_a_default_changed_by_accident_is_checked_and_bisected_in_the_real_packa
     (pendulum,) = step["experiments"]
     assert pendulum["verdict"] == "changed"
     assert pendulum["config_changes"] == ["actor_lr: 0.001 -> 1e-05"]
+
+
+def test_a_stop_that_lands_while_the_worktree_is_added_still_removes_it(tmp_path, baseline, monkeypatch):
+    """The signal a new user's pass sent as soon as the worktree was listed: it landed while
+    ``git worktree add`` was still being waited on, before the clean-up was armed, and the
+    worktree stayed. Here the add completes and the stop arrives at once."""
+    from keras_rl.check import bisect as module
+
+    shas = make_repo(tmp_path / "repo", ["ok", "broken"])
+    repo = tmp_path / "repo"
+    real_git = module.git
+    added = []
+
+    def git_then_stop(where, *args, check=True):
+        out = real_git(where, *args, check=check)
+        if args[:2] == ("worktree", "add"):
+            added.append(Path(args[-2]))
+            raise KeyboardInterrupt
+        return out
+
+    monkeypatch.setattr(module, "git", git_then_stop)
+    with pytest.raises(KeyboardInterrupt):
+        module.bisect(repo, shas[0], shas[1], ["pendulum"], "smoke", baseline, tmp_path / "out")
+    listed = subprocess.run(["git", "worktree", "list"], cwd=repo, capture_output=True, text=True).stdout
+    assert len(listed.strip().splitlines()) == 1, listed
+    assert len(added) == 1 and not added[0].exists()

@@ -140,7 +140,7 @@ def _fake_baseline_seed(seed_dir, seed=0):
     """A finished faithful pendulum run folder of three episodes (written with the project's own writers)."""
     from keras_rl.registry import get_experiment
     from keras_rl.runs.files import RunRecorder
-    from keras_rl.runs.loop import SeedRun
+    from keras_rl.train.loop import SeedRun
 
     exp = get_experiment("pendulum")
     config = exp.config_cls.for_variant("faithful", seed=seed)

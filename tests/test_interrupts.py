@@ -16,7 +16,8 @@ from wrappers import NaNRewardAfter, SigintAt
 from keras_rl.posts.pendulum import PendulumDDPGConfig
 from keras_rl.registry import get_experiment
 from keras_rl.runs.files import read_episodes
-from keras_rl.runs.loop import run_seed
+from keras_rl.train.loop import run_seed
+from keras_rl.train.settings import TrainSettings
 
 
 @pytest.mark.parametrize("workers", [1, 2])
@@ -61,7 +62,7 @@ def test_nan_in_a_loss_stops_the_run_and_keeps_the_episodes(tmp_path):
     exp = get_experiment("pendulum")
     config = PendulumDDPGConfig.for_variant("faithful", episodes=10, train_start=64, batch_size=16)
     env = NaNRewardAfter(exp.make_env(config), after_steps=450)
-    summary = run_seed(exp, config, tmp_path, progress=False, env=env)
+    summary = run_seed(exp, config, tmp_path, TrainSettings(progress=False), env=env)
     assert summary.status == "non_finite_loss" and not summary.finished
     assert "critic_loss became nan" in summary.message
     rows = read_episodes(tmp_path / "episodes.csv")
@@ -84,7 +85,9 @@ def test_ctrl_c_mid_episode_is_taken_between_env_steps(tmp_path):
     # Python's own Ctrl-C handler, even where the test runner was started with SIGINT ignored
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        summary = run_seed(exp, config, tmp_path, progress=False, env=SigintAt(exp.make_env(config), at=450))
+        summary = run_seed(
+            exp, config, tmp_path, TrainSettings(progress=False), env=SigintAt(exp.make_env(config), at=450)
+        )
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the run put it back
     finally:
         signal.signal(signal.SIGINT, previous)

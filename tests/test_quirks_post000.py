@@ -90,14 +90,15 @@ def test_training_runs_every_step_from_train_start():
 @pytest.mark.slow
 def test_stop_at_threshold_ends_the_run_at_the_first_crossing(tmp_path):
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.loop import run_seed
+    from keras_rl.train.loop import run_seed
+    from keras_rl.train.settings import TrainSettings
 
     exp = get_experiment("pendulum")
     config = PendulumDDPGConfig.for_variant("faithful", threshold=-1e9, episodes=5, train_start=2000)
-    summary = run_seed(exp, config, tmp_path / "stop", progress=False)
+    summary = run_seed(exp, config, tmp_path / "stop", TrainSettings(progress=False))
     assert summary.reached_at_episode == 1 and summary.episodes_run == 1
     config = config.replace(stop_at_threshold=False, episodes=3)
-    summary = run_seed(exp, config, tmp_path / "go-on", progress=False)
+    summary = run_seed(exp, config, tmp_path / "go-on", TrainSettings(progress=False))
     assert summary.reached_at_episode == 1 and summary.episodes_run == 3
 
 

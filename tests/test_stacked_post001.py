@@ -149,15 +149,16 @@ def test_post001_seeds_batched_burst_by_burst_play_their_solo_episodes(tmp_path)
     episodes match its solo run's (to the rounding of stacked matmuls: 1e-7 per update)."""
     from keras_rl.registry import get_experiment
     from keras_rl.runs.files import read_episodes
-    from keras_rl.runs.loop import run_seed, run_seeds
+    from keras_rl.train.loop import run_seed, run_seeds
+    from keras_rl.train.settings import TrainSettings
 
     exp = get_experiment("mountaincar")
     seeds = [0, 1, 2]
     configs = [config(s, episodes=3) for s in seeds]
-    batch = run_seeds(exp, configs, [tmp_path / "batch" / f"seed_{s}" for s in seeds], progress=False)
+    batch = run_seeds(exp, configs, [tmp_path / "batch" / f"seed_{s}" for s in seeds], TrainSettings(progress=False))
     assert [s.status for s in batch] == ["completed"] * 3
     for c in configs:
-        alone = run_seed(exp, c, tmp_path / "solo" / f"seed_{c.seed}", progress=False)
+        alone = run_seed(exp, c, tmp_path / "solo" / f"seed_{c.seed}", TrainSettings(progress=False))
         got = read_episodes(tmp_path / "batch" / f"seed_{c.seed}" / "episodes.csv")
         want = read_episodes(tmp_path / "solo" / f"seed_{c.seed}" / "episodes.csv")
         assert alone.episodes_run == len(got) == len(want) == 3

@@ -101,7 +101,7 @@ def test_keras_learners_never_import_the_torch_side():
         "keras_rl.agents",
         "keras_rl.posts",
         "keras_rl.torch",
-        "keras_rl.runs.loop",
+        "keras_rl.train.loop",
         "keras_rl.runs.jobs",  # what every Ray worker loads: the dispatcher and its backends
         "keras_rl.runs.ray_backend",
         "keras_rl.runs.backends",
@@ -119,7 +119,7 @@ def test_reports_train_nothing():
     """``report/`` reads run folders; making runs is ``runs/``' job (``runs/compare_runs.py``
     for compare), so no report reaches the dispatcher or the episode loop."""
     for name in (n for n in MODULES if n.startswith("keras_rl.report")):
-        bad = sorted(m for m in reachable(name) if m in ("keras_rl.runs.jobs", "keras_rl.runs.loop"))
+        bad = sorted(m for m in reachable(name) if m in ("keras_rl.runs.jobs", "keras_rl.train.loop"))
         assert not bad, f"{name} reaches {bad}"
 
 

@@ -127,22 +127,23 @@ def test_a_torch_batch_runs_through_the_loop_and_resumes_to_the_same_files(tmp_p
 
     from keras_rl.registry import get_experiment
     from keras_rl.runs.files import read_episodes
-    from keras_rl.runs.loop import run_seeds
+    from keras_rl.train.loop import run_seeds
+    from keras_rl.train.settings import TrainSettings
 
     exp = get_experiment("pendulum")
     cs = [c.replace(episodes=6, train_start=200) for c in configs("000", [0, 1])]
-    straight = run_seeds(exp, cs, [tmp_path / "straight" / f"seed_{c.seed}" for c in cs], progress=False)
+    straight = run_seeds(exp, cs, [tmp_path / "straight" / f"seed_{c.seed}" for c in cs], TrainSettings(progress=False))
     assert [s.status for s in straight] == ["completed"] * 2
     dirs = [tmp_path / "cut" / f"seed_{c.seed}" for c in cs]
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         envs = [SigintAt(exp.make_env(c), at=650) for c in cs]
-        cut = run_seeds(exp, cs, dirs, progress=False, envs=envs)
+        cut = run_seeds(exp, cs, dirs, TrainSettings(progress=False), envs=envs)
     finally:
         signal.signal(signal.SIGINT, previous)
     assert [s.status for s in cut] == ["interrupted"] * 2 and cut[0].episodes_run == 3
     envs = [SigintAt(exp.make_env(c), at=650) for c in cs]  # their counters come back past 650 from the checkpoint
-    resumed = run_seeds(exp, cs, dirs, progress=False, resume=True, envs=envs)
+    resumed = run_seeds(exp, cs, dirs, TrainSettings(progress=False, resume=True), envs=envs)
     assert [s.status for s in resumed] == ["completed"] * 2
     for c in cs:
         got = read_episodes(tmp_path / "cut" / f"seed_{c.seed}" / "episodes.csv")

@@ -4,7 +4,7 @@
 update; none when the step does not train). ``fuse_act``: the step's last update and the
 next action may be one compiled call (the posts pick step t+1's action with the weights
 step t's update made). The schedule only decides; the agent (``skeleton.run_updates``) or
-the episode loop (``runs/loop.py``, for a seed axis) turns the batches into learner calls.
+the episode loop (``train/loop.py``, for a seed axis) turns the batches into learner calls.
 """
 
 from __future__ import annotations

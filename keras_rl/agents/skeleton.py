@@ -82,7 +82,7 @@ class Agent:
 
     The verbs (``begin_episode``, ``step``, ``end_episode``) run one seed with its own
     learner. Each is built from phases that never call the learner (``start_episode``,
-    ``store``, ``record_losses``, ``explore``): the episode loop (``runs/loop.py``) drives
+    ``store``, ``record_losses``, ``explore``): the episode loop (``train/loop.py``) drives
     those for every seed of a seed axis and makes one learner call for all of them.
     """
 

@@ -38,6 +38,7 @@ from pathlib import Path
 from keras_rl.check.statistics import holm_adjusted
 from keras_rl.errors import ConfigError
 from keras_rl.runs.files import atomic_write_json, atomic_write_text
+from keras_rl.runs.signals import stop_signals_deferred
 
 
 @dataclass
@@ -153,8 +154,9 @@ def bisect(
         extra = ["--sequential", "--alpha", repr(per_step), *(extra or [])]
     worktree = Path(tempfile.mkdtemp(prefix="keras-rl-bisect-"))
     shutil.rmtree(worktree)
-    git(repo, "worktree", "add", "--detach", str(worktree), bad_sha)
     try:
+        with stop_signals_deferred():  # a signal during the add lands after it, inside this try
+            git(repo, "worktree", "add", "--detach", str(worktree), bad_sha)
         log(f"bisect: {commits} commits, at most {step_budget(commits)} checks, each at alpha {per_step:.3g}")
         verdict = _step(result, worktree, experiments, tier, baseline, out, extra or [], log)
         if verdict != "changed":
@@ -179,9 +181,19 @@ def bisect(
         result.outcome = "found"
         return result
     finally:
+        with stop_signals_deferred(reraise=False):  # a second signal does not cut the clean-up short
+            remove_worktree(repo, worktree)
+            write_report(out, result)
+
+
+def remove_worktree(repo: Path, worktree: Path) -> None:
+    """The temporary worktree, gone from the disk and from ``git worktree list``, whatever
+    state a stop left it in (added or half-added)."""
+    if worktree.exists():
         git(worktree, "bisect", "reset", check=False)
-        git(repo, "worktree", "remove", "--force", str(worktree), check=False)
-        write_report(out, result)
+    git(repo, "worktree", "remove", "--force", str(worktree), check=False)
+    shutil.rmtree(worktree, ignore_errors=True)
+    git(repo, "worktree", "prune", check=False)
 
 
 def _step(result: BisectResult, worktree: Path, experiments, tier, baseline, out, extra, log) -> str:

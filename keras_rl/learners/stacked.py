@@ -14,7 +14,7 @@ Seed k's slice starts from the very weights seed k's solo run draws: ``stack_pos
 ``stack_post003`` seed Keras as a solo run does, build the solo networks, and stack them.
 A stack of one seed is the solo learner itself (``SoloAsStack``).
 
-The episode loop over a seed axis is ``runs/loop.py``; the equivalence tests are
+The episode loop over a seed axis is ``train/loop.py``; the equivalence tests are
 ``tests/test_stacked_ddpg.py``, ``tests/test_stacked_dqn.py`` and ``tests/test_stacked_post001.py``.
 """
 
@@ -353,6 +353,8 @@ class StackedDQNLearner(SliceState, DQNLearner):
     and its every-step soft update, for S seeds in one call: ``DQNLearner``'s own update on
     [S, B, ...] batches, its gradient taken of the sum of the seeds' losses."""
 
+    takes_masks = False
+
     def __init__(self, q_network, target_network, optimizer, *, seeds: int, **kwargs):
         self.seeds = seeds
         self.solo_networks: list[keras.Model] = []  # seed k's solo policy net, for saving
@@ -402,6 +404,8 @@ class SoloAsStack:
     run; this is, call for call (``separate``: the update, then an act of its own, as the
     solo agent makes them after an episode end and where the post does not fuse them)."""
 
+    takes_masks = False
+
     def __init__(self, learner):
         self.learner = learner
         self.loss_names = tuple(learner.loss_names)
@@ -410,7 +414,9 @@ class SoloAsStack:
     def _one(losses) -> dict[str, np.ndarray]:
         return {k: np.asarray(v)[None] for k, v in losses.items()}
 
-    def train(self, rows: np.ndarray) -> dict[str, np.ndarray]:
+    def train(self, rows: np.ndarray, mask: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        if mask is not None:
+            raise ValueError("a seed axis of one trains or does not: it takes no mask")
         return self._one(self.learner.train(rows[0]))
 
     def act(self, states: np.ndarray) -> np.ndarray:

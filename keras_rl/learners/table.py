@@ -72,7 +72,7 @@ def batch_refusal(experiment: str, config: dict) -> str | None:
 FINISHED_SEEDS: dict[tuple[str, str], str] = {("cartpole", "keras"): "shrink"}
 """What a seed batch does with a seed that finishes before the others, where it is not
 ``mask`` (the seed stays in the stacked update on rows of zeros): ``shrink`` rebuilds the
-stack without it (``runs/loop.PartsAxis``), so later updates cost what a smaller batch
+stack without it (``train/loop.PartsAxis``), so later updates cost what a smaller batch
 costs, for a rebuild and compile of a few seconds. Both give every seed the same bits
 (``tests/test_finished_seeds.py``); the choice is speed alone, by measurement
 (``benchmarks/seed_batch.py --finished-seeds``, docs/performance.md)."""

@@ -5,7 +5,7 @@ stands, its env (pickled: mid-episode state and its generators), its agent's par
 buffer, noise and exploration state, loss tally, every generator they own), its slice of
 the learner (weights, optimizer state) and the generators outside them (Python's
 ``random``, NumPy's global RNG). The seeds of a batch write theirs at the same vector step,
-which each one records with the batch's seeds (``runs/loop.py``). Resuming from it replays the rest of the run
+which each one records with the batch's seeds (``train/loop.py``). Resuming from it replays the rest of the run
 exactly as an uninterrupted run would have played it, so the two ``episodes.csv`` agree
 bit for bit (``tests/test_resume.py``). TensorFlow's and Keras' global generators are not
 saved: no training step of the three posts draws from them (the only random layer,
@@ -36,7 +36,7 @@ CHECKPOINT = "checkpoint.pkl"
 PREVIOUS = "checkpoint.prev.pkl"
 MAGIC = b"keras-rl checkpoint 1\n"
 VERSION = 2
-"""The layout of the payload (``runs/loop.py``); 1 was the per-episode layout of the solo loop."""
+"""The layout of the payload (``train/loop.py``); 1 was the per-episode layout of the solo loop."""
 
 
 def write_checkpoint(run_dir: Path, state: dict[str, Any]) -> None:

@@ -25,10 +25,11 @@ from keras_rl.registry import get_experiment
 from keras_rl.runs.checkpoint import checkpoint_batch
 from keras_rl.runs.evaluate import EvalSchedule
 from keras_rl.runs.files import run_folder_locks
-from keras_rl.runs.loop import run_seeds
 from keras_rl.runs.provenance import command_line
 from keras_rl.runs.signals import sigterm_as_interrupt
 from keras_rl.runs.summary import RunSummary
+from keras_rl.train.engine import DEFAULT_ENGINE, get_engine
+from keras_rl.train.settings import TrainSettings
 
 
 @dataclass(frozen=True)
@@ -48,6 +49,8 @@ class SeedJob:
     argv is not it)."""
     evaluation: EvalSchedule | None = None
     """Greedy evaluations during training (``--eval-every``), or none."""
+    engine: str = DEFAULT_ENGINE
+    """Which engine trains it (``train/engine.ENGINES``)."""
 
     @classmethod
     def of(cls, config, out_dir: Path, **options: Any) -> SeedJob:
@@ -58,7 +61,7 @@ class SeedJob:
 @dataclass(frozen=True)
 class SeedBatchJob:
     """Several seeds of one config trained together (``--seed-batch``) on one seed axis
-    (``runs/loop.py``); they start alike (all new, all overwritten, or all resumed)."""
+    (``train/loop.py``); they start alike (all new, all overwritten, or all resumed)."""
 
     jobs: tuple[SeedJob, ...]
 
@@ -120,6 +123,7 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
             str(job.tensorboard),
             job.checkpoint_every,
             job.evaluation,
+            job.engine,
         )
         groups.setdefault(key, []).append(job)
     out = []
@@ -151,7 +155,7 @@ class JobsOutcome:
 
 
 def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> RunSummary:
-    """Run one job (a seed, or a batch of seeds) here through the one episode loop; a batch
+    """Run one job (a seed, or a batch of seeds) here on its engine (``train/engine.py``); a batch
     returns the summary of its first interrupted seed, else of its last. Drawing
     ``curve.png`` is the command's job (``run_jobs(..., after_job=...)``): nothing a worker
     imports reaches plotting."""
@@ -163,19 +167,17 @@ def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> 
         for j in group:
             if j.start == "overwrite" and Path(j.out_dir).exists():
                 shutil.rmtree(j.out_dir)  # whole: no weights or evaluation.json of the old run survive
-        summaries = run_seeds(
-            experiment,
-            configs,
-            [j.out_dir for j in group],
+        settings = TrainSettings(
             progress=progress,
             position=position,
             resume=first.start == "resume",
             checkpoint_every=first.checkpoint_every,
             tensorboard=first.tensorboard,
-            should_stop=should_stop,
             command=first.command,
             evaluation=first.evaluation,
         )
+        engine = get_engine(first.engine)
+        summaries = engine.train(experiment, configs, [j.out_dir for j in group], settings, should_stop=should_stop)
     return next((s for s in summaries if s.status == "interrupted"), summaries[-1])
 
 

@@ -54,47 +54,30 @@ import numpy as np
 from keras_rl.config import check_same_but_seed
 from keras_rl.errors import ConfigError, NonFiniteLossError
 from keras_rl.experiment import Experiment
+from keras_rl.learners.axis import SeedAxisLearner
 from keras_rl.learners.table import finished_seeds_default, implementation, stacked_implementation
 from keras_rl.rngs import global_rng_state, set_global_rng_state
 from keras_rl.runs.checkpoint import delete_checkpoints, read_batch_checkpoints, write_checkpoint
-from keras_rl.runs.evaluate import EvalSchedule, TrainingEvaluator
+from keras_rl.runs.evaluate import TrainingEvaluator
 from keras_rl.runs.files import RunRecorder, atomic_write_text, episode_columns, episodes_csv_text
 from keras_rl.runs.provenance import command_line, library_versions, provenance
 from keras_rl.runs.signals import signal_name, stop_signals_as_flag, stop_signals_deferred
 from keras_rl.runs.summary import RunSummary, Status
 from keras_rl.seeding import configure_tensorflow, seed_everything
+from keras_rl.train.settings import DEFAULT_SETTINGS, TrainSettings
 
 
 def run_seed(
     experiment: Experiment,
     config,
     out_dir: Path,
-    progress: bool = True,
-    position: int = 0,
-    threads: int | None = 1,
+    settings: TrainSettings = DEFAULT_SETTINGS,
     env=None,
-    resume: bool = False,
-    checkpoint_every: int = 10,
-    tensorboard: Path | None = None,
     should_stop: Callable[[], bool] | None = None,
-    command: str | None = None,
-    evaluation: EvalSchedule | None = None,
 ) -> RunSummary:
     """Train one seed: ``run_seeds`` with a seed axis of one."""
     return run_seeds(
-        experiment,
-        [config],
-        [out_dir],
-        progress=progress,
-        position=position,
-        threads=threads,
-        envs=None if env is None else [env],
-        resume=resume,
-        checkpoint_every=checkpoint_every,
-        tensorboard=tensorboard,
-        should_stop=should_stop,
-        command=command,
-        evaluation=evaluation,
+        experiment, [config], [out_dir], settings, envs=None if env is None else [env], should_stop=should_stop
     )[0]
 
 
@@ -102,51 +85,43 @@ def run_seeds(
     experiment: Experiment,
     configs: Sequence,
     out_dirs: Sequence[Path],
-    progress: bool = True,
-    position: int = 0,
-    threads: int | None = 1,
+    settings: TrainSettings = DEFAULT_SETTINGS,
     envs: Sequence | None = None,
-    resume: bool = False,
-    checkpoint_every: int = 10,
-    tensorboard: Path | None = None,
     should_stop: Callable[[], bool] | None = None,
-    command: str | None = None,
-    evaluation: EvalSchedule | None = None,
-    finished_seeds: str | None = None,
 ) -> list[RunSummary]:
     """Train the seeds of ``configs`` (equal but for the seed) together to the threshold or
     the budget; write each one's folder and return their summaries.
 
     Ctrl-C, SIGTERM, a non-finite loss or any other error still leaves each seed's
     ``episodes.csv`` with every finished episode and a ``summary.json`` whose ``status``
-    says how that seed ended; the summary is rewritten after every episode. ``envs`` may be
-    passed in, one per seed (tests wrap envs). ``should_stop`` is asked whenever an episode
-    ends; True stops the batch as a signal would (a distributed backend's stop flag).
-    ``command`` is the command line to record (a job run elsewhere carries its driver's).
-    ``evaluation``: greedy evaluations during training on envs of their own
-    (``runs/evaluate.TrainingEvaluator``), which leave the training run as it would be without.
-    ``finished_seeds``: what a batch does with a seed that has finished while others run,
-    ``mask`` (it stays in the stack) or ``shrink`` (the stack is rebuilt without it; the
-    same bits, measured by ``tests/test_finished_seeds.py``); None takes the post's
-    (``learners/table.FINISHED_SEEDS``), chosen by speed. A resumed batch rebuilds the stack
-    its checkpoints record.
+    says how that seed ended; the summary is rewritten after every episode. ``settings``
+    (``train/settings.TrainSettings``) says how: resume, checkpoints, TensorBoard, evaluation
+    during training, the command line to record, and what a batch does with a finished seed
+    (``mask`` keeps its slice in the stack, ``shrink`` rebuilds the stack without it: the
+    same bits, ``tests/test_finished_seeds.py``; a resumed batch rebuilds the stack its
+    checkpoints record). ``envs`` may be passed in, one per seed (tests wrap envs).
+    ``should_stop`` is asked whenever an episode ends; True stops the batch as a signal
+    would (a distributed backend's stop flag).
     """
     configs = list(configs)
     check_same_but_seed(configs)
     if len({c.episodes for c in configs}) != 1:
         raise ConfigError("seed-batched runs share one budget")
-    configure_tensorflow(threads)
-    axis, envs = build_seed_axis(experiment, configs, envs, finished_seeds)
-    seeds = [_Seed(experiment, c, env, Path(d), axis.loss_names, command) for c, env, d in zip(configs, envs, out_dirs)]
+    configure_tensorflow(settings.threads)
+    axis, envs = build_seed_axis(experiment, configs, envs, settings.finished_seeds)
+    seeds = [
+        _Seed(experiment, c, env, Path(d), axis.loss_names, settings.command)
+        for c, env, d in zip(configs, envs, out_dirs)
+    ]
     batch = [c.seed for c in configs]
     for s in seeds:
         if len(seeds) > 1:  # which seeds shared its stacked updates: its bits depend on them
             s.run.provenance["seed_batch"] = batch
-    state = _Batch(seeds, axis, checkpoint_every, batch)
-    if evaluation is not None:
+    state = _Batch(seeds, axis, settings.checkpoint_every, batch)
+    if settings.evaluation is not None:
         for s in seeds:
-            s.evaluator = TrainingEvaluator(experiment, s.config, s.recorder.out_dir, evaluation)
-    if resume:
+            s.evaluator = TrainingEvaluator(experiment, s.config, s.recorder.out_dir, settings.evaluation)
+    if settings.resume:
         state.restore(read_batch_checkpoints([s.recorder.out_dir for s in seeds], batch))
         for s in seeds:
             if s.active:  # it goes on, perhaps to a larger budget (--resume --episodes N): config.json says which
@@ -159,9 +134,9 @@ def run_seeds(
     for s in seeds:
         if s.final is None:  # a summary from the start: no stale one from an earlier run survives
             s.run.summary("running").write(s.recorder.out_dir)
-        if tensorboard and s.final is None:
-            s.writer = _TensorBoard(tensorboard, s.config)
-    bar = _progress_bar(experiment, configs, seeds, position) if progress else None
+        if settings.tensorboard and s.final is None:
+            s.writer = _TensorBoard(settings.tensorboard, s.config)
+    bar = _progress_bar(experiment, configs, seeds, settings.position) if settings.progress else None
     try:
         with stop_signals_as_flag() as interrupted:  # checked between vector steps
             state.loop(interrupted, bar, should_stop)
@@ -231,7 +206,13 @@ class PartsAxis:
     so each later call costs what a batch of that size costs. Under ``mask``, a finished seed
     stays in the stack on rows of zeros."""
 
-    def __init__(self, agents: list, learner, rebuild: Callable[[list[int]], Any] | None = None, shrink=False):
+    def __init__(
+        self,
+        agents: list,
+        learner: SeedAxisLearner,
+        rebuild: Callable[[list[int]], SeedAxisLearner] | None = None,
+        shrink=False,
+    ):
         self.agents, self.learner, self.rebuild, self.shrink = agents, learner, rebuild, shrink
         self.loss_names = tuple(learner.loss_names)
         self.batches: list[list] = [[] for _ in agents]
@@ -267,7 +248,7 @@ class PartsAxis:
         counts = [len(self.batches[k]) if t else 0 for k, t in zip(live, trains)]
         n = max(counts, default=0)
         alike = len({c for c, t in zip(counts, trains) if t}) <= 1
-        if not alike and not getattr(self.learner, "takes_masks", False):
+        if not alike and not self.learner.takes_masks:
             raise ConfigError(
                 "seed-batched runs of this learner need the seeds to train the same number of batches on each env step"
             )

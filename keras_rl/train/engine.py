@@ -1,0 +1,74 @@
+"""The engine seam: what ``runs/jobs.execute`` calls to train a set of seeds.
+
+An engine takes one experiment, the seeds' configs (equal but for the seed), their run
+folders and one ``TrainSettings``, trains them, and leaves in each folder what the project's
+run folder holds (``config.json``, ``episodes.csv``, ``summary.json``, checkpoints, weights,
+``evaluations.csv``, TensorBoard scalars); it returns the seeds' summaries. The commands, the
+dispatch (in-process or Ray), resume and the reports read only those folders, so a second
+engine lands here without changing them.
+
+``refusal`` answers before anything is trained: a config the engine cannot run faithfully
+(a quirk switch it does not honour, say) gets a sentence naming the switch, which the
+command turns into exit 2.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Protocol
+
+from keras_rl.errors import ConfigError
+from keras_rl.experiment import Experiment
+from keras_rl.runs.summary import RunSummary
+from keras_rl.train.loop import run_seeds
+from keras_rl.train.settings import TrainSettings
+
+
+class Engine(Protocol):
+    name: str
+
+    def refusal(self, experiment: Experiment, config) -> str | None:
+        """Why this engine cannot run ``config`` of ``experiment``; None if it can."""
+
+    def train(
+        self,
+        experiment: Experiment,
+        configs: Sequence,
+        out_dirs: Sequence[Path],
+        settings: TrainSettings,
+        should_stop: Callable[[], bool] | None = None,
+    ) -> list[RunSummary]:
+        """Train the seeds of ``configs`` into ``out_dirs``; their summaries, in order.
+        ``should_stop`` is asked between chunks of work (a dispatcher's stop flag)."""
+
+
+class GymnasiumEngine:
+    """The episode loop of ``train/loop.py``: Gymnasium envs stepped in NumPy, one learner
+    call per env step over the seed axis. It runs every experiment, framework and quirk."""
+
+    name = "gymnasium"
+
+    def refusal(self, experiment: Experiment, config) -> str | None:
+        return None
+
+    def train(
+        self,
+        experiment: Experiment,
+        configs: Sequence,
+        out_dirs: Sequence[Path],
+        settings: TrainSettings,
+        should_stop: Callable[[], bool] | None = None,
+    ) -> list[RunSummary]:
+        return run_seeds(experiment, configs, out_dirs, settings, should_stop=should_stop)
+
+
+ENGINES: dict[str, Engine] = {"gymnasium": GymnasiumEngine()}
+DEFAULT_ENGINE = "gymnasium"
+
+
+def get_engine(name: str) -> Engine:
+    try:
+        return ENGINES[name]
+    except KeyError:
+        raise ConfigError(f"unknown engine {name!r}; known: {', '.join(sorted(ENGINES))}") from None
