@@ -24,7 +24,7 @@ sys.path.insert(0, str(ROOT))
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
 from keras_rl.check.bisect import step_budget  # noqa: E402
-from keras_rl.check.command import CALIBRATION, baseline_values, sequential_design  # noqa: E402
+from keras_rl.check.command import BASELINES, baseline_values, sequential_design  # noqa: E402
 from keras_rl.check.rules import rule_for  # noqa: E402
 from keras_rl.check.sequential import at_level, null_pvalues, simulate  # noqa: E402
 from keras_rl.registry import get_experiment  # noqa: E402
@@ -33,7 +33,7 @@ POSTS = ("pendulum", "cartpole", "mountaincar")
 ALPHA = 0.01
 COMMITS = (8, 100)  # a short and a long bisect
 DRAWS = 50_000
-OUT = CALIBRATION.parent / "bisect_levels.md"
+OUT = BASELINES / "bisect_levels.md"
 COMMAND = "python reproductions/check_bisect_levels.py --write"
 
 
@@ -47,7 +47,7 @@ def measure(draws: int = DRAWS) -> list[dict]:
     for post in POSTS:
         rule = rule_for(post, "smoke")
         design, _ = sequential_design(rule)
-        values, _ = baseline_values(get_experiment(post), rule, CALIBRATION.parent / post / "baseline")
+        values, _ = baseline_values(get_experiment(post), rule, BASELINES / post / "baseline")
         null = null_pvalues(list(values.values()), rule.statistic, design.stages, draws, np.random.default_rng(7))
         for commits in COMMITS:
             for posts in (1, len(POSTS)):

@@ -20,7 +20,7 @@ the tier lists, at each alpha of ``ALPHAS``), with the tier's number of fresh se
 
 The criterion: among candidates whose false-alarm rate is at most 1%, the most power against
 the gross mutants, then against all of them; ties go to the rule listed first. ``--write``
-puts the tables in ``results/checks/calibration.json`` and ``calibration.md``.
+puts the tables in ``keras_rl/check/calibration.json`` (package data) and ``results/checks/calibration.md``.
 """
 
 from __future__ import annotations
@@ -52,6 +52,7 @@ from check_runs import (  # noqa: E402
     values,
 )
 
+from keras_rl.check.command import CALIBRATION  # noqa: E402
 from keras_rl.check.rules import ALPHAS, MUTANTS, RULES, TIERS  # noqa: E402
 from keras_rl.check.statistics import false_alarm_rate, power  # noqa: E402
 from keras_rl.learners.table import batch_refusal  # noqa: E402
@@ -530,7 +531,9 @@ def main() -> None:
         "experiments", nargs="*", help=f"posts to recalibrate, of {sorted(MUTANTS)} (none: rerender calibration.md)"
     )
     parser.add_argument("--make", action="store_true", help="run the missing baseline and mutant sets first")
-    parser.add_argument("--write", action="store_true", help="update results/checks/calibration.json and .md")
+    parser.add_argument(
+        "--write", action="store_true", help="update keras_rl/check/calibration.json and results/checks/calibration.md"
+    )
     args = parser.parse_args()
     unknown = sorted(set(args.experiments) - set(MUTANTS))
     if unknown:
@@ -550,7 +553,7 @@ def main() -> None:
         name: {"command": command, "criterion_by_seeds": criterion_by_seeds(name), "tiers": calibrate(name)}
         for name in args.experiments
     }
-    path = CHECKS / "calibration.json"
+    path = CALIBRATION
     merged = json.loads(path.read_text()) if path.is_file() else {}
     merged.update(results)
     text = markdown({k: merged[k] for k in sorted(merged)})

@@ -1,7 +1,7 @@
 """The sequential check against the fixed-n rule, on the same simulated checks.
 
     python reproductions/check_sequential.py            # print the table
-    python reproductions/check_sequential.py --write    # results/checks/sequential.md and .json
+    python reproductions/check_sequential.py --write  # results/checks/sequential.md, keras_rl/check/sequential.json
 
 For each post and tier: the design of ``keras_rl/check/sequential.py`` (looks at 5, 10, ...,
 30 fresh seeds; futility above a bound from the second look), its efficacy level calibrated
@@ -40,7 +40,7 @@ os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
 from check_runs import REPORT, TUNE, halved, load, values  # noqa: E402
 
-from keras_rl.check.command import baseline_values  # noqa: E402
+from keras_rl.check.command import SEQUENTIAL, baseline_values  # noqa: E402
 from keras_rl.check.rules import MUTANTS, RULES, TIERS  # noqa: E402
 from keras_rl.check.sequential import (  # noqa: E402
     DESIGN,
@@ -201,16 +201,18 @@ def render(results: list[dict]) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--write", action="store_true", help="write results/checks/sequential.md and .json")
+    parser.add_argument(
+        "--write", action="store_true", help="write results/checks/sequential.md and keras_rl/check/sequential.json"
+    )
     args = parser.parse_args()
     results = [study(post, tier) for tier in TIERS for post in POSTS]
     text = render(results)
     if not args.write:
         print(text)
         return
-    atomic_write_text(CHECKS / "sequential.json", json.dumps({"command": COMMAND, "results": results}, indent=2) + "\n")
+    atomic_write_text(SEQUENTIAL, json.dumps({"command": COMMAND, "results": results}, indent=2) + "\n")
     atomic_write_text(CHECKS / "sequential.md", text + "\n")
-    print(f"wrote {CHECKS / 'sequential.md'} and {CHECKS / 'sequential.json'}")
+    print(f"wrote {CHECKS / 'sequential.md'} and {SEQUENTIAL}")
 
 
 if __name__ == "__main__":

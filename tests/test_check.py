@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from keras_rl.check.rules import MUTANTS, RULES
+from keras_rl.check import command
+from keras_rl.check.rules import MUTANTS, RULES, rule_for
 from keras_rl.check.statistics import (
     check_false_alarm_rate,
     decide,
@@ -250,7 +251,7 @@ def test_sequential_md_is_rendered_from_sequential_json():
 
     root = Path(__file__).resolve().parents[1]
     module = _load_script(root / "reproductions" / "check_sequential.py")
-    committed = json.loads((root / "results" / "checks" / "sequential.json").read_text())
+    committed = json.loads((root / "keras_rl" / "check" / "sequential.json").read_text())
     assert (root / "results" / "checks" / "sequential.md").read_text() == module.render(committed["results"]) + "\n", (
         "sequential.md is stale: python reproductions/check_sequential.py --write"
     )
@@ -478,9 +479,7 @@ def test_a_sequential_check_stops_where_its_design_decides(change, tmp_path, mon
     from keras_rl.registry import get_experiment
 
     rule = rule_for("pendulum", "smoke")
-    baseline, _ = command.baseline_values(
-        get_experiment("pendulum"), rule, command.CALIBRATION.parent / "pendulum" / "baseline"
-    )
+    baseline, _ = command.baseline_values(get_experiment("pendulum"), rule, command.BASELINES / "pendulum" / "baseline")
     ranked = sorted(baseline.values())
     middle = len(ranked) // 2
     typical = ranked[middle - 5 : middle + 5]  # the middle of the baseline, whatever its size: p near 1
@@ -647,7 +646,7 @@ def test_every_committed_error_rate_was_computed_on_the_whole_committed_baseline
     folders committed now."""
     committed = {p.parent.name: len(RunSet(p).seed_dirs()) for p in CHECKS.glob("*/baseline")}
     assert committed and all(n >= 30 for n in committed.values()), committed
-    calibration = json.loads((CHECKS / "calibration.json").read_text())
+    calibration = json.loads((command.CALIBRATION).read_text())
     for post, entry in calibration.items():
         for tier, result in entry["tiers"].items():
             assert result["baseline_seeds"] == committed[post], ("calibration", post, tier)
@@ -655,7 +654,7 @@ def test_every_committed_error_rate_was_computed_on_the_whole_committed_baseline
     for tier, entry in family["tiers"].items():
         for post, p in entry["posts"].items():
             assert p["baseline_seeds"] == committed[post], ("family", post, tier)
-    for result in json.loads((CHECKS / "sequential.json").read_text())["results"]:
+    for result in json.loads((command.SEQUENTIAL).read_text())["results"]:
         assert result["baseline_seeds"] == committed[result["post"]], ("sequential", result["post"], result["tier"])
     for post, entry in json.loads((CHECKS / "held_out.json").read_text()).items():
         assert entry["baseline_seeds"] == committed[post], ("held_out", post)
@@ -688,3 +687,46 @@ def test_the_smallest_delay_is_searched_only_where_the_delayed_metric_is_defined
     assert module.delay_text(found) == "none up to 60 of 100 episodes (later, the metric is undefined)"
     assert module.delay_text({"delay": 23, "defined_up_to": 250, "episodes": 250}) == "23 of 250 episodes"
     assert module.delay_text({"delay": None, "defined_up_to": 250, "episodes": 250}) == "none up to 250 episodes"
+
+
+@pytest.mark.slow
+def test_check_runs_from_a_package_installed_outside_the_checkout(tmp_path):
+    """``pip install .`` (not editable) into a folder of its own, then ``check --dry-run`` from
+    another directory: the rules and the calibrated rates load from the installed package
+    (package data), the plan names them; without ``--against`` it says where baselines are."""
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+    target = tmp_path / "site"
+    subprocess.run(
+        [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation", "--target", str(target)]
+        + [str(root)],
+        check=True,
+        capture_output=True,
+        cwd=tmp_path,
+        timeout=300,
+    )
+    assert (target / "keras_rl" / "check" / "calibration.json").is_file()
+    env = {**__import__("os").environ, "PYTHONPATH": str(target)}
+    where = tmp_path / "elsewhere"
+    where.mkdir()
+
+    def cli(*args):
+        return subprocess.run(
+            [sys.executable, "-m", "keras_rl", *args], cwd=where, env=env, capture_output=True, text=True, timeout=300
+        )
+
+    probe = subprocess.run(
+        [sys.executable, "-c", "import keras_rl; print(keras_rl.__file__)"], cwd=where, env=env, capture_output=True
+    )
+    assert probe.stdout.decode().startswith(str(target)), probe
+    planned = cli("check", "pendulum", "--dry-run", "--against", str(root / "results" / "checks"))
+    assert planned.returncode == 0, planned.stderr
+    assert "fresh seeds 1000-1009 (10) against a baseline of 100" in planned.stdout
+    rates = command.error_rates(rule_for("pendulum", "smoke"), target / "keras_rl" / "check" / "calibration.json")
+    assert rates is not None  # the installed calibration.json, whose rate the plan states
+    assert f"measured false-alarm rate {rates['false_alarm_rate']:.3g}" in planned.stdout
+    assert not (where / "check-runs").exists()  # a dry run writes nothing
+    bare = cli("check", "pendulum", "--dry-run")
+    assert bare.returncode == 2 and "pass --against FOLDER" in bare.stderr, bare.stderr

@@ -3,7 +3,7 @@
 For each experiment: its rule for the tier (``rules.py``), the fresh seeds run (in batches
 where the post has a seed-batched learner), each seed's statistic for them and for the
 baseline's runs (cut to the rule's episodes), the test, and the rule's measured error
-rates (``results/checks/calibration.json``, written by ``reproductions/check_calibrate.py``).
+rates (``keras_rl/check/calibration.json``, written by ``reproductions/check_calibrate.py``).
 Writes ``check.md``, ``check.json`` and per experiment ``<experiment>/check.png`` under
 ``--out``; the fresh runs go in ``<out>/<experiment>/seed_<n>``.
 
@@ -16,7 +16,7 @@ rate at Holm's first level alpha / k against its whole baseline, combined over t
 ``--sequential`` runs the group-sequential design instead (``sequential.py``): fresh seeds in
 looks of 5 up to 30 per post, each post stopping as changed or consistent at its own look,
 with the efficacy level calibrated per post on its baseline to 1% / 3
-(``results/checks/sequential.json``, written by ``reproductions/check_sequential.py``), so the
+(``keras_rl/check/sequential.json``, written by ``reproductions/check_sequential.py``), so the
 family-wise rate of a command of up to three posts is at most 1% without Holm.
 """
 
@@ -48,10 +48,25 @@ from keras_rl.runs.options import RunOptions
 from keras_rl.runs.run_set import RunSet
 from keras_rl.runs.summary import RunSummary
 
-CALIBRATION = Path(__file__).resolve().parents[2] / "results" / "checks" / "calibration.json"
-"""Where the measured error rates of every rule are committed (in a checkout)."""
-SEQUENTIAL = CALIBRATION.parent / "sequential.json"
-"""Where each post's calibrated sequential design and its measured rates are committed."""
+CALIBRATION = Path(__file__).with_name("calibration.json")
+"""The measured error rates of every rule: package data, so an installed ``keras_rl`` has them."""
+SEQUENTIAL = Path(__file__).with_name("sequential.json")
+"""Each post's calibrated sequential design and its measured rates (package data)."""
+BASELINES = Path(__file__).resolve().parents[2] / "results" / "checks"
+"""The committed baselines (``<experiment>/baseline/seed_<n>``), in a checkout. A package
+installed elsewhere has none beside it: ``--against`` names a checkout's."""
+
+
+def default_baselines() -> Path:
+    """``--against``'s default: this checkout's committed baselines, or a clear error."""
+    if not BASELINES.is_dir():
+        raise ConfigError(
+            f"no committed baselines beside this keras_rl ({Path(__file__).resolve().parents[1]}); "
+            "pass --against FOLDER, a checkout's results/checks"
+        )
+    return BASELINES
+
+
 MARKER = "check.json"
 
 
@@ -162,6 +177,24 @@ def _statistic(experiment, rule: CheckRule, rows: list[dict[str, Any]]) -> float
     )
 
 
+def describe_plan(rule: CheckRule, fresh: list[int], baseline: int, design) -> str:
+    """One post's plan, as ``check --dry-run`` prints it."""
+    rates = error_rates(rule)
+    measured = (
+        f"measured false-alarm rate {rates['false_alarm_rate']:.3g}, power {rates['power_all']:.0%} over "
+        "the mutants (calibration.json)"
+        if rates
+        else "error rates not calibrated for this rule"
+    )
+    if design is not None:  # the fixed rule's measured rates are not the design's
+        measured = f"false alarms at most {design[1]:.3g} by its design (sequential.json)"
+    how = f"sequential, looks up to {design[0].stages[-1]} seeds" if design else f"alpha {rule.alpha}"
+    return (
+        f"{rule.experiment} ({rule.tier}): {rule.statistic} over {rule.episodes} episodes, {how}; "
+        f"fresh seeds {fresh[0]}-{fresh[-1]} ({len(fresh)}) against a baseline of {baseline}; {measured}"
+    )
+
+
 def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, Any] | None:
     """The calibrated error rates of exactly this rule, or None if it was never measured."""
     if not calibration.is_file():
@@ -224,12 +257,14 @@ def run_check(
     options: RunOptions,
     sequential: bool = False,
     sequential_alpha: float | None = None,
+    dry_run: bool = False,
 ) -> list[CheckResult]:
     """Run the fresh seeds of every experiment at once, then test each against its baseline
     (fixed-n, Holm over the posts); or, ``sequential``, look after every stage of seeds and
     stop each post where its design decides. ``sequential_alpha``: the command's false-alarm
     bound instead of the committed designs' 1%, split over the posts and each post's looks
-    (``sequential.at_level``; a bisect step's share of its alpha)."""
+    (``sequential.at_level``; a bisect step's share of its alpha). ``dry_run``: every input
+    checked and each post's plan printed, nothing trained or written."""
     prepare_out(out)  # a folder of someone else's files is named before anything else
     plan = []
     designs: dict[str, tuple[SequentialDesign, float]] = {}
@@ -259,6 +294,10 @@ def run_check(
             options.overrides
         )
         plan.append((experiment, rule, fresh, config, baseline, baseline_rows))
+    if dry_run:
+        for experiment, rule, fresh, _config, baseline, _rows in plan:
+            print(describe_plan(rule, fresh, len(baseline), designs.get(experiment.name)))
+        return []
     for experiment, *_ in plan:
         if (out / experiment.name).exists():
             shutil.rmtree(out / experiment.name)
@@ -410,7 +449,7 @@ def command_false_alarm(results: list[CheckResult]) -> dict[str, Any]:
 
 def sequential_false_alarm(results: list[CheckResult]) -> dict[str, Any]:
     """A sequential command's false-alarm rate: each post's calibrated design's measured rate
-    under no change (``results/checks/sequential.json``), combined as independent tests."""
+    under no change (``keras_rl/check/sequential.json``), combined as independent tests."""
     rates = {r.experiment: float(r.design["false_alarm_rate"]) for r in results if r.design is not None}
     return {"posts": len(rates), "per_post": rates, "family_wise": family_false_alarm_rate(list(rates.values()))}
 

@@ -10,7 +10,7 @@ The stages are fixed before any mutant is met (``DESIGN``): stages of 5 fresh se
 - **consistent** when p > ``futility`` (from the second stage on): an unchanged learner's
   p is uniform, so most of its checks stop early, while a change the check should find
   keeps p small. ``DESIGN`` starts at 0.5; the committed designs use the bound
-  ``choose_futility`` picked on the mutants' tuning seeds (``results/checks/sequential.json``);
+  ``choose_futility`` picked on the mutants' tuning seeds (``keras_rl/check/sequential.json``);
 - at the last stage, changed if p < ``efficacy``, else consistent.
 
 The efficacy level is calibrated so that the whole sequence, futility stops included,

@@ -66,10 +66,10 @@ def bisect(args: argparse.Namespace) -> int:
         raise ConfigError(f"--workers must be at least 1, got {args.workers}")
     _check_writable_dir(args.out, "--out")  # exit 2, not one of the verdicts' exit codes
     from keras_rl.check.bisect import bisect as run_bisect
-    from keras_rl.check.command import CALIBRATION
+    from keras_rl.check.command import default_baselines
     from keras_rl.runs.signals import sigterm_as_interrupt
 
-    against = (args.against if args.against is not None else CALIBRATION.parent).resolve()
+    against = (args.against if args.against is not None else default_baselines()).resolve()
     try:
         with sigterm_as_interrupt():  # SIGTERM unwinds like Ctrl-C, so the temporary worktree goes
             result = run_bisect(

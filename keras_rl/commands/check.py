@@ -58,6 +58,11 @@ def add_parser(sub) -> None:
         "(union bound) instead of the committed designs' 1%% (what a bisect step uses)",
     )
     ck.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="print each post's plan (rule, fresh seeds, baseline, calibrated error rates); train nothing",
+    )
+    ck.add_argument(
         "--out",
         type=_path_arg,
         default=Path("check-runs"),
@@ -80,6 +85,8 @@ def check(args: argparse.Namespace) -> int:
     except OSError as exc:  # a full disk or a vanished folder mid-check: no verdict either
         print(f"error: no verdict: {exc}", file=sys.stderr)
         return EXIT_NO_VERDICT
+    if args.dry_run:
+        return EXIT_OK
     for r in results:
         level = f"alpha {r.rule.alpha}" if r.design is None else f"sequential, efficacy {r.design['efficacy']:.3g}"
         print(
@@ -117,9 +124,17 @@ def check_results(args: argparse.Namespace) -> list:
     options = RunOptions.from_args(args)
     _check_writable_dir(args.out, "--out")  # bad input (exit 2), found before any training
     options.check_address()
-    from keras_rl.check.command import CALIBRATION, run_check
+    from keras_rl.check.command import default_baselines, run_check
 
-    against = args.against if args.against is not None else CALIBRATION.parent
+    against = args.against if args.against is not None else default_baselines()
     return run_check(
-        names, args.tier, against, args.out, seeds, options, sequential=args.sequential, sequential_alpha=args.alpha
+        names,
+        args.tier,
+        against,
+        args.out,
+        seeds,
+        options,
+        sequential=args.sequential,
+        sequential_alpha=args.alpha,
+        dry_run=args.dry_run,
     )
