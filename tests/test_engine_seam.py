@@ -65,7 +65,7 @@ def test_the_default_engine_is_the_gymnasium_loop():
 
 
 def test_an_unknown_engine_is_named():
-    with pytest.raises(ConfigError, match="unknown engine 'xla'; known: gymnasium"):
+    with pytest.raises(ConfigError, match="unknown engine 'xla'; known: compiled, gymnasium"):
         engines.get_engine("xla")
 
 

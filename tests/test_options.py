@@ -57,7 +57,13 @@ def test_run_options_are_checked_with_the_flag_named(capsys):
     assert options.overrides == ("tau=0.1",) and options.progress is False and options.config_changes() == {}
     with pytest.raises(ValueError, match="unknown run options"):
         run_options_parser("wrokers")
-    assert set(OPTIONS) == {"workers", "address", "seed_batch", "episodes", "set", "no_progress"}
+    assert set(OPTIONS) == {"workers", "address", "seed_batch", "episodes", "set", "no_progress", "engine"}
+    with pytest.raises(ConfigError, match="--engine compiled runs one seed per program"):
+        RunOptions.from_args(parent.parse_args(["--engine", "compiled", "--seed-batch", "2"]))
+    assert RunOptions.from_args(parent.parse_args(["--engine", "compiled"])).engine == "compiled"
+    with pytest.raises(SystemExit):  # argparse names the choices
+        parent.parse_args(["--engine", "jax"])
+    assert "invalid choice: 'jax'" in capsys.readouterr().err
 
 
 def test_the_address_falls_back_to_ray_address(monkeypatch):

@@ -97,6 +97,17 @@ def _check_writable_file(path: Path, flag: str) -> None:
     _check_writable_dir(path.parent if str(path.parent) else Path("."), f"{flag}'s folder")
 
 
+def _check_engine(engine: str, experiment, config) -> None:
+    """``--engine``: a clear error before anything runs where it cannot run ``config``."""
+    if engine == "gymnasium":
+        return
+    from keras_rl.train.engine import get_engine
+
+    why = get_engine(engine).refusal(experiment, config)
+    if why is not None:
+        raise ConfigError(f"--engine {engine}: {why}")
+
+
 def _check_seed_batch(seed_batch: int | str, experiment: str, framework: str) -> None:
     """``--seed-batch S`` (S > 1): a clear error before anything runs when it cannot apply
     (``auto`` runs seeds alone where nothing batches)."""
@@ -104,3 +115,34 @@ def _check_seed_batch(seed_batch: int | str, experiment: str, framework: str) ->
         from keras_rl.learners.table import stacked_implementation
 
         stacked_implementation(experiment, framework)  # a clear error if there is none
+
+
+def _recorded_config(experiment, args: argparse.Namespace):
+    """``--config``: the config a run folder recorded; the options it settles must not be given too."""
+    import json
+
+    given = [f"--{name.replace('_', '-')}" for name in ("variant", "framework") if getattr(args, name) is not None]
+    if args.matched_init:
+        given.append("--matched-init")
+    if given:
+        raise ConfigError(f"--config gives the variant and framework; drop {', '.join(given)}")
+    path = args.config if args.config.name == "config.json" or not args.config.is_dir() else args.config / "config.json"
+    try:
+        values = json.loads(path.read_text())
+    except OSError as exc:
+        raise ConfigError(f"--config {path}: cannot read it ({exc.strerror or exc})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"--config {path} is not JSON ({exc})") from None
+    if not isinstance(values, dict) or values.get("experiment") != experiment.name:
+        theirs = values.get("experiment") if isinstance(values, dict) else None
+        raise ConfigError(f"--config {path} is a config of {theirs!r}, not of {experiment.name}")
+    import dataclasses
+
+    cls = experiment.config_cls
+    lacking = sorted({f.name for f in dataclasses.fields(cls)} - set(cls.upgrade(values)))
+    if lacking:
+        raise ConfigError(
+            f"--config {path} lacks field(s) {', '.join(lacking)}: a recorded config.json names every "
+            "field, so none is filled in silently; add them, or use --variant and --set"
+        )
+    return cls.from_dict(values)

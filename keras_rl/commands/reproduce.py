@@ -9,10 +9,12 @@ from pathlib import Path
 from keras_rl.commands.common import (
     EXIT_CRITERION,
     EXIT_OK,
+    _check_engine,
     _check_not_inside_a_run,
     _check_seed_batch,
     _check_writable_dir,
     _path_arg,
+    _recorded_config,
     _stopped,
     parse_seeds,
 )
@@ -109,37 +111,6 @@ def add_parser(sub) -> None:
     )
 
 
-def _recorded_config(experiment, args: argparse.Namespace):
-    """``--config``: the config a run folder recorded; the options it settles must not be given too."""
-    import json
-
-    given = [f"--{name.replace('_', '-')}" for name in ("variant", "framework") if getattr(args, name) is not None]
-    if args.matched_init:
-        given.append("--matched-init")
-    if given:
-        raise ConfigError(f"--config gives the variant and framework; drop {', '.join(given)}")
-    path = args.config if args.config.name == "config.json" or not args.config.is_dir() else args.config / "config.json"
-    try:
-        values = json.loads(path.read_text())
-    except OSError as exc:
-        raise ConfigError(f"--config {path}: cannot read it ({exc.strerror or exc})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"--config {path} is not JSON ({exc})") from None
-    if not isinstance(values, dict) or values.get("experiment") != experiment.name:
-        theirs = values.get("experiment") if isinstance(values, dict) else None
-        raise ConfigError(f"--config {path} is a config of {theirs!r}, not of {experiment.name}")
-    import dataclasses
-
-    cls = experiment.config_cls
-    lacking = sorted({f.name for f in dataclasses.fields(cls)} - set(cls.upgrade(values)))
-    if lacking:
-        raise ConfigError(
-            f"--config {path} lacks field(s) {', '.join(lacking)}: a recorded config.json names every "
-            "field, so none is filled in silently; add them, or use --variant and --set"
-        )
-    return cls.from_dict(values)
-
-
 def _set_suffix(config_cls, assignments: tuple[str, ...]) -> str:
     """``-set-broadcast_target=false,tau=0.005`` for a default folder of a modified config,
     named from the parsed values (``tau=5e-3`` and ``tau=0.005`` name one folder)."""
@@ -210,6 +181,7 @@ def reproduce(args: argparse.Namespace) -> int:
     modes = _start_modes(seed_dirs, args.overwrite, args.resume, base.episodes)
     options.check_address()  # now that the input is good: is the cluster there?
     _check_seed_batch(options.seed_batch, experiment.name, args.framework)
+    _check_engine(options.engine, experiment, base)
     if args.dry_run:
         import json
 
@@ -239,6 +211,7 @@ def reproduce(args: argparse.Namespace) -> int:
                 checkpoint_every=args.checkpoint_every,
                 tensorboard=args.tensorboard,
                 evaluation=evaluation,
+                engine=options.engine,
             )
             for s, d, m in zip(seeds, seed_dirs, modes)
             if m != "keep"

@@ -27,7 +27,7 @@ def add_parser(sub) -> None:
         description="A grid of config values x seeds, resumable, with a report per grid point. A run "
         "whose loss turns NaN is a result of its config (the report shows it, and the console names "
         "it): it does not fail the command; a run that stops with an error does (exit 1).",
-        parents=[run_options_parser()],
+        parents=[run_options_parser("workers", "address", "seed_batch", "episodes", "set", "no_progress")],
     )
     sw.add_argument("experiment", help="experiment name (see `keras-rl list`)")
     sw.add_argument("--seeds", default="0-9", help="seed list or range for every grid point (default 0-9)")

@@ -112,3 +112,24 @@ def _kept_runs(base, seeds_and_dirs: list) -> list:
         print(f"seed {seed}: already completed in {seed_dir}, kept", file=sys.stderr)
         kept.append(RunSummary.read(seed_dir))
     return kept
+
+
+def check_resume_config(out_dir: Path, wanted: dict, theirs: dict, played: int) -> None:
+    """A checkpoint in ``out_dir`` (made with config ``theirs``, ``played`` episodes in) may be
+    resumed by a command asking for config ``wanted``: the same fields but the budget, which
+    may only grow. A ConfigError that names the first field otherwise (every engine's rule)."""
+    import json
+
+    wanted, theirs = json.loads(json.dumps(wanted)), json.loads(json.dumps(theirs))
+    if wanted["episodes"] < played:
+        raise ConfigError(
+            f"--resume: {out_dir} has played {played} episodes, more than --episodes "
+            f"{wanted['episodes']}; a resumed run keeps what it played (ask for at least {played})"
+        )
+    differing = sorted(k for k in wanted if k != "episodes" and theirs.get(k) != wanted[k])
+    if differing:
+        k = differing[0]
+        raise ConfigError(
+            f"--resume: the checkpoint in {out_dir} was made with {k}={theirs.get(k)!r}, "
+            f"this command asks for {wanted[k]!r}; resume with the same options"
+        )

@@ -17,7 +17,9 @@ from dataclasses import dataclass
 
 from keras_rl.errors import ConfigError
 
-OPTIONS = ("workers", "address", "seed_batch", "episodes", "set", "no_progress")
+OPTIONS = ("workers", "address", "seed_batch", "episodes", "set", "no_progress", "engine")
+ENGINE_NAMES = ("gymnasium", "compiled")
+"""``train/engine.ENGINES``' names (a test keeps them equal), here so that parsing imports no TensorFlow."""
 
 
 @dataclass(frozen=True)
@@ -39,6 +41,9 @@ class RunOptions:
     progress: bool = True
     address_source: str = "--address"
     """Where ``address`` came from, for messages: ``--address`` or ``$RAY_ADDRESS``."""
+    engine: str = "gymnasium"
+    """Which engine trains the seeds (``train/engine.ENGINES``): ``gymnasium``, the reference
+    loop, or ``compiled``, each episode one XLA program."""
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> RunOptions:
@@ -52,6 +57,9 @@ class RunOptions:
             raise ConfigError(f"--episodes must be positive, got {episodes}")
         if seed_batch != "auto" and seed_batch < 1:
             raise ConfigError(f"--seed-batch must be at least 1 or auto, got {seed_batch}")
+        engine = getattr(args, "engine", "gymnasium")
+        if engine != "gymnasium" and seed_batch != 1:
+            raise ConfigError(f"--engine {engine} runs one seed per program; --seed-batch is the gymnasium engine's")
         cores = os.cpu_count() or 1
         if workers > cores:
             print(
@@ -71,6 +79,7 @@ class RunOptions:
             overrides=tuple(getattr(args, "overrides", ())),
             progress=not getattr(args, "no_progress", False),
             address_source=source,
+            engine=engine,
         )
 
     def check_address(self) -> None:
@@ -138,4 +147,12 @@ def run_options_parser(*names: str, workers_default: int = 1, what: str = "seeds
         )
     if "no_progress" in names:
         parent.add_argument("--no-progress", action="store_true", help="no progress bars")
+    if "engine" in names:
+        parent.add_argument(
+            "--engine",
+            choices=ENGINE_NAMES,
+            default="gymnasium",
+            help="gymnasium (the reference loop: Gymnasium's envs, one learner call per env step; the default) "
+            "or compiled (each episode one XLA program; post 000 in Keras so far)",
+        )
     return parent

@@ -21,6 +21,7 @@ from typing import Protocol
 from keras_rl.errors import ConfigError
 from keras_rl.experiment import Experiment
 from keras_rl.runs.summary import RunSummary
+from keras_rl.train.compiled import CompiledEngine
 from keras_rl.train.loop import run_seeds
 from keras_rl.train.settings import TrainSettings
 
@@ -63,7 +64,7 @@ class GymnasiumEngine:
         return run_seeds(experiment, configs, out_dirs, settings, should_stop=should_stop)
 
 
-ENGINES: dict[str, Engine] = {"gymnasium": GymnasiumEngine()}
+ENGINES: dict[str, Engine] = {"gymnasium": GymnasiumEngine(), "compiled": CompiledEngine()}
 DEFAULT_ENGINE = "gymnasium"
 
 

@@ -40,7 +40,6 @@ episodes exactly as a straight run of N would have played them.
 from __future__ import annotations
 
 import datetime
-import json
 import math
 import sys
 import time
@@ -52,7 +51,7 @@ from typing import Any
 import numpy as np
 
 from keras_rl.config import check_same_but_seed
-from keras_rl.errors import ConfigError, NonFiniteLossError
+from keras_rl.errors import ConfigError, NonFiniteLossError, RunFolderError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.axis import SeedAxisLearner
 from keras_rl.learners.table import finished_seeds_default, implementation, stacked_implementation
@@ -60,6 +59,7 @@ from keras_rl.rngs import global_rng_state, set_global_rng_state
 from keras_rl.runs.checkpoint import delete_checkpoints, read_batch_checkpoints, write_checkpoint
 from keras_rl.runs.evaluate import TrainingEvaluator
 from keras_rl.runs.files import RunRecorder, atomic_write_text, episode_columns, episodes_csv_text
+from keras_rl.runs.lifecycle import check_resume_config
 from keras_rl.runs.provenance import command_line, library_versions, provenance
 from keras_rl.runs.signals import signal_name, stop_signals_as_flag, stop_signals_deferred
 from keras_rl.runs.summary import RunSummary, Status
@@ -122,7 +122,14 @@ def run_seeds(
         for s in seeds:
             s.evaluator = TrainingEvaluator(experiment, s.config, s.recorder.out_dir, settings.evaluation)
     if settings.resume:
-        state.restore(read_batch_checkpoints([s.recorder.out_dir for s in seeds], batch))
+        checkpoints = read_batch_checkpoints([s.recorder.out_dir for s in seeds], batch)
+        engine = checkpoints[0].get("engine", "gymnasium")
+        if engine != "gymnasium":
+            raise RunFolderError(
+                f"{seeds[0].recorder.out_dir}'s checkpoint was written by the {engine} engine; resume it "
+                f"with --engine {engine}, or pass --overwrite to start again"
+            )
+        state.restore(checkpoints)
         for s in seeds:
             if s.active:  # it goes on, perhaps to a larger budget (--resume --episodes N): config.json says which
                 s.recorder.write_config(s.config.to_dict())
@@ -459,6 +466,27 @@ class SeedRun:
         self.summary("running").write(self.recorder.out_dir)
         return row
 
+    def snapshot(self, status: Status, message: str) -> dict[str, Any]:
+        """The records' part of a checkpoint, any engine's: an interrupted run is running as
+        far as the checkpoint goes."""
+        return {
+            "config": self.config.to_dict(),
+            "rows": list(self.recorder.rows),
+            "reached_at": self.reached_at,
+            "total_steps": self.total_steps,
+            "elapsed": time.perf_counter() - self.start,
+            "metric": self.metric,
+            "status": "running" if status == "interrupted" else status,
+            "message": "" if status == "interrupted" else message,
+        }
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """``snapshot``'s records back (the caller has checked the config: ``check_resume_config``)."""
+        self.metric.__dict__.update(state["metric"].__dict__)
+        self.recorder.rows = list(state["rows"])
+        self.reached_at, self.total_steps = state["reached_at"], int(state["total_steps"])
+        self.start = time.perf_counter() - float(state["elapsed"])
+
     def summary(self, status: Status, message: str = "") -> RunSummary:
         c, rows, metric = self.config, self.recorder.rows, self.metric
         at_end = self.experiment.success_at_end
@@ -527,17 +555,8 @@ class _Seed:
         self.status, self.message = status, message
 
     def snapshot(self) -> dict[str, Any]:
-        run = self.run
         return {
-            "config": self.config.to_dict(),
-            "rows": list(self.recorder.rows),
-            "reached_at": run.reached_at,
-            "total_steps": run.total_steps,
-            "elapsed": time.perf_counter() - run.start,
-            "metric": run.metric,
-            # an interrupted seed resumes: it is running as far as the checkpoint goes
-            "status": "running" if self.status == "interrupted" else self.status,
-            "message": "" if self.status == "interrupted" else self.message,
+            **self.run.snapshot(self.status, self.message),
             "episode": self.episode,
             "score": self.score,
             "steps": self.steps,
@@ -546,31 +565,15 @@ class _Seed:
         }
 
     def restore(self, state: dict[str, Any]) -> None:
-        wanted = json.loads(json.dumps(self.config.to_dict()))
-        theirs = json.loads(json.dumps(state["config"]))
-        played = len(state["rows"])
-        if wanted["episodes"] < played:
-            raise ConfigError(
-                f"--resume: {self.recorder.out_dir} has played {played} episodes, more than --episodes "
-                f"{wanted['episodes']}; a resumed run keeps what it played (ask for at least {played})"
-            )
-        differing = sorted(k for k in wanted if k != "episodes" and theirs.get(k) != wanted[k])
-        if differing:
-            k = differing[0]
-            raise ConfigError(
-                f"--resume: the checkpoint in {self.recorder.out_dir} was made with {k}={theirs.get(k)!r}, "
-                f"this command asks for {wanted[k]!r}; resume with the same options"
-            )
+        wanted, theirs = self.config.to_dict(), state["config"]
+        check_resume_config(self.recorder.out_dir, wanted, theirs, len(state["rows"]))
         if getattr(self.config, "learning_phase_training", False):
             raise ConfigError(
                 "--resume does not cover learning_phase_training=true (its noise layer draws from "
                 "TensorFlow's generator, which checkpoints do not hold)"
             )
         run = self.run
-        run.metric.__dict__.update(state["metric"].__dict__)
-        self.recorder.rows = list(state["rows"])
-        run.reached_at, run.total_steps = state["reached_at"], int(state["total_steps"])
-        run.start = time.perf_counter() - float(state["elapsed"])
+        run.restore(state)
         self.status, self.message = state["status"], state["message"]
         self.episode, self.score, self.steps, self.saved = (
             state["episode"],
@@ -799,7 +802,8 @@ class _Batch:
                 s.evaluator.close()
 
 
-def _progress_bar(experiment: Experiment, configs: list, seeds: list[_Seed], position: int):
+def _progress_bar(experiment: Experiment, configs: list, seeds: Sequence[Any], position: int):
+    """A tqdm bar over the seeds' episodes (each seed has a ``recorder``)."""
     from tqdm.auto import tqdm
 
     c = configs[0]

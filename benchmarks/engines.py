@@ -1,0 +1,93 @@
+"""The compiled engine against the Gymnasium loop: wall time per env step, one seed, one process.
+
+    python benchmarks/engines.py                 # post 000, 40 episodes (8,000 steps), 3 rounds
+    python benchmarks/engines.py --episodes 100 --rounds 5
+    python benchmarks/engines.py --markdown      # the table for docs/performance.md
+
+Each round trains post 000's faithful seed 0 for ``--episodes`` episodes on each engine in
+turn (interleaved, so a noisy neighbour slows both), through the engine seam
+(``train/engine.py``), with training from the first stored batch on (``train_start=64``:
+about every step trains, as in the bulk of a real run) and no stop at the threshold. The
+steady rate comes from the run's own ``episodes.csv`` (``wall_seconds`` from the end of
+episode 5 to the last), so it holds every per-episode cost (the host's draws, the records)
+and none of the start-up; start-up is the time to the end of the first episode (building
+the networks, tracing, XLA compilation). Medians over the rounds. One TensorFlow thread, as
+the CLI runs a seed. Only the ratio, measured in one run, means much on a shared machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import shutil
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--episodes", type=int, default=40)
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--markdown", action="store_true", help="print the result as a Markdown table")
+    args = parser.parse_args()
+    if args.rounds < 1:
+        parser.error("--rounds must be at least 1")
+
+    from keras_rl.registry import get_experiment
+    from keras_rl.train.engine import get_engine
+    from keras_rl.train.settings import TrainSettings
+
+    experiment = get_experiment("pendulum")
+    if args.episodes < 10:
+        parser.error("--episodes must be at least 10 (the first 5 are left out of the steady rate)")
+    config = experiment.config_cls.for_variant(
+        "faithful", seed=0, episodes=args.episodes, train_start=64, stop_at_threshold=False
+    )
+    steps = 200 * args.episodes
+    from keras_rl.runs.files import read_episodes
+
+    rates: dict[str, list[float]] = {"gymnasium": [], "compiled": []}
+    startups: dict[str, list[float]] = {"gymnasium": [], "compiled": []}
+    root = Path(tempfile.mkdtemp(prefix="engines-"))
+    try:
+        for r in range(args.rounds):
+            for name in rates:
+                folder = root / f"{name}-{r}"
+                start = time.perf_counter()
+                summary = get_engine(name).train(experiment, [config], [folder], TrainSettings(progress=False))[0]
+                built = time.perf_counter() - start - summary.wall_seconds  # before the run's clock starts
+                if summary.total_steps != steps:
+                    raise SystemExit(f"{name} played {summary.total_steps} steps, not {steps}")
+                wall = [row["wall_seconds"] for row in read_episodes(folder / "episodes.csv")]
+                rates[name].append(1000 * (wall[-1] - wall[4]) / (200 * (len(wall) - 5)))
+                startups[name].append(built + wall[0])
+                print(f"round {r + 1}: {name} {rates[name][-1]:.3f} ms/step", file=sys.stderr)
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+    per_step = {name: statistics.median(r) for name, r in rates.items()}
+    startup = {name: statistics.median(s) for name, s in startups.items()}
+    ratio = per_step["gymnasium"] / per_step["compiled"]
+    when = time.strftime("%Y-%m-%d")
+    lines = [
+        f"`python benchmarks/engines.py --episodes {args.episodes} --rounds {args.rounds} --markdown` "
+        f"({when}, {platform.processor() or platform.machine()}, one TensorFlow thread; post 000 seed 0, "
+        f"{steps} env steps per run, medians of {args.rounds} rounds):",
+        "",
+        "| engine | ms per env step (steady) | start-up to the first episode's end (s) |",
+        "|---|---|---|",
+        *(f"| {name} | {per_step[name]:.3f} | {startup[name]:.1f} |" for name in rates),
+        "",
+        f"The compiled engine: **{ratio:.1f}x** the Gymnasium loop's steps per second.",
+    ]
+    print("\n".join(lines) if args.markdown else f"gymnasium/compiled per-step time: {ratio:.2f}x ({per_step})")
+
+
+if __name__ == "__main__":
+    main()

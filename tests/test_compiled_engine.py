@@ -1,0 +1,145 @@
+"""The compiled engine (``keras_rl/train/compiled.py``) against the Gymnasium loop, and the run
+features it must keep: records, threshold, resume bit for bit, extension, stops between
+episodes, evaluation, TensorBoard, refusals.
+
+Equivalence, measured (``python reproductions/engine_parity.py`` gives the long form): with the
+same streams (reset states, noise, sample indices), post 000's seed 0 agrees with the Gymnasium
+loop to about 1e-13 in every episode's score and to float32 rounding in its losses over the
+first 8 episodes; the runs part later (episode 43 of seed 0 past 1e-6), as two roundings of a
+chaotic run do: XLA fuses the whole episode (the env's multiply-adds, the update's kernels)
+where the loop runs the env in NumPy and the update as its own XLA program.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from keras_rl.errors import ConfigError, RunFolderError
+from keras_rl.registry import get_experiment
+from keras_rl.runs.evaluate import EvalSchedule
+from keras_rl.runs.files import read_episodes
+from keras_rl.train.engine import get_engine
+from keras_rl.train.settings import TrainSettings
+
+QUIET = TrainSettings(progress=False)
+
+
+def config(**changes):
+    values = {"seed": 0, "episodes": 6, "train_start": 300, **changes}
+    return get_experiment("pendulum").config_cls.for_variant("faithful", **values)
+
+
+def train(engine: str, c, folder: Path, settings: TrainSettings = QUIET, should_stop=None):
+    return get_engine(engine).train(get_experiment("pendulum"), [c], [folder], settings, should_stop=should_stop)[0]
+
+
+def columns(folder: Path) -> dict[str, list]:
+    rows = read_episodes(folder / "episodes.csv")
+    return {k: [r[k] for r in rows] for k in ("episode", "steps", "total_steps", "score", "metric", *LOSSES)}
+
+
+LOSSES = ("critic_loss", "actor_loss")
+
+
+@pytest.mark.slow
+def test_both_engines_agree_over_the_first_episodes(tmp_path):
+    c = config()
+    loop, compiled = train("gymnasium", c, tmp_path / "loop"), train("compiled", c, tmp_path / "compiled")
+    assert loop.status == compiled.status == "completed"
+    a, b = columns(tmp_path / "loop"), columns(tmp_path / "compiled")
+    assert a["episode"] == b["episode"] and a["total_steps"] == b["total_steps"]
+    np.testing.assert_allclose(b["score"], a["score"], rtol=1e-9)
+    trained = [i for i, v in enumerate(a["critic_loss"]) if v is not None]
+    assert trained and trained == [i for i, v in enumerate(b["critic_loss"]) if v is not None]
+    for name in LOSSES:
+        np.testing.assert_allclose([b[name][i] for i in trained], [a[name][i] for i in trained], rtol=1e-5)
+    summary = json.loads((tmp_path / "compiled" / "summary.json").read_text())
+    assert (
+        summary["provenance"]["engine"] == "compiled"
+        and "engine" not in json.loads((tmp_path / "loop" / "summary.json").read_text())["provenance"]
+    )
+    assert (tmp_path / "compiled" / "actor.weights.h5").is_file()
+
+
+@pytest.mark.slow
+def test_an_interrupted_run_resumes_bit_for_bit_and_a_finished_one_extends(tmp_path):
+    straight = train("compiled", config(episodes=8), tmp_path / "straight")
+    assert straight.status == "completed"
+    played = []
+
+    def after_three():
+        played.append(1)
+        return len(played) >= 3
+
+    cut = train(
+        "compiled", config(episodes=8), tmp_path / "cut", TrainSettings(progress=False, checkpoint_every=2), after_three
+    )
+    assert cut.status == "interrupted" and cut.episodes_run == 3
+    resumed = train("compiled", config(episodes=8), tmp_path / "cut", TrainSettings(progress=False, resume=True))
+    assert resumed.status == "completed" and resumed.episodes_run == 8
+    assert columns(tmp_path / "cut") == columns(tmp_path / "straight")  # bit for bit
+    short = train("compiled", config(episodes=5), tmp_path / "short")
+    assert short.status == "completed" and (tmp_path / "short" / "checkpoint.pkl").is_file()  # kept: it can extend
+    longer = train("compiled", config(episodes=8), tmp_path / "short", TrainSettings(progress=False, resume=True))
+    assert longer.episodes_run == 8 and columns(tmp_path / "short") == columns(tmp_path / "straight")
+
+
+@pytest.mark.slow
+def test_the_threshold_stops_the_run_as_the_loop_stops_it(tmp_path):
+    c = config(threshold=-1e9)  # every EMA is above it: the run stops after its first episode
+    summary = train("compiled", c, tmp_path / "run")
+    assert summary.status == "completed" and summary.success and summary.reached_at_episode == 1
+    assert summary.episodes_run == 1 and not (tmp_path / "run" / "checkpoint.pkl").exists()
+
+
+@pytest.mark.slow
+def test_a_non_finite_loss_stops_the_run_naming_the_update(tmp_path):
+    summary = train("compiled", config(critic_lr=1e38, train_start=64), tmp_path / "run")
+    assert summary.status == "non_finite_loss"
+    assert "became" in summary.message and "at update" in summary.message and "env step" in summary.message
+
+
+@pytest.mark.slow
+def test_evaluation_and_tensorboard_during_training(tmp_path):
+    settings = TrainSettings(progress=False, tensorboard=tmp_path / "tb", evaluation=EvalSchedule(every=2, episodes=1))
+    summary = train("compiled", config(episodes=4), tmp_path / "run", settings)
+    assert summary.status == "completed"
+    evaluations = (tmp_path / "run" / "evaluations.csv").read_text().splitlines()
+    assert len(evaluations) == 3  # a header, then episodes 2 and 4
+    assert list((tmp_path / "tb").rglob("events.out.tfevents.*"))
+
+
+def test_what_the_compiled_engine_cannot_run_is_refused_before_training(tmp_path):
+    engine = get_engine("compiled")
+    cartpole = get_experiment("cartpole")
+    assert "runs pendulum" in engine.refusal(cartpole, cartpole.config_cls.for_variant("faithful"))
+    torch = config(framework="torch")
+    assert "Keras learner" in engine.refusal(get_experiment("pendulum"), torch)
+    with pytest.raises(ConfigError, match="one seed per program"):
+        engine.train(get_experiment("pendulum"), [config(), config(seed=1)], [tmp_path / "a", tmp_path / "b"], QUIET)
+    assert not (tmp_path / "a").exists()
+
+
+@pytest.mark.slow
+def test_a_checkpoint_resumes_only_on_the_engine_that_wrote_it(tmp_path):
+    stop = iter([False, True])
+    cut = train("gymnasium", config(episodes=4), tmp_path / "loop", QUIET, lambda: next(stop))
+    assert cut.status == "interrupted"
+    with pytest.raises(RunFolderError, match="written by the gymnasium engine"):
+        train("compiled", config(episodes=4), tmp_path / "loop", TrainSettings(progress=False, resume=True))
+    stop = iter([False, True])
+    cut = train("compiled", config(episodes=4), tmp_path / "compiled", QUIET, lambda: next(stop))
+    assert cut.status == "interrupted"
+    with pytest.raises(RunFolderError, match="written by the compiled engine"):
+        train("gymnasium", config(episodes=4), tmp_path / "compiled", TrainSettings(progress=False, resume=True))
+
+
+def test_the_option_names_every_engine():
+    from keras_rl.runs.options import ENGINE_NAMES
+    from keras_rl.train.engine import ENGINES
+
+    assert sorted(ENGINE_NAMES) == sorted(ENGINES)
