@@ -1,7 +1,10 @@
-"""Seed-batched runs against the same seeds run alone: where they part, and whether it matters.
+"""Two arms of the same seeds (seed-batched against solo, the compiled engine against the
+Gymnasium loop): where they part, and whether it matters.
 
     python reproductions/seed_batch_compare.py results/pendulum/seed-batch/solo --batch-size 10 \
         results/pendulum/seed-batch/batch10 --write results/pendulum/seed-batch/report.md
+    python reproductions/seed_batch_compare.py results/engines/pendulum/gymnasium \
+        results/engines/pendulum/compiled --labels gymnasium,compiled --write results/engines/pendulum/report.md
 
 For each seed: the first episode whose row differs (every column but ``wall_seconds``: a
 loss rounded differently in the 8th digit counts), the first episode whose score differs (the
@@ -57,19 +60,27 @@ def _batch_walls(summaries: list[RunSummary], size: int) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("solo", type=Path)
-    parser.add_argument("batched", type=Path)
-    parser.add_argument("--batch-size", type=int, required=True, help="the --seed-batch the batched runs used")
+    parser.add_argument("solo", type=Path, help="the reference arm (solo seeds; the Gymnasium loop)")
+    parser.add_argument("batched", type=Path, help="the arm judged against it")
+    parser.add_argument("--batch-size", type=int, default=None, help="the --seed-batch the batched runs used")
+    parser.add_argument(
+        "--labels", default="solo,batched", help="the two arms' names in the report (default solo,batched)"
+    )
     parser.add_argument("--write", type=Path, default=None, help="also write the report here (markdown)")
     args = parser.parse_args()
+    ref, judged_arm = args.labels.split(",")
     seeds = RunSet(args.solo).seeds
+    flags = (f" --batch-size {args.batch_size}" if args.batch_size else "") + (
+        f" --labels {args.labels}" if args.labels != "solo,batched" else ""
+    )
     lines = [
-        f"# Seed-batched vs solo: `{args.batched}` against `{args.solo}`",
+        f"# {'Seed-batched vs solo' if args.labels == 'solo,batched' else f'{judged_arm} vs {ref}'}: "
+        f"`{args.batched}` against `{args.solo}`",
         "",
-        f"Command: `python reproductions/seed_batch_compare.py {args.solo} {args.batched} "
-        f"--batch-size {args.batch_size}" + (f" --write {args.write}`" if args.write else "`"),
+        f"Command: `python reproductions/seed_batch_compare.py {args.solo} {args.batched}{flags}"
+        + (f" --write {args.write}`" if args.write else "`"),
         "",
-        "| seed | first differing row | first differing score | solo: reached at | batched: reached at |",
+        f"| seed | first differing row | first differing score | {ref}: reached at | {judged_arm}: reached at |",
         "|---|---|---|---|---|",
     ]
     solo_s, batch_s = [], []
@@ -94,17 +105,21 @@ def main() -> None:
     headline, judged = framework_verdict((len(hits_b), len(hits_a)), (n, n), (hits_b, hits_a), budget)
     lines += [
         "",
-        f"- Success: batched {len(hits_b)}/{n}, solo {len(hits_a)}/{n} (Fisher p = {fisher:.3g}).",
-        f"- Median episodes to threshold: batched {np.median(hits_b) if hits_b else 'n/a'}, solo "
-        f"{np.median(hits_a) if hits_a else 'n/a'}; batched minus solo {diff} (95% percentile bootstrap, "
+        f"- Success: {judged_arm} {len(hits_b)}/{n}, {ref} {len(hits_a)}/{n} (Fisher p = {fisher:.3g}).",
+        f"- Median episodes to threshold: {judged_arm} {np.median(hits_b) if hits_b else 'n/a'}, {ref} "
+        f"{np.median(hits_a) if hits_a else 'n/a'}; {judged_arm} minus {ref} {diff} (95% percentile bootstrap, "
         f"10000 resamples).",
         f"- Mann-Whitney U (two-sided, over every seed; one that never reached the threshold counts as "
         f"{budget + 1}) p = {p:.3g}.",
         f"- Equivalence under the margins set before the 30-seed runs (docs/findings.md): {headline}: "
         + "; ".join(e.sentence() for e in judged)
         + ".",
-        f"- Wall time: the solo seeds took {sum(s.wall_seconds for s in solo_s):.0f} s of seed time in all; "
-        + _batch_walls(RunSet(args.batched).summaries(), args.batch_size)
+        f"- Wall time: the {ref} seeds took {sum(s.wall_seconds for s in solo_s):.0f} s of seed time in all; "
+        + (
+            _batch_walls(RunSet(args.batched).summaries(), args.batch_size)
+            if args.batch_size
+            else f"the {judged_arm} seeds {sum(s.wall_seconds for s in batch_s):.0f} s"
+        )
         + ".",
         "",
     ]
