@@ -143,3 +143,46 @@ def test_the_option_names_every_engine():
     from keras_rl.train.engine import ENGINES
 
     assert sorted(ENGINE_NAMES) == sorted(ENGINES)
+
+
+@pytest.mark.slow
+def test_one_update_inside_the_episode_program_equals_the_learners_own_within_1e_6():
+    """The learner's update traced into the bigger program (a loop, a ``tf.cond``, the ring) against
+    the learner's own compiled ``train`` on the same rows, from the same weights."""
+    import tensorflow as tf
+
+    from keras_rl.learners.table import implementation
+    from keras_rl.seeding import seed_everything
+
+    c = config()
+    experiment = get_experiment("pendulum")
+    spec = experiment.env_spec(experiment.make_env(c))
+
+    def learner():
+        seed_everything(0)
+        return implementation("pendulum", "keras").load()(c, spec)
+
+    solo, traced = learner(), learner()
+    rows = np.random.default_rng(0).normal(size=(c.batch_size, solo.layout.width)).astype(np.float32)
+    rows[:, -1] = rows[:, -1] > 0  # done flags
+    losses = solo.train(rows)
+
+    ring = tf.Variable(tf.zeros([c.buffer_size, traced.layout.width], tf.float32))
+    ring[: c.batch_size].assign(rows)
+
+    @tf.function(jit_compile=True)
+    def program(indices, train):
+        out = tf.zeros([2])
+        for _ in tf.range(1):
+            out = tf.cond(
+                train,
+                lambda: tf.stack([v for v in traced._train_rows(tf.gather(ring, indices)).values()]),
+                lambda: tf.zeros([2]),
+            )
+        return out
+
+    inside = program(tf.range(c.batch_size), tf.constant(True)).numpy()
+    np.testing.assert_allclose(inside, [float(losses[n]) for n in traced.loss_names], rtol=1e-6)
+    for name, weights in solo.weights().items():
+        for a, b in zip(weights, traced.weights()[name]):
+            np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-6)
