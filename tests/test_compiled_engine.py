@@ -115,8 +115,8 @@ def test_evaluation_and_tensorboard_during_training(tmp_path):
 
 def test_what_the_compiled_engine_cannot_run_is_refused_before_training(tmp_path):
     engine = get_engine("compiled")
-    cartpole = get_experiment("cartpole")
-    assert "runs pendulum" in engine.refusal(cartpole, cartpole.config_cls.for_variant("faithful"))
+    mountaincar = get_experiment("mountaincar")
+    assert "runs pendulum and cartpole" in engine.refusal(mountaincar, mountaincar.config_cls.for_variant("faithful"))
     torch = config(framework="torch")
     assert "Keras learner" in engine.refusal(get_experiment("pendulum"), torch)
     with pytest.raises(ConfigError, match="one seed per program"):
@@ -186,3 +186,48 @@ def test_one_update_inside_the_episode_program_equals_the_learners_own_within_1e
     for name, weights in solo.weights().items():
         for a, b in zip(weights, traced.weights()[name]):
             np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-6)
+
+
+def cartpole(**changes):
+    values = {"seed": 0, "episodes": 30, **changes}
+    return get_experiment("cartpole").config_cls.for_variant("faithful", **values)
+
+
+def train_cartpole(engine: str, c, folder: Path, settings: TrainSettings = QUIET, should_stop=None):
+    return get_engine(engine).train(get_experiment("cartpole"), [c], [folder], settings, should_stop=should_stop)[0]
+
+
+def cartpole_columns(folder: Path) -> dict[str, list]:
+    rows = read_episodes(folder / "episodes.csv")
+    return {k: [r[k] for r in rows] for k in ("episode", "steps", "total_steps", "score", "metric", "loss")}
+
+
+@pytest.mark.slow
+def test_post_003_on_both_engines_plays_the_same_episodes(tmp_path):
+    """Post 003's draws (epsilon-greedy's uniforms and random actions, the sample indices, the
+    resets) all come from the loop's own generators, and CartPole's dynamics are bit for bit
+    Gymnasium's where they decide an episode's length: the episodes are the same ones (measured:
+    seed 0's first 158 episodes), the losses agree to float32 rounding."""
+    c = cartpole()
+    train_cartpole("gymnasium", c, tmp_path / "loop")
+    train_cartpole("compiled", c, tmp_path / "compiled")
+    a, b = cartpole_columns(tmp_path / "loop"), cartpole_columns(tmp_path / "compiled")
+    assert a["steps"] == b["steps"] and a["score"] == b["score"] and a["metric"] == b["metric"]
+    trained = [i for i, v in enumerate(a["loss"]) if v is not None]
+    assert trained and trained == [i for i, v in enumerate(b["loss"]) if v is not None]
+    np.testing.assert_allclose([b["loss"][i] for i in trained], [a["loss"][i] for i in trained], rtol=1e-5)
+
+
+@pytest.mark.slow
+def test_post_003_resumes_bit_for_bit_on_the_compiled_engine(tmp_path):
+    train_cartpole("compiled", cartpole(episodes=20), tmp_path / "straight")
+    stops = iter([False] * 9 + [True])
+    cut = train_cartpole(
+        "compiled", cartpole(episodes=20), tmp_path / "cut", TrainSettings(progress=False), lambda: next(stops)
+    )
+    assert cut.status == "interrupted" and cut.episodes_run == 10
+    resumed = train_cartpole(
+        "compiled", cartpole(episodes=20), tmp_path / "cut", TrainSettings(progress=False, resume=True)
+    )
+    assert resumed.status == "completed"
+    assert cartpole_columns(tmp_path / "cut") == cartpole_columns(tmp_path / "straight")

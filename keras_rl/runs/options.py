@@ -153,6 +153,6 @@ def run_options_parser(*names: str, workers_default: int = 1, what: str = "seeds
             choices=ENGINE_NAMES,
             default="gymnasium",
             help="gymnasium (the reference loop: Gymnasium's envs, one learner call per env step; the default) "
-            "or compiled (each episode one XLA program; post 000 in Keras so far)",
+            "or compiled (each episode one XLA program; posts 000 and 003 in Keras so far)",
         )
     return parent

@@ -17,8 +17,14 @@ the threshold, ``summary.json``, whose provenance names the engine), checkpoints
 boundaries for ``--resume`` (bit for bit), Ctrl-C and SIGTERM between episodes, TensorBoard,
 evaluation during training and the final weights.
 
-Post 000 (Keras) runs here today, every quirk switch honoured; anything else is refused
-before it trains, with the reason (``CompiledEngine.refusal``).
+Posts 000 and 003 (Keras) run here, every quirk switch honoured; anything else is refused
+before it trains, with the reason (``CompiledEngine.refusal``). Post 003's episodes end when
+the pole falls, so its program plays a chunk of up to 128 steps or to the episode's end; the
+host lays out the chunk's draws (epsilon-greedy's uniform and random action, the sample
+indices) in the loop's order, keeps each generator's state after every step, and after the
+chunk sets each one where the loop's would stand after the steps played. Its draws depend on
+nothing the program computes, so no counter-based generator is needed: the streams are the
+loop's own.
 """
 
 from __future__ import annotations
@@ -34,6 +40,7 @@ import tensorflow as tf
 from keras_rl.agents.skeleton import EpisodeStats
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.experiment import Experiment
+from keras_rl.learners.common import compile_step
 from keras_rl.learners.table import implementation
 from keras_rl.rngs import global_rng_state, rng_state, set_global_rng_state, set_rng_state
 from keras_rl.runs.checkpoint import VERSION, delete_checkpoints, read_batch_checkpoints, write_checkpoint
@@ -43,7 +50,7 @@ from keras_rl.runs.lifecycle import check_resume_config
 from keras_rl.runs.signals import signal_name, stop_signals_as_flag, stop_signals_deferred
 from keras_rl.runs.summary import RunSummary, Status
 from keras_rl.seeding import configure_tensorflow, seed_everything
-from keras_rl.tf_envs import MAX_STEPS, Pendulum
+from keras_rl.tf_envs import MAX_STEPS, CartPole, Pendulum
 from keras_rl.train.loop import SeedRun, _progress_bar, _TensorBoard
 from keras_rl.train.settings import TrainSettings
 
@@ -54,12 +61,14 @@ class CompiledEngine:
     name = ENGINE
 
     def refusal(self, experiment: Experiment, config) -> str | None:
-        if experiment.name != "pendulum":
-            return f"the compiled engine runs pendulum (post 000) so far; run {experiment.name} with --engine gymnasium"
+        if experiment.name not in RUNS:
+            return (
+                f"the compiled engine runs {' and '.join(RUNS)} so far; run {experiment.name} with --engine gymnasium"
+            )
         if config.framework != "keras":
             return "the compiled engine runs the Keras learner; the PyTorch side runs with --engine gymnasium"
-        if config.env_id != "Pendulum-v1":
-            return f"the compiled engine has Pendulum-v1 in TensorFlow, not env_id {config.env_id!r}"
+        if config.env_id != ENV_IDS[experiment.name]:
+            return f"the compiled engine has {ENV_IDS[experiment.name]} in TensorFlow, not env_id {config.env_id!r}"
         return None
 
     def train(
@@ -75,7 +84,8 @@ class CompiledEngine:
         why = self.refusal(experiment, configs[0])
         if why is not None:
             raise ConfigError(why)
-        return [PendulumRun(experiment, configs[0], Path(out_dirs[0]), settings).run(should_stop)]
+        run = RUNS[experiment.name](experiment, configs[0], Path(out_dirs[0]), settings)
+        return [run.run(should_stop)]
 
 
 class PendulumProgram:
@@ -89,16 +99,14 @@ class PendulumProgram:
         layout = learner.layout
         self.ring = tf.Variable(tf.zeros([c.buffer_size, layout.width], tf.float32), trainable=False)
         step_spec = tf.TensorSpec([self.steps], tf.bool)
-        self.episode = tf.function(
+        self.episode = compile_step(  # a concrete function: no per-call signature dispatch
             self._episode,
-            jit_compile=True,
-            input_signature=[
-                tf.TensorSpec([2], tf.float64),  # the reset state
-                tf.TensorSpec([self.steps, layout.action_dim], tf.float32),  # each step's noise
-                tf.TensorSpec([self.steps, c.batch_size], tf.int32),  # each update's sample indices
-                step_spec,  # which steps train
-                tf.TensorSpec([], tf.int32),  # where the ring writes next
-            ],
+            True,
+            tf.TensorSpec([2], tf.float64),  # the reset state
+            tf.TensorSpec([self.steps, layout.action_dim], tf.float32),  # each step's noise
+            tf.TensorSpec([self.steps, c.batch_size], tf.int32),  # each update's sample indices
+            step_spec,  # which steps train
+            tf.TensorSpec([], tf.int32),  # where the ring writes next
         )
 
     def _episode(self, state, noise, indices, trains, position):
@@ -127,8 +135,16 @@ class PendulumProgram:
         return score, losses.stack()
 
 
-class PendulumRun:
-    """One seed on the compiled engine: the host's side of each episode and the run's records."""
+class CompiledRun:
+    """One seed on the compiled engine: the host's side of each episode and the run's records.
+    A post's subclass makes its program and plays an episode (``_play_episode``)."""
+
+    def make_program(self, config, learner):
+        raise NotImplementedError
+
+    def _play_episode(self) -> tuple[float, int, EpisodeStats] | str:
+        """One episode: its score, its steps and its learner statistics, or why the run stopped."""
+        raise NotImplementedError
 
     def __init__(self, experiment: Experiment, config, out_dir: Path, settings: TrainSettings):
         self.experiment, self.config, self.settings = experiment, config, settings
@@ -141,7 +157,8 @@ class PendulumRun:
         self.learner = implementation(experiment.name, c.framework).load()(c, spec)
         agent = experiment.assemble(c, spec, self.learner, self.env.action_space)
         self.buffer, self.explorer, self.schedule = agent.buffer, agent.explorer, agent.schedule
-        self.program = PendulumProgram(c, self.learner)
+        self.action_space = self.env.action_space
+        self.program = self.make_program(c, self.learner)
         self.recorder = RunRecorder(out_dir, self.learner.loss_names)
         self.run_ = SeedRun(experiment, c, self.recorder, experiment.make_metric(c), settings.command)
         self.run_.provenance["engine"] = ENGINE
@@ -159,45 +176,29 @@ class PendulumRun:
         )
         self.writer: _TensorBoard | None = None
 
-    # -- what the Gymnasium loop would draw during the next episode ----------------------------
-    def _streams(self):
-        c, steps = self.config, self.program.steps
-        self.env.reset(seed=c.seed) if self.episode == 0 else self.env.reset()
-        state = np.asarray(self.env.unwrapped.state, np.float64).copy()
-        self.explorer.reset()  # post 000 §2.4: pre_noise = np.zeros(action_size)
-        noise = np.stack([self.explorer.noise().astype(np.float32) for _ in range(steps)])
-        indices = np.zeros((steps, c.batch_size), np.int32)
-        trains = np.zeros(steps, bool)
-        for t in range(steps):
-            size = min(self.stored + t + 1, c.buffer_size)
-            total = self.run_.total_steps + t + 1
-            if size >= self.schedule.train_start and total % self.schedule.train_every == 0:
-                trains[t] = True
-                indices[t] = self.buffer.rng.choice(size, size=c.batch_size, replace=False)
-        return state, noise, indices, trains
-
-    def _play_episode(self) -> tuple[float, EpisodeStats] | str:
-        """One episode; its score and learner statistics, or why it stopped (a non-finite loss)."""
-        state, noise, indices, trains = self._streams()
-        position = self.stored % self.config.buffer_size
-        score, losses = self.program.episode(
-            tf.constant(state), tf.constant(noise), tf.constant(indices), tf.constant(trains), tf.constant(position)
-        )
-        losses = losses.numpy()[trains].astype(np.float64)
+    def _tally(
+        self, losses: np.ndarray, trains: np.ndarray, steps: int, into=None, offset: int = 0
+    ) -> EpisodeStats | str:
+        """The losses of ``steps`` steps (those that trained) added in order to the episode's
+        float64 sums (``into``, carried over chunks), as the loop's ``LossTally`` adds them; a
+        non-finite one is named, at its update and env step, as the loop names it."""
         names = self.learner.loss_names
-        for k, values in enumerate(losses):
-            bad = [(name, v) for name, v in zip(names, values) if not np.isfinite(v)]
-            if bad:
-                step = self.run_.total_steps + int(np.flatnonzero(trains)[k]) + 1
-                return (
-                    f"{bad[0][0]} became {bad[0][1]} at update {self.updates + k + 1} (env step {step}); "
-                    "the run stops here and keeps the episodes already written"
-                )
-        self.stored += self.program.steps
-        self.updates += len(losses)
-        sums = [sum(losses[:, i].tolist()) for i in range(len(names))]  # in order, as the loop's tally
-        means = {name: (s / len(losses) if len(losses) else None) for name, s in zip(names, sums)}
-        return float(score.numpy()), EpisodeStats(len(losses), means)
+        sums, count = into if into is not None else ([0.0] * len(names), 0)
+        for t in np.flatnonzero(trains[:steps]):
+            values = np.atleast_1d(losses[t]).astype(np.float64)
+            self.updates += 1
+            count += 1
+            for i, (name, v) in enumerate(zip(names, values)):
+                if not np.isfinite(v):
+                    return (
+                        f"{name} became {v} at update {self.updates} "
+                        f"(env step {self.run_.total_steps + offset + t + 1}); "
+                        "the run stops here and keeps the episodes already written"
+                    )
+                sums[i] += float(v)
+        if into is not None:
+            into[0], into[1] = sums, count
+        return EpisodeStats(count, {n: (v / count if count else None) for n, v in zip(names, sums)})
 
     # -- the run -----------------------------------------------------------------------------
     def run(self, should_stop: Callable[[], bool] | None = None) -> RunSummary:
@@ -235,9 +236,9 @@ class PendulumRun:
             if isinstance(played, str):
                 self.status, self.message = "non_finite_loss", played
                 return
-            score, stats = played
+            score, steps, stats = played
             self.episode += 1
-            row = self.run_.record_episode(self.episode, score, self.program.steps, stats)
+            row = self.run_.record_episode(self.episode, score, steps, stats)
             if self.writer is not None:
                 self.writer.episode(row)
             if self.evaluator is not None and self.evaluator.due(self.episode):
@@ -285,6 +286,7 @@ class PendulumRun:
                 "buffer_rng": rng_state(self.buffer.rng),
                 "explorer": self.explorer.state_dict(),
                 "env_rng": rng_state(self.env.unwrapped.np_random),
+                "action_space_rng": rng_state(self.action_space.np_random),
             },
         }
 
@@ -312,6 +314,7 @@ class PendulumRun:
         set_rng_state(self.buffer.rng, own["buffer_rng"])
         self.explorer.load_state_dict(own["explorer"])
         set_rng_state(self.env.unwrapped.np_random, own["env_rng"])
+        set_rng_state(self.action_space.np_random, own["action_space_rng"])
         set_global_rng_state(state["global_rng"])
         stopped_early = run.reached_at is not None and self.config.stop_at_threshold
         if self.status == "completed" and played == int(theirs["episodes"]) < wanted["episodes"] and not stopped_early:
@@ -358,3 +361,176 @@ class PendulumRun:
         final = self.run_.summary(self.status, self.message)
         final.write(self.recorder.out_dir)
         return final
+
+
+class PendulumRun(CompiledRun):
+    """Post 000: one program call per episode (200 steps, no termination)."""
+
+    def make_program(self, config, learner):
+        return PendulumProgram(config, learner)
+
+    # -- what the Gymnasium loop would draw during the next episode ----------------------------
+    def _streams(self):
+        c, steps = self.config, self.program.steps
+        self.env.reset(seed=c.seed) if self.episode == 0 else self.env.reset()
+        state = np.asarray(self.env.unwrapped.state, np.float64).copy()
+        self.explorer.reset()  # post 000 §2.4: pre_noise = np.zeros(action_size)
+        noise = np.stack([self.explorer.noise().astype(np.float32) for _ in range(steps)])
+        indices = np.zeros((steps, c.batch_size), np.int32)
+        trains = np.zeros(steps, bool)
+        for t in range(steps):
+            size = min(self.stored + t + 1, c.buffer_size)
+            total = self.run_.total_steps + t + 1
+            if size >= self.schedule.train_start and total % self.schedule.train_every == 0:
+                trains[t] = True
+                indices[t] = self.buffer.rng.choice(size, size=c.batch_size, replace=False)
+        return state, noise, indices, trains
+
+    def _play_episode(self) -> tuple[float, int, EpisodeStats] | str:
+        state, noise, indices, trains = self._streams()
+        position = self.stored % self.config.buffer_size
+        score, losses = self.program.episode(
+            tf.constant(state), tf.constant(noise), tf.constant(indices), tf.constant(trains), tf.constant(position)
+        )
+        stats = self._tally(losses.numpy(), trains, self.program.steps)
+        if isinstance(stats, str):
+            return stats
+        self.stored += self.program.steps
+        return float(score.numpy()), self.program.steps, stats
+
+
+class CartPoleProgram:
+    """Post 003's env steps (the tutorial's loop body) as one XLA program, up to ``BLOCK`` steps
+    or the episode's end, whichever comes first: act (epsilon-greedy, the draws laid out by the
+    host), step, store, ``optimize_model`` and the soft update (or the soft update alone before
+    the first batch)."""
+
+    BLOCK = 128
+
+    def __init__(self, config, learner):
+        c = self.config = config
+        self.learner = learner
+        self.env = CartPole()
+        self.limit = MAX_STEPS["CartPole-v1"]
+        self.ring = tf.Variable(tf.zeros([c.buffer_size, learner.layout.width], tf.float32), trainable=False)
+        block = tf.TensorSpec([self.BLOCK], tf.bool)
+        self.chunk = compile_step(  # a concrete function: no per-call signature dispatch
+            self._chunk,
+            True,
+            tf.TensorSpec([4], tf.float64),  # the state the chunk starts from
+            tf.TensorSpec([], tf.int32),  # steps the episode has played before it
+            tf.TensorSpec([], tf.int32),  # steps this chunk may play
+            block,  # each step explores (the draw was below epsilon)
+            tf.TensorSpec([self.BLOCK], tf.int32),  # the random action of each exploring step
+            tf.TensorSpec([self.BLOCK, c.batch_size], tf.int32),  # each update's sample indices
+            block,  # which steps train
+            tf.TensorSpec([], tf.int32),  # where the ring writes next
+        )
+
+    def _chunk(self, state, played, allowed, explore, random_actions, indices, trains, position):
+        c, learner, env = self.config, self.learner, self.env
+        losses = tf.TensorArray(tf.float32, self.BLOCK, element_shape=[])
+        t = tf.constant(0)
+        ended = tf.constant(False)
+        while t < allowed and not ended:
+            obs = env.observe(state)
+            action = tf.where(explore[t], random_actions[t], learner._greedy(obs))
+            state, next_obs, reward, terminated = env.step(state, action)
+            row = tf.concat(
+                [
+                    obs,
+                    tf.cast(action, tf.float32)[None],
+                    tf.cast(reward, tf.float32)[None],
+                    next_obs,
+                    tf.cast(terminated, tf.float32)[None],
+                ],
+                0,
+            )
+            self.ring.scatter_nd_update([[(position + t) % c.buffer_size]], row[None, :])
+
+            def update(t=t):
+                return learner._train_rows(tf.gather(self.ring, indices[t]))["loss"]
+
+            def soft_update_only():
+                learner._soft_update()  # the tutorial soft-updates every step, trained or not
+                return tf.constant(0.0, tf.float32)
+
+            losses = losses.write(t, tf.cond(trains[t], update, soft_update_only))
+            ended = terminated | (played + t + 1 >= self.limit)
+            t += 1
+        return state, t, ended, losses.stack()
+
+
+class CartPoleRun(CompiledRun):
+    """Post 003 in Keras: an episode in chunks of up to ``CartPoleProgram.BLOCK`` steps. The host
+    lays out each chunk's draws from the loop's own generators (one uniform per step for
+    epsilon-greedy, a random action where it explores, the sample indices where it trains) and
+    keeps each generator's state after every step, so that after the chunk it stands exactly
+    where the loop's would after the steps the chunk played."""
+
+    last_length = 16
+    """The last episode's length: the first chunk of the next one is laid out for as many steps."""
+
+    def make_program(self, config, learner):
+        return CartPoleProgram(config, learner)
+
+    def _draws(self, steps: int):
+        c, block = self.config, CartPoleProgram.BLOCK
+        explore = np.zeros(block, bool)
+        random_actions = np.zeros(block, np.int32)
+        indices = np.zeros((block, c.batch_size), np.int32)
+        trains = np.zeros(block, bool)
+        after = []  # each generator's state after step t's draws
+        generators = (self.explorer.rng, self.action_space.np_random, self.buffer.rng)
+        for t in range(steps):
+            sample = self.explorer.rng.random()
+            explore[t] = not sample > self.explorer.epsilon(self.explorer.steps_done + t)
+            if explore[t]:
+                random_actions[t] = int(self.action_space.sample())
+            size = min(self.stored + t + 1, c.buffer_size)
+            if size >= self.schedule.train_start:
+                trains[t] = True
+                indices[t] = self.buffer.rng.choice(size, size=c.batch_size, replace=False)
+            after.append([rng_state(g) for g in generators])
+        return explore, random_actions, indices, trains, after, generators
+
+    def _play_episode(self) -> tuple[float, int, EpisodeStats] | str:
+        c = self.config
+        self.env.reset(seed=c.seed) if self.episode == 0 else self.env.reset()
+        state = tf.constant(np.asarray(self.env.unwrapped.state, np.float64))
+        played, into = 0, [[0.0] * len(self.learner.loss_names), 0]
+        stats: EpisodeStats | str = EpisodeStats(0, {})
+        ended = False
+        while not ended:
+            # the first chunk as long as the last episode (draws laid out for steps never played
+            # cost host time), the later ones a whole block
+            guess = CartPoleProgram.BLOCK if played else max(16, self.last_length)
+            allowed = min(CartPoleProgram.BLOCK, guess, self.program.limit - played)
+            explore, random_actions, indices, trains, after, generators = self._draws(allowed)
+            state, steps, done, losses = self.program.chunk(
+                state,
+                tf.constant(played, tf.int32),
+                tf.constant(allowed, tf.int32),
+                tf.constant(explore),
+                tf.constant(random_actions),
+                tf.constant(indices),
+                tf.constant(trains),
+                tf.constant(self.stored % c.buffer_size, tf.int32),
+            )
+            steps, ended = int(steps), bool(done)
+            for generator, kept in zip(generators, after[steps - 1]):
+                set_rng_state(generator, kept)  # the draws of steps the chunk did not play are undone
+            self.explorer.steps_done += steps
+            stats = self._tally(losses.numpy(), trains, steps, into, offset=played)
+            if isinstance(stats, str):
+                return stats
+            self.stored += steps
+            played += steps
+        assert not isinstance(stats, str)
+        self.last_length = played
+        return float(played), played, stats
+
+
+RUNS: dict[str, type[CompiledRun]] = {"pendulum": PendulumRun, "cartpole": CartPoleRun}
+"""The posts the compiled engine runs, each with its host side."""
+ENV_IDS = {"pendulum": "Pendulum-v1", "cartpole": "CartPole-v1"}
