@@ -2,15 +2,17 @@
 
     python benchmarks/engines.py                 # post 000, 40 episodes (8,000 steps), 3 rounds
     python benchmarks/engines.py --episodes 100 --rounds 5
+    python benchmarks/engines.py --experiment cartpole --episodes 300 --rounds 1   # post 003
     python benchmarks/engines.py --markdown      # the table for docs/performance.md
 
 Each round trains post 000's faithful seed 0 for ``--episodes`` episodes on each engine in
 turn (interleaved, so a noisy neighbour slows both), through the engine seam
 (``train/engine.py``), with training from the first stored batch on (``train_start=64``:
 about every step trains, as in the bulk of a real run) and no stop at the threshold. The
-steady rate comes from the run's own ``episodes.csv`` (``wall_seconds`` from the end of
-episode 5 to the last), so it holds every per-episode cost (the host's draws, the records)
-and none of the start-up; start-up is the time to the end of the first episode (building
+steady rate comes from the run's own ``episodes.csv`` (``wall_seconds`` and ``total_steps``
+from the end of episode 5 to the last; post 003: from its middle episode on, where its
+episodes are long, as in most of a run's steps), so it holds every per-episode cost (the
+host's draws, the records) and none of the start-up; start-up is the time to the end of the first episode (building
 the networks, tracing, XLA compilation). Medians over the rounds. One TensorFlow thread, as
 the CLI runs a seed. Only the ratio, measured in one run, means much on a shared machine.
 """
@@ -33,6 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--experiment", choices=("pendulum", "cartpole"), default="pendulum")
     parser.add_argument("--episodes", type=int, default=40)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--markdown", action="store_true", help="print the result as a Markdown table")
@@ -44,13 +47,14 @@ def main() -> None:
     from keras_rl.train.engine import get_engine
     from keras_rl.train.settings import TrainSettings
 
-    experiment = get_experiment("pendulum")
+    experiment = get_experiment(args.experiment)
     if args.episodes < 10:
         parser.error("--episodes must be at least 10 (the first 5 are left out of the steady rate)")
+    changes = {"train_start": 64} if args.experiment == "pendulum" else {}
     config = experiment.config_cls.for_variant(
-        "faithful", seed=0, episodes=args.episodes, train_start=64, stop_at_threshold=False
+        "faithful", seed=0, episodes=args.episodes, stop_at_threshold=False, **changes
     )
-    steps = 200 * args.episodes
+    first = 4 if args.experiment == "pendulum" else args.episodes // 2 - 1
     from keras_rl.runs.files import read_episodes
 
     rates: dict[str, list[float]] = {"gymnasium": [], "compiled": []}
@@ -63,10 +67,12 @@ def main() -> None:
                 start = time.perf_counter()
                 summary = get_engine(name).train(experiment, [config], [folder], TrainSettings(progress=False))[0]
                 built = time.perf_counter() - start - summary.wall_seconds  # before the run's clock starts
-                if summary.total_steps != steps:
-                    raise SystemExit(f"{name} played {summary.total_steps} steps, not {steps}")
-                wall = [row["wall_seconds"] for row in read_episodes(folder / "episodes.csv")]
-                rates[name].append(1000 * (wall[-1] - wall[4]) / (200 * (len(wall) - 5)))
+                rows = read_episodes(folder / "episodes.csv")
+                if len(rows) != args.episodes:
+                    raise SystemExit(f"{name} played {len(rows)} episodes, not {args.episodes}")
+                wall = [row["wall_seconds"] for row in rows]
+                played = rows[-1]["total_steps"] - rows[first]["total_steps"]
+                rates[name].append(1000 * (wall[-1] - wall[first]) / played)
                 startups[name].append(built + wall[0])
                 print(f"round {r + 1}: {name} {rates[name][-1]:.3f} ms/step", file=sys.stderr)
     finally:
@@ -76,9 +82,10 @@ def main() -> None:
     ratio = per_step["gymnasium"] / per_step["compiled"]
     when = time.strftime("%Y-%m-%d")
     lines = [
-        f"`python benchmarks/engines.py --episodes {args.episodes} --rounds {args.rounds} --markdown` "
-        f"({when}, {platform.processor() or platform.machine()}, one TensorFlow thread; post 000 seed 0, "
-        f"{steps} env steps per run, medians of {args.rounds} rounds):",
+        f"`python benchmarks/engines.py --experiment {args.experiment} --episodes {args.episodes} "
+        f"--rounds {args.rounds} --markdown` ({when}, {platform.processor() or platform.machine()}, one "
+        f"TensorFlow thread; {args.experiment} seed 0, {args.episodes} episodes per run, the steady rate "
+        f"after episode {first + 1}, medians of {args.rounds} rounds):",
         "",
         "| engine | ms per env step (steady) | start-up to the first episode's end (s) |",
         "|---|---|---|",
