@@ -14,6 +14,23 @@ from keras_rl.posts import cartpole, mountaincar, pendulum
 EXPERIMENTS: dict[str, Experiment] = {p.EXPERIMENT.name: p.EXPERIMENT for p in (pendulum, cartpole, mountaincar)}
 
 
+def register(experiment: Experiment, learners: dict[str, str]) -> None:
+    """Add a post from outside the package, in one call: its ``Experiment`` (config, env, agent
+    parts, metric) and, per framework, its learner factory as ``"module:callable"`` (called as
+    ``factory(config, spec)``, returning a ``learners/protocol.Learner``). Nothing under
+    ``keras_rl/`` changes; ``reproduce``, ``--resume``, ``aggregate`` and ``evaluate`` run it
+    (``tests/test_fourth_post.py`` registers a toy post and runs them end to end)."""
+    from keras_rl.learners.table import IMPLEMENTATIONS, Implementation
+
+    if experiment.name in EXPERIMENTS:
+        raise ConfigError(f"an experiment named {experiment.name!r} is registered already")
+    if not learners:
+        raise ConfigError(f"{experiment.name}: register at least one framework's learner")
+    EXPERIMENTS[experiment.name] = experiment
+    for framework, path in learners.items():
+        IMPLEMENTATIONS[(experiment.name, framework)] = Implementation(path)
+
+
 def get_experiment(name: str) -> Experiment:
     try:
         return EXPERIMENTS[name]
