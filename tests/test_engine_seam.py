@@ -82,3 +82,23 @@ def test_only_learners_that_declare_masks_are_given_them():
     solo = stacked.SoloAsStack(learner=type("L", (), {"loss_names": ("q",)})())
     with pytest.raises(ValueError, match="takes no mask"):
         solo.train(None, mask=[True])
+
+
+def test_train_seeds_packs_picks_the_backend_and_runs(tmp_path, monkeypatch):
+    from keras_rl.registry import get_experiment
+    from keras_rl.runs import backends
+    from keras_rl.runs.options import RunOptions
+
+    seen = {}
+
+    def fake_run_jobs(todo, backend, progress=True, after_job=None):
+        seen.update(todo=todo, backend=backend, progress=progress)
+        return jobs.JobsOutcome()
+
+    monkeypatch.setattr(jobs, "run_jobs", fake_run_jobs)
+    config = get_experiment("pendulum").config_cls.for_variant("faithful", episodes=3)
+    todo = [jobs.SeedJob.of(config.replace(seed=s), tmp_path / f"seed_{s}") for s in range(4)]
+    backends.train_seeds(todo, RunOptions(seed_batch=2, progress=False))
+    assert [len(jobs.members(j)) for j in seen["todo"]] == [2, 2] and isinstance(seen["backend"], jobs.InProcess)
+    backends.train_seeds(todo, RunOptions(seed_batch=2), pack=False)
+    assert seen["todo"] == todo and seen["progress"] is True

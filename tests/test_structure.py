@@ -211,3 +211,16 @@ def test_the_cli_is_a_table_and_each_command_module_stays_small():
     assert len((package / "cli.py").read_text().splitlines()) <= 150
     sizes = {p.name: len(p.read_text().splitlines()) for p in (package / "commands").glob("*.py")}
     assert sizes and all(n <= 300 for n in sizes.values()), sizes
+
+
+def test_every_command_trains_its_seeds_one_way():
+    """``runs/backends.train_seeds`` packs, picks the backend and runs; no command calls
+    ``run_jobs`` or ``backend_for`` itself (they did, four times, each its own way)."""
+    package = Path(__file__).resolve().parents[1] / "keras_rl"
+    callers = sorted(
+        str(p.relative_to(package))
+        for p in package.rglob("*.py")
+        if p.name not in ("backends.py", "jobs.py")
+        and any(call in p.read_text() for call in ("run_jobs(jobs", "run_jobs(todo", "backend_for("))
+    )
+    assert callers == [], callers

@@ -381,8 +381,8 @@ def _run_seeds(out: Path, groups: list[tuple], options: RunOptions) -> None:
     the rule's seed batches, all groups' jobs at once."""
     from keras_rl.learners.table import batch_refusal
     from keras_rl.report.plots import draw_job_curves
-    from keras_rl.runs.backends import backend_for
-    from keras_rl.runs.jobs import SeedJob, batched, run_jobs
+    from keras_rl.runs.backends import train_seeds
+    from keras_rl.runs.jobs import SeedJob, batched
 
     jobs = []
     for experiment, rule, config, fresh in groups:
@@ -392,8 +392,7 @@ def _run_seeds(out: Path, groups: list[tuple], options: RunOptions) -> None:
         # a --set no stacked learner covers (post 001's learning phase) runs its seeds alone
         size = rule.seed_batch if batch_refusal(experiment.name, config.to_dict()) is None else 1
         jobs += batched(group, size)
-    backend = backend_for(options.workers, len(jobs), options.address)
-    outcome = run_jobs(jobs, backend, options.progress, after_job=draw_job_curves)
+    outcome = train_seeds(jobs, options, after_job=draw_job_curves, pack=False)
     if outcome.interrupted:
         raise KeyboardInterrupt
 

@@ -198,11 +198,11 @@ def reproduce(args: argparse.Namespace) -> int:
 
     from keras_rl.report.aggregate import write_aggregate
     from keras_rl.report.plots import draw_job_curves
-    from keras_rl.runs.backends import backend_for
-    from keras_rl.runs.jobs import SeedJob, batched, run_jobs
+    from keras_rl.runs.backends import train_seeds
+    from keras_rl.runs.jobs import SeedJob
 
     kept = _kept_runs(base, [(s, d) for s, d, m in zip(seeds, seed_dirs, modes) if m == "keep"])
-    jobs = batched(
+    outcome = train_seeds(
         [
             SeedJob.of(
                 base.replace(seed=s),
@@ -216,11 +216,8 @@ def reproduce(args: argparse.Namespace) -> int:
             for s, d, m in zip(seeds, seed_dirs, modes)
             if m != "keep"
         ],
-        options.seed_batch,
-        options.workers,
-    )
-    outcome = run_jobs(
-        jobs, backend_for(options.workers, len(jobs), options.address), options.progress, after_job=draw_job_curves
+        options,
+        after_job=draw_job_curves,
     )
     summaries = sorted(kept + outcome.summaries, key=lambda s: seeds.index(s.seed))
     failures = [s for s in summaries if s.status in ("non_finite_loss", "error")]

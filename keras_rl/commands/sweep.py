@@ -97,16 +97,12 @@ def sweep(args: argparse.Namespace) -> int:
     )
     from keras_rl.report.plots import draw_job_curves
     from keras_rl.report.sweep import write_sweep_report
-    from keras_rl.runs.backends import backend_for
-    from keras_rl.runs.jobs import batched, run_jobs
+    from keras_rl.runs.backends import train_seeds
     from keras_rl.runs.provenance import command_line
     from keras_rl.runs.summary import RunSummary
 
     record_grid(args.out, points)
-    todo = batched(todo, options.seed_batch, options.workers)
-    outcome = run_jobs(
-        todo, backend_for(options.workers, len(todo), options.address), options.progress, after_job=draw_job_curves
-    )
+    outcome = train_seeds(todo, options, after_job=draw_job_curves)
     summaries = {
         p.name: [
             RunSummary.read(j.out_dir)

@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
-from keras_rl.runs.jobs import Backend, InProcess
+from typing import TYPE_CHECKING
+
+from keras_rl.runs import jobs as dispatch
+from keras_rl.runs.jobs import AfterJob, Backend, InProcess, JobsOutcome
+
+if TYPE_CHECKING:
+    from keras_rl.runs.options import RunOptions
 
 
 def backend_for(workers: int, jobs: int, address: str | None = None) -> Backend:
@@ -13,3 +19,14 @@ def backend_for(workers: int, jobs: int, address: str | None = None) -> Backend:
     from keras_rl.runs.ray_backend import RayBackend
 
     return RayBackend(workers=workers, address=address)
+
+
+def train_seeds(jobs: list, options: RunOptions, after_job: AfterJob | None = None, pack: bool = True) -> JobsOutcome:
+    """The one way every command trains its seeds: pack them into seed batches (``--seed-batch``;
+    ``pack=False``: the caller packed them, as ``check`` does per rule), pick the backend
+    (``--workers``, ``--address``), run, and read back what each folder holds. The caller says
+    what a Ctrl-C means for it (``JobsOutcome.interrupted``)."""
+    if pack:
+        jobs = dispatch.batched(jobs, options.seed_batch, options.workers)
+    backend = backend_for(options.workers, len(jobs), options.address)
+    return dispatch.run_jobs(jobs, backend, options.progress, after_job)  # read at call time: tests replace it

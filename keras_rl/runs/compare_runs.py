@@ -16,9 +16,9 @@ from typing import Any
 from keras_rl.errors import RunFolderError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import compared_frameworks
-from keras_rl.runs.backends import backend_for
+from keras_rl.runs.backends import train_seeds
 from keras_rl.runs.files import run_folder
-from keras_rl.runs.jobs import AfterJob, SeedJob, batched, run_jobs
+from keras_rl.runs.jobs import AfterJob, SeedJob
 from keras_rl.runs.options import RunOptions
 from keras_rl.runs.provenance import code_version
 from keras_rl.runs.reuse import check_reusable, start_of
@@ -75,11 +75,6 @@ def make_compare_runs(
 ) -> None:
     """Run (S seeds at a time, on ``options``' backend) what ``gather`` finds missing.
     Raises KeyboardInterrupt when Ctrl-C stopped the runs (what finished is on disk)."""
-    jobs = batched(
-        gather(experiment, variant, seeds, runs_root, rerun, reuse_only, options.config_changes(), matched_init),
-        options.seed_batch,
-        options.workers,
-    )
-    backend = backend_for(options.workers, len(jobs), options.address)
-    if run_jobs(jobs, backend, options.progress, after_job=after_job).interrupted:
+    jobs = gather(experiment, variant, seeds, runs_root, rerun, reuse_only, options.config_changes(), matched_init)
+    if train_seeds(jobs, options, after_job=after_job).interrupted:
         raise KeyboardInterrupt
