@@ -37,8 +37,8 @@ from typing import Any
 import numpy as np
 import tensorflow as tf
 
-from keras_rl.agents.skeleton import EpisodeStats
-from keras_rl.errors import ConfigError, RunFolderError
+from keras_rl.agents.skeleton import EpisodeStats, LossTally
+from keras_rl.errors import ConfigError, NonFiniteLossError, RunFolderError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.common import compile_step
 from keras_rl.learners.table import implementation
@@ -164,7 +164,10 @@ class CompiledRun:
         self.run_.provenance["engine"] = ENGINE
         self.stored = 0
         """Transitions stored so far (the ring's write position is this modulo its size)."""
-        self.updates = 0
+        self.played = 0
+        """Steps the current episode has played in the chunks before this one (post 003)."""
+        self.tally = LossTally(self.learner.loss_names)
+        """Each episode's losses and the run's update count, as the loop keeps them."""
         self.episode = 0
         self.status: Status = "running"
         self.message = ""
@@ -176,29 +179,31 @@ class CompiledRun:
         )
         self.writer: _TensorBoard | None = None
 
-    def _tally(
-        self, losses: np.ndarray, trains: np.ndarray, steps: int, into=None, offset: int = 0
-    ) -> EpisodeStats | str:
-        """The losses of ``steps`` steps (those that trained) added in order to the episode's
-        float64 sums (``into``, carried over chunks), as the loop's ``LossTally`` adds them; a
-        non-finite one is named, at its update and env step, as the loop names it."""
+    def _reset_env(self) -> np.ndarray:
+        """The next episode's start state, drawn by the Gymnasium env as the loop resets it."""
+        self.env.reset(seed=self.config.seed) if self.episode == 0 else self.env.reset()
+        return np.asarray(self.env.unwrapped.state, np.float64).copy()
+
+    def _trains(self, t: int) -> bool:
+        """Whether the chunk's step ``t`` trains: the schedule's rule (``EveryStep``) at the
+        buffer size and step count after it."""
+        size = min(self.stored + t + 1, self.config.buffer_size)
+        total = self.run_.total_steps + self.played + t + 1
+        return size >= self.schedule.train_start and total % self.schedule.train_every == 0
+
+    def _record_losses(self, losses: np.ndarray, trains: np.ndarray, steps: int) -> str | None:
+        """The losses of a chunk's ``steps`` steps (those that trained) into the episode's tally,
+        in order, as the loop adds them; the loop's message if one is not finite."""
         names = self.learner.loss_names
-        sums, count = into if into is not None else ([0.0] * len(names), 0)
         for t in np.flatnonzero(trains[:steps]):
-            values = np.atleast_1d(losses[t]).astype(np.float64)
-            self.updates += 1
-            count += 1
-            for i, (name, v) in enumerate(zip(names, values)):
-                if not np.isfinite(v):
-                    return (
-                        f"{name} became {v} at update {self.updates} "
-                        f"(env step {self.run_.total_steps + offset + t + 1}); "
-                        "the run stops here and keeps the episodes already written"
-                    )
-                sums[i] += float(v)
-        if into is not None:
-            into[0], into[1] = sums, count
-        return EpisodeStats(count, {n: (v / count if count else None) for n, v in zip(names, sums)})
+            try:
+                self.tally.add(
+                    dict(zip(names, np.atleast_1d(losses[t]))),
+                    f"env step {self.run_.total_steps + self.played + t + 1}",
+                )
+            except NonFiniteLossError as exc:
+                return str(exc)
+        return None
 
     # -- the run -----------------------------------------------------------------------------
     def run(self, should_stop: Callable[[], bool] | None = None) -> RunSummary:
@@ -282,7 +287,7 @@ class CompiledRun:
                 "learner": self.learner.state_dict(),
                 "ring": self.program.ring.numpy(),
                 "stored": self.stored,
-                "updates": self.updates,
+                "updates": self.tally.total_updates,
                 "buffer_rng": rng_state(self.buffer.rng),
                 "explorer": self.explorer.state_dict(),
                 "env_rng": rng_state(self.env.unwrapped.np_random),
@@ -310,7 +315,7 @@ class CompiledRun:
         self.episode, self.saved = int(seed["episode"]), bool(seed["saved"])
         self.learner.load_state_dict(own["learner"])
         self.program.ring.assign(own["ring"])
-        self.stored, self.updates = int(own["stored"]), int(own["updates"])
+        self.stored, self.tally.total_updates = int(own["stored"]), int(own["updates"])
         set_rng_state(self.buffer.rng, own["buffer_rng"])
         self.explorer.load_state_dict(own["explorer"])
         set_rng_state(self.env.unwrapped.np_random, own["env_rng"])
@@ -372,18 +377,15 @@ class PendulumRun(CompiledRun):
     # -- what the Gymnasium loop would draw during the next episode ----------------------------
     def _streams(self):
         c, steps = self.config, self.program.steps
-        self.env.reset(seed=c.seed) if self.episode == 0 else self.env.reset()
-        state = np.asarray(self.env.unwrapped.state, np.float64).copy()
+        state = self._reset_env()
         self.explorer.reset()  # post 000 §2.4: pre_noise = np.zeros(action_size)
         noise = np.stack([self.explorer.noise().astype(np.float32) for _ in range(steps)])
         indices = np.zeros((steps, c.batch_size), np.int32)
         trains = np.zeros(steps, bool)
         for t in range(steps):
-            size = min(self.stored + t + 1, c.buffer_size)
-            total = self.run_.total_steps + t + 1
-            if size >= self.schedule.train_start and total % self.schedule.train_every == 0:
+            if self._trains(t):
                 trains[t] = True
-                indices[t] = self.buffer.rng.choice(size, size=c.batch_size, replace=False)
+                indices[t] = self.buffer.rng.choice(min(self.stored + t + 1, c.buffer_size), c.batch_size, False)
         return state, noise, indices, trains
 
     def _play_episode(self) -> tuple[float, int, EpisodeStats] | str:
@@ -392,11 +394,12 @@ class PendulumRun(CompiledRun):
         score, losses = self.program.episode(
             tf.constant(state), tf.constant(noise), tf.constant(indices), tf.constant(trains), tf.constant(position)
         )
-        stats = self._tally(losses.numpy(), trains, self.program.steps)
-        if isinstance(stats, str):
-            return stats
+        self.tally.reset()
+        stopped = self._record_losses(losses.numpy(), trains, self.program.steps)
+        if stopped is not None:
+            return stopped
         self.stored += self.program.steps
-        return float(score.numpy()), self.program.steps, stats
+        return float(score.numpy()), self.program.steps, self.tally.stats()
 
 
 class CartPoleProgram:
@@ -487,29 +490,26 @@ class CartPoleRun(CompiledRun):
             explore[t] = not sample > self.explorer.epsilon(self.explorer.steps_done + t)
             if explore[t]:
                 random_actions[t] = int(self.action_space.sample())
-            size = min(self.stored + t + 1, c.buffer_size)
-            if size >= self.schedule.train_start:
+            if self._trains(t):
                 trains[t] = True
-                indices[t] = self.buffer.rng.choice(size, size=c.batch_size, replace=False)
+                indices[t] = self.buffer.rng.choice(min(self.stored + t + 1, c.buffer_size), c.batch_size, False)
             after.append([rng_state(g) for g in generators])
         return explore, random_actions, indices, trains, after, generators
 
     def _play_episode(self) -> tuple[float, int, EpisodeStats] | str:
         c = self.config
-        self.env.reset(seed=c.seed) if self.episode == 0 else self.env.reset()
-        state = tf.constant(np.asarray(self.env.unwrapped.state, np.float64))
-        played, into = 0, [[0.0] * len(self.learner.loss_names), 0]
-        stats: EpisodeStats | str = EpisodeStats(0, {})
-        ended = False
+        state = tf.constant(self._reset_env())
+        self.tally.reset()
+        self.played, ended = 0, False
         while not ended:
             # the first chunk as long as the last episode (draws laid out for steps never played
             # cost host time), the later ones a whole block
-            guess = CartPoleProgram.BLOCK if played else max(16, self.last_length)
-            allowed = min(CartPoleProgram.BLOCK, guess, self.program.limit - played)
+            guess = CartPoleProgram.BLOCK if self.played else max(16, self.last_length)
+            allowed = min(CartPoleProgram.BLOCK, guess, self.program.limit - self.played)
             explore, random_actions, indices, trains, after, generators = self._draws(allowed)
             state, steps, done, losses = self.program.chunk(
                 state,
-                tf.constant(played, tf.int32),
+                tf.constant(self.played, tf.int32),
                 tf.constant(allowed, tf.int32),
                 tf.constant(explore),
                 tf.constant(random_actions),
@@ -521,14 +521,14 @@ class CartPoleRun(CompiledRun):
             for generator, kept in zip(generators, after[steps - 1]):
                 set_rng_state(generator, kept)  # the draws of steps the chunk did not play are undone
             self.explorer.steps_done += steps
-            stats = self._tally(losses.numpy(), trains, steps, into, offset=played)
-            if isinstance(stats, str):
-                return stats
+            stopped = self._record_losses(losses.numpy(), trains, steps)
+            if stopped is not None:
+                return stopped
             self.stored += steps
-            played += steps
-        assert not isinstance(stats, str)
+            self.played += steps
+        played, self.played = self.played, 0
         self.last_length = played
-        return float(played), played, stats
+        return float(played), played, self.tally.stats()
 
 
 RUNS: dict[str, type[CompiledRun]] = {"pendulum": PendulumRun, "cartpole": CartPoleRun}
