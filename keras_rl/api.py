@@ -42,9 +42,9 @@ def _seeds(seeds: int | str | Iterable[int]) -> str:
 
 
 def _args(argv: list[str]):
-    from keras_rl.cli import build_parser
+    from keras_rl.cli import parse_args
 
-    return build_parser().parse_args(argv)
+    return parse_args(argv)
 
 
 def load(folder: str | Path) -> RunSet:

@@ -21,6 +21,7 @@ from keras_rl.commands.check import check_results
 from keras_rl.commands.common import EXIT_CRITERION, EXIT_NO_VERDICT, EXIT_OK, EXIT_USAGE, MAX_SEEDS, parse_seeds
 from keras_rl.commands.compare import compare_result
 from keras_rl.errors import KerasRLError
+from keras_rl.runs.options import resolve_defaults
 
 __all__ = [
     "COMMANDS",
@@ -33,6 +34,7 @@ __all__ = [
     "check_results",
     "compare_result",
     "main",
+    "parse_args",
     "parse_seeds",
 ]
 
@@ -61,8 +63,13 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """The command line parsed, each shared flag left at None set to its command's default."""
+    return resolve_defaults(build_parser().parse_args(argv))
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = parse_args(argv)
     try:
         return COMMANDS[args.command](args)
     except KerasRLError as exc:

@@ -15,6 +15,28 @@ configure_tensorflow(1)
 
 
 @pytest.fixture
+def replace_backend(monkeypatch):
+    """``replace_backend(run)``: every command's ``train_seeds`` hands its jobs to
+    ``run(jobs, backend, progress, after_job)`` instead of running them (``backend``: the one it
+    picked); ``run`` returns True where a Ctrl-C would have stopped them."""
+    from keras_rl.runs import backends
+
+    picks = backends.backend_for
+
+    class Replaced:
+        def __init__(self, run, picked):
+            self.do, self.picked = run, picked
+
+        def run(self, jobs, progress, after_job=None):
+            return bool(self.do(jobs, self.picked, progress, after_job))
+
+    def install(run):
+        monkeypatch.setattr(backends, "backend_for", lambda *a, **k: Replaced(run, picks(*a, **k)))
+
+    return install
+
+
+@pytest.fixture
 def rng():
     return np.random.default_rng(1234)
 

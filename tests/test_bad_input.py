@@ -109,13 +109,11 @@ def test_a_config_missing_a_field_names_it(capsys, tmp_path):
         ["bisect", "HEAD", "HEAD", "pendulum", "--out", "/proc/no-such-dir/bisect"],
     ],
 )
-def test_an_unwritable_out_exits_2_before_any_training(argv, capsys, monkeypatch):
-    import keras_rl.runs.jobs as jobs
-
+def test_an_unwritable_out_exits_2_before_any_training(argv, capsys, replace_backend):
     def no_training(*args, **kwargs):
         raise AssertionError("trained before checking --out")
 
-    monkeypatch.setattr(jobs, "run_jobs", no_training)
+    replace_backend(no_training)
     _exit_2(argv, capsys, "is not a writable folder")
 
 
@@ -136,10 +134,8 @@ def test_a_baseline_too_small_to_flag_anything_is_refused_naming_the_minimum():
         check_baseline_size("cartpole", "success", 2, 3, 0.01)
 
 
-def test_check_against_a_one_seed_baseline_exits_2(capsys, tmp_path, monkeypatch):
-    import keras_rl.runs.jobs as jobs
-
-    monkeypatch.setattr(jobs, "run_jobs", lambda *a, **k: pytest.fail("trained against a useless baseline"))
+def test_check_against_a_one_seed_baseline_exits_2(capsys, tmp_path, replace_backend):
+    replace_backend(lambda *a, **k: pytest.fail("trained against a useless baseline"))
     baseline = tmp_path / "against" / "pendulum" / "baseline"
     baseline.mkdir(parents=True)
     shutil.copytree(ROOT / "results" / "checks" / "pendulum" / "baseline" / "seed_0", baseline / "seed_0")
@@ -247,9 +243,7 @@ def test_a_bad_ray_address_from_the_environment_is_named_as_such(capsys, tmp_pat
 
 
 # -- 9. a sweep point whose loss turns NaN is a result, named, not a failed command ------------------
-def test_a_sweep_names_each_nan_stop_and_does_not_fail_on_it(capsys, tmp_path, monkeypatch):
-    import keras_rl.runs.jobs as jobs
-
+def test_a_sweep_names_each_nan_stop_and_does_not_fail_on_it(capsys, tmp_path, replace_backend):
     template = ROOT / "results" / "mountaincar" / "faithful" / "seed_0"
 
     def fake_run_jobs(todo, backend, progress=True, after_job=None):
@@ -262,9 +256,8 @@ def test_a_sweep_names_each_nan_stop_and_does_not_fail_on_it(capsys, tmp_path, m
             summary["seed"] = job.config["seed"]
             (job.out_dir / "summary.json").write_text(json.dumps(summary))
             shutil.copy(template / "episodes.csv", job.out_dir / "episodes.csv")
-        return jobs.JobsOutcome()
 
-    monkeypatch.setattr(jobs, "run_jobs", fake_run_jobs)
+    replace_backend(fake_run_jobs)
     code = main(
         ["sweep", "mountaincar", "--grid", "learning_phase_training=false,true", "--seeds", "0", "--no-progress"]
         + ["--out", str(tmp_path / "sweep")]

@@ -286,18 +286,17 @@ def test_a_baseline_of_another_post_is_named_as_such():
 
 
 @pytest.mark.parametrize("failure", ["no summary", "disk full"])
-def test_check_that_cannot_decide_exits_3_not_changed_or_usage(failure, tmp_path, monkeypatch, capsys):
+def test_check_that_cannot_decide_exits_3_not_changed_or_usage(failure, tmp_path, replace_backend, capsys):
     """Exit 3 means "could not decide": a fresh seed that crashed or left nothing, or an OSError.
     Exit 1 is kept for "changed" and 2 for the user's input (issue #21, item 6)."""
-    import keras_rl.runs.jobs as jobs
     from keras_rl.cli import EXIT_NO_VERDICT, main
 
     def fake_run_jobs(todo, backend, progress=True, after_job=None):
         if failure == "disk full":
             raise OSError(28, "No space left on device")
-        return jobs.JobsOutcome()  # the seeds never wrote a thing
+        # else the seeds never wrote a thing
 
-    monkeypatch.setattr(jobs, "run_jobs", fake_run_jobs)
+    replace_backend(fake_run_jobs)
     code = main(["check", "pendulum", "--workers", "1", "--no-progress", "--out", str(tmp_path / "check")])
     err = capsys.readouterr().err
     assert code == EXIT_NO_VERDICT == 3, err
@@ -567,7 +566,7 @@ def test_sequential_refuses_seeds_of_its_own_with_exit_2(tmp_path, capsys):
 
 @pytest.mark.parametrize("sets, batches", [([], [6]), (["--set", "learning_phase_training=true"], [])])
 def test_post_001s_fresh_seeds_run_in_one_batch_unless_no_stacked_learner_covers_the_change(
-    sets, batches, tmp_path, monkeypatch
+    sets, batches, tmp_path, replace_backend
 ):
     """The smoke tier's six post-001 seeds are one batch; with the learning phase on (a change
     the check must still be able to test) each runs alone instead of being refused."""
@@ -578,9 +577,8 @@ def test_post_001s_fresh_seeds_run_in_one_batch_unless_no_stacked_learner_covers
 
     def fake_run_jobs(todo, backend, progress=True, after_job=None):
         seen.extend(todo)
-        return jobs.JobsOutcome()
 
-    monkeypatch.setattr(jobs, "run_jobs", fake_run_jobs)
+    replace_backend(fake_run_jobs)
     code = main(["check", "mountaincar", "--workers", "1", "--no-progress", *sets, "--out", str(tmp_path / "c")])
     assert code == 3  # the fake ran nothing, so no verdict: what matters is how the seeds were sent
     assert [len(j.jobs) for j in seen if isinstance(j, jobs.SeedBatchJob)] == batches

@@ -176,7 +176,7 @@ def test_one_update_inside_the_episode_program_equals_the_learners_own_within_1e
         for _ in tf.range(1):
             out = tf.cond(
                 train,
-                lambda: tf.stack([v for v in traced._train_rows(tf.gather(ring, indices)).values()]),
+                lambda: tf.stack([v for v in traced.update(tf.gather(ring, indices)).values()]),
                 lambda: tf.zeros([2]),
             )
         return out

@@ -51,7 +51,7 @@ def test_a_job_trains_on_its_engine_with_one_settings_object(tmp_path, monkeypat
     monkeypatch.setitem(engines.ENGINES, "recording", fake)
     config = get_experiment("pendulum").config_cls.for_variant("faithful", seed=7, episodes=3)
     job = jobs.SeedJob.of(config, tmp_path / "seed_7", engine="recording", checkpoint_every=4, command="cmd")
-    outcome = jobs.run_jobs([job], jobs.InProcess(), progress=False)
+    outcome = jobs.read_outcome([job], jobs.InProcess().run([job], progress=False))
     assert [s.seed for s in outcome.summaries] == [7] and not outcome.interrupted
     ((name, seeds, settings),) = fake.calls
     assert (name, seeds) == ("pendulum", [7])
@@ -79,12 +79,12 @@ def test_only_learners_that_declare_masks_are_given_them():
     assert stacked.StackedDQNLearner.takes_masks is False
     assert stacked.StackedDDPGLearner.takes_masks is True
     assert torch_stacked.StackedTorchDDPGLearner.takes_masks is True
-    solo = stacked.SoloAsStack(learner=type("L", (), {"loss_names": ("q",)})())
+    solo = stacked.SoloAsStack(learner=type("L", (), {"loss_names": ("q",), "compile": lambda self: None})())
     with pytest.raises(ValueError, match="takes no mask"):
         solo.train(None, mask=[True])
 
 
-def test_train_seeds_packs_picks_the_backend_and_runs(tmp_path, monkeypatch):
+def test_train_seeds_packs_picks_the_backend_and_runs(tmp_path, replace_backend):
     from keras_rl.registry import get_experiment
     from keras_rl.runs import backends
     from keras_rl.runs.options import RunOptions
@@ -93,9 +93,8 @@ def test_train_seeds_packs_picks_the_backend_and_runs(tmp_path, monkeypatch):
 
     def fake_run_jobs(todo, backend, progress=True, after_job=None):
         seen.update(todo=todo, backend=backend, progress=progress)
-        return jobs.JobsOutcome()
 
-    monkeypatch.setattr(jobs, "run_jobs", fake_run_jobs)
+    replace_backend(fake_run_jobs)
     config = get_experiment("pendulum").config_cls.for_variant("faithful", episodes=3)
     todo = [jobs.SeedJob.of(config.replace(seed=s), tmp_path / f"seed_{s}") for s in range(4)]
     backends.train_seeds(todo, RunOptions(seed_batch=2, progress=False))

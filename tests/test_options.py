@@ -10,14 +10,13 @@ from pathlib import Path
 
 import pytest
 
-from keras_rl.cli import build_parser, main
+from keras_rl.cli import build_parser, main, parse_args
 from keras_rl.errors import ConfigError
 from keras_rl.posts.pendulum import PendulumDDPGConfig as PendulumConfig
-from keras_rl.runs.options import OPTIONS, RunOptions, run_options_parser
+from keras_rl.runs.options import COMMAND_DEFAULTS, FLAGS, RUN_FLAGS, RunOptions, shared_flags
 from keras_rl.runs.sweep import parse_grid
 
 REPO = Path(__file__).resolve().parent.parent
-RUN_COMMANDS = ("reproduce", "compare", "sweep", "check")
 
 
 def _subparsers() -> dict[str, argparse.ArgumentParser]:
@@ -29,19 +28,53 @@ def _help(parser: argparse.ArgumentParser, dest: str) -> str | None:
     return next((a.help for a in parser._actions if a.dest == dest), None)
 
 
-@pytest.mark.parametrize("dest", ["workers", "address", "seed_batch", "episodes", "overrides", "no_progress"])
-def test_each_shared_option_has_one_help_text_across_the_commands(dest):
-    parsers = _subparsers()
-    texts = {name: _help(parsers[name], dest) for name in RUN_COMMANDS}
-    given = {name: t for name, t in texts.items() if t is not None}
-    assert len(given) >= 2, f"--{dest} should be shared by at least two commands: {texts}"
-    if dest == "workers":  # check's default is 2; the rest of the text is the same
-        given = {name: t.replace("default 2", "default 1: in this process, no Ray") for name, t in given.items()}
-    assert len(set(given.values())) == 1, given
+def _flags() -> dict[str, dict[str, argparse.Action]]:
+    """Every ``--flag`` of every command: flag -> command -> its action."""
+    out: dict[str, dict[str, argparse.Action]] = {}
+    for name, parser in _subparsers().items():
+        for action in parser._actions:
+            for spelling in action.option_strings:
+                if spelling.startswith("--") and spelling != "--help":
+                    out.setdefault(spelling, {})[name] = action
+    return out
+
+
+def test_each_shared_flag_has_one_default_and_one_help_text_everywhere():
+    """Issue 33: a flag two commands take is one flag (``--alpha`` defaulted to None in one and
+    0.01 in the other, ``--workers`` to 1 and 2, ``--seeds`` had three defaults)."""
+    shared = {spelling: uses for spelling, uses in _flags().items() if len(uses) > 1}
+    assert {"--seeds", "--out", "--workers", "--alpha", "--tier", "--against", "--episodes"} <= set(shared)
+    for spelling, uses in shared.items():
+        assert spelling in FLAGS, f"{spelling} ({', '.join(uses)}) is not declared in runs/options.FLAGS"
+        for what in ("default", "help", "type", "dest", "choices"):
+            values = {name: getattr(action, what) for name, action in uses.items()}
+            assert len({repr(v) for v in values.values()}) == 1, f"{spelling}'s {what} differs: {values}"
+        assert next(iter(uses.values())).help == FLAGS[spelling]["help"]
+
+
+def test_a_command_reads_a_shared_none_as_its_own_default_and_the_help_says_so():
+    for command, defaults in COMMAND_DEFAULTS.items():
+        args = parse_args(
+            [
+                command,
+                *(["x"] if command in ("compare", "sweep", "evaluate") else []),
+                *(["a", "b"] if command == "bisect" else []),
+            ]
+        )
+        for dest, value in defaults.items():
+            assert getattr(args, dest) == value
+            assert str(value) in FLAGS["--" + dest.replace("_", "-")]["help"], (command, dest)
+    given = parse_args(["compare", "x", "--seeds", "3", "--out", "o"])
+    assert (given.seeds, given.out, given.variant) == ("3", Path("o"), "faithful")  # what the user gave stays
+
+
+def test_sweep_without_out_exits_2_naming_it(capsys):
+    assert main(["sweep", "pendulum", "--grid", "tau=0.1,0.2"]) == 2
+    assert "sweep needs --out FOLDER" in capsys.readouterr().err
 
 
 def test_run_options_are_checked_with_the_flag_named(capsys):
-    parent = run_options_parser()
+    parent = shared_flags(*RUN_FLAGS)
     with pytest.raises(ConfigError, match="--episodes must be positive"):
         RunOptions.from_args(parent.parse_args(["--episodes", "0"]))
     with pytest.raises(ConfigError, match="--seed-batch must be at least 1 or auto"):
@@ -55,9 +88,8 @@ def test_run_options_are_checked_with_the_flag_named(capsys):
     options = RunOptions.from_args(parent.parse_args(["--workers", "1000", "--set", "tau=0.1", "--no-progress"]))
     assert options.workers == os.cpu_count() and "more than this machine's" in capsys.readouterr().err
     assert options.overrides == ("tau=0.1",) and options.progress is False and options.config_changes() == {}
-    with pytest.raises(ValueError, match="unknown run options"):
-        run_options_parser("wrokers")
-    assert set(OPTIONS) == {"workers", "address", "seed_batch", "episodes", "set", "no_progress", "engine"}
+    with pytest.raises(ValueError, match="unknown shared flags"):
+        shared_flags("--wrokers")
     with pytest.raises(ConfigError, match="--engine compiled runs one seed per program"):
         RunOptions.from_args(parent.parse_args(["--engine", "compiled", "--seed-batch", "2"]))
     assert RunOptions.from_args(parent.parse_args(["--engine", "compiled"])).engine == "compiled"
@@ -68,10 +100,10 @@ def test_run_options_are_checked_with_the_flag_named(capsys):
 
 def test_the_address_falls_back_to_ray_address(monkeypatch):
     monkeypatch.setenv("RAY_ADDRESS", "127.0.0.1:1")
-    options = RunOptions.from_args(run_options_parser().parse_args([]))
+    options = RunOptions.from_args(shared_flags(*RUN_FLAGS).parse_args([]))
     assert options.address == "127.0.0.1:1"
     monkeypatch.delenv("RAY_ADDRESS")
-    assert RunOptions.from_args(run_options_parser().parse_args([])).address is None
+    assert RunOptions.from_args(shared_flags(*RUN_FLAGS).parse_args([])).address is None
 
 
 def test_one_parser_reads_set_and_grid_by_the_fields_type():

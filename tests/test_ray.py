@@ -186,7 +186,7 @@ def test_two_node_cluster_runs_jobs_on_both_nodes_and_files_land_in_the_drivers_
     from ray.cluster_utils import Cluster
 
     from keras_rl.posts.pendulum import PendulumDDPGConfig
-    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched, run_jobs
+    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched, read_outcome
     from keras_rl.runs.ray_backend import RayBackend
 
     os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
@@ -201,7 +201,7 @@ def test_two_node_cluster_runs_jobs_on_both_nodes_and_files_land_in_the_drivers_
         jobs = [SeedJob.of(config.replace(seed=s), tmp_path / f"seed_{s}") for s in range(6)]
         jobs = batched(jobs[:4], 2) + jobs[4:]
         assert [isinstance(j, SeedBatchJob) for j in jobs] == [True, True, False, False]
-        outcome = run_jobs(jobs, RayBackend(address=cluster.address), progress=False)
+        outcome = read_outcome(jobs, RayBackend(address=cluster.address).run(jobs, progress=False))
         assert not outcome.interrupted and [s.status for s in outcome.summaries] == ["completed"] * 6
         nodes = {s.provenance["ray_node_id"] for s in outcome.summaries}
         assert len(nodes) == 2  # the jobs ran on both nodes

@@ -11,42 +11,29 @@ from keras_rl.commands.common import (
     EXIT_NO_VERDICT,
     EXIT_OK,
     _check_writable_dir,
-    _path_arg,
     _stopped,
 )
 from keras_rl.errors import ConfigError
+from keras_rl.runs.options import shared_flags
 
 
 def add_parser(sub) -> None:
     """``bisect``'s arguments."""
     bi = sub.add_parser(
         "bisect",
+        parents=[shared_flags("--tier", "--alpha", "--against", "--out", "--workers")],
         help="find the first commit between GOOD and BAD whose learner `check` calls changed "
         "(git bisect in a temporary worktree; exit 0 found, 1 BAD consistent, 3 no verdict)",
     )
     bi.add_argument("good", help="a commit whose learner is consistent with the baseline")
     bi.add_argument("bad", help="a later commit whose learner is not")
     bi.add_argument("experiments", nargs="*", default=None, help="experiments to check (default: all three)")
-    bi.add_argument("--tier", default="smoke", help="the check's tier at each step (default smoke)")
-    bi.add_argument(
-        "--alpha", type=float, default=0.01, help="false-alarm rate of the whole bisect, split over its steps (0.01)"
-    )
-    bi.add_argument(
-        "--against",
-        type=Path,
-        default=None,
-        help="the folder holding <experiment>/baseline (default results/checks of this checkout; copied to OUT)",
-    )
-    bi.add_argument(
-        "--out", type=_path_arg, default=Path("bisect-runs"), help="the steps' reports (default bisect-runs)"
-    )
     bi.add_argument(
         "--fixed-n",
         action="store_true",
         help="each step runs the fixed rule's seeds (Holm over the posts) instead of the sequential check, "
         "for commits whose check has no --sequential --alpha",
     )
-    bi.add_argument("--workers", type=int, default=2, help="--workers of each step's check (default 2)")
     bi.add_argument("--repo", type=Path, default=Path("."), help="the git repository (default: here)")
 
 

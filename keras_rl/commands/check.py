@@ -4,19 +4,17 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from keras_rl.commands.common import (
     EXIT_CRITERION,
     EXIT_NO_VERDICT,
     EXIT_OK,
     _check_writable_dir,
-    _path_arg,
     _stopped,
     parse_seeds,
 )
 from keras_rl.errors import ConfigError, KerasRLError, NoVerdictError
-from keras_rl.runs.options import RunOptions, run_options_parser
+from keras_rl.runs.options import RunOptions, shared_flags
 
 
 def add_parser(sub) -> None:
@@ -25,49 +23,29 @@ def add_parser(sub) -> None:
         "check",
         help="regression-test the reproductions: fresh seeds against the committed "
         "baseline, by each post's pre-registered rule (exit 0 consistent, 1 changed)",
-        parents=[run_options_parser("workers", "address", "set", "no_progress", workers_default=2)],
+        parents=[
+            shared_flags(
+                "--workers",
+                "--address",
+                "--set",
+                "--no-progress",
+                "--tier",
+                "--against",
+                "--seeds",
+                "--alpha",
+                "--dry-run",
+                "--out",
+            )
+        ],
     )
     ck.add_argument(
         "experiments", nargs="*", default=None, help="experiments to check (default: pendulum cartpole mountaincar)"
-    )
-    ck.add_argument("--tier", default="smoke", help="smoke (minutes, in `make test`) or full (default smoke)")
-    ck.add_argument(
-        "--against",
-        type=Path,
-        default=None,
-        help="the folder holding <experiment>/baseline/seed_<n> (default results/checks of this "
-        "checkout; copy it outside the tree for `git bisect run`)",
-    )
-    ck.add_argument(
-        "--seeds",
-        default=None,
-        help="fresh seeds instead of the rule's (never the baseline's); "
-        "the rule's error rates are for its own number of seeds",
     )
     ck.add_argument(
         "--sequential",
         action="store_true",
         help="fresh seeds in looks of 5 up to 30 per post, each post stopping where its calibrated "
         "design decides (results/checks/sequential.md: fewer seeds under a clear change, more under none)",
-    )
-    ck.add_argument(
-        "--alpha",
-        type=float,
-        default=None,
-        help="with --sequential: the command's false-alarm bound, split over its posts and each post's looks "
-        "(union bound) instead of the committed designs' 1%% (what a bisect step uses)",
-    )
-    ck.add_argument(
-        "--dry-run",
-        action="store_true",
-        help="print each post's plan (rule, fresh seeds, baseline, calibrated error rates); train nothing",
-    )
-    ck.add_argument(
-        "--out",
-        type=_path_arg,
-        default=Path("check-runs"),
-        help="where the fresh runs, check.md, check.json and the plots go (default check-runs; "
-        "an earlier check's output there is replaced, anything else is refused)",
     )
 
 

@@ -56,13 +56,6 @@ def parse_seeds(text: str) -> list[int]:
     return sorted(seeds)
 
 
-def _path_arg(text: str) -> Path:
-    """A path option; an empty one is an error (``Path("")`` would silently mean the current folder)."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError("is empty; name a path")
-    return Path(text)
-
-
 def _check_writable_dir(path: Path, flag: str) -> None:
     """A folder that exists and is writable, or can be made: else a ConfigError naming it."""
     if path.exists() and not path.is_dir():

@@ -14,7 +14,7 @@ from keras_rl.commands.common import (
     parse_seeds,
 )
 from keras_rl.errors import ConfigError
-from keras_rl.runs.options import RunOptions, run_options_parser
+from keras_rl.runs.options import RunOptions, shared_flags
 
 
 def add_parser(sub) -> None:
@@ -22,18 +22,22 @@ def add_parser(sub) -> None:
     cp = sub.add_parser(
         "compare",
         help="run or reuse the same seeds in Keras and PyTorch and report the difference",
-        parents=[run_options_parser("workers", "address", "seed_batch", "episodes", "no_progress")],
+        parents=[
+            shared_flags(
+                "--workers",
+                "--address",
+                "--seed-batch",
+                "--episodes",
+                "--no-progress",
+                "--seeds",
+                "--variant",
+                "--matched-init",
+                "--out",
+            )
+        ],
     )
     cp.add_argument("experiment", help="experiment name (see `keras-rl list`)")
-    cp.add_argument("--seeds", default="0-9", help="seed list or range, the same for both frameworks (default 0-9)")
-    cp.add_argument("--variant", default="faithful", help="the variant to compare (default faithful)")
-    cp.add_argument(
-        "--matched-init",
-        action="store_true",
-        help="torch runs start from the Keras runs' initial weights (report in <out>/<experiment>/matched-init)",
-    )
     cp.add_argument("--runs", type=Path, default=Path("results"), help="where run folders are found and made")
-    cp.add_argument("--out", type=Path, default=Path("results/compare"), help="report folder root")
     cp.add_argument("--rerun", action="store_true", help="replace existing run folders instead of reusing them")
     cp.add_argument("--reuse-only", action="store_true", help="run nothing; fail if a seed is missing")
 

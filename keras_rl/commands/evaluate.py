@@ -9,27 +9,27 @@ from pathlib import Path
 from keras_rl.commands.common import (
     EXIT_OK,
     _check_writable_file,
-    _path_arg,
     _stopped,
 )
 from keras_rl.errors import ConfigError
+from keras_rl.runs.options import path_arg, shared_flags
 
 
 def add_parser(sub) -> None:
     """``evaluate``'s arguments."""
-    ev = sub.add_parser("evaluate", help="reload a run's saved policy and play greedy episodes")
+    ev = sub.add_parser(
+        "evaluate",
+        help="reload a run's saved policy and play greedy episodes",
+        parents=[shared_flags("--episodes", "--overwrite")],
+    )
     ev.add_argument(
         "run_dir",
         type=Path,
         help="a seed's run folder with its weights, e.g. runs/pendulum/seed_0 "
         "(committed runs hold none: reproduce the seed first)",
     )
-    ev.add_argument("--episodes", type=int, default=5, help="greedy episodes to play (default 5)")
     ev.add_argument("--seed", type=int, default=None, help="env seed (default: the run's seed + 10000)")
-    ev.add_argument("--gif", type=_path_arg, default=None, help="record the first episode to this .gif file")
-    ev.add_argument(
-        "--overwrite", action="store_true", help="replace an evaluation.json of more episodes than this one plays"
-    )
+    ev.add_argument("--gif", type=path_arg, default=None, help="record the first episode to this .gif file")
 
 
 def evaluate(args: argparse.Namespace) -> int:

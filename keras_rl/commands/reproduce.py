@@ -13,31 +13,27 @@ from keras_rl.commands.common import (
     _check_not_inside_a_run,
     _check_seed_batch,
     _check_writable_dir,
-    _path_arg,
     _recorded_config,
     _stopped,
     parse_seeds,
 )
 from keras_rl.errors import ConfigError
 from keras_rl.runs.lifecycle import _kept_runs, _start_modes
-from keras_rl.runs.options import RunOptions, run_options_parser
+from keras_rl.runs.options import RUN_FLAGS, RunOptions, path_arg, shared_flags
 
 
 def add_parser(sub) -> None:
     """``reproduce``'s arguments."""
     rep = sub.add_parser(
-        "reproduce", help="train one experiment over one or more seeds", parents=[run_options_parser()]
+        "reproduce",
+        help="train one experiment over one or more seeds",
+        parents=[
+            shared_flags(
+                *RUN_FLAGS, "--seeds", "--variant", "--framework", "--matched-init", "--out", "--overwrite", "--dry-run"
+            )
+        ],
     )
     rep.add_argument("experiment", help="experiment name (see `keras-rl list`)")
-    rep.add_argument(
-        "--variant",
-        default=None,
-        help="the variant: faithful (the default), fixed; mountaincar also has faithful-intended "
-        "(all: `keras-rl list`)",
-    )
-    rep.add_argument(
-        "--framework", default=None, help="keras (ours; the default) or torch (where the experiment has one)"
-    )
     rep.add_argument(
         "--config",
         type=Path,
@@ -47,32 +43,10 @@ def add_parser(sub) -> None:
         "is given); --set and --episodes still apply on top",
     )
     rep.add_argument(
-        "--dry-run",
-        action="store_true",
-        help="print the resolved config and each seed folder with how it would start; train nothing",
-    )
-    rep.add_argument(
-        "--matched-init",
-        action="store_true",
-        help="torch only: start from the Keras networks' initial weights for the same seed",
-    )
-    rep.add_argument("--seeds", default=None, help="seed list or range: 13, 0-9, 0,3,5 (default 0, or --config's)")
-    rep.add_argument(
-        "--out",
-        type=_path_arg,
-        default=None,
-        help="output folder (default results/<experiment>/<variant>); one seed_<n>/ per seed",
-    )
-    rep.add_argument(
         "--min-success-rate",
         type=float,
         default=1.0,
         help="exit 0 only if at least this share of seeds succeed (default 1.0: all)",
-    )
-    rep.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace seed folders that already hold a run (each is cleared whole first)",
     )
     rep.add_argument(
         "--resume",
@@ -89,7 +63,7 @@ def add_parser(sub) -> None:
     )
     rep.add_argument(
         "--tensorboard",
-        type=_path_arg,
+        type=path_arg,
         default=None,
         metavar="DIR",
         help="also log per-episode score, metric and losses as TensorBoard scalars under DIR",

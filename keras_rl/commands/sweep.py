@@ -11,12 +11,11 @@ from keras_rl.commands.common import (
     EXIT_OK,
     _check_seed_batch,
     _check_writable_dir,
-    _path_arg,
     _stopped,
     parse_seeds,
 )
 from keras_rl.errors import ConfigError
-from keras_rl.runs.options import RunOptions, run_options_parser
+from keras_rl.runs.options import RunOptions, shared_flags
 
 
 def add_parser(sub) -> None:
@@ -27,10 +26,22 @@ def add_parser(sub) -> None:
         description="A grid of config values x seeds, resumable, with a report per grid point. A run "
         "whose loss turns NaN is a result of its config (the report shows it, and the console names "
         "it): it does not fail the command; a run that stops with an error does (exit 1).",
-        parents=[run_options_parser("workers", "address", "seed_batch", "episodes", "set", "no_progress")],
+        parents=[
+            shared_flags(
+                "--workers",
+                "--address",
+                "--seed-batch",
+                "--episodes",
+                "--set",
+                "--no-progress",
+                "--seeds",
+                "--variant",
+                "--framework",
+                "--out",
+            )
+        ],
     )
     sw.add_argument("experiment", help="experiment name (see `keras-rl list`)")
-    sw.add_argument("--seeds", default="0-9", help="seed list or range for every grid point (default 0-9)")
     sw.add_argument(
         "--grid",
         action="append",
@@ -46,9 +57,6 @@ def add_parser(sub) -> None:
         "defaults), plus the unmodified variant",
     )
     sw.add_argument("--baseline", default=None, help="the grid point the others are compared with (default: the first)")
-    sw.add_argument("--variant", default="faithful", help="the variant the grid modifies (default faithful)")
-    sw.add_argument("--framework", default="keras", help="keras (ours) or torch")
-    sw.add_argument("--out", type=_path_arg, required=True, help="the sweep's folder: <grid point>/seed_<n>/, sweep.md")
     sw.add_argument("--yes", action="store_true", help="allow a sweep of more than 10,000 jobs")
 
 
@@ -56,6 +64,8 @@ def sweep(args: argparse.Namespace) -> int:
     from keras_rl.registry import get_experiment
     from keras_rl.runs.sweep import ablation_grid, parse_grid, record_grid, sweep_jobs
 
+    if args.out is None:
+        raise ConfigError("sweep needs --out FOLDER: the sweep's folder (<grid point>/seed_<n>/, sweep.md)")
     experiment = get_experiment(args.experiment)
     seeds = parse_seeds(args.seeds)
     options = RunOptions.from_args(args)

@@ -20,6 +20,9 @@ class SeedAxisLearner(Protocol):
     loss_names: Sequence[str]
     takes_masks: bool
 
+    def compile(self) -> None:
+        """Trace the compiled steps (the loop calls it once, before its first env step)."""
+
     def act(self, states: np.ndarray) -> np.ndarray:
         """Each seed's policy action for its state."""
 

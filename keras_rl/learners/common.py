@@ -12,20 +12,28 @@ import tensorflow as tf
 from keras_rl.errors import RunFolderError
 
 
-def compile_step(fn, xla: bool, *specs: tf.TensorSpec):
-    """``tf.function`` (XLA-compiled when ``xla``) traced once for ``specs``.
+def step_function(fn, xla: bool, *specs: tf.TensorSpec):
+    """``tf.function`` (XLA-compiled when ``xla``) for ``specs``, not yet traced: the caller
+    calls ``.get_concrete_function()`` itself, so the trace runs from the caller's frame and
+    this helper is not on the stack of what it traces (``tests/test_structure.py`` counts
+    the frames from ``main`` to ``soft_update``).
 
-    A concrete function: calling it skips tf.function's per-call signature dispatch,
-    which costs as much as the update itself at these network sizes (benchmarks/)."""
-    return tf.function(fn, jit_compile=xla, input_signature=list(specs)).get_concrete_function()
+    Learners keep the concrete function: calling it skips tf.function's per-call signature
+    dispatch, which costs as much as the update itself at these network sizes (benchmarks/)."""
+    return tf.function(fn, jit_compile=xla, input_signature=list(specs))
 
 
-def soft_update(target: Sequence[Any], source: Sequence[Any], tau: float) -> None:
+def soft_update(target: Sequence[Any], source: Sequence[Any], tau: float, seeds: tf.Tensor | None = None) -> None:
     """Polyak-average Keras variables: ``theta' <- tau * theta + (1 - tau) * theta'``; ``tau=1``
     is a hard copy. Assigned in place, eagerly or inside ``tf.function`` (no host round-trip,
-    unlike the posts' ``get_weights``/``set_weights``). Lists must pair up one to one."""
+    unlike the posts' ``get_weights``/``set_weights``). Lists must pair up one to one.
+    ``seeds``: a ``[S]`` bool mask over the variables' leading seed axis (a stacked learner);
+    a seed where it is False keeps its target as it is."""
     for t, s in zip(target, source, strict=True):
-        t.assign(tau * s + (1.0 - tau) * t)
+        new = tau * s + (1.0 - tau) * t
+        if seeds is not None:
+            new = tf.where(tf.reshape(seeds, [-1] + [1] * (len(t.shape) - 1)), new, t)
+        t.assign(new)
 
 
 def save_weights(model, path: Path) -> None:

@@ -15,6 +15,7 @@ the soft update of both targets. It never leaves the graph: no ``get_weights``/
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import keras
 import numpy as np
@@ -23,12 +24,12 @@ import tensorflow as tf
 from keras_rl.buffers import Batch, Layout
 from keras_rl.envs import EnvSpec
 from keras_rl.learners.common import (
-    compile_step,
     load_variables_state,
     load_weights,
     numpy_weights,
     save_weights,
     soft_update,
+    step_function,
     variables_state,
 )
 from keras_rl.learners.networks import Actor, Critic, MountainCarActor, MountainCarCritic, build
@@ -65,13 +66,21 @@ class DDPGLearner:
         self.gamma, self.tau = float(gamma), float(tau)
         self.broadcast_target = bool(broadcast_target)
         self.layout = layout
+        self.xla = xla
         self.build_optimizers()
+        self._train: Any = None  # the compiled steps, traced by compile()
+
+    def compile(self) -> None:
+        """Trace the compiled steps, once (the loop calls it before its first env step; the
+        first call to train or act does it for anyone else): the update, the act, and both
+        fused into one call per env step (the post trains at the end of step t and picks
+        step t+1's action with the updated actor; so do we)."""
+        if self._train is not None:
+            return
         rows, obs = self.input_specs()
-        self._train = compile_step(self._train_rows, xla, rows)
-        self._act = compile_step(self._act_one, xla, obs)
-        # Acting and training fused into one call per env step: the post trains at the
-        # end of step t and picks step t+1's action with the updated actor; so do we.
-        self._train_and_act = compile_step(self._train_rows_and_act, xla, rows, obs)
+        self._train = step_function(self.update, self.xla, rows).get_concrete_function()
+        self._act = step_function(self._act_one, self.xla, obs).get_concrete_function()
+        self._train_and_act = step_function(self._train_rows_and_act, self.xla, rows, obs).get_concrete_function()
 
     # -- hooks: a stacked learner (``stacked.py``) runs this same update over a seed axis -----
     def build_optimizers(self) -> None:
@@ -93,9 +102,9 @@ class DDPGLearner:
     def apply_gradients(self, optimizer, grads, variables) -> None:
         optimizer.apply_gradients(zip(grads, variables))
 
-    def soft_update_targets(self) -> None:
-        soft_update(self.target_actor.variables, self.actor.variables, self.tau)
-        soft_update(self.target_critic.variables, self.critic.variables, self.tau)
+    def seeds_that_train(self) -> tf.Tensor | None:
+        """The seeds whose targets the soft update moves (stacked: a mask); None: all."""
+        return None
 
     @classmethod
     def with_adam(
@@ -117,13 +126,16 @@ class DDPGLearner:
     # -- the Learner protocol --------------------------------------------------------------
     def train(self, rows: np.ndarray) -> dict[str, tf.Tensor]:
         """One update on packed transition rows [B, width]; returns the losses."""
+        self.compile()
         return self._train(tf.constant(rows))
 
     def act(self, state: np.ndarray) -> np.ndarray:
         """The actor's action for one state [obs] -> [act], without noise."""
+        self.compile()
         return self._act(tf.constant(state, tf.float32)).numpy()
 
     def train_and_act(self, rows: np.ndarray, state: np.ndarray) -> tuple[dict[str, tf.Tensor], np.ndarray]:
+        self.compile()
         losses, action = self._train_and_act(tf.constant(rows), tf.constant(state, tf.float32))
         return losses, action.numpy()
 
@@ -168,8 +180,11 @@ class DDPGLearner:
             return rewards + self.gamma * next_q * (1.0 - dones[..., None, :])
         return rewards + self.gamma * next_q * (1.0 - dones[..., :, None])  # [B, 1]
 
-    def update(self, batch: Batch) -> dict[str, tf.Tensor]:
-        """Post 000 §2.3.3, traceable: critic tape, actor tape, soft updates."""
+    def update(self, batch: Batch | tf.Tensor) -> dict[str, tf.Tensor]:
+        """Post 000 §2.3.3, traceable: critic tape, actor tape, soft updates; on a ``Batch``, or
+        on packed transition rows (``buffers.Layout``), which it splits."""
+        if not isinstance(batch, Batch):
+            batch = self.layout.split(batch)
         states, actions, rewards, next_states, dones = batch
         targets = self.td_targets(rewards, next_states, dones)  # computed before the tape, as in §2.3.3
 
@@ -184,7 +199,12 @@ class DDPGLearner:
         actor_grads, actor_loss = self.actor_gradients(states, actions)
         self.apply_gradients(self.actor_optimizer, actor_grads, self.actor.trainable_variables)
 
-        self.soft_update_targets()
+        soft_update(
+            [*self.target_actor.variables, *self.target_critic.variables],
+            [*self.actor.variables, *self.critic.variables],
+            self.tau,
+            self.seeds_that_train(),
+        )
         return {"critic_loss": critic_loss, "actor_loss": actor_loss}
 
     def actor_gradients(self, states, actions):
@@ -218,14 +238,11 @@ class DDPGLearner:
             total = tf.add_n([tf.reduce_sum(g) for g in first])
         return outer.gradient(total, variables, unconnected_gradients=tf.UnconnectedGradients.ZERO), actor_loss
 
-    def _train_rows(self, rows):
-        return self.update(self.layout.split(rows))
-
     def _act_one(self, state):
         return self.actor(state[None, :])[0]  # [act]
 
     def _train_rows_and_act(self, rows, state):
-        losses = self._train_rows(rows)
+        losses = self.update(rows)
         return losses, self._act_one(state)
 
 

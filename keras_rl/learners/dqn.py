@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import keras
 import numpy as np
@@ -11,12 +12,12 @@ import tensorflow as tf
 from keras_rl.buffers import Batch, Layout
 from keras_rl.envs import EnvSpec
 from keras_rl.learners.common import (
-    compile_step,
     load_variables_state,
     load_weights,
     numpy_weights,
     save_weights,
     soft_update,
+    step_function,
     variables_state,
 )
 from keras_rl.learners.networks import QNetwork, build
@@ -51,12 +52,24 @@ class DQNLearner:
         self.q_network, self.target_network, self.optimizer = q_network, target_network, optimizer
         self.gamma, self.tau, self.grad_clip_value = float(gamma), float(tau), float(grad_clip_value)
         self.layout = layout
+        self.xla = xla
         optimizer.build(q_network.trainable_variables)
+        self._train: Any = None  # the compiled steps, traced by compile()
+
+    def compile(self) -> None:
+        """Trace the compiled steps, once (the loop calls it before its first env step; the
+        first call to train or act does it for anyone else)."""
+        if self._train is not None:
+            return
         rows, obs = self.input_specs()
-        self._train = compile_step(self._train_rows, xla, rows)
-        self._act = compile_step(self._greedy, xla, obs)
-        self._train_and_act = compile_step(lambda r, s: (self._train_rows(r), self._greedy(s)), xla, rows, obs)
-        self._sync_and_act = compile_step(lambda s: (self._soft_update(), self._greedy(s))[1], xla, obs)
+        self._train = step_function(self.update, self.xla, rows).get_concrete_function()
+        self._act = step_function(self._greedy, self.xla, obs).get_concrete_function()
+        self._train_and_act = step_function(
+            lambda r, s: (self.update(r), self._greedy(s)), self.xla, rows, obs
+        ).get_concrete_function()
+        self._sync_and_act = step_function(
+            lambda s: (self._soft_update(), self._greedy(s))[1], self.xla, obs
+        ).get_concrete_function()
 
     def input_specs(self) -> tuple[tf.TensorSpec, tf.TensorSpec]:
         """Packed rows [B, width] and one state [obs] (the seed-batched learner adds a seed axis)."""
@@ -65,18 +78,22 @@ class DQNLearner:
     # -- the Learner protocol --------------------------------------------------------------
     def train(self, rows: np.ndarray) -> dict[str, tf.Tensor]:
         """``optimize_model()`` then the soft update, on packed rows [B, width]."""
+        self.compile()
         return self._train(tf.constant(rows))
 
     def act(self, state: np.ndarray) -> int:
         """``policy_net(state).max(1)[1]``: the argmax action for one state."""
+        self.compile()
         return int(self._act(tf.constant(state, tf.float32)))
 
     def train_and_act(self, rows: np.ndarray, state: np.ndarray) -> tuple[dict[str, tf.Tensor], int]:
+        self.compile()
         losses, action = self._train_and_act(tf.constant(rows), tf.constant(state, tf.float32))
         return losses, int(action)
 
     def step_without_batch(self, state: np.ndarray, want_action: bool) -> int | None:
         """Before the first batch: the tutorial's soft update still runs every step."""
+        self.compile()
         action = int(self._sync_and_act(tf.constant(state, tf.float32)))
         return action if want_action else None
 
@@ -99,10 +116,14 @@ class DQNLearner:
         load_variables_state(self._stateful(), state["variables"])
 
     # -- traced ----------------------------------------------------------------------------
-    def update(self, batch: Batch) -> dict[str, tf.Tensor]:
+    def update(self, batch: Batch | tf.Tensor) -> dict[str, tf.Tensor]:
         """In [None] ``optimize_model``: Q(s,a), V(s') from the target net, Huber, clip, AdamW.
         Shapes are [B, ...], or [S, B, ...] for S stacked seeds: each seed's loss is the mean
-        over its own batch, and the gradient is taken of their sum (``total_loss``)."""
+        over its own batch, and the gradient is taken of their sum (``total_loss``). On a
+        ``Batch``, or on packed rows (``buffers.Layout``), which it splits; rows arrive as
+        float32, and the networks may compute in float64 (the parity tests do)."""
+        if not isinstance(batch, Batch):
+            batch = self.layout.split(tf.cast(batch, self.q_network.compute_dtype))
         states, actions, rewards, next_states, dones = batch
         actions = tf.cast(actions[..., 0], tf.int32)  # [B]
         # next_state_values[non_final_mask] = target_net(non_final_next_states).max(1)[0]
@@ -127,10 +148,6 @@ class DQNLearner:
     def _soft_update(self):
         soft_update(self.target_network.variables, self.q_network.variables, self.tau)
         return tf.constant(0)
-
-    def _train_rows(self, rows):
-        # rows arrive as float32; the networks may compute in float64 (the parity tests do)
-        return self.update(self.layout.split(tf.cast(rows, self.q_network.compute_dtype)))
 
     def _greedy(self, state):
         state = tf.cast(state, self.q_network.compute_dtype)

@@ -23,6 +23,11 @@ class Learner(Protocol):
     loss_names: tuple[str, ...]
     """The names ``train`` reports, in ``episodes.csv``'s column order."""
 
+    def compile(self) -> None:
+        """Trace the compiled steps, once; a no-op for an eager framework. ``train`` and
+        ``act`` call it first, so only a caller that wants the trace at a known moment does
+        (the loop, before its first env step)."""
+
     def train(self, rows: np.ndarray) -> Losses:
         """One update on packed transition rows ``[B, width]`` (``buffers.Layout``)."""
 

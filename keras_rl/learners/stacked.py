@@ -265,11 +265,8 @@ class StackedDDPGLearner(SliceState, DDPGLearner):
     def apply_gradients(self, optimizer, grads, variables) -> None:
         optimizer.apply(grads, variables, self._mask)
 
-    def soft_update_targets(self) -> None:
-        for target, source in ((self.target_actor, self.actor), (self.target_critic, self.critic)):
-            for t, s in zip(target.variables, source.variables, strict=True):
-                keep = tf.reshape(self._mask, [-1] + [1] * (len(t.shape) - 1))
-                t.assign(tf.where(keep, self.tau * s + (1.0 - self.tau) * t, t))
+    def seeds_that_train(self) -> tf.Tensor:
+        return self._mask
 
     def _act_one(self, states):
         return self.actor(states[:, None, :])[:, 0]  # [S, act]
@@ -286,6 +283,7 @@ class StackedDDPGLearner(SliceState, DDPGLearner):
         """One update of the seeds where ``mask`` is True (all by default) on their own rows
         ``[S, B, width]``; losses ``[S]`` (a masked seed's are not its own: unread)."""
         self._set_mask(mask)
+        self.compile()
         return self._train(tf.constant(rows))
 
     def _set_mask(self, mask: np.ndarray | None) -> None:
@@ -296,6 +294,7 @@ class StackedDDPGLearner(SliceState, DDPGLearner):
 
     def act(self, states: np.ndarray) -> np.ndarray:
         """Each seed's action for its state: ``[S, obs] -> [S, act]``."""
+        self.compile()
         return self._act(tf.constant(states, tf.float32)).numpy()
 
     def train_and_act(self, rows: np.ndarray, states: np.ndarray, separate: bool = False):
@@ -306,6 +305,7 @@ class StackedDDPGLearner(SliceState, DDPGLearner):
         self._set_mask(None)
         if separate:
             return self.train(rows), self.act(states)
+        self.compile()
         losses, actions = self._train_and_act(tf.constant(rows), tf.constant(states, tf.float32))
         return losses, actions.numpy()
 
@@ -371,17 +371,20 @@ class StackedDQNLearner(SliceState, DQNLearner):
 
     def act(self, states: np.ndarray) -> np.ndarray:
         """Each seed's greedy action ``[S]`` for its state ``[S, obs]``."""
+        self.compile()
         return self._act(tf.constant(states, tf.float32)).numpy()
 
     def train_and_act(self, rows: np.ndarray, states: np.ndarray, separate: bool = False):
         """The update, then the greedy actions for ``states`` (a seed whose episode just
         ended passes its next episode's first state): one call even when ``separate``,
         since the solo run's separate ``act`` reads the same updated weights."""
+        self.compile()
         losses, actions = self._train_and_act(tf.constant(rows), tf.constant(states, tf.float32))
         return losses, actions.numpy()
 
     def step_without_batch(self, states: np.ndarray, episode_ended: bool = False) -> np.ndarray:
         """Before the first batch the tutorial's soft update still runs every step."""
+        self.compile()
         return self._sync_and_act(tf.constant(states, tf.float32)).numpy()
 
     def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
@@ -409,6 +412,7 @@ class SoloAsStack:
     def __init__(self, learner):
         self.learner = learner
         self.loss_names = tuple(learner.loss_names)
+        self.compile = learner.compile  # the solo learner's own: no frame of ours between
 
     @staticmethod
     def _one(losses) -> dict[str, np.ndarray]:

@@ -183,7 +183,7 @@ def plot_sweep(
 
 def draw_job_curves(job) -> None:
     """Each seed folder of a finished (or stopped) job gets its ``curve.png``: the commands
-    pass this to ``run_jobs(..., after_job=...)``. A full disk is a warning: the run's own
+    pass this to ``train_seeds(..., after_job=...)``. A full disk is a warning: the run's own
     files and summary are what count, so any failure to draw (a full disk, a damaged file,
     matplotlib refusing odd data) is a warning that names the file, never an error after the
     training is done."""

@@ -28,5 +28,6 @@ def train_seeds(jobs: list, options: RunOptions, after_job: AfterJob | None = No
     what a Ctrl-C means for it (``JobsOutcome.interrupted``)."""
     if pack:
         jobs = dispatch.batched(jobs, options.seed_batch, options.workers)
-    backend = backend_for(options.workers, len(jobs), options.address)
-    return dispatch.run_jobs(jobs, backend, options.progress, after_job)  # read at call time: tests replace it
+    backend = backend_for(options.workers, len(jobs), options.address)  # a global, read at call time: tests replace it
+    interrupted = backend.run(jobs, options.progress, after_job) if jobs else False
+    return dispatch.read_outcome(jobs, interrupted)

@@ -1,5 +1,5 @@
-"""Where seeds are dispatched: ``SeedJob`` records and the one ``run_jobs`` that ``reproduce``
-and ``compare`` both call, with the execution backend as a parameter.
+"""Where seeds are dispatched: ``SeedJob`` records, how a job opens its folders and trains on
+its engine, and the execution backends that ``runs/backends.train_seeds`` picks from.
 
 - ``InProcess``: one seed after another in this process (one worker: no start-up cost).
 - ``RayBackend`` (``ray_backend.py``): seeds as Ray tasks on a local instance or a cluster.
@@ -12,10 +12,12 @@ outcome is read back from disk, so an interrupted worker still reports what it k
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, Protocol
@@ -154,19 +156,21 @@ class JobsOutcome:
     interrupted: bool = False
 
 
-def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> RunSummary:
-    """Run one job (a seed, or a batch of seeds) here on its engine (``train/engine.py``); a batch
-    returns the summary of its first interrupted seed, else of its last. Drawing
-    ``curve.png`` is the command's job (``run_jobs(..., after_job=...)``): nothing a worker
-    imports reaches plotting."""
+@contextmanager
+def opened(job, progress: bool = True, position: int = 0) -> Iterator[Callable[..., list[RunSummary]]]:
+    """A job (a seed, or a batch of seeds) made ready to train here: its folders locked (a second
+    command writing them is refused) and, for ``overwrite``, cleared whole (no weights or
+    ``evaluation.json`` of the old run survive). Yields its engine's ``train``
+    (``train/engine.py``) with every argument bound but ``should_stop``; the caller calls it
+    itself, so no frame of ours stands between the backend and the engine."""
     group = members(job)
     experiment = get_experiment(group[0].experiment)
     configs = [experiment.config_cls.from_dict(j.config) for j in group]
     first = group[0]
-    with run_folder_locks(j.out_dir for j in group):  # a second command writing these folders is refused
+    with run_folder_locks(j.out_dir for j in group):
         for j in group:
             if j.start == "overwrite" and Path(j.out_dir).exists():
-                shutil.rmtree(j.out_dir)  # whole: no weights or evaluation.json of the old run survive
+                shutil.rmtree(j.out_dir)
         settings = TrainSettings(
             progress=progress,
             position=position,
@@ -177,8 +181,20 @@ def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> 
             evaluation=first.evaluation,
         )
         engine = get_engine(first.engine)
-        summaries = engine.train(experiment, configs, [j.out_dir for j in group], settings, should_stop=should_stop)
+        yield functools.partial(engine.train, experiment, configs, [j.out_dir for j in group], settings)
+
+
+def job_summary(summaries: list[RunSummary]) -> RunSummary:
+    """What a job reports: its first interrupted seed's summary, else its last seed's."""
     return next((s for s in summaries if s.status == "interrupted"), summaries[-1])
+
+
+def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> RunSummary:
+    """Run one job here on its engine (a Ray worker's call); ``job_summary`` of its seeds.
+    Drawing ``curve.png`` is the command's job (``train_seeds(..., after_job=...)``): nothing
+    a worker imports reaches plotting."""
+    with opened(job, progress, position) as train:
+        return job_summary(train(should_stop=should_stop))
 
 
 AfterJob = Callable[["SeedJob | SeedBatchJob"], None]
@@ -196,7 +212,8 @@ class InProcess:
             with sigterm_as_interrupt():  # between seeds too, SIGTERM stops like Ctrl-C
                 for job in jobs:
                     try:
-                        status = execute(job, progress).status
+                        with opened(job, progress) as train:
+                            status = job_summary(train()).status
                     finally:
                         if after_job is not None:
                             after_job(job)
@@ -207,12 +224,9 @@ class InProcess:
         return False
 
 
-def run_jobs(
-    jobs: list[SeedJob], backend: Backend, progress: bool = True, after_job: AfterJob | None = None
-) -> JobsOutcome:
-    """Run ``jobs`` on ``backend`` and read back what each folder holds; ``after_job`` (say,
-    drawing each seed's curve) runs here as each job's folders land."""
-    interrupted = backend.run(jobs, progress, after_job) if jobs else False
+def read_outcome(jobs: list, interrupted: bool) -> JobsOutcome:
+    """What each job's folders hold once the backend has run them (jobs that never started
+    are absent; a summary that exists but cannot be read is an error)."""
     summaries = []
     for job in (m for j in jobs for m in members(j)):
         try:

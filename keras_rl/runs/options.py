@@ -1,10 +1,12 @@
 """The options every training command shares, declared once: ``RunOptions`` and its argparse parent.
 
 ``reproduce``, ``compare``, ``sweep`` and ``check`` all train seeds. Each takes the subset of
-``--workers``, ``--address``, ``--seed-batch``, ``--episodes``, ``--set`` and
-``--no-progress`` that applies to it, from :func:`run_options_parser`, so the flags and
-their help texts are written in one place. :meth:`RunOptions.from_args` checks them (a
-``ConfigError`` naming the flag) and resolves ``--address`` against ``$RAY_ADDRESS``.
+``--workers``, ``--address``, ``--seed-batch``, ``--episodes``, ``--set``, ``--no-progress``
+and ``--engine`` that applies to it. Every flag more than one command takes (those, and
+``--seeds``, ``--out``, ``--variant``, ...) is declared once, in ``FLAGS``, and a command takes
+its subset from :func:`shared_flags`, so each has one default and one help text.
+:meth:`RunOptions.from_args` checks them (a ``ConfigError`` naming the flag) and resolves
+``--address`` against ``$RAY_ADDRESS``.
 Nothing here imports TensorFlow or Ray.
 """
 
@@ -14,10 +16,11 @@ import argparse
 import os
 import sys
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 from keras_rl.errors import ConfigError
 
-OPTIONS = ("workers", "address", "seed_batch", "episodes", "set", "no_progress", "engine")
 ENGINE_NAMES = ("gymnasium", "compiled")
 """``train/engine.ENGINES``' names (a test keeps them equal), here so that parsing imports no TensorFlow."""
 
@@ -105,54 +108,126 @@ def seed_batch_arg(text: str) -> int | str:
         raise argparse.ArgumentTypeError(f"expected a whole number or auto, got {text!r}") from None
 
 
-def run_options_parser(*names: str, workers_default: int = 1, what: str = "seeds") -> argparse.ArgumentParser:
-    """An argparse parent with the named options of ``OPTIONS`` (all of them if none are named)."""
-    unknown = set(names) - set(OPTIONS)
+def path_arg(text: str) -> Path:
+    """A path option; an empty one is an error (``Path("")`` would silently mean the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("is empty; name a path")
+    return Path(text)
+
+
+FLAGS: dict[str, dict[str, Any]] = {
+    "--workers": dict(
+        type=int,
+        default=1,
+        help="seeds (or seed batches) at once on a local Ray instance (default 1: in this process, no Ray)",
+    ),
+    "--address": dict(default=None, help="run on the Ray cluster at HOST:PORT instead (default: $RAY_ADDRESS if set)"),
+    "--seed-batch": dict(
+        type=seed_batch_arg,
+        default=1,
+        metavar="S",
+        help="train S seeds together in one compiled step per env step (default 1: each seed "
+        "alone; auto: the post's measured batch size, split evenly over --workers; "
+        "`keras-rl list` shows which frameworks batch)",
+    ),
+    "--episodes": dict(
+        type=int,
+        default=None,
+        help="the training budget in episodes (default: the post's); evaluate: greedy episodes to play (default 5)",
+    ),
+    "--set": dict(
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="override a config field of every run, e.g. --set tau=0.005 (repeatable)",
+    ),
+    "--no-progress": dict(action="store_true", help="no progress bars"),
+    "--engine": dict(
+        choices=ENGINE_NAMES,
+        default="gymnasium",
+        help="gymnasium (the reference loop: Gymnasium's envs, one learner call per env step; the default) "
+        "or compiled (each episode one XLA program; posts 000 and 003 in Keras so far)",
+    ),
+    "--seeds": dict(
+        default=None,
+        help="seed list or range: 13, 0-9, 0,3,5 (default: reproduce 0, or --config's; compare and sweep "
+        "0-9; check the rule's own fresh seeds, never the baseline's, and its error rates are for those)",
+    ),
+    "--out": dict(
+        type=path_arg,
+        default=None,
+        help="where the command writes (default: reproduce results/<experiment>/<variant>, one seed_<n>/ "
+        "per seed; compare results/compare; check check-runs, where an earlier check's output is "
+        "replaced and anything else refused; bisect bisect-runs; sweep has none: name it)",
+    ),
+    "--variant": dict(
+        default=None,
+        help="the variant: faithful (the default), fixed; mountaincar also has faithful-intended "
+        "(all: `keras-rl list`)",
+    ),
+    "--framework": dict(default=None, help="keras (ours; the default) or torch (where the experiment has one)"),
+    "--matched-init": dict(
+        action="store_true",
+        help="PyTorch runs start from the Keras networks' initial weights for the same seed "
+        "(compare reports them under <out>/<experiment>/matched-init)",
+    ),
+    "--overwrite": dict(
+        action="store_true",
+        help="replace what is there: reproduce clears each seed folder that already holds a run, whole; "
+        "evaluate replaces an evaluation.json of more episodes than it plays",
+    ),
+    "--dry-run": dict(
+        action="store_true",
+        help="print what would run and train nothing: reproduce the resolved config and how each seed "
+        "folder would start; check each post's plan (rule, fresh seeds, baseline, calibrated error rates)",
+    ),
+    "--tier": dict(default="smoke", help="the check's tier: smoke (minutes, in `make test`) or full (default smoke)"),
+    "--against": dict(
+        type=Path,
+        default=None,
+        help="the folder holding <experiment>/baseline/seed_<n> (default: results/checks of this checkout; "
+        "copy it outside the tree for `git bisect run`; bisect copies it into --out)",
+    ),
+    "--alpha": dict(
+        type=float,
+        default=None,
+        help="the command's false-alarm bound, split by a union bound over its posts and their looks "
+        "(check, with --sequential) or over its steps (bisect) (default 0.01, the committed designs')",
+    ),
+}
+"""Every flag that more than one command takes, declared once: one default and one help text
+wherever it appears (``tests/test_cli_flags.py``). Where a command reads a None default as
+a value of its own, ``COMMAND_DEFAULTS`` says which, and the help text says it too."""
+
+COMMAND_DEFAULTS: dict[str, dict[str, Any]] = {
+    "compare": {"seeds": "0-9", "variant": "faithful", "out": Path("results/compare")},
+    "sweep": {"seeds": "0-9", "variant": "faithful", "framework": "keras"},
+    "check": {"out": Path("check-runs")},
+    "bisect": {"out": Path("bisect-runs"), "alpha": 0.01},
+    "evaluate": {"episodes": 5},
+}
+"""What a shared flag left at None means in each command (``resolve_defaults``)."""
+
+
+def resolve_defaults(args: argparse.Namespace) -> argparse.Namespace:
+    """``args`` with each shared flag the user left at None set to its command's own default."""
+    for dest, value in COMMAND_DEFAULTS.get(getattr(args, "command", ""), {}).items():
+        if getattr(args, dest, None) is None:
+            setattr(args, dest, value)
+    return args
+
+
+def shared_flags(*spellings: str) -> argparse.ArgumentParser:
+    """An argparse parent holding the named flags of ``FLAGS``, as declared there."""
+    unknown = set(spellings) - set(FLAGS)
     if unknown:
-        raise ValueError(f"unknown run options {sorted(unknown)}")
-    names = names or OPTIONS
+        raise ValueError(f"unknown shared flags {sorted(unknown)}")
     parent = argparse.ArgumentParser(add_help=False)
-    if "workers" in names:
-        parent.add_argument(
-            "--workers",
-            type=int,
-            default=workers_default,
-            help=f"{what} (or seed batches) at once on a local Ray instance "
-            f"(default {workers_default}{': in this process, no Ray' if workers_default == 1 else ''})",
-        )
-    if "address" in names:
-        parent.add_argument(
-            "--address", default=None, help="run on the Ray cluster at HOST:PORT instead (default: $RAY_ADDRESS if set)"
-        )
-    if "seed_batch" in names:
-        parent.add_argument(
-            "--seed-batch",
-            type=seed_batch_arg,
-            default=1,
-            metavar="S",
-            help="train S seeds together in one compiled step per env step (default 1: each seed "
-            "alone; auto: the post's measured batch size, split evenly over --workers; "
-            "`keras-rl list` shows which frameworks batch)",
-        )
-    if "episodes" in names:
-        parent.add_argument("--episodes", type=int, default=None, help="episode budget (default: the post's)")
-    if "set" in names:
-        parent.add_argument(
-            "--set",
-            dest="overrides",
-            action="append",
-            default=[],
-            metavar="FIELD=VALUE",
-            help="override a config field of every run, e.g. --set tau=0.005 (repeatable)",
-        )
-    if "no_progress" in names:
-        parent.add_argument("--no-progress", action="store_true", help="no progress bars")
-    if "engine" in names:
-        parent.add_argument(
-            "--engine",
-            choices=ENGINE_NAMES,
-            default="gymnasium",
-            help="gymnasium (the reference loop: Gymnasium's envs, one learner call per env step; the default) "
-            "or compiled (each episode one XLA program; posts 000 and 003 in Keras so far)",
-        )
+    for spelling in spellings:
+        parent.add_argument(spelling, **FLAGS[spelling])
     return parent
+
+
+RUN_FLAGS = ("--workers", "--address", "--seed-batch", "--episodes", "--set", "--no-progress", "--engine")
+"""The flags of ``RunOptions``: how a command trains its seeds."""

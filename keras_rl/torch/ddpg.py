@@ -78,6 +78,9 @@ class TorchDDPGLearner:
         # (target, source) lists for the soft updates, built once, not per update
         self._soft_pairs = [(variables(target_actor), variables(actor)), (variables(target_critic), variables(critic))]
 
+    def compile(self) -> None:
+        """Nothing to trace: PyTorch runs eagerly."""
+
     def train(self, rows: np.ndarray) -> dict:
         return self.update(self.layout.split(torch.from_numpy(np.ascontiguousarray(rows, np.float32))))
 

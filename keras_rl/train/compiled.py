@@ -40,7 +40,7 @@ import tensorflow as tf
 from keras_rl.agents.skeleton import EpisodeStats, LossTally
 from keras_rl.errors import ConfigError, NonFiniteLossError, RunFolderError
 from keras_rl.experiment import Experiment
-from keras_rl.learners.common import compile_step
+from keras_rl.learners.common import step_function
 from keras_rl.learners.table import implementation
 from keras_rl.rngs import global_rng_state, rng_state, set_global_rng_state, set_rng_state
 from keras_rl.runs.checkpoint import VERSION, delete_checkpoints, read_batch_checkpoints, write_checkpoint
@@ -77,6 +77,7 @@ class CompiledEngine:
         configs: Sequence,
         out_dirs: Sequence[Path],
         settings: TrainSettings,
+        *,
         should_stop: Callable[[], bool] | None = None,
     ) -> list[RunSummary]:
         if len(configs) != 1:
@@ -99,7 +100,7 @@ class PendulumProgram:
         layout = learner.layout
         self.ring = tf.Variable(tf.zeros([c.buffer_size, layout.width], tf.float32), trainable=False)
         step_spec = tf.TensorSpec([self.steps], tf.bool)
-        self.episode = compile_step(  # a concrete function: no per-call signature dispatch
+        self.episode = step_function(  # kept as a concrete function: no per-call signature dispatch
             self._episode,
             True,
             tf.TensorSpec([2], tf.float64),  # the reset state
@@ -107,7 +108,7 @@ class PendulumProgram:
             tf.TensorSpec([self.steps, c.batch_size], tf.int32),  # each update's sample indices
             step_spec,  # which steps train
             tf.TensorSpec([], tf.int32),  # where the ring writes next
-        )
+        ).get_concrete_function()
 
     def _episode(self, state, noise, indices, trains, position):
         c, learner, env = self.config, self.learner, self.env
@@ -127,7 +128,7 @@ class PendulumProgram:
             score += reward
 
             def update(t=t):
-                out = learner._train_rows(tf.gather(self.ring, indices[t]))
+                out = learner.update(tf.gather(self.ring, indices[t]))
                 return tf.stack([out[name] for name in names])
 
             losses = losses.write(t, tf.cond(trains[t], update, lambda: tf.zeros([len(names)], tf.float32)))
@@ -417,7 +418,7 @@ class CartPoleProgram:
         self.limit = MAX_STEPS["CartPole-v1"]
         self.ring = tf.Variable(tf.zeros([c.buffer_size, learner.layout.width], tf.float32), trainable=False)
         block = tf.TensorSpec([self.BLOCK], tf.bool)
-        self.chunk = compile_step(  # a concrete function: no per-call signature dispatch
+        self.chunk = step_function(  # kept as a concrete function: no per-call signature dispatch
             self._chunk,
             True,
             tf.TensorSpec([4], tf.float64),  # the state the chunk starts from
@@ -428,7 +429,7 @@ class CartPoleProgram:
             tf.TensorSpec([self.BLOCK, c.batch_size], tf.int32),  # each update's sample indices
             block,  # which steps train
             tf.TensorSpec([], tf.int32),  # where the ring writes next
-        )
+        ).get_concrete_function()
 
     def _chunk(self, state, played, allowed, explore, random_actions, indices, trains, position):
         c, learner, env = self.config, self.learner, self.env
@@ -452,7 +453,7 @@ class CartPoleProgram:
             self.ring.scatter_nd_update([[(position + t) % c.buffer_size]], row[None, :])
 
             def update(t=t):
-                return learner._train_rows(tf.gather(self.ring, indices[t]))["loss"]
+                return learner.update(tf.gather(self.ring, indices[t]))["loss"]
 
             def soft_update_only():
                 learner._soft_update()  # the tutorial soft-updates every step, trained or not

@@ -1,4 +1,4 @@
-"""The engine seam: what ``runs/jobs.execute`` calls to train a set of seeds.
+"""The engine seam: what a backend calls (``runs/jobs.opened``) to train a set of seeds.
 
 An engine takes one experiment, the seeds' configs (equal but for the seed), their run
 folders and one ``TrainSettings``, trains them, and leaves in each folder what the project's
@@ -38,6 +38,7 @@ class Engine(Protocol):
         configs: Sequence,
         out_dirs: Sequence[Path],
         settings: TrainSettings,
+        *,
         should_stop: Callable[[], bool] | None = None,
     ) -> list[RunSummary]:
         """Train the seeds of ``configs`` into ``out_dirs``; their summaries, in order.
@@ -53,15 +54,7 @@ class GymnasiumEngine:
     def refusal(self, experiment: Experiment, config) -> str | None:
         return None
 
-    def train(
-        self,
-        experiment: Experiment,
-        configs: Sequence,
-        out_dirs: Sequence[Path],
-        settings: TrainSettings,
-        should_stop: Callable[[], bool] | None = None,
-    ) -> list[RunSummary]:
-        return run_seeds(experiment, configs, out_dirs, settings, should_stop=should_stop)
+    train = staticmethod(run_seeds)  # the loop itself: no frame between the dispatcher and it
 
 
 ENGINES: dict[str, Engine] = {"gymnasium": GymnasiumEngine(), "compiled": CompiledEngine()}

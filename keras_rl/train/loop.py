@@ -86,8 +86,9 @@ def run_seeds(
     configs: Sequence,
     out_dirs: Sequence[Path],
     settings: TrainSettings = DEFAULT_SETTINGS,
-    envs: Sequence | None = None,
+    *,
     should_stop: Callable[[], bool] | None = None,
+    envs: Sequence | None = None,
 ) -> list[RunSummary]:
     """Train the seeds of ``configs`` (equal but for the seed) together to the threshold or
     the budget; write each one's folder and return their summaries.
@@ -109,6 +110,7 @@ def run_seeds(
         raise ConfigError("seed-batched runs share one budget")
     configure_tensorflow(settings.threads)
     axis, envs = build_seed_axis(experiment, configs, envs, settings.finished_seeds)
+    axis.compile()  # the learner's own method: its trace runs from this frame
     seeds = [
         _Seed(experiment, c, env, Path(d), axis.loss_names, settings.command)
         for c, env, d in zip(configs, envs, out_dirs)
@@ -221,6 +223,7 @@ class PartsAxis:
         shrink=False,
     ):
         self.agents, self.learner, self.rebuild, self.shrink = agents, learner, rebuild, shrink
+        self.compile = learner.compile  # the learner's own (a rebuilt stack traces on its first call)
         self.loss_names = tuple(learner.loss_names)
         self.batches: list[list] = [[] for _ in agents]
         self.live = list(range(len(agents)))
@@ -376,6 +379,9 @@ class WholeAgentAxis:
         self.agent = agent
         self.loss_names = tuple(agent.loss_names)
         self._obs, self._action, self._failed = None, None, None
+
+    def compile(self) -> None:
+        """Nothing to trace: the tutorial's own code runs eagerly."""
 
     def drop(self, ks: list[int]) -> None:
         """One seed: nothing to take out."""
