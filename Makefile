@@ -40,11 +40,12 @@ lint: install-test
 docs: install-test
 	$(BIN)/mkdocs build --strict
 
-## The version matrix (noxfile.py): every cell in its own virtualenv, then results/compat/README.md.
-## Hours: one cell is about 20 minutes. A cell resumes where it stopped; `nox -s cell-NAME table` runs one.
+## The version matrix (matrix/noxfile.py, beside its cell scripts): every cell in its own virtualenv,
+## then results/compat/README.md. Hours: one cell is about 20 minutes. A cell resumes where it stopped;
+## `nox -f matrix/noxfile.py -s cell-NAME table` runs one.
 matrix: $(BIN)/python
 	$(BIN)/pip install --quiet -c constraints.txt -e ".[matrix]"
-	$(BIN)/nox
+	$(BIN)/nox -f matrix/noxfile.py
 
 benchmark: install
 	/usr/bin/time -v $(BIN)/python benchmarks/step_time.py

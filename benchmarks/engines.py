@@ -4,6 +4,7 @@
     python benchmarks/engines.py --episodes 100 --rounds 5
     python benchmarks/engines.py --experiment cartpole --episodes 300 --rounds 1   # post 003
     python benchmarks/engines.py --markdown      # the table for docs/performance.md
+    python benchmarks/engines.py --batch 10      # and the Gymnasium loop's seed batch of 10, per seed
 
 Each round trains post 000's faithful seed 0 for ``--episodes`` episodes on each engine in
 turn (interleaved, so a noisy neighbour slows both), through the engine seam
@@ -15,6 +16,12 @@ episodes are long, as in most of a run's steps), so it holds every per-episode c
 host's draws, the records) and none of the start-up; start-up is the time to the end of the first episode (building
 the networks, tracing, XLA compilation). Medians over the rounds. One TensorFlow thread, as
 the CLI runs a seed. Only the ratio, measured in one run, means much on a shared machine.
+
+``--batch S`` adds a third arm in each round: seeds 0..S-1 trained together on the Gymnasium
+loop's seed axis (a stacked learner, ``--seed-batch S``), its cost per *seed*-env-step: the
+wall time from the moment the last seed passed the steady-rate episode to the run's end,
+over the steps all seeds played in it. That is the comparison issue 34's item 5 asks for (a
+compiled solo run against today's fastest way to run seeds).
 """
 
 from __future__ import annotations
@@ -39,9 +46,12 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=40)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--markdown", action="store_true", help="print the result as a Markdown table")
+    parser.add_argument("--batch", type=int, default=0, metavar="S", help="add a seed batch of S on the Gymnasium loop")
     args = parser.parse_args()
     if args.rounds < 1:
         parser.error("--rounds must be at least 1")
+    if args.batch == 1 or args.batch < 0:
+        parser.error("--batch must be 0 (none) or at least 2")
 
     from keras_rl.registry import get_experiment
     from keras_rl.train.engine import get_engine
@@ -57,12 +67,19 @@ def main() -> None:
     first = 4 if args.experiment == "pendulum" else args.episodes // 2 - 1
     from keras_rl.runs.files import read_episodes
 
-    rates: dict[str, list[float]] = {"gymnasium": [], "compiled": []}
-    startups: dict[str, list[float]] = {"gymnasium": [], "compiled": []}
+    arms = ["gymnasium", "compiled"] + ([f"gymnasium, batch of {args.batch}"] if args.batch else [])
+    rates: dict[str, list[float]] = {arm: [] for arm in arms}
+    startups: dict[str, list[float]] = {arm: [] for arm in arms}
     root = Path(tempfile.mkdtemp(prefix="engines-"))
     try:
         for r in range(args.rounds):
             for name in rates:
+                if name not in ("gymnasium", "compiled"):
+                    rate, built = _batch_rate(experiment, config, args.batch, root / f"batch-{r}", first, read_episodes)
+                    rates[name].append(rate)
+                    startups[name].append(built)
+                    print(f"round {r + 1}: {name} {rate:.3f} ms/seed-step", file=sys.stderr)
+                    continue
                 folder = root / f"{name}-{r}"
                 start = time.perf_counter()
                 summary = get_engine(name).train(experiment, [config], [folder], TrainSettings(progress=False))[0]
@@ -87,13 +104,43 @@ def main() -> None:
         f"TensorFlow thread; {args.experiment} seed 0, {args.episodes} episodes per run, the steady rate "
         f"after episode {first + 1}, medians of {args.rounds} rounds):",
         "",
-        "| engine | ms per env step (steady) | start-up to the first episode's end (s) |",
+        "| engine | ms per (seed-)env step (steady) | start-up to the first episode's end (s) |",
         "|---|---|---|",
         *(f"| {name} | {per_step[name]:.3f} | {startup[name]:.1f} |" for name in rates),
         "",
         f"The compiled engine: **{ratio:.1f}x** the Gymnasium loop's steps per second.",
+        *(
+            [
+                f"Against the Gymnasium loop's batch of {args.batch}: the compiled solo run costs "
+                f"**{per_step['compiled'] / per_step[arms[2]]:.2f}x** its time per seed-step "
+                "(below 1: the solo compiled run is the cheaper way to run seeds)."
+            ]
+            if args.batch
+            else []
+        ),
     ]
     print("\n".join(lines) if args.markdown else f"gymnasium/compiled per-step time: {ratio:.2f}x ({per_step})")
+
+
+def _batch_rate(experiment, config, seeds: int, folder: Path, first: int, read_episodes) -> tuple[float, float]:
+    """ms per seed-env-step of seeds 0..seeds-1 as one seed batch on the Gymnasium loop, and its
+    start-up (to the end of its first vector episode)."""
+    from keras_rl.train.loop import run_seeds
+    from keras_rl.train.settings import TrainSettings
+
+    configs = [config.replace(seed=s) for s in range(seeds)]
+    dirs = [folder / f"seed_{s}" for s in range(seeds)]
+    start = time.perf_counter()
+    summaries = run_seeds(experiment, configs, dirs, TrainSettings(progress=False))
+    built = time.perf_counter() - start - max(s.wall_seconds for s in summaries)
+    rows = [read_episodes(d / "episodes.csv") for d in dirs]
+    since = max(r[first]["wall_seconds"] for r in rows)
+    played = 0
+    for r in rows:
+        before = max((row["total_steps"] for row in r if row["wall_seconds"] <= since), default=0)
+        played += r[-1]["total_steps"] - before
+    end = max(r[-1]["wall_seconds"] for r in rows)
+    return 1000 * (end - since) / played, built + min(r[0]["wall_seconds"] for r in rows)
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ keras-rl evaluate runs/pendulum/seed_0 --episodes 5 --gif pendulum.gif
 keras-rl aggregate results/pendulum/faithful
 keras-rl check pendulum cartpole mountaincar --tier smoke
 keras-rl list
+keras-rl tables findings --write       # the maintainers' commands: calibrate, tables, manifest
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import sys
 from collections.abc import Sequence
 
 from keras_rl import __version__
-from keras_rl.commands import aggregate, bisect, check, compare, evaluate, reproduce, sweep
+from keras_rl.commands import aggregate, bisect, check, compare, evaluate, maintain, reproduce, sweep
 from keras_rl.commands.check import check_results
 from keras_rl.commands.common import EXIT_CRITERION, EXIT_NO_VERDICT, EXIT_OK, EXIT_USAGE, MAX_SEEDS, parse_seeds
 from keras_rl.commands.compare import compare_result
@@ -47,6 +48,9 @@ COMMANDS = {
     "sweep": sweep.sweep,
     "aggregate": aggregate.aggregate,
     "list": aggregate.list_experiments,
+    "calibrate": maintain.run,
+    "tables": maintain.run,
+    "manifest": maintain.run,
 }
 """Each command's function; its arguments come from its module's ``add_parser``."""
 
@@ -60,6 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
     for module in (reproduce, evaluate, compare, sweep, aggregate, check, bisect):
         module.add_parser(sub)
     aggregate.add_list_parser(sub)
+    maintain.add_parser(sub)
     return parser
 
 

@@ -320,6 +320,15 @@ def value_text(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
+BASE = "base"
+"""The name of a sweep's point without overrides."""
+
+
+def point_name(overrides: Mapping[str, Any]) -> str:
+    """A sweep point's folder name: ``overrides_name``, or ``base`` for none."""
+    return overrides_name(overrides) or BASE
+
+
 def overrides_name(overrides: Mapping[str, Any]) -> str:
     """The one name of a set of parsed overrides, sorted by field: ``broadcast_target=false,tau=0.005``
     (empty for none). Sweep points and ``--set`` folders are named by it, so equal values

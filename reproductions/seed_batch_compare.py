@@ -19,18 +19,15 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from keras_rl.report.equivalence import episodes_with_censoring, framework_verdict  # noqa: E402
-from keras_rl.report.stats import censored_mann_whitney, fisher_exact, median_difference_ci  # noqa: E402
-from keras_rl.runs.files import atomic_write_text  # noqa: E402
-from keras_rl.runs.run_set import RunSet  # noqa: E402
-from keras_rl.runs.summary import RunSummary  # noqa: E402
+from keras_rl.report.equivalence import episodes_with_censoring, framework_verdict
+from keras_rl.report.stats import censored_mann_whitney, fisher_exact, median_difference_ci
+from keras_rl.runs.files import atomic_write_text
+from keras_rl.runs.run_set import RunSet
+from keras_rl.runs.summary import RunSummary
 
 
 def rows(path: Path) -> list[dict[str, str]]:

@@ -27,17 +27,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 from scipy import stats
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from keras_rl.report.equivalence import MEDIAN_RATIO_MARGIN, SUCCESS_RATE_MARGIN  # noqa: E402
-from keras_rl.report.stats import success_difference_ci  # noqa: E402
+from keras_rl.checkout import ROOT
+from keras_rl.report.equivalence import MEDIAN_RATIO_MARGIN, SUCCESS_RATE_MARGIN
+from keras_rl.report.stats import success_difference_ci
 
 CANDIDATES = (30, 60, 100, 150, 200, 300, 400, 600)
 PROBABILITY = 0.80

@@ -11,14 +11,11 @@ results/README.md to show that matched-init PyTorch runs follow their Keras twin
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from keras_rl.report.stats import mann_whitney  # noqa: E402
-from keras_rl.runs.files import read_episodes  # noqa: E402
-from keras_rl.runs.run_set import RunSet  # noqa: E402
+from keras_rl.report.stats import mann_whitney
+from keras_rl.runs.files import read_episodes
+from keras_rl.runs.run_set import RunSet
 
 
 def unsettled(folder: Path, first: int, last: int, threshold: float) -> dict[int, int]:

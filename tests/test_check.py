@@ -6,6 +6,7 @@ import json
 import re
 import subprocess
 import sys
+from importlib import import_module
 from pathlib import Path
 
 import numpy as np
@@ -156,7 +157,7 @@ def _fake_baseline_seed(seed_dir, seed=0):
 
 
 def test_each_calibrated_rule_is_the_one_the_pre_registered_criterion_picks():
-    """``reproductions/check_calibrate.py --write`` measured every candidate; the rule in
+    """``keras_rl/check/calibrate/rules.py --write`` measured every candidate; the rule in
     ``rules.py`` must be the one its criterion picks, with false alarms at most 1%."""
     from keras_rl.check.command import CALIBRATION
 
@@ -225,11 +226,11 @@ def test_results_readme_states_the_calibrated_error_rates():
     from keras_rl.check.command import CALIBRATION
 
     root = Path(__file__).resolve().parents[1]
-    module = _load_script(root / "reproductions" / "check_calibrate.py")
+    module = import_module("keras_rl.check.calibrate.rules")
     readme = (root / "results" / "README.md").read_text()
     stated = readme.split(module.RULES_BEGIN, 1)[1].split(module.RULES_END, 1)[0].strip()
     assert stated == module.rules_table(json.loads(CALIBRATION.read_text())), (
-        "results/README.md is stale: run python reproductions/check_calibrate.py ... --write"
+        "results/README.md is stale: run keras-rl calibrate rules ... --write"
     )
 
 
@@ -239,21 +240,21 @@ def test_calibration_md_is_rendered_from_calibration_json():
     from keras_rl.check.command import CALIBRATION
 
     root = Path(__file__).resolve().parents[1]
-    module = _load_script(root / "reproductions" / "check_calibrate.py")
+    module = import_module("keras_rl.check.calibrate.rules")
     measured = json.loads(CALIBRATION.read_text())
     assert (root / "results" / "checks" / "calibration.md").read_text() == module.markdown(
         {k: measured[k] for k in sorted(measured)}
-    ), "calibration.md is stale: python reproductions/check_calibrate.py --write"
+    ), "calibration.md is stale: keras-rl calibrate rules --write"
 
 
 def test_sequential_md_is_rendered_from_sequential_json():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    module = _load_script(root / "reproductions" / "check_sequential.py")
+    module = import_module("keras_rl.check.calibrate.designs")
     committed = json.loads((root / "keras_rl" / "check" / "sequential.json").read_text())
     assert (root / "results" / "checks" / "sequential.md").read_text() == module.render(committed["results"]) + "\n", (
-        "sequential.md is stale: python reproductions/check_sequential.py --write"
+        "sequential.md is stale: keras-rl calibrate designs --write"
     )
 
 
@@ -379,11 +380,11 @@ def test_calibration_md_states_the_committed_family_wise_rates():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    family = _load_script(root / "reproductions" / "check_family.py")
+    family = import_module("keras_rl.check.calibrate.family")
     text = (root / "results" / "checks" / "calibration.md").read_text()
     stated = text.split(family.BEGIN, 1)[1].split(family.END, 1)[0].strip()
     committed = json.loads((root / "results" / "checks" / "family.json").read_text())
-    assert stated == family.render(committed), "calibration.md is stale: python reproductions/check_family.py --write"
+    assert stated == family.render(committed), "calibration.md is stale: keras-rl calibrate family --write"
     for tier in committed["tiers"].values():
         assert tier["command_holm"] < 0.01 < tier["command_unadjusted"]
 
@@ -396,7 +397,7 @@ def test_calibration_md_shows_the_spread_figure_and_the_figure_marks_the_bound(t
     from keras_rl.report.plots import plot_false_alarm_spread
 
     root = Path(__file__).resolve().parents[1]
-    family = _load_script(root / "reproductions" / "check_family.py")
+    family = import_module("keras_rl.check.calibrate.family")
     text = (root / "results" / "checks" / "calibration.md").read_text()
     assert f"]({family.SPREAD_FIGURE.name})" in text and family.SPREAD_FIGURE.is_file()
     out = tmp_path / "spread.png"
@@ -413,17 +414,9 @@ def test_the_committed_family_wise_rates_are_what_the_baselines_give():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    family = _load_script(root / "reproductions" / "check_family.py")
+    family = import_module("keras_rl.check.calibrate.family")
     committed = json.loads((root / "results" / "checks" / "family.json").read_text())
-    assert family.compute() == committed, (
-        "results/checks/family.json is stale: python reproductions/check_family.py --write"
-    )
-
-
-def _load_script(path):
-    from scripts import load_reproduction
-
-    return load_reproduction(path.stem)
+    assert family.compute() == committed, "results/checks/family.json is stale: keras-rl calibrate family --write"
 
 
 @pytest.mark.slow
@@ -591,11 +584,11 @@ def test_calibration_md_states_the_committed_held_out_power():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    held = _load_script(root / "reproductions" / "check_held_out.py")
+    held = import_module("keras_rl.check.calibrate.held_out")
     text = (root / "results" / "checks" / "calibration.md").read_text()
     stated = text.split(held.BEGIN, 1)[1].split(held.END, 1)[0].strip()
     committed = json.loads((root / "results" / "checks" / "held_out.json").read_text())
-    assert stated == held.render(committed), "calibration.md is stale: python reproductions/check_held_out.py --write"
+    assert stated == held.render(committed), "calibration.md is stale: keras-rl calibrate held-out --write"
     for post, entry in committed.items():
         for name, mutant in entry["mutants"].items():
             assert all(t["seeds"] >= 30 for t in mutant["tiers"].values()), (post, name)
@@ -603,9 +596,8 @@ def test_calibration_md_states_the_committed_held_out_power():
 
 
 def test_clopper_pearson_by_hand():
-    from pathlib import Path
 
-    runs = _load_script(Path(__file__).resolve().parents[1] / "reproductions" / "check_runs.py")
+    runs = import_module("keras_rl.check.calibrate.runs")
     assert runs.clopper_pearson(0, 1) == pytest.approx((0.0, 0.975))  # 1 - 0.025 ** (1/1)
     low, high = runs.clopper_pearson(3, 3)
     assert low == pytest.approx(0.025 ** (1 / 3)) and high == 1.0
@@ -613,11 +605,11 @@ def test_clopper_pearson_by_hand():
 
 def test_calibration_reads_the_halves_it_names_and_refuses_a_missing_seed(tmp_path):
     """Issue #21, item 4: the rule is chosen on mutant seeds 0-14 and reported on 15-29, so
-    ``check_runs.load`` reads exactly the seeds asked for, and a gap is an error that names it."""
+    ``calibrate.runs.load`` reads exactly the seeds asked for, and a gap is an error that names it."""
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    runs = _load_script(root / "reproductions" / "check_runs.py")
+    runs = import_module("keras_rl.check.calibrate.runs")
     assert not set(runs.TUNE) & set(runs.REPORT) and len(runs.TUNE) == len(runs.REPORT) == 15
     baseline = root / "results" / "checks" / "pendulum" / "baseline"
     assert len(runs.load(baseline, range(3, 5))) == 2
@@ -630,7 +622,7 @@ def test_calibration_reads_the_halves_it_names_and_refuses_a_missing_seed(tmp_pa
 
 def test_the_smoke_tests_docstring_states_the_committed_family_wise_rate():
     """The smoke test's docstring quotes the command's rate; it must be the one ``family.json``
-    holds now (``reproductions/check_family.py --write``), not an older baseline's."""
+    holds now (``keras_rl/check/calibrate/family.py --write``), not an older baseline's."""
     doc = test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline.__doc__
     stated = re.search(r"as a whole is\s+([0-9.]+)%", doc)
     assert stated, doc
@@ -659,14 +651,13 @@ def test_every_committed_error_rate_was_computed_on_the_whole_committed_baseline
 
 
 def test_the_smallest_delay_is_searched_only_where_the_delayed_metric_is_defined(monkeypatch):
-    """``check_calibrate.smallest_delay``: past the delay where a final-window metric is
+    """``calibrate.rules.smallest_delay``: past the delay where a final-window metric is
     undefined (NaN), a run looks changed to the rank test; the search must stop before it and
     say so, not report that delay. Fake statistics: every run's value is its delay, NaN beyond
     60 of 100 episodes; the rule flags a delay of at least ``shift`` (and any NaN)."""
     from types import SimpleNamespace
 
-    root = Path(__file__).resolve().parents[1]
-    module = _load_script(root / "reproductions" / "check_calibrate.py")
+    module = import_module("keras_rl.check.calibrate.rules")
     runs = [object()] * 8
 
     def fake_values(name, statistic, episodes, baseline_runs, delay=0):

@@ -19,13 +19,16 @@ from keras_rl.runs.sweep import parse_grid
 REPO = Path(__file__).resolve().parent.parent
 
 
-def _subparsers() -> dict[str, argparse.ArgumentParser]:
-    action = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
-    return dict(action.choices)
-
-
-def _help(parser: argparse.ArgumentParser, dest: str) -> str | None:
-    return next((a.help for a in parser._actions if a.dest == dest), None)
+def _subparsers(parser: argparse.ArgumentParser | None = None, prefix: str = "") -> dict[str, argparse.ArgumentParser]:
+    """Every command's parser by its name, nested ones too (``calibrate rules``)."""
+    parser = parser or build_parser()
+    out: dict[str, argparse.ArgumentParser] = {}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                out[prefix + name] = sub
+                out.update(_subparsers(sub, prefix + name + " "))
+    return out
 
 
 def _flags() -> dict[str, dict[str, argparse.Action]]:
@@ -43,7 +46,8 @@ def test_each_shared_flag_has_one_default_and_one_help_text_everywhere():
     """Issue 33: a flag two commands take is one flag (``--alpha`` defaulted to None in one and
     0.01 in the other, ``--workers`` to 1 and 2, ``--seeds`` had three defaults)."""
     shared = {spelling: uses for spelling, uses in _flags().items() if len(uses) > 1}
-    assert {"--seeds", "--out", "--workers", "--alpha", "--tier", "--against", "--episodes"} <= set(shared)
+    assert {"--seeds", "--out", "--workers", "--alpha", "--tier", "--against", "--episodes", "--write"} <= set(shared)
+    assert {"calibrate rules", "tables findings", "manifest"} <= set(_subparsers())
     for spelling, uses in shared.items():
         assert spelling in FLAGS, f"{spelling} ({', '.join(uses)}) is not declared in runs/options.FLAGS"
         for what in ("default", "help", "type", "dest", "choices"):

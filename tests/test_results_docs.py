@@ -1,19 +1,30 @@
 """results/README.md's generated tables match the committed run folders and reports."""
 
+import json
 import re
 import subprocess
 from pathlib import Path
 
 import pytest
-from scripts import load_reproduction
 
 from keras_rl.runs.run_set import RunSet
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
+GENERATORS = {
+    "findings_table": "keras_rl.report.tables.findings",
+    "ablation_table": "keras_rl.report.tables.ablations",
+    "compat_table": "keras_rl.report.tables.compat",
+    "forest": "keras_rl.report.tables.forest",
+    "manifest": "keras_rl.runs.manifest",
+}
+
+
 def load_generator(name: str = "findings_table"):
-    return load_reproduction(name)
+    from importlib import import_module
+
+    return import_module(GENERATORS[name])
 
 
 def block(text: str, begin: str, end: str) -> str:
@@ -24,13 +35,13 @@ def test_the_findings_and_compare_tables_are_up_to_date():
     gen = load_generator()
     readme = (ROOT / "results" / "README.md").read_text()
     assert block(readme, gen.BEGIN, gen.END) == gen.table(), (
-        "results/README.md is stale: run python reproductions/findings_table.py --write"
+        "results/README.md is stale: run keras-rl tables findings --write"
     )
     assert block(readme, gen.COMPARE_BEGIN, gen.COMPARE_END) == gen.compare_table(), (
-        "results/README.md is stale: run python reproductions/findings_table.py --write"
+        "results/README.md is stale: run keras-rl tables findings --write"
     )
     assert block((ROOT / "README.md").read_text(), gen.SHORT_BEGIN, gen.SHORT_END) == gen.short_table(), (
-        "README.md's findings are stale: run python reproductions/findings_table.py --write"
+        "README.md's findings are stale: run keras-rl tables findings --write"
     )
     assert "not run" not in gen.table()  # every row of the single table has its runs committed
     for experiment in ("pendulum", "cartpole", "mountaincar"):
@@ -43,7 +54,7 @@ def test_the_per_post_sections_are_up_to_date_and_name_the_seeds_that_failed():
     readme = (ROOT / "results" / "README.md").read_text()
     for post in gen.POSTS:
         assert block(readme, *gen.post_markers(post)) == gen.post_block(post), (
-            f"results/README.md's {post} section is stale: run python reproductions/findings_table.py --write"
+            f"results/README.md's {post} section is stale: run keras-rl tables findings --write"
         )
     failed = [
         s["seed"] for s in RunSet(ROOT / "results" / "cartpole" / "faithful").summary_records() if not s["success"]
@@ -58,10 +69,10 @@ def test_fidelitys_measured_effect_tables_are_up_to_date():
     ledger = (ROOT / "reproductions" / "FIDELITY.md").read_text()
     for experiment in gen.SOURCES:
         assert block(ledger, *gen.markers(experiment)) == gen.table(experiment), (
-            f"FIDELITY.md's {experiment} table is stale: run python reproductions/ablation_table.py --write"
+            f"FIDELITY.md's {experiment} table is stale: run keras-rl tables ablations --write"
         )
     assert block(ledger, *gen.READINGS_MARKERS) == gen.readings_table(), (
-        "FIDELITY.md's post 001 readings table is stale: run python reproductions/ablation_table.py --write"
+        "FIDELITY.md's post 001 readings table is stale: run keras-rl tables ablations --write"
     )
     # every quirk switch of every post has its row, with numbers on 30 seeds or more (issue #20)
     from keras_rl.registry import get_experiment
@@ -91,9 +102,9 @@ def test_every_committed_run_records_the_commit_and_clean_tree_that_made_it():
 def test_the_version_matrix_table_is_generated_from_the_committed_cells():
     gen = load_generator("compat_table")
     page = (ROOT / "results" / "compat" / "README.md").read_text()
-    assert page == gen.page(), "results/compat/README.md is stale: run python reproductions/compat_table.py --write"
+    assert page == gen.page(), "results/compat/README.md is stale: run keras-rl tables compat --write"
     assert block((ROOT / "README.md").read_text(), gen.SHORT_BEGIN, gen.SHORT_END) == gen.short_table(), (
-        "README.md's version table is stale: run python reproductions/compat_table.py --write"
+        "README.md's version table is stale: run keras-rl tables compat --write"
     )
 
 
@@ -144,9 +155,9 @@ def test_the_manifest_lists_every_committed_run_set_as_it_is():
     gen = load_generator("manifest")
     entries = gen.manifest()
     committed = json.loads((ROOT / "results" / "MANIFEST.json").read_text())
-    assert entries == committed, "results/MANIFEST.json is stale: run python reproductions/manifest.py --write"
+    assert entries == committed, "results/MANIFEST.json is stale: run keras-rl manifest --write"
     assert (ROOT / "results" / "MANIFEST.md").read_text() == gen.markdown(entries), (
-        "results/MANIFEST.md is stale: run python reproductions/manifest.py --write"
+        "results/MANIFEST.md is stale: run keras-rl manifest --write"
     )
     sets = {e["set"]: e for e in entries}
     for post in ("pendulum", "cartpole", "mountaincar"):
@@ -180,3 +191,29 @@ def test_no_picture_is_committed_inside_a_seed_folder():
         pytest.skip("not a git checkout")
     pictures = [p for p in tracked if re.search(r"/seed_\d+/", p) and p.lower().endswith((".png", ".gif", ".jpg"))]
     assert pictures == [], pictures[:5]
+
+
+def test_the_forest_plot_and_its_tables_match_the_committed_runs():
+    """Issue 35, item 4: every verdict drawn. The plotted numbers (``results/forest.json``) and
+    both pages' blocks regenerate from the committed runs and compare results."""
+    gen = load_generator("forest")
+    rows = gen.rows()
+    committed = json.loads((ROOT / "results" / "forest.json").read_text())
+    assert committed == {"command": gen.COMMAND, "rows": rows}, (
+        "results/forest.json is stale: keras-rl tables forest --write"
+    )
+    figure = (ROOT / "results" / "forest.png").read_bytes()
+    assert figure == (ROOT / "docs" / "forest.png").read_bytes()  # the docs site's copy
+    text = gen.table(rows)
+    assert block((ROOT / "results" / "README.md").read_text(), gen.BEGIN, gen.END) == text
+    assert block((ROOT / "docs" / "findings.md").read_text(), gen.BEGIN, gen.END) == text
+    groups = {r["group"] for r in rows}
+    assert {"Keras vs PyTorch", "Keras vs PyTorch, matched init", "compiled engine vs Gymnasium loop"} <= groups
+    assert any(g.startswith("seed-batched") for g in groups) and any("ablation" in g for g in groups)
+    for r in rows:
+        if not r["pending"]:
+            for key in ("success", "speed"):
+                v = r[key]
+                assert v["reading"] in ("equivalent within the margin", "different", "inconclusive")
+                if v["estimate"] is not None:
+                    assert v["low"] <= v["estimate"] <= v["high"]

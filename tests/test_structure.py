@@ -190,17 +190,20 @@ def test_a_contradictory_old_and_new_field_is_refused():
 def test_one_reader_of_seed_folders_and_one_wilson_interval():
     """A set of seed folders is read through ``runs/run_set.RunSet`` and a success rate's Wilson
     interval comes from ``report/stats.wilson_interval``: nowhere else globs ``seed_*`` or asks
-    SciPy for a Wilson interval."""
+    SciPy for a Wilson interval; a generated block goes into a page by ``report/markdown.replace_block``
+    alone."""
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
     sources = [p for d in ("keras_rl", "reproductions", "tests", "benchmarks") for p in (root / d).rglob("*.py")]
-    sources.append(root / "noxfile.py")
+    sources.append(root / "matrix" / "noxfile.py")
     this = Path(__file__).resolve()
     globbers = [p for p in sources if p != this and 'glob("seed_' in p.read_text()]
     wilsons = [p for p in sources if p != this and 'method="wilson"' in p.read_text()]
     assert [p.relative_to(root).as_posix() for p in globbers] == ["keras_rl/runs/run_set.py"]
     assert [p.relative_to(root).as_posix() for p in wilsons] == ["keras_rl/report/stats.py"]
+    splices = [p for p in sources if p != this and "def replace_block" in p.read_text()]
+    assert [p.relative_to(root).as_posix() for p in splices] == ["keras_rl/report/markdown.py"]  # one Markdown splice
 
 
 def test_the_cli_is_a_table_and_each_command_module_stays_small():
@@ -260,3 +263,23 @@ def test_one_parameter_reaches_its_use_through_at_most_eight_frames(tmp_path, mo
     path = [*ours, "soft_update"]
     assert path[0] == "main" and "tf__update" in path, path
     assert len(path) <= 8, " -> ".join(path)
+
+
+def test_reproductions_holds_the_ledger_settlements_and_analyses_only():
+    """Issue 33: the calibration and the table generators are package commands
+    (``keras-rl calibrate``, ``keras-rl tables``, ``keras-rl manifest``), the matrix scripts sit
+    beside ``matrix/noxfile.py``, and no analysis patches ``sys.path`` to reach the package or
+    another folder (20 of 21 scripts did)."""
+    root = Path(__file__).resolve().parents[1]
+    folder = root / "reproductions"
+    top = sorted(p.name for p in folder.iterdir() if p.name != "__pycache__")
+    assert "FIDELITY.md" in top and "settlements" in top
+    scripts = [p for p in folder.glob("*.py")]
+    assert sorted(p.name for p in scripts) == sorted(n for n in top if n.endswith(".py"))
+    assert all(n.endswith(".py") or n in ("FIDELITY.md", "settlements") for n in top), top
+    for path in scripts:
+        text = path.read_text()
+        assert "sys.path" not in text, f"{path.name} patches sys.path"
+        assert "calibration.json" not in text and "replace_block" not in text, f"{path.name} generates committed data"
+    assert (root / "matrix" / "noxfile.py").is_file() and not (root / "noxfile.py").exists()
+    assert {p.name for p in (root / "matrix").glob("compat_*")} >= {"compat_cell.py", "compat_probe.py"}

@@ -6,7 +6,7 @@ each plays, and how the seeds run. The candidates are every statistic of
 ``statistics.STATISTICS`` the post defines, at alpha 0.01 and 0.005; the selection criterion,
 fixed with them, is: the most power against the mutants (the mean over the gross ones first,
 then over all) among the candidates whose false-alarm rate on the baseline is at most 1%.
-``reproductions/check_calibrate.py`` measures every candidate and says which one the
+``keras_rl/check/calibrate/rules.py`` measures every candidate and says which one the
 criterion picks; ``tests/test_check.py`` fails if the rule below is not that one.
 
 The mutants are planted regressions, as ``--set`` overrides of the faithful config, from

@@ -101,7 +101,11 @@ def _outcomes(design: SequentialDesign, pmatrix: np.ndarray) -> tuple[np.ndarray
 
 
 def null_pvalues(
-    baseline: Sequence[float], statistic: str, stages: Sequence[int], repeats: int, rng: np.random.Generator
+    baseline: Sequence[float] | np.ndarray,
+    statistic: str,
+    stages: Sequence[int],
+    repeats: int,
+    rng: np.random.Generator,
 ) -> np.ndarray:
     """Look p-values of ``repeats`` unchanged checks: pooled draws from the baseline's values
     (as many as the baseline, then the fresh sequence), the first part as the baseline."""
@@ -115,8 +119,8 @@ def null_pvalues(
 
 
 def mutant_pvalues(
-    baseline: Sequence[float],
-    changed: Sequence[float],
+    baseline: Sequence[float] | np.ndarray,
+    changed: Sequence[float] | np.ndarray,
     statistic: str,
     stages: Sequence[int],
     repeats: int,

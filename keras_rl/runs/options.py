@@ -195,6 +195,12 @@ FLAGS: dict[str, dict[str, Any]] = {
         help="the command's false-alarm bound, split by a union bound over its posts and their looks "
         "(check, with --sequential) or over its steps (bisect) (default 0.01, the committed designs')",
     ),
+    "--write": dict(action="store_true", help="write what it made into the checkout (default: print it)"),
+    "--changes": dict(
+        action="store_true",
+        help="print each row's reading on seeds 0-9 beside its reading on all its seeds "
+        "(what growing the sets changed)",
+    ),
 }
 """Every flag that more than one command takes, declared once: one default and one help text
 wherever it appears (``tests/test_cli_flags.py``). Where a command reads a None default as

@@ -4,7 +4,7 @@
 committed seed (same code, same library versions, same kind of CPU) must give the same rows
 bit for bit; where it does not, the first differing episode says how far the two agree. The
 replay test (``tests/test_committed_runs_replay.py``) and the version matrix
-(``reproductions/compat_cell.py``) both use this.
+(``matrix/compat_cell.py``) both use this.
 """
 
 from __future__ import annotations

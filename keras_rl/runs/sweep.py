@@ -14,24 +14,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from keras_rl.config import overrides_name, value_text
+from keras_rl.config import BASE, point_name, value_text
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.runs.jobs import SeedJob
 from keras_rl.runs.provenance import code_version
 from keras_rl.runs.reuse import check_reusable, start_of
 
 MAX_JOBS_WITHOUT_YES = 10_000
-BASE = "base"
 
 
 @dataclass(frozen=True)
 class GridPoint:
     name: str
     overrides: dict[str, Any]
-
-
-def point_name(overrides: dict[str, Any]) -> str:
-    return overrides_name(overrides) or BASE
 
 
 def parse_grid(config_cls, items: list[str]) -> list[GridPoint]:

@@ -1,6 +1,6 @@
 """One cell of the version matrix, run inside that cell's virtualenv (``noxfile.py`` calls it).
 
-    python reproductions/compat_cell.py --cell NAME --spec '{"tensorflow": "2.20.0"}' \
+    python matrix/compat_cell.py --cell NAME --spec '{"tensorflow": "2.20.0"}' \
         --reference-python .nox/cell-reference/bin/python [--out results/compat/NAME] [--redo STEP]
 
 Steps, each written to ``<out>/<step>.json`` as it finishes (a killed cell resumes at the first
@@ -10,7 +10,7 @@ step without its file; ``--redo STEP`` reruns one):
 - ``tests``: the fast suite (``pytest -m "not slow"``), its counts and the names of failures;
 - ``replay``: committed seed 0 of each post (Keras) rerun whole: bit for bit, or the first
   differing episode and its columns;
-- ``probe``: ``reproductions/compat_probe.py`` here and under ``--reference-python``: each
+- ``probe``: ``matrix/compat_probe.py`` here and under ``--reference-python``: each
   post's initial weights, first action and one update on a fixed batch, compared (the largest
   absolute difference of each: 0 for the same bits, ~1e-7 for float32 rounding);
 - ``check``: ``keras-rl check pendulum cartpole mountaincar --tier smoke`` against the committed
@@ -21,7 +21,7 @@ step without its file; ``--redo STEP`` reruns one):
   (the reference cell's interpreter), alternated five times in this one session; the cell's ms
   over the reference's ms per post, median of the runs.
 
-``cell.json`` gathers them; ``reproductions/compat_table.py --write`` makes the table.
+``cell.json`` gathers them; ``keras_rl/report/tables/compat.py --write`` makes the table.
 """
 
 from __future__ import annotations
@@ -148,7 +148,7 @@ def step_replay(out: Path, work: Path) -> dict:
 
 
 def step_probe(out: Path, work: Path, reference_python: str) -> dict:
-    script = str(ROOT / "reproductions" / "compat_probe.py")
+    script = str(ROOT / "matrix" / "compat_probe.py")
     dumps = {}
     for side, python in (("reference", reference_python), ("cell", sys.executable)):
         dumps[side] = work / f"probe-{side}.npz"
@@ -156,7 +156,7 @@ def step_probe(out: Path, work: Path, reference_python: str) -> dict:
         if code != 0:
             shutil.copy(work / f"probe-{side}.log", out / f"probe-{side}.log")
             return {"error": f"compat_probe.py dump failed under {python} (probe-{side}.log)"}
-    sys.path.insert(0, str(ROOT / "reproductions"))
+    sys.path.insert(0, str(ROOT / "matrix"))
     from compat_probe import compare
 
     return {"max_abs_difference": compare(dumps["reference"], dumps["cell"])}

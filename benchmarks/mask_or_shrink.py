@@ -1,7 +1,7 @@
 """Mask or shrink: what finished seeds cost a seed-batched run, measured.
 
-    python reproductions/mask_or_shrink.py results/pendulum/seed-batch/batch10 --batch-size 10
-    python reproductions/mask_or_shrink.py results/cartpole/seed-batch/batch10 --batch-size 10 \
+    python benchmarks/mask_or_shrink.py results/pendulum/seed-batch/batch10 --batch-size 10
+    python benchmarks/mask_or_shrink.py results/cartpole/seed-batch/batch10 --batch-size 10 \
         --write results/cartpole/seed-batch/mask_or_shrink.md
 
 The batched loop masks a seed that has finished: its slice stays in the compiled call, so
@@ -22,17 +22,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
 from pathlib import Path
 
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from keras_rl.runs.files import atomic_write_text  # noqa: E402
-from keras_rl.runs.run_set import RunSet  # noqa: E402
+from keras_rl.runs.files import atomic_write_text
+from keras_rl.runs.run_set import RunSet
 
 
 def rebuild_seconds(experiment: str, seeds: int) -> float:
@@ -85,7 +81,7 @@ def main() -> None:
     lines = [
         f"# Mask or shrink: `{args.batched}` (batches of {size})",
         "",
-        f"Command: `python reproductions/mask_or_shrink.py {args.batched} --batch-size {size}"
+        f"Command: `python benchmarks/mask_or_shrink.py {args.batched} --batch-size {size}"
         + (f" --write {args.write}`" if args.write else "`"),
         "",
         "Measured here: the compiled train-and-act call per vector step, "

@@ -1,34 +1,31 @@
 """What the check's calibration scripts share: committed runs read back, each run's statistic,
 and the power report of a rule against a set of changed runs.
 
-``check_calibrate.py``, ``check_held_out.py`` and ``check_sequential.py`` import from here
+``rules.py``, ``held_out.py`` and ``designs.py`` (``keras-rl calibrate``) import from here
 (and from nothing of each other's but the blocks they render), so there is one reader of the
 runs and one power report.
 """
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from keras_rl.check.rules import RULES  # noqa: E402
-from keras_rl.check.statistics import decide, power, seed_statistic  # noqa: E402
-from keras_rl.registry import get_experiment  # noqa: E402
-from keras_rl.runs.files import read_episodes  # noqa: E402
-from keras_rl.runs.run_set import RunSet  # noqa: E402
-from keras_rl.runs.summary import RunSummary  # noqa: E402
+from keras_rl.check.rules import RULES
+from keras_rl.check.statistics import decide, power, seed_statistic
+from keras_rl.checkout import ROOT
+from keras_rl.registry import get_experiment
+from keras_rl.runs.files import read_episodes
+from keras_rl.runs.run_set import RunSet
+from keras_rl.runs.summary import RunSummary
 
 CHECKS = ROOT / "results" / "checks"
 HOLM_LEVEL = 3
 """Posts in the default command: a change to one post must clear alpha / 3 (Holm's first level)."""
 TUNE, REPORT = range(0, 15), range(15, 30)
 """Issue #21, item 4: once every mutant of a post has 30 runs, seeds 0-14 choose (the rule in
-``check_calibrate.py``, the futility bound in ``check_sequential.py``) and seeds 15-29, never
+``calibrate/rules.py``, the futility bound in ``calibrate/designs.py``) and seeds 15-29, never
 looked at in those choices, report the power."""
 
 

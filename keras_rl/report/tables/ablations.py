@@ -1,9 +1,9 @@
 """Each quirk switch's measured effect, for ``reproductions/FIDELITY.md``, from the committed
 ablation runs.
 
-    python reproductions/ablation_table.py            # print the three tables
-    python reproductions/ablation_table.py --changes  # each switch's reading on seeds 0-9 and on all
-    python reproductions/ablation_table.py --write    # replace them in reproductions/FIDELITY.md,
+    keras-rl tables ablations            # print the three tables
+    keras-rl tables ablations --changes  # each switch's reading on seeds 0-9 and on all
+    keras-rl tables ablations --write    # replace them in reproductions/FIDELITY.md,
                                                       # and rewrite each sweep folder's sweep.md
 
 Per post: the faithful runs, and for every quirk switch of its config (``QUIRKS``) the runs
@@ -28,17 +28,14 @@ from __future__ import annotations
 
 import argparse
 import re
-import sys
 from pathlib import Path
+from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "reproductions"))
-
-from compare_runs import runs_table  # noqa: E402
-from findings_table import replace_block  # noqa: E402
-
-from keras_rl.runs.run_set import RunSet  # noqa: E402
+from keras_rl.checkout import ROOT
+from keras_rl.errors import ConfigError
+from keras_rl.report.markdown import replace_block
+from keras_rl.report.tables.runs import runs_table
+from keras_rl.runs.run_set import RunSet
 
 FIDELITY = ROOT / "reproductions" / "FIDELITY.md"
 SWEEP = "keras-rl sweep {exp} --ablate --seeds 0-9 --workers 2{batch} --no-progress --out results/{exp}/ablations"
@@ -46,7 +43,7 @@ MORE = (
     "`keras-rl sweep {exp} --ablate --seeds 10-29 --seed-batch auto --workers 2 --no-progress --out DIR` "
     "(seeds 10-29, run into a fresh folder at 662a149, its seed folders merged in)"
 )
-SOURCES = {
+SOURCES: dict[str, dict[str, Any]] = {
     # post 000's first ablations predate `sweep`: one `reproduce --set SWITCH=false` folder each,
     # against the faithful set's seeds 0-9 (copied into base/); seeds 10-29 are one sweep
     "pendulum": {
@@ -147,12 +144,12 @@ def _reading(row: dict, statuses: list[str], faithful: dict, budget: int) -> str
 
 
 def table(experiment: str, only: set[int] | None = None) -> str:
+    from keras_rl.config import point_name
     from keras_rl.registry import get_experiment
     from keras_rl.report.sweep import analyse_sweep
-    from keras_rl.runs.sweep import point_name
 
     source = SOURCES[experiment]
-    config_cls = get_experiment(experiment).config_cls
+    config_cls: Any = get_experiment(experiment).config_cls
     defaults = config_cls()
     rows = [("-", "faithful", ROOT / source["base"])]
     for field, (ledger_id, off) in config_cls.QUIRKS.items():
@@ -168,8 +165,7 @@ def table(experiment: str, only: set[int] | None = None) -> str:
     rows += [("-", name, ROOT / folder) for name, folder in source["also"].items()]
 
     lines = [
-        f"Regenerate the runs with {source['command']} and this table with "
-        "`python reproductions/ablation_table.py --write`.",
+        f"Regenerate the runs with {source['command']} and this table with `keras-rl tables ablations --write`.",
         "",
         "| id | runs (seeds 0-9) | success | minus faithful [95% CI] | Fisher p | episodes to threshold: "
         "median (IQR) | minus faithful [95% CI] | Mann-Whitney p | reading |",
@@ -229,33 +225,27 @@ READINGS_MARKERS = ("<!-- p001-readings:begin -->", "<!-- p001-readings:end -->"
 
 
 def readings_table() -> str:
-    """Post 001's two readings of the actor step on every committed seed (``compare_runs.py``)."""
-    command = "python reproductions/compare_runs.py " + " ".join(READINGS)
+    """Post 001's two readings of the actor step on every committed seed (``report/tables/runs.py``)."""
+    command = "keras-rl tables runs " + " ".join(READINGS)
     return f"{runs_table([ROOT / f for f in READINGS])}\n\n(`{command}`)"
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("experiments", nargs="*", default=list(SOURCES), help="default: all three posts")
-    parser.add_argument("--write", action="store_true", help="replace the tables in reproductions/FIDELITY.md")
-    parser.add_argument(
-        "--changes", action="store_true", help="each switch's reading on seeds 0-9 beside its reading on all seeds"
-    )
-    args = parser.parse_args()
-    unknown = sorted(set(args.experiments) - set(SOURCES))
+def run(args: argparse.Namespace) -> int:
+    experiments = args.experiments or list(SOURCES)
+    unknown = sorted(set(experiments) - set(SOURCES))
     if unknown:
-        parser.error(f"unknown experiment(s) {', '.join(unknown)}; choose from {', '.join(SOURCES)}")
+        raise ConfigError(f"unknown experiment(s) {', '.join(unknown)}; choose from {', '.join(SOURCES)}")
     if args.changes:
         print("| post | switch | seeds 0-9 | all seeds | changed |\n|---|---|---|---|---|")
-        for name in args.experiments:
+        for name in experiments:
             for switch, ten, every in changes(name):
                 same = re.sub(r"at \d+ seeds", "", ten) == re.sub(r"at \d+ seeds", "", every)
                 print(f"| {name} | {switch} | {ten} | {every} | {'no' if same else 'yes'} |")
-        return
-    tables = {name: table(name) for name in args.experiments}
+        return 0
+    tables = {name: table(name) for name in experiments}
     if not args.write:
         print("\n\n".join([*tables.values(), readings_table()]))
-        return
+        return 0
     from keras_rl.runs.files import atomic_write_text
 
     content = FIDELITY.read_text()
@@ -264,11 +254,8 @@ def main() -> None:
     content = replace_block(content, *READINGS_MARKERS, readings_table())
     atomic_write_text(FIDELITY, content)
     print(f"updated {FIDELITY}")
-    for name in args.experiments:
+    for name in experiments:
         report = sweep_report(name)
         if report is not None:
             print(f"updated {report}")
-
-
-if __name__ == "__main__":
-    main()
+    return 0

@@ -1,8 +1,8 @@
 """Why a cell of the version matrix changes bits: the first numbers each post computes, dumped
 in one interpreter and compared across two.
 
-    python reproductions/compat_probe.py dump OUT.npz          # in each virtualenv
-    python reproductions/compat_probe.py compare REF.npz CELL.npz [--json OUT.json]
+    python matrix/compat_probe.py dump OUT.npz          # in each virtualenv
+    python matrix/compat_probe.py compare REF.npz CELL.npz [--json OUT.json]
 
 For each post (Keras, faithful variant, seed 0, as a solo run builds it): the initial weights,
 the first action on the env's first state, then one update on a fixed batch (drawn from NumPy's

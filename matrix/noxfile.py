@@ -1,9 +1,12 @@
 """The version matrix: one nox session per cell, each a fresh virtualenv holding one combination
 of TensorFlow, Keras, Gymnasium and NumPy (``make matrix`` runs them all, the reference first).
 
-    .venv/bin/nox                          # every cell, then the table
-    .venv/bin/nox -s cell-tf2.19.1 table   # one cell, then the table
-    .venv/bin/nox -l                       # the cells
+    .venv/bin/nox -f matrix/noxfile.py                          # every cell, then the table
+    .venv/bin/nox -f matrix/noxfile.py -s cell-tf2.19.1 table   # one cell, then the table
+    .venv/bin/nox -f matrix/noxfile.py -l                       # the cells
+
+The cell scripts sit beside this file (``matrix/``); every session runs from the repository
+root, whatever folder nox starts in.
 
 Each cell varies one factor from the reference (the versions that made ``results/``, pinned in
 ``constraints.txt``), but for the combined cells ``oldest`` and ``newest``. A factor left out of a
@@ -12,7 +15,7 @@ cell's spec (``None``) is whatever pip resolves beside the others. Everything el
 at 2.13.0, the CPU wheel, in every cell.
 
 A cell writes ``results/compat/<cell>/``: ``install.json`` here, then the steps of
-``reproductions/compat_cell.py`` (tests, bit-exact replay of each post's committed seed 0, the
+``matrix/compat_cell.py`` (tests, bit-exact replay of each post's committed seed 0, the
 smoke check against the committed baselines, the speed ratio to the reference cell). A cell
 interrupted midway resumes at its first unfinished step. ``nox -s table`` regenerates
 ``results/compat/README.md`` and the README's short table from the committed cell folders.
@@ -22,12 +25,13 @@ from __future__ import annotations
 
 import json
 import subprocess
+import sys
 import time
 from pathlib import Path
 
 import nox
 
-ROOT = Path(__file__).resolve().parent
+ROOT = Path(__file__).resolve().parents[1]
 COMPAT = ROOT / "results" / "compat"
 FACTORS = ("tensorflow", "keras", "gymnasium", "numpy")
 REFERENCE = {"tensorflow": "2.21.0", "keras": "3.15.1", "gymnasium": "1.4.0", "numpy": "2.4.6"}
@@ -63,6 +67,7 @@ def _cell(name: str, spec: dict[str, str | None]):
     def session(session: nox.Session) -> None:
         out = COMPAT / name
         out.mkdir(parents=True, exist_ok=True)
+        session.chdir(ROOT)
         python = str(Path(session.bin) / "python")
         reference_python = str(Path(session.virtualenv.location).parent / "cell-reference" / "bin" / "python")
         install = [python, "-m", "pip", "install", "--quiet", "-e", ".[test,torch]", *_requirements(spec)]
@@ -83,7 +88,7 @@ def _cell(name: str, spec: dict[str, str | None]):
                 session.error(f"{name}: the install failed (results/compat/{name}/install.json)")
         session.run(
             python,
-            "reproductions/compat_cell.py",
+            "matrix/compat_cell.py",
             "--cell",
             name,
             "--spec",
@@ -111,4 +116,5 @@ for _name, _spec in CELLS.items():
 @nox.session(python=False)
 def table(session: nox.Session) -> None:
     """results/compat/README.md and the README's short table, from the committed cell folders."""
-    session.run("python", "reproductions/compat_table.py", "--write", external=True)
+    session.chdir(ROOT)
+    session.run(sys.executable, "-m", "keras_rl", "tables", "compat", "--write", external=True)

@@ -1,9 +1,9 @@
 """Measure the error rates of ``keras-rl check``'s decision rules, and which rule the
 pre-registered criterion picks (``keras_rl/check/rules.py``).
 
-    python reproductions/check_calibrate.py pendulum mountaincar --write
-    python reproductions/check_calibrate.py cartpole --make --workers 2 --write
-    python reproductions/check_calibrate.py --write     # rerender calibration.md from calibration.json
+    keras-rl calibrate rules pendulum mountaincar --write
+    keras-rl calibrate rules cartpole --make --workers 2 --write
+    keras-rl calibrate rules --write     # rerender calibration.md from calibration.json
 
 Inputs, all committed: the faithful baseline ``results/checks/<exp>/baseline`` (every seed it holds) and
 each mutant's 10 seeds ``results/checks/<exp>/mutants/<name>`` (``--make`` runs the missing
@@ -27,19 +27,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "reproductions"))
-os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
-
-from check_runs import (  # noqa: E402
+from keras_rl.check.calibrate.runs import (
     CHECKS,
     REPORT,
     TUNE,
@@ -51,14 +46,16 @@ from check_runs import (  # noqa: E402
     seed_dirs,
     values,
 )
-
-from keras_rl.check.command import CALIBRATION  # noqa: E402
-from keras_rl.check.rules import ALPHAS, MUTANTS, RULES, TIERS  # noqa: E402
-from keras_rl.check.statistics import false_alarm_rate, power  # noqa: E402
-from keras_rl.learners.table import batch_refusal  # noqa: E402
-from keras_rl.registry import get_experiment  # noqa: E402
-from keras_rl.runs.files import atomic_write_text  # noqa: E402
-from keras_rl.runs.run_set import RunSet  # noqa: E402
+from keras_rl.check.command import CALIBRATION
+from keras_rl.check.rules import ALPHAS, MUTANTS, RULES, TIERS
+from keras_rl.check.statistics import false_alarm_rate, power
+from keras_rl.checkout import ROOT
+from keras_rl.errors import ConfigError
+from keras_rl.learners.table import batch_refusal
+from keras_rl.registry import get_experiment
+from keras_rl.report.markdown import replace_block
+from keras_rl.runs.files import atomic_write_text
+from keras_rl.runs.run_set import RunSet
 
 MUTANT_SEEDS = "0-9"
 MUTANT_BATCH = 10
@@ -102,10 +99,10 @@ def make_commands(name: str) -> list[list[str]]:
         if folder.is_dir() and len(seed_dirs(folder)) < len(TUNE) + len(REPORT):
             # seeds 10-29 beside the committed 0-9, made alike; --make then moves them in (move_seeds)
             config = get_experiment(name).config_cls.for_variant("faithful").with_text_overrides(sets[1::2])
-            batch = [] if batch_refusal(name, config.to_dict()) else ["--seed-batch", str(MUTANT_BATCH)]
+            batched = [] if batch_refusal(name, config.to_dict()) else ["--seed-batch", str(MUTANT_BATCH)]
             out.append(
                 ["keras-rl", "reproduce", name, "--seeds", "10-29", "--episodes", str(episodes), *sets,
-                 "--no-progress", "--min-success-rate", "0", "--workers", "2", *batch,
+                 "--no-progress", "--min-success-rate", "0", "--workers", "2", *batched,
                  "--out", f"results/checks/{name}/mutants-seeds-10-29/{m.name}"]
             )  # fmt: skip
         if not folder.is_dir():
@@ -224,7 +221,7 @@ def old_test(name: str, baseline: list, mutants: dict | None, repeats: int = 10_
         ok = np.asarray([passes(v) for v in values(name, statistic, episodes, runs)])
         return float(np.mean([ok[rng.integers(0, len(ok), n)].sum() < k for _ in range(repeats)]))
 
-    out = {"test": what, "false_alarm_rate": fail_rate(baseline)}
+    out: dict[str, Any] = {"test": what, "false_alarm_rate": fail_rate(baseline)}
     if mutants:
         per_mutant = {m.name: fail_rate(runs) for m, runs in mutants.values()}
         gross = [per_mutant[m.name] for m, _ in mutants.values() if m.gross]
@@ -238,7 +235,7 @@ def calibrate(name: str) -> dict:
     baseline = load(CHECKS / name / "baseline")
     missing = [m.name for m in MUTANTS[name] if not (CHECKS / name / "mutants" / m.name).is_dir()]
     if missing:  # false alarms need only the baseline; power waits for the mutants
-        out = {}
+        out: dict[str, Any] = {}
         for tier in TIERS:
             rule = RULES[(name, tier)]
             out[tier] = {
@@ -268,7 +265,7 @@ def calibrate(name: str) -> dict:
         if shortest < rule.episodes:  # a mutant run cut short would look like a failure
             out[tier] = {"not_calibrated": f"the mutant runs have {shortest} episodes; this tier needs {rule.episodes}"}
             continue
-        rows = []
+        rows: list[dict[str, Any]] = []
         for statistic in rule.candidates:
             base = values(name, statistic, rule.episodes, baseline)
             for alpha in ALPHAS:
@@ -339,21 +336,21 @@ def criterion_by_seeds(name: str) -> dict:
 
 
 def family_block() -> str:
-    """The family-wise section (``reproductions/check_family.py --write``), kept across rewrites."""
-    from check_family import BEGIN, END, render
+    """The family-wise section (``keras_rl/check/calibrate/family.py --write``), kept across rewrites."""
+    from keras_rl.check.calibrate.family import BEGIN, END, render
 
     path = CHECKS / "family.json"
     text = (
         render(json.loads(path.read_text()))
         if path.is_file()
-        else "Not computed yet: run python reproductions/check_family.py --write"
+        else "Not computed yet: run keras-rl calibrate family --write"
     )
     return f"{BEGIN}\n{text}\n{END}"
 
 
 def held_out_block() -> str:
-    """The held-out section (``reproductions/check_held_out.py --write``), kept across rewrites."""
-    from check_held_out import BEGIN, END, render
+    """The held-out section (``keras_rl/check/calibrate/held_out.py --write``), kept across rewrites."""
+    from keras_rl.check.calibrate.held_out import BEGIN, END, render
 
     path = CHECKS / "held_out.json"
     text = render(json.loads(path.read_text()) if path.is_file() else {})
@@ -525,19 +522,10 @@ def rules_table(merged: dict) -> str:
     return "\n".join(lines)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument(
-        "experiments", nargs="*", help=f"posts to recalibrate, of {sorted(MUTANTS)} (none: rerender calibration.md)"
-    )
-    parser.add_argument("--make", action="store_true", help="run the missing baseline and mutant sets first")
-    parser.add_argument(
-        "--write", action="store_true", help="update keras_rl/check/calibration.json and results/checks/calibration.md"
-    )
-    args = parser.parse_args()
+def run(args: argparse.Namespace) -> int:
     unknown = sorted(set(args.experiments) - set(MUTANTS))
     if unknown:
-        parser.error(f"unknown post {', '.join(unknown)} (choose from {', '.join(sorted(MUTANTS))})")
+        raise ConfigError(f"unknown post {', '.join(unknown)} (choose from {', '.join(sorted(MUTANTS))})")
     for name in args.experiments:
         for cmd in make_commands(name):
             print(("running: " if args.make else "missing; make it with: ") + " ".join(cmd), file=sys.stderr)
@@ -547,8 +535,8 @@ def main() -> None:
                 if made.parent.name == "mutants-seeds-10-29":
                     move_seeds(made, CHECKS / name / "mutants" / made.name)
         if not (CHECKS / name / "baseline").is_dir():
-            raise SystemExit(2)
-    command = "python reproductions/check_calibrate.py " + " ".join(sys.argv[1:])  # kept per post it measured
+            return 2
+    command = " ".join(["keras-rl calibrate rules", *args.experiments, *(["--make"] if args.make else []), "--write"])
     results = {
         name: {"command": command, "criterion_by_seeds": criterion_by_seeds(name), "tiers": calibrate(name)}
         for name in args.experiments
@@ -559,13 +547,8 @@ def main() -> None:
     text = markdown({k: merged[k] for k in sorted(merged)})
     print(text)
     if args.write:
-        from findings_table import replace_block
-
         atomic_write_text(path, json.dumps(merged, indent=2) + "\n")
         atomic_write_text(CHECKS / "calibration.md", text)
         readme = ROOT / "results" / "README.md"
         atomic_write_text(readme, replace_block(readme.read_text(), RULES_BEGIN, RULES_END, rules_table(merged)))
-
-
-if __name__ == "__main__":
-    main()
+    return 0

@@ -1,7 +1,7 @@
 """Where a version matrix cell's first episode parts from the reference's, step by step.
 
-    python reproductions/compat_first_episode.py dump OUT.npy [--experiment pendulum]   # in each virtualenv
-    python reproductions/compat_first_episode.py compare REF.npy CELL.npy
+    python matrix/compat_first_episode.py dump OUT.npy [--experiment pendulum]   # in each virtualenv
+    python matrix/compat_first_episode.py compare REF.npy CELL.npy
 
 Post 000's (or another post's) faithful seed 0, built as a solo run builds it, plays its first
 episode; each step's observation and action are recorded. ``compare`` names the first step and

@@ -2,7 +2,7 @@
 # Does `pip install -e .` keep a TensorFlow the user already has? A fresh venv gets TensorFlow
 # 2.19.1 first, then this project; the versions before and after, and a 3-episode run, go to
 # results/compat/keep-tf2.19.1.md.
-#     bash reproductions/compat_keep_tf.sh [TF_VERSION]
+#     bash matrix/compat_keep_tf.sh [TF_VERSION]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 tf=${1:-2.19.1}
@@ -22,7 +22,7 @@ tmp=$(mktemp)
 cat > "$tmp" <<MD
 # \`pip install -e .\` over an installed TensorFlow $tf
 
-Made by \`bash reproductions/compat_keep_tf.sh $tf\` on $(date -u +%Y-%m-%d).
+Made by \`bash matrix/compat_keep_tf.sh $tf\` on $(date -u +%Y-%m-%d).
 
 - Before: $before
 - After \`pip install -e .\`: $after

@@ -1,7 +1,7 @@
 """The sequential check against the fixed-n rule, on the same simulated checks.
 
-    python reproductions/check_sequential.py            # print the table
-    python reproductions/check_sequential.py --write  # results/checks/sequential.md, keras_rl/check/sequential.json
+    keras-rl calibrate designs            # print the table
+    keras-rl calibrate designs --write  # results/checks/sequential.md, keras_rl/check/sequential.json
 
 For each post and tier: the design of ``keras_rl/check/sequential.py`` (looks at 5, 10, ...,
 30 fresh seeds; futility above a bound from the second look), its efficacy level calibrated
@@ -27,22 +27,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import sys
-from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "reproductions"))
-os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
-
-from check_runs import REPORT, TUNE, halved, load, values  # noqa: E402
-
-from keras_rl.check.command import SEQUENTIAL, baseline_values  # noqa: E402
-from keras_rl.check.rules import MUTANTS, RULES, TIERS  # noqa: E402
-from keras_rl.check.sequential import (  # noqa: E402
+from keras_rl.check.calibrate.runs import REPORT, TUNE, halved, load, values
+from keras_rl.check.command import SEQUENTIAL, baseline_values
+from keras_rl.check.rules import MUTANTS, RULES, TIERS
+from keras_rl.check.sequential import (
     DESIGN,
     calibrate,
     choose_futility,
@@ -51,14 +42,15 @@ from keras_rl.check.sequential import (  # noqa: E402
     null_pvalues,
     simulate,
 )
-from keras_rl.registry import get_experiment  # noqa: E402
-from keras_rl.runs.files import atomic_write_text  # noqa: E402
+from keras_rl.checkout import ROOT
+from keras_rl.registry import get_experiment
+from keras_rl.runs.files import atomic_write_text
 
 CHECKS = ROOT / "results" / "checks"
 POSTS = ("pendulum", "cartpole", "mountaincar")
 FAMILY_ALPHA = 0.01
 NULL_REPEATS, MUTANT_REPEATS = 4000, 1000
-COMMAND = "python reproductions/check_sequential.py --write"
+COMMAND = "keras-rl calibrate designs --write"
 
 
 def study(post: str, tier: str) -> dict:
@@ -199,21 +191,13 @@ def render(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument(
-        "--write", action="store_true", help="write results/checks/sequential.md and keras_rl/check/sequential.json"
-    )
-    args = parser.parse_args()
+def run(args: argparse.Namespace) -> int:
     results = [study(post, tier) for tier in TIERS for post in POSTS]
     text = render(results)
     if not args.write:
         print(text)
-        return
+        return 0
     atomic_write_text(SEQUENTIAL, json.dumps({"command": COMMAND, "results": results}, indent=2) + "\n")
     atomic_write_text(CHECKS / "sequential.md", text + "\n")
     print(f"wrote {CHECKS / 'sequential.md'} and {SEQUENTIAL}")
-
-
-if __name__ == "__main__":
-    main()
+    return 0

@@ -1,7 +1,7 @@
 """The false-alarm rate of a bisect step's sequential check (issue #21, item 5), measured.
 
-    python reproductions/check_bisect_levels.py            # print the table
-    python reproductions/check_bisect_levels.py --write    # results/checks/bisect_levels.md
+    keras-rl calibrate bisect-levels            # print the table
+    keras-rl calibrate bisect-levels --write    # results/checks/bisect_levels.md
 
 ``keras-rl bisect`` gives each step alpha / (1 + ceil(log2 n)) of its alpha and runs
 ``check --sequential --alpha SHARE`` there: each post stops as changed below SHARE / posts /
@@ -15,26 +15,20 @@ included), the share called changed at each level, against the level it must sta
 from __future__ import annotations
 
 import argparse
-import os
-import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
-
-from keras_rl.check.bisect import step_budget  # noqa: E402
-from keras_rl.check.command import BASELINES, baseline_values, sequential_design  # noqa: E402
-from keras_rl.check.rules import rule_for  # noqa: E402
-from keras_rl.check.sequential import at_level, null_pvalues, simulate  # noqa: E402
-from keras_rl.registry import get_experiment  # noqa: E402
+from keras_rl.check.bisect import step_budget
+from keras_rl.check.command import BASELINES, baseline_values, sequential_design
+from keras_rl.check.rules import rule_for
+from keras_rl.check.sequential import at_level, null_pvalues, simulate
+from keras_rl.errors import ConfigError
+from keras_rl.registry import get_experiment
 
 POSTS = ("pendulum", "cartpole", "mountaincar")
 ALPHA = 0.01
 COMMITS = (8, 100)  # a short and a long bisect
 DRAWS = 50_000
 OUT = BASELINES / "bisect_levels.md"
-COMMAND = "python reproductions/check_bisect_levels.py --write"
+COMMAND = "keras-rl calibrate bisect-levels --write"
 
 
 def measure(draws: int = DRAWS) -> list[dict]:
@@ -104,22 +98,16 @@ def render(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--write", action="store_true", help=f"write {OUT.relative_to(ROOT)}")
-    parser.add_argument("--draws", type=int, default=DRAWS, help=f"unchanged checks per post (default {DRAWS:,})")
-    args = parser.parse_args()
+def run(args: argparse.Namespace) -> int:
+    args.draws = DRAWS if args.draws is None else args.draws
     if args.draws < 100:
-        raise SystemExit(f"error: --draws must be at least 100, got {args.draws}")
+        raise ConfigError(f"--draws must be at least 100, got {args.draws}")
     text = render(measure(args.draws))
     if not args.write:
         print(text)
-        return
+        return 0
     from keras_rl.runs.files import atomic_write_text
 
     atomic_write_text(OUT, text + "\n")
     print(f"wrote {OUT}")
-
-
-if __name__ == "__main__":
-    main()
+    return 0

@@ -1,6 +1,6 @@
 """Tabulate multi-seed run folders against a baseline: the ledger's "measured effect" column.
 
-    python reproductions/compare_runs.py results/pendulum/faithful \
+    keras-rl tables runs results/pendulum/faithful \
         results/pendulum/fixed results/pendulum/ablations/*
 
 Each argument is a folder of ``seed_<n>/summary.json`` written by ``keras-rl reproduce``.
@@ -10,24 +10,22 @@ success rate with a two-sided Fisher exact p-value against the baseline's; episo
 p-value against the baseline's over every seed, a seed that never reached the threshold counting
 as the budget + 1 (``report/stats.censored_mann_whitney``, as ``compare`` and ``check`` treat it);
 and the final metric (median) with its Mann-Whitney p-value
-(SciPy). ``findings_table.py`` puts the same table into ``results/README.md``'s per-post
+(SciPy). ``report/tables/findings.py`` puts the same table into ``results/README.md``'s per-post
 sections (``runs_table``).
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+import numpy as np
+from scipy.stats import fisher_exact, mannwhitneyu
 
-import numpy as np  # noqa: E402
-from scipy.stats import fisher_exact, mannwhitneyu  # noqa: E402
-
-from keras_rl.report.equivalence import episodes_with_censoring  # noqa: E402
-from keras_rl.report.stats import censored_mann_whitney, episodes_to_threshold_stats  # noqa: E402
-from keras_rl.runs.run_set import RunSet  # noqa: E402
+from keras_rl.checkout import ROOT
+from keras_rl.report.equivalence import episodes_with_censoring
+from keras_rl.report.stats import censored_mann_whitney, episodes_to_threshold_stats
+from keras_rl.runs.run_set import RunSet
 
 
 def load(folder: Path) -> list[dict]:
@@ -95,11 +93,6 @@ def runs_table(folders: list[Path]) -> str:
     return "\n".join(lines)
 
 
-def main(folders: list[str]) -> None:
-    if not folders:
-        raise SystemExit(__doc__)
-    print(runs_table([Path(f) for f in folders]))
-
-
-if __name__ == "__main__":
-    main(sys.argv[1:])
+def run(args: argparse.Namespace) -> int:
+    print(runs_table(args.folders))
+    return 0

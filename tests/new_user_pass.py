@@ -1,6 +1,6 @@
 """A new user's pass over a fresh clone: what two rounds of new users reported (every item of the second), run again.
 
-    python reproductions/new_user_pass.py [--write]
+    python tests/new_user_pass.py [--write]
 
 Clones this repository (its committed HEAD) into a temporary folder, and runs each scenario
 there with this interpreter and the clone's own code (``PYTHONPATH``). Every scenario states
@@ -568,7 +568,7 @@ def main() -> None:
         lines = [
             "# A new user's pass over a fresh clone",
             "",
-            f"`python reproductions/new_user_pass.py --write` on a fresh clone of commit `{commit.strip()}`: the",
+            f"`python tests/new_user_pass.py --write` on a fresh clone of commit `{commit.strip()}`: the",
             "commands two rounds of new users reported, each with what a user must see (the exit code, a",
             "message naming the problem, no traceback, none of their files lost).",
             "",

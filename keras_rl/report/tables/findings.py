@@ -1,11 +1,11 @@
 """The findings table of results/README.md, computed from the committed run folders.
 
-    python reproductions/findings_table.py            # print the table
-    python reproductions/findings_table.py --write    # replace it in results/README.md and README.md
-    python reproductions/findings_table.py --changes  # what seeds 0-9 said against what all the seeds say
+    keras-rl tables findings            # print the table
+    keras-rl tables findings --write    # replace it in results/README.md and README.md
+    keras-rl tables findings --changes  # what seeds 0-9 said against what all the seeds say
 
 and the Keras-vs-PyTorch summary, one row per ``results/compare/**/result.json``, and the
-generated part of each per-post section (``post_block``: ``compare_runs.py``'s table of the
+generated part of each per-post section (``post_block``: ``tables/runs.py``'s table of the
 post's variants, and what the seeds say about the post's own claim).
 
 One row per post x variant x framework: success rate, episodes to threshold (median and
@@ -18,19 +18,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "reproductions"))
-
-from compare_runs import load, runs_table, seed_span  # noqa: E402  (beside this file)
-
-from keras_rl.report.stats import wilson_interval  # noqa: E402
-from keras_rl.runs.run_set import RunSet  # noqa: E402
+from keras_rl.checkout import ROOT
+from keras_rl.report.markdown import replace_block
+from keras_rl.report.stats import wilson_interval
+from keras_rl.report.tables.runs import load, runs_table, seed_span
+from keras_rl.runs.run_set import RunSet
 
 BEGIN, END = "<!-- findings-table:begin -->", "<!-- findings-table:end -->"
 COMPARE_BEGIN, COMPARE_END = "<!-- compare-table:begin -->", "<!-- compare-table:end -->"
@@ -144,7 +140,7 @@ def _seeds(summaries: list[dict]) -> str:
 
 def post_block(post: str) -> str:
     """The generated part of a per-post section of results/README.md: the variants against each
-    other (``compare_runs.py``'s table, with its command), and what the seeds say about the
+    other (``tables/runs.py``'s table, with its command), and what the seeds say about the
     post's own claim."""
     results = ROOT / "results"
     if post == "post000":
@@ -212,7 +208,7 @@ def post_block(post: str) -> str:
         )
     else:
         raise ValueError(post)
-    command = "python reproductions/compare_runs.py " + " ".join(str(f.relative_to(ROOT)) for f in folders)
+    command = "keras-rl tables runs " + " ".join(str(f.relative_to(ROOT)) for f in folders)
     return f"{runs_table(folders)}\n\n(`{command}`)\n\n{said}"
 
 
@@ -388,28 +384,14 @@ def _arm(folder: Path, seeds: set[int]) -> tuple[int, int, list[int]]:
     return len(hits), len(summaries), hits
 
 
-def replace_block(content: str, begin: str, end: str, text: str) -> str:
-    if begin not in content or end not in content:
-        raise SystemExit(f"results/README.md has no {begin} ... {end} markers to replace")
-    head, rest = content.split(begin, 1)
-    _, tail = rest.split(end, 1)
-    return f"{head}{begin}\n{text}\n{end}{tail}"
-
-
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--write", action="store_true", help="replace the table in results/README.md")
-    parser.add_argument(
-        "--changes", action="store_true", help="print each row and comparison on seeds 0-9 against all its seeds"
-    )
-    args = parser.parse_args()
+def run(args: argparse.Namespace) -> int:
     if args.changes:
         print(changes_table())
-        return
+        return 0
     text, compared = table(), compare_table()
     if not args.write:
         print(text, compared, *(post_block(post) for post in POSTS), sep="\n\n")
-        return
+        return 0
     from keras_rl.runs.files import atomic_write_text
 
     readme = ROOT / "results" / "README.md"
@@ -421,7 +403,4 @@ def main() -> None:
     main_readme = ROOT / "README.md"
     atomic_write_text(main_readme, replace_block(main_readme.read_text(), SHORT_BEGIN, SHORT_END, short_table()))
     print(f"updated {readme} and {main_readme}")
-
-
-if __name__ == "__main__":
-    main()
+    return 0

@@ -1,0 +1,136 @@
+"""The maintainers' commands: what regenerates the checkout's committed figures.
+
+- ``keras-rl calibrate rules|family|held-out|designs|bisect-levels``: the check's calibration
+  (``keras_rl/check/calibrate/``), whose JSON ships as package data;
+- ``keras-rl tables findings|ablations|compat|forest|runs``: the generated Markdown tables
+  (``keras_rl/report/tables/``), each spliced between its markers (``report/markdown.py``);
+- ``keras-rl manifest``: ``results/MANIFEST``, and ``--regenerate`` to rerun sets and compare.
+
+Each reads the checkout's ``results/`` (``keras_rl/checkout.py``); a package installed outside
+a checkout says so (exit 2). The arguments are declared here and each module's ``run(args)``
+is imported only when its command runs (they import SciPy: ``keras-rl list`` should not).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+from pathlib import Path
+
+from keras_rl.checkout import results_dir
+from keras_rl.runs.options import shared_flags
+
+
+def _what(inner, name: str, module: str, help: str, *flags: str) -> argparse.ArgumentParser:
+    p = inner.add_parser(name, help=help, description=help, parents=[shared_flags(*flags)])
+    p.set_defaults(module=module)
+    return p
+
+
+def add_parser(sub) -> None:
+    """``calibrate``, ``tables`` and ``manifest``."""
+    group = sub.add_parser("calibrate", help="measure the check's error rates and designs (keras_rl/check/calibrate/)")
+    inner = group.add_subparsers(dest="what", required=True, metavar="WHAT", help="what to measure")
+    p = _what(
+        inner,
+        "rules",
+        "keras_rl.check.calibrate.rules",
+        "each candidate rule's false-alarm rate and power on the committed baseline and mutant runs, "
+        "and the rule the pre-registered criterion picks (keras_rl/check/calibration.json, "
+        "results/checks/calibration.md)",
+        "--write",
+    )
+    p.add_argument("experiments", nargs="*", help="posts to recalibrate (none: rerender calibration.md)")
+    p.add_argument("--make", action="store_true", help="run the missing baseline and mutant sets first")
+    p = _what(
+        inner,
+        "family",
+        "keras_rl.check.calibrate.family",
+        "the three-post command's family-wise false-alarm rate, and its spread over simulated baselines "
+        "(results/checks/family.json, calibration.md's block)",
+        "--write",
+    )
+    p = _what(
+        inner,
+        "held-out",
+        "keras_rl.check.calibrate.held_out",
+        "the chosen rules' power against the held-out mutants (results/checks/held_out.json)",
+        "--write",
+    )
+    p.add_argument("--missing", action="store_true", help="print the commands for the missing held-out runs")
+    p = _what(
+        inner,
+        "designs",
+        "keras_rl.check.calibrate.designs",
+        "the sequential check's designs: looks, bounds, error rates and expected seeds "
+        "(keras_rl/check/sequential.json, results/checks/sequential.md)",
+        "--write",
+    )
+    p = _what(
+        inner,
+        "bisect-levels",
+        "keras_rl.check.calibrate.bisect_levels",
+        "the bisect's per-step levels against simulated unchanged checks (results/checks/bisect_levels.md)",
+        "--write",
+    )
+    p.add_argument("--draws", type=int, default=None, help="unchanged checks per post (default 50,000)")
+
+    group = sub.add_parser("tables", help="regenerate the committed Markdown tables from the committed runs")
+    inner = group.add_subparsers(dest="what", required=True, metavar="WHAT", help="which tables")
+    p = _what(
+        inner,
+        "findings",
+        "keras_rl.report.tables.findings",
+        "the findings tables of results/README.md and the README's short table",
+        "--write",
+        "--changes",
+    )
+    p = _what(
+        inner,
+        "ablations",
+        "keras_rl.report.tables.ablations",
+        "FIDELITY.md's measured-effect tables, one per post, and post 001's readings",
+        "--write",
+        "--changes",
+    )
+    p.add_argument("experiments", nargs="*", default=None, help="default: all three posts")
+    p = _what(
+        inner,
+        "compat",
+        "keras_rl.report.tables.compat",
+        "the version matrix's tables (results/compat/README.md, the README's short table) from the cell folders",
+        "--write",
+    )
+    _what(
+        inner,
+        "forest",
+        "keras_rl.report.tables.forest",
+        "every two-arm comparison's estimate, 90% interval, margin and reading, drawn (results/forest.png) "
+        "and tabled (results/README.md, docs/findings.md)",
+        "--write",
+    )
+    p = _what(
+        inner,
+        "runs",
+        "keras_rl.report.tables.runs",
+        "run-set folders tabulated against the first: the ledger's measured-effect column",
+    )
+    p.add_argument("folders", nargs="+", type=Path, help="run-set folders of seed_<n>/; the first is the baseline")
+
+    p = sub.add_parser(
+        "manifest",
+        help="results/MANIFEST: every committed run set with its command; --regenerate reruns sets and compares",
+        parents=[shared_flags("--out", "--workers", "--write")],
+    )
+    p.set_defaults(module="keras_rl.runs.manifest")
+    p.add_argument(
+        "--regenerate",
+        nargs="+",
+        metavar="SET",
+        help="rerun the sets matching these patterns (fnmatch) into --out and compare them with the committed ones",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    results_dir()  # exit 2 outside a checkout, before anything is read
+    return int(importlib.import_module(args.module).run(args))

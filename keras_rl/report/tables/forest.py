@@ -1,0 +1,259 @@
+"""Every verdict drawn: one forest plot of every two-arm comparison the project commits.
+
+    keras-rl tables forest            # print the table
+    keras-rl tables forest --write    # results/forest.png (and docs/forest.png), results/forest.json,
+                                      # and the blocks of results/README.md and docs/findings.md
+
+Each row is a comparison of two arms on the seeds both hold, judged on the two margins set on
+2026-11-23 before the runs (``report/equivalence.framework_verdict``, the function ``compare``
+and ``reproductions/seed_batch_compare.py`` call): the difference of success rates (first arm
+minus second) within ±0.15, and the ratio of median episodes to threshold (first over second;
+a seed that never reached the threshold counts as the budget + 1) within 0.9 to 1.1. Each
+shows its estimate, its 90% interval (TOST), the margin band, and its reading: equivalent
+within the margin, different, or inconclusive at its number of seeds.
+
+The rows: Keras against PyTorch, default and matched init (the committed ``compare`` results,
+``results/compare/<post>/[matched-init/]result.json``); the compiled engine against the
+Gymnasium loop; seed-batched against solo runs; and each post's ablations, every quirk switched
+off alone against the faithful base. A comparison whose plan sets a number of seeds before its
+reading (``COMPARISONS``' ``seeds_before_reading``) is listed as pending, and not drawn, until
+both arms hold that many.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from keras_rl.checkout import ROOT
+
+RESULTS = ROOT / "results"
+FIGURE = RESULTS / "forest.png"
+DOCS_FIGURE = ROOT / "docs" / "forest.png"
+"""The same figure beside ``docs/findings.md`` (the docs site takes no link out of ``docs/``)."""
+DATA = RESULTS / "forest.json"
+COMMAND = "keras-rl tables forest --write"
+PAGES = (RESULTS / "README.md", ROOT / "docs" / "findings.md")
+BEGIN, END = "<!-- forest:begin -->", "<!-- forest:end -->"
+
+
+@dataclass(frozen=True)
+class Comparison:
+    group: str
+    label: str
+    first: tuple[str, ...] = ()
+    """Folders (under ``results/``) of the first arm's seeds; or ``compare``'s result.json below."""
+    second: tuple[str, ...] = ()
+    result: str | None = None
+    """A committed ``compare`` result (``results/compare/...``), which holds both arms."""
+    seeds_before_reading: int = 0
+
+
+def _comparisons() -> list[Comparison]:
+    out = []
+    for post in ("pendulum", "cartpole", "mountaincar"):
+        out.append(Comparison("Keras vs PyTorch", post, result=f"compare/{post}/result.json"))
+        out.append(
+            Comparison("Keras vs PyTorch, matched init", post, result=f"compare/{post}/matched-init/result.json")
+        )
+    for post, seeds in (("pendulum", 100), ("cartpole", 100)):
+        out.append(
+            Comparison(
+                "compiled engine vs Gymnasium loop",
+                post,
+                (f"engines/{post}/compiled",),
+                (f"engines/{post}/gymnasium",),
+                seeds_before_reading=seeds,
+            )
+        )
+    for label, batched, solo in (
+        ("pendulum, batch of 10", "pendulum/seed-batch/batch10", "pendulum/faithful"),
+        ("pendulum (PyTorch), batch of 10", "pendulum/seed-batch-torch/batch10", "pendulum/faithful-torch"),
+        ("cartpole, batch of 15", "checks/cartpole/baseline", "cartpole/faithful"),
+        ("mountaincar, batch of 10", "mountaincar/seed-batch/batch10", "mountaincar/faithful"),
+    ):
+        out.append(Comparison("seed-batched vs solo", label, (batched,), (solo,)))
+    for post in ("pendulum", "cartpole", "mountaincar"):
+        ablations = RESULTS / post / "ablations"
+        for point in sorted(p.name for p in ablations.iterdir() if p.is_dir() and p.name != "base"):
+            out.append(
+                Comparison(
+                    f"{post} ablation vs faithful",
+                    point,
+                    (f"{post}/ablations/{point}",),
+                    (f"{post}/ablations/base",),
+                )
+            )
+    return out
+
+
+def _arm(folders: tuple[str, ...]) -> dict[int, dict[str, Any]]:
+    from keras_rl.runs.run_set import RunSet
+
+    records: dict[int, dict[str, Any]] = {}
+    for folder in folders:
+        for record in RunSet(RESULTS / folder).summary_records():
+            records[int(record["seed"])] = record
+    return records
+
+
+def _hits(records: list[dict[str, Any]]) -> list[int]:
+    return [int(r["reached_at_episode"]) for r in records if r["success"] and r["reached_at_episode"]]
+
+
+def row(c: Comparison) -> dict[str, Any]:
+    """One comparison's numbers and readings (or why it is pending)."""
+    from keras_rl.report.equivalence import framework_verdict
+
+    if c.result is not None:
+        result = json.loads((RESULTS / c.result).read_text())
+        arms = [result["frameworks"][fw] for fw in ("keras", "torch")]
+        seeds = [len(a["seeds"]) for a in arms]
+        hits = [list(a["episodes_to_threshold"]) for a in arms]
+        budget = int(result["budget"])
+        successes = [int(a["successes"]) for a in arms]
+        source = c.result
+    else:
+        first, second = _arm(c.first), _arm(c.second)
+        common = sorted(set(first) & set(second))
+        n = len(common)
+        source = " and ".join(c.first + c.second)
+        if n < max(c.seeds_before_reading, 1):
+            return {"group": c.group, "label": c.label, "source": source, "seeds": n, "pending": True}
+        arms_records = [[first[s] for s in common], [second[s] for s in common]]
+        seeds = [n, n]
+        hits = [_hits(r) for r in arms_records]
+        successes = [sum(bool(r["success"]) for r in rs) for rs in arms_records]
+        budget = int(arms_records[1][0]["budget_episodes"])
+    _, (success, speed) = framework_verdict(
+        (successes[0], successes[1]), (seeds[0], seeds[1]), (hits[0], hits[1]), budget
+    )
+    return {
+        "group": c.group,
+        "label": c.label,
+        "source": source,
+        "seeds": seeds[0] if seeds[0] == seeds[1] else seeds,
+        "pending": False,
+        **{
+            name: {
+                "estimate": _num(e.estimate),
+                "low": _num(e.tost.low),
+                "high": _num(e.tost.high),
+                "margin": list(e.margin),
+                "reading": e.reading,
+            }
+            for name, e in (("success", success), ("speed", speed))
+        },
+    }
+
+
+def _num(x: float) -> float | None:
+    return round(float(x), 4) if np.isfinite(x) else None
+
+
+def rows() -> list[dict[str, Any]]:
+    return [row(c) for c in _comparisons()]
+
+
+READ = {"equivalent within the margin": "equivalent", "different": "**different**", "inconclusive": "inconclusive"}
+
+
+def _cell(v: dict[str, Any]) -> str:
+    if v["estimate"] is None:
+        return f"no estimate: {READ[v['reading']]}"
+    return f"{v['estimate']:.3g} ({v['low']:.3g} to {v['high']:.3g}): {READ[v['reading']]}"
+
+
+def table(data: list[dict[str, Any]]) -> str:
+    lines = [
+        "![every verdict: estimates and 90% intervals against the margins](forest.png)",
+        "",
+        "Every two-arm comparison the project commits, drawn above and tabled here "
+        f"(`{COMMAND}`; margins set before the runs: success difference within ±0.15, median-episodes "
+        "ratio within 0.9 to 1.1; each cell: estimate (90% interval): reading; a test fails when this "
+        "block is stale).",
+        "",
+        "| comparison | first against second | seeds | success difference | median-episodes ratio |",
+        "|---|---|---|---|---|",
+    ]
+    for r in data:
+        if r["pending"]:
+            lines.append(
+                f"| {r['group']} | {r['label']} | {r['seeds']} so far | pending: no reading before "
+                "its planned seeds | pending |"
+            )
+            continue
+        lines.append(f"| {r['group']} | {r['label']} | {r['seeds']} | {_cell(r['success'])} | {_cell(r['speed'])} |")
+    return "\n".join(lines)
+
+
+RATIO_AXIS = (0.5, 2.0)
+COLOURS = {"equivalent within the margin": "tab:green", "different": "tab:red", "inconclusive": "tab:gray"}
+
+
+def draw(data: list[dict[str, Any]], path: Path) -> None:
+    """Two panels (success difference, median ratio), a row per comparison: the estimate and its
+    90% interval coloured by reading, the margin band shaded."""
+    from keras_rl.report.plots import plt, save_figure
+
+    shown = [r for r in data if not r["pending"]]
+    fig, axes = plt.subplots(1, 2, figsize=(13, 0.32 * len(shown) + 1.6), sharey=True)
+    labels = [f"{r['group']}: {r['label']} ({r['seeds']} seeds)" for r in shown]
+    y = np.arange(len(shown))[::-1]
+    for ax, key, title in (
+        (axes[0], "success", "success rate, first minus second"),
+        (axes[1], "speed", "median episodes to threshold, first over second"),
+    ):
+        margin = shown[0][key]["margin"] if shown else [0, 1]
+        ax.axvspan(margin[0], margin[1], color="tab:green", alpha=0.08, lw=0)
+        ax.axvline(0.0 if key == "success" else 1.0, color="k", lw=0.7)
+        for yi, r in zip(y, shown):
+            v = r[key]
+            if v["estimate"] is None:
+                continue
+            colour = COLOURS[v["reading"]]
+            low, high = v["low"], v["high"]
+            if key == "speed":
+                if low < RATIO_AXIS[0]:
+                    ax.plot([RATIO_AXIS[0]], [yi], "<", color=colour, ms=5, clip_on=False)
+                if high > RATIO_AXIS[1]:
+                    ax.plot([RATIO_AXIS[1]], [yi], ">", color=colour, ms=5, clip_on=False)
+                low, high = max(low, RATIO_AXIS[0]), min(high, RATIO_AXIS[1])
+            ax.plot([low, high], [yi, yi], color=colour, lw=2)
+            ax.plot([v["estimate"]], [yi], "o", color=colour, ms=4)
+        ax.set_title(title, fontsize=10)
+        ax.grid(axis="x", alpha=0.3, which="both")
+        if key == "speed":  # a ratio: symmetric on a log axis; what lies beyond the axis is cut, with an arrow
+            ax.set_xscale("log")
+            ax.set_xlim(*RATIO_AXIS)
+            ax.set_xticks([0.5, 0.67, 0.8, 0.9, 1.0, 1.1, 1.25, 1.5, 2.0])
+            ax.set_xticklabels(["0.5", "0.67", "0.8", "0.9", "1", "1.1", "1.25", "1.5", "2"], fontsize=8)
+            ax.minorticks_off()
+    axes[0].set_yticks(y)
+    axes[0].set_yticklabels(labels, fontsize=7)
+    handles = [plt.Line2D([], [], color=c, marker="o", lw=2, label=k) for k, c in COLOURS.items()]
+    fig.legend(handles=handles, fontsize=8, loc="upper left", ncol=3)
+    fig.suptitle(f"Every verdict, 90% intervals against the margins set before the runs (`{COMMAND}`)", fontsize=10)
+    save_figure(fig, path)
+
+
+def run(args) -> int:
+    from keras_rl.report.markdown import replace_block
+    from keras_rl.runs.files import atomic_write_bytes, atomic_write_json, atomic_write_text
+
+    data = rows()
+    text = table(data)
+    if not args.write:
+        print(text)
+        return 0
+    atomic_write_json(DATA, {"command": COMMAND, "rows": data})
+    draw(data, FIGURE)
+    atomic_write_bytes(DOCS_FIGURE, FIGURE.read_bytes())
+    for page in PAGES:
+        atomic_write_text(page, replace_block(page.read_text(), BEGIN, END, text))
+    print(f"wrote {FIGURE}, {DATA} and the blocks of {', '.join(str(p) for p in PAGES)}")
+    return 0

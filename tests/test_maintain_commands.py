@@ -1,0 +1,57 @@
+"""The maintainers' commands (``keras-rl calibrate``, ``tables``, ``manifest``): what moved out of
+``reproductions/`` into the package (issue 33), reachable from the CLI, with bad input refused."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from keras_rl.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_tables_runs_tabulates_folders_against_the_first(capsys):
+    assert main(["tables", "runs", "results/pendulum/faithful", "results/pendulum/fixed"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("| runs | seeds | success | Fisher p |")
+    assert lines[2].startswith("| `results/pendulum/faithful` | 0-29 | 30/30 | - |")
+    assert lines[3].startswith("| `results/pendulum/fixed` | 0-29 | 30/30 |")
+
+
+def test_tables_print_without_writing(capsys, monkeypatch):
+    import keras_rl.runs.files as files
+
+    monkeypatch.setattr(files, "atomic_write_text", lambda *a, **k: pytest.fail("wrote without --write"))
+    assert main(["tables", "compat"]) == 0
+    assert "| cell |" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["tables", "ablations", "nosuchpost"], "unknown experiment(s) nosuchpost"),
+        (["calibrate", "rules", "nosuchpost"], "unknown post nosuchpost"),
+        (["calibrate", "bisect-levels", "--draws", "5"], "--draws must be at least 100, got 5"),
+        (["manifest", "--regenerate", "pendulum/faithful"], "--regenerate needs --out"),
+        (["manifest", "--regenerate", "pendulum/faithful", "--out", "results/x"], "--out must not be inside results/"),
+    ],
+)
+def test_bad_input_exits_2_naming_it(argv, message, capsys):
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_outside_a_checkout_the_maintainers_commands_say_so(capsys, monkeypatch, tmp_path):
+    import keras_rl.checkout as checkout
+
+    monkeypatch.setattr(checkout, "RESULTS", tmp_path / "no-results")
+    assert main(["tables", "findings"]) == 2
+    assert "no results/ beside this keras_rl" in capsys.readouterr().err
+
+
+def test_a_subcommand_is_required(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["calibrate"])
+    assert exit_.value.code == 2 and "WHAT" in capsys.readouterr().err
