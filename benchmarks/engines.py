@@ -98,9 +98,11 @@ def main() -> None:
     startup = {name: statistics.median(s) for name, s in startups.items()}
     ratio = per_step["gymnasium"] / per_step["compiled"]
     when = time.strftime("%Y-%m-%d")
+    batch = f" --batch {args.batch}" if args.batch else ""
+    machine = platform.processor() or platform.machine()
     lines = [
         f"`python benchmarks/engines.py --experiment {args.experiment} --episodes {args.episodes} "
-        f"--rounds {args.rounds} --markdown` ({when}, {platform.processor() or platform.machine()}, one "
+        f"--rounds {args.rounds}{batch} --markdown` ({when}, {machine}, one "
         f"TensorFlow thread; {args.experiment} seed 0, {args.episodes} episodes per run, the steady rate "
         f"after episode {first + 1}, medians of {args.rounds} rounds):",
         "",
