@@ -80,6 +80,8 @@ def test_only_learners_that_declare_masks_are_given_them():
     assert stacked.StackedDDPGLearner.takes_masks is True
     assert torch_stacked.StackedTorchDDPGLearner.takes_masks is True
     solo = stacked.SoloAsStack(learner=type("L", (), {"loss_names": ("q",), "compile": lambda self: None})())
+    with pytest.raises(TypeError, match="has no compile"):
+        stacked.SoloAsStack(learner=type("Old", (), {"loss_names": ("q",)})())
     with pytest.raises(ValueError, match="takes no mask"):
         solo.train(None, mask=[True])
 

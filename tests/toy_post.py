@@ -70,6 +70,9 @@ class TableLearner:
         self.lr, self.gamma = config.lr, config.gamma
         self.q = np.random.default_rng(config.seed).normal(0.0, 0.01, (6, spec.n_actions))
 
+    def compile(self) -> None:
+        """Nothing to trace: NumPy runs eagerly (the Learner protocol asks every learner)."""
+
     def train(self, rows: np.ndarray) -> dict[str, float]:
         s, a, r = rows[:, 0].astype(int), rows[:, 1].astype(int), rows[:, 2]
         s2, done = rows[:, 3].astype(int), rows[:, 4]

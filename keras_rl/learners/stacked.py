@@ -412,6 +412,11 @@ class SoloAsStack:
     def __init__(self, learner):
         self.learner = learner
         self.loss_names = tuple(learner.loss_names)
+        if not callable(getattr(type(learner), "compile", None)):
+            raise TypeError(
+                f"{type(learner).__name__} has no compile() (keras_rl/learners/protocol.Learner): a learner "
+                "traces its compiled steps there, or defines it to do nothing"
+            )
         self.compile = learner.compile  # the solo learner's own: no frame of ours between
 
     @staticmethod
