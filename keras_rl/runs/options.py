@@ -203,7 +203,7 @@ FLAGS: dict[str, dict[str, Any]] = {
     ),
 }
 """Every flag that more than one command takes, declared once: one default and one help text
-wherever it appears (``tests/test_cli_flags.py``). Where a command reads a None default as
+wherever it appears (``tests/test_options.py`` reads every command's parser). Where a command reads a None default as
 a value of its own, ``COMMAND_DEFAULTS`` says which, and the help text says it too."""
 
 COMMAND_DEFAULTS: dict[str, dict[str, Any]] = {

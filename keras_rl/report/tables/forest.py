@@ -45,9 +45,9 @@ BEGIN, END = "<!-- forest:begin -->", "<!-- forest:end -->"
 class Comparison:
     group: str
     label: str
-    first: tuple[str, ...] = ()
-    """Folders (under ``results/``) of the first arm's seeds; or ``compare``'s result.json below."""
-    second: tuple[str, ...] = ()
+    first: str = ""
+    """The first arm's run-set folder (under ``results/``); or ``compare``'s result.json below."""
+    second: str = ""
     result: str | None = None
     """A committed ``compare`` result (``results/compare/...``), which holds both arms."""
     seeds_before_reading: int = 0
@@ -65,8 +65,8 @@ def _comparisons() -> list[Comparison]:
             Comparison(
                 "compiled engine vs Gymnasium loop",
                 post,
-                (f"engines/{post}/compiled",),
-                (f"engines/{post}/gymnasium",),
+                f"engines/{post}/compiled",
+                f"engines/{post}/gymnasium",
                 seeds_before_reading=seeds,
             )
         )
@@ -76,7 +76,7 @@ def _comparisons() -> list[Comparison]:
         ("cartpole, batch of 15", "checks/cartpole/baseline", "cartpole/faithful"),
         ("mountaincar, batch of 10", "mountaincar/seed-batch/batch10", "mountaincar/faithful"),
     ):
-        out.append(Comparison("seed-batched vs solo", label, (batched,), (solo,)))
+        out.append(Comparison("seed-batched vs solo", label, batched, solo))
     for post in ("pendulum", "cartpole", "mountaincar"):
         ablations = RESULTS / post / "ablations"
         for point in sorted(p.name for p in ablations.iterdir() if p.is_dir() and p.name != "base"):
@@ -84,21 +84,18 @@ def _comparisons() -> list[Comparison]:
                 Comparison(
                     f"{post} ablation vs faithful",
                     point,
-                    (f"{post}/ablations/{point}",),
-                    (f"{post}/ablations/base",),
+                    f"{post}/ablations/{point}",
+                    f"{post}/ablations/base",
                 )
             )
     return out
 
 
-def _arm(folders: tuple[str, ...]) -> dict[int, dict[str, Any]]:
+def _arm(folder: str) -> dict[int, dict[str, Any]]:
+    """Seed -> its summary, for the run set at ``results/<folder>``."""
     from keras_rl.runs.run_set import RunSet
 
-    records: dict[int, dict[str, Any]] = {}
-    for folder in folders:
-        for record in RunSet(RESULTS / folder).summary_records():
-            records[int(record["seed"])] = record
-    return records
+    return {int(record["seed"]): record for record in RunSet(RESULTS / folder).summary_records()}
 
 
 def _hits(records: list[dict[str, Any]]) -> list[int]:
@@ -121,7 +118,7 @@ def row(c: Comparison) -> dict[str, Any]:
         first, second = _arm(c.first), _arm(c.second)
         common = sorted(set(first) & set(second))
         n = len(common)
-        source = " and ".join(c.first + c.second)
+        source = f"{c.first} and {c.second}"
         if n < max(c.seeds_before_reading, 1):
             return {"group": c.group, "label": c.label, "source": source, "seeds": n, "pending": True}
         arms_records = [[first[s] for s in common], [second[s] for s in common]]
