@@ -141,3 +141,41 @@ def test_committed_seed_batch_reproduces_bit_for_bit(tmp_path, folder, experimen
             assert agree(want, have, why is None), (
                 f"{folder} seed {seed}: first difference at episode {want['episode']}"
             )
+
+
+@pytest.mark.parametrize(
+    "folder, experiment, seeds, episodes",
+    [
+        pytest.param("engines/pendulum/compiled", "pendulum", "0-2", None, id="post000-compiled-seeds0-2"),
+        pytest.param("engines/cartpole/compiled", "cartpole", "0-1", 120, id="post003-compiled-seeds0-1-first120"),
+    ],
+)
+def test_committed_compiled_seeds_replay_bit_for_bit_on_one_kept_program(tmp_path, folder, experiment, seeds, episodes):
+    """The compiled engine's committed seeds (made one program per seed, before programs were
+    kept) rerun in one process, where every seed after the first runs on the first one's kept
+    program (``train/compiled.py:ProgramCache``): each seed's rows are the committed ones."""
+    committed = RESULTS / folder
+    first, last = (int(x) for x in seeds.split("-"))
+    summary = json.loads((committed / f"seed_{first}" / "summary.json").read_text())
+    assert summary["provenance"]["engine"] == "compiled" and "--workers 1" in summary["command"]
+    why = why_not_bit_exact(summary.get("provenance", {}))
+    if why is not None:
+        warnings.warn(f"{folder} was {why}: only 5 episodes are compared", stacklevel=2)
+        episodes = 5
+    budget = ["--episodes", str(episodes)] if episodes else []
+    out = tmp_path / "run"
+    proc = subprocess.run(
+        [sys.executable, "-m", "keras_rl", "reproduce", experiment, "--engine", "compiled", "--seeds", seeds]
+        + ["--workers", "1", "--no-progress", "--min-success-rate", "0", *budget, "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert proc.returncode == 0, proc.stderr
+    for seed in range(first, last + 1):
+        expected = read_rows(committed / f"seed_{seed}" / "episodes.csv")
+        expected = expected[:episodes] if episodes else expected
+        got = read_rows(out / f"seed_{seed}" / "episodes.csv")
+        assert len(got) == len(expected), f"seed {seed}"
+        for want, have in zip(expected, got):
+            assert agree(want, have, why is None), f"{folder} seed {seed}: differs at episode {want['episode']}"

@@ -29,6 +29,7 @@ loop's own.
 
 from __future__ import annotations
 
+import json
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -136,6 +137,52 @@ class PendulumProgram:
         return score, losses.stack()
 
 
+class ProgramCache:
+    """The compiled programs of this process, one per program-shaping config, kept for the next
+    seed: tracing and compiling a program costs about as much as a post 000 seed's training
+    (``docs/performance.md``), and every seed of a command but its seed has the same config.
+
+    A program is traced over one learner's variables and one ring; a later seed with the same
+    config takes them over: its freshly built learner's state (weights, target weights, both
+    optimizers' slots and step counts: ``state_dict``, the same records a checkpoint restores
+    bit for bit) is loaded into the program's learner, and the ring is zeroed. What the seed then
+    computes is what a program traced for it alone computes
+    (``tests/test_compiled_engine.py::test_a_seed_on_a_kept_program_plays_what_it_plays_alone``).
+    """
+
+    UNSHAPING = ("seed", "episodes")
+    """Config fields the traced program does not depend on (the host reads them)."""
+
+    def __init__(self, size: int = 4):
+        self.size = size
+        self.kept: dict[str, tuple[Any, Any]] = {}
+
+    def key(self, experiment: str, config) -> str:
+        fields = {k: v for k, v in config.to_dict().items() if k not in self.UNSHAPING}
+        return json.dumps([experiment, fields], sort_keys=True, default=str)
+
+    def take(self, experiment: str, config, fresh, make_program: Callable) -> tuple[Any, Any]:
+        """The (learner, program) this seed runs on, the learner holding ``fresh``'s state."""
+        key = self.key(experiment, config)
+        if key not in self.kept:
+            if len(self.kept) >= self.size:
+                self.kept.pop(next(iter(self.kept)))  # the oldest
+            self.kept[key] = (fresh, make_program(config, fresh))
+            return self.kept[key]
+        learner, program = self.kept.pop(key)
+        self.kept[key] = (learner, program)  # the most recently used last
+        learner.load_state_dict(fresh.state_dict())
+        program.ring.assign(tf.zeros_like(program.ring))
+        return learner, program
+
+    def clear(self) -> None:
+        self.kept.clear()
+
+
+PROGRAMS = ProgramCache()
+"""This process's kept programs (a Ray worker's too: its seeds run one after another in it)."""
+
+
 class CompiledRun:
     """One seed on the compiled engine: the host's side of each episode and the run's records.
     A post's subclass makes its program and plays an episode (``_play_episode``)."""
@@ -155,11 +202,11 @@ class CompiledRun:
         self.env = experiment.make_env(c)
         self.env.action_space.seed(c.seed)
         spec = experiment.env_spec(self.env)
-        self.learner = implementation(experiment.name, c.framework).load()(c, spec)
-        agent = experiment.assemble(c, spec, self.learner, self.env.action_space)
+        fresh = implementation(experiment.name, c.framework).load()(c, spec)  # this seed's initial weights
+        agent = experiment.assemble(c, spec, fresh, self.env.action_space)
         self.buffer, self.explorer, self.schedule = agent.buffer, agent.explorer, agent.schedule
         self.action_space = self.env.action_space
-        self.program = self.make_program(c, self.learner)
+        self.learner, self.program = PROGRAMS.take(experiment.name, c, fresh, self.make_program)
         self.recorder = RunRecorder(out_dir, self.learner.loss_names)
         self.run_ = SeedRun(experiment, c, self.recorder, experiment.make_metric(c), settings.command)
         self.run_.provenance["engine"] = ENGINE
