@@ -92,3 +92,47 @@ def test_P003_BUDGET_the_gpu_branch_of_the_tutorials_rule():
     post = Path(__file__).resolve().parents[2] / "shared" / "seeds" / "003_57d1feb4b7fdd940.txt"
     if post.is_file():
         assert "cuda" in post.read_text()
+
+
+def test_the_issue_3080_variant_is_the_four_values_the_issue_proposes_and_nothing_else():
+    """pytorch/tutorials #3080: ``EPS_START = 1.0``, ``EPS_END = 0``, ``EPS_DECAY = 1500``,
+    ``LR = 5e-4``; every other field is the tutorial's. Epsilon starts at 1 (every first
+    action random) and decays to 0 (greedy in the end), at e^-1 after 1,500 env steps."""
+    faithful = CartPoleDQNConfig.for_variant("faithful").to_dict()
+    fix = CartPoleDQNConfig.for_variant("issue-3080")
+    changed = {k: v for k, v in fix.to_dict().items() if faithful[k] != v}
+    assert changed == {"variant": "issue-3080", "eps_start": 1.0, "eps_end": 0.0, "eps_decay": 1500.0, "q_lr": 5e-4}
+    assert epsilon(fix, 0) == 1.0 and epsilon(fix, 1500) == pytest.approx(math.exp(-1))
+    assert epsilon(fix, 100_000) < 1e-28
+
+
+def test_the_tutorials_pytorch_code_reads_the_variants_values():
+    """The tutorial's own code (``torch/dqn_tutorial.py``) takes the same config: its AdamW has the
+    variant's learning rate and its ``select_action`` draws at the variant's epsilon."""
+    pytest.importorskip("torch", reason="needs the torch extra")
+    from keras_rl.torch.dqn_tutorial import TutorialDQNAgent
+
+    fix = CartPoleDQNConfig.for_variant("issue-3080", seed=0)
+    space = gym.spaces.Discrete(2)
+    space.seed(0)
+    agent = TutorialDQNAgent(fix, EnvSpec(4, 1, n_actions=2), space)
+    assert agent.optimizer.param_groups[0]["lr"] == 5e-4
+    state = torch_state()
+    # epsilon above 0.97 for 40 steps: a draw of 0.97 explores (under the tutorial's 0.9 it would not)
+    agent.policy_net.layer3.bias.data[:] = torch_tensor([0.0, 1e6])  # greedy: always action 1
+    picks = [int(agent.select_action(state, sample=0.97)) for _ in range(40)]  # steps 0-39: epsilon > 0.974
+    assert 0 in picks  # a random action, not only the greedy 1
+    agent.steps_done = 100_000
+    assert int(agent.select_action(state, sample=1e-12)) == 1  # epsilon 0 in the end: greedy
+
+
+def torch_state():
+    import torch
+
+    return torch.tensor([OBS], dtype=torch.float32)
+
+
+def torch_tensor(values):
+    import torch
+
+    return torch.tensor(values)

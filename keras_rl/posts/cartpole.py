@@ -30,6 +30,13 @@ class CartPoleDQNConfig(ExperimentConfig):
 
     experiment: ClassVar[str] = "cartpole"
     post: ClassVar[str] = "003_57d1feb4b7fdd940"
+    VARIANTS: ClassVar[dict[str, dict[str, Any]]] = {
+        "faithful": {},
+        # pytorch/tutorials issue #3080 ("DQN is not performing well even after 600 episodes")
+        # proposes these four values, backed by one learning curve; the tutorial's maintainers
+        # invited a PR with them. Not the post's code: a community fix, measured (docs/findings.md).
+        "issue-3080": {"eps_start": 1.0, "eps_end": 0.0, "eps_decay": 1500.0, "q_lr": 5e-4},
+    }
     QUIRKS: ClassVar = {"weight_decay": ("P003-WD", 0.0), "init": ("P003-INIT", "keras")}
     RENAMED: ClassVar = {"hidden_units": lambda v: {"q_hidden_units": v}, "lr": lambda v: {"q_lr": v}}
 

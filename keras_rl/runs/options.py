@@ -163,8 +163,8 @@ FLAGS: dict[str, dict[str, Any]] = {
     ),
     "--variant": dict(
         default=None,
-        help="the variant: faithful (the default), fixed; mountaincar also has faithful-intended "
-        "(all: `keras-rl list`)",
+        help="the variant: faithful (the default); pendulum and mountaincar have fixed, mountaincar "
+        "faithful-intended, cartpole issue-3080 (all: `keras-rl list`)",
     ),
     "--framework": dict(default=None, help="keras (ours; the default) or torch (where the experiment has one)"),
     "--matched-init": dict(
