@@ -8,6 +8,10 @@ step without its file; ``--redo STEP`` reruns one):
 
 - ``versions``: the library versions this interpreter imports, and ``pip freeze`` (``pip-freeze.txt``);
 - ``tests``: the fast suite (``pytest -m "not slow"``), its counts and the names of failures;
+- ``envs``: env parity, ``tests/test_tf_envs.py`` whole (the compiled engine's TensorFlow envs
+  against this cell's Gymnasium: one step from 1,000 random states per env, bit for bit on
+  TensorFlow's kernels and within stated ulps under XLA, and 200-step trajectories within 1e-6),
+  so a Gymnasium release that changes the dynamics shows here;
 - ``replay``: committed seed 0 of each post (Keras) rerun whole: bit for bit, or the first
   differing episode and its columns;
 - ``probe``: ``matrix/compat_probe.py`` here and under ``--reference-python``: each
@@ -42,7 +46,7 @@ sys.path.insert(0, str(ROOT))
 
 from keras_rl.runs.files import atomic_write_json, atomic_write_text  # noqa: E402
 
-STEPS = ("versions", "tests", "replay", "probe", "check", "speed")
+STEPS = ("versions", "tests", "envs", "replay", "probe", "check", "speed")
 # Tests of the repository's committed state, not of the libraries: the matrix table is made from
 # the cell folders, which a running cell is still writing.
 DESELECTED = ("tests/test_results_docs.py::test_the_version_matrix_table_is_generated_from_the_committed_cells",)
@@ -79,24 +83,23 @@ def step_versions(out: Path, work: Path) -> dict:
     return {"versions": {**library_versions(), "torch": torch.__version__}, "packages": len(lines), "code": code}
 
 
-def step_tests(out: Path, work: Path) -> dict:
-    junit = work / "tests.xml"
+def _pytest(out: Path, work: Path, name: str, selection: list[str]) -> dict:
+    """Run pytest on ``selection`` here; its counts and the names of failures (``name``.log kept
+    beside the cell's results when it fails)."""
+    junit = work / f"{name}.xml"
     code, seconds = run(
         [
             sys.executable,
             "-m",
             "pytest",
             "-q",
-            "-m",
-            "not slow",
-            "-n",
-            "2",
+            *selection,
             "-p",
             "no:cacheprovider",
             *[f"--deselect={test}" for test in DESELECTED],
             f"--junitxml={junit}",
         ],
-        work / "tests.log",
+        work / f"{name}.log",
         timeout=1800,
     )
     counts = {"tests": 0, "failures": 0, "errors": 0, "skipped": 0}
@@ -110,7 +113,7 @@ def step_tests(out: Path, work: Path) -> dict:
             if case.find("failure") is not None or case.find("error") is not None:
                 failed.append(f"{case.get('classname')}::{case.get('name')}")
     if code != 0:  # keep the log of a failing suite beside the cell's results
-        shutil.copy(work / "tests.log", out / "tests.log")
+        shutil.copy(work / f"{name}.log", out / f"{name}.log")
     passed = counts["tests"] - counts["failures"] - counts["errors"] - counts["skipped"]
     return {
         "exit_code": code,
@@ -120,6 +123,16 @@ def step_tests(out: Path, work: Path) -> dict:
         "failed": failed,
         "deselected": list(DESELECTED),
     }
+
+
+def step_tests(out: Path, work: Path) -> dict:
+    return _pytest(out, work, "tests", ["-m", "not slow", "-n", "2"])
+
+
+def step_envs(out: Path, work: Path) -> dict:
+    import gymnasium
+
+    return {"gymnasium": gymnasium.__version__, **_pytest(out, work, "envs", ["tests/test_tf_envs.py"])}
 
 
 def step_replay(out: Path, work: Path) -> dict:

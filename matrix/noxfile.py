@@ -86,6 +86,13 @@ def _cell(name: str, spec: dict[str, str | None]):
             _write_json(marker, record)
             if done.returncode != 0:
                 session.error(f"{name}: the install failed (results/compat/{name}/install.json)")
+        elif subprocess.run([python, "-c", "import keras_rl, torch"], cwd=ROOT, capture_output=True).returncode:
+            # the cell's folder is committed but this machine's virtualenv is new (a fresh machine,
+            # or a step added since the cell ran): install again, keeping the first install's record
+            session.log(f"{name}: a new virtualenv for a cell run before; installing (install.json kept)")
+            done = subprocess.run(install, cwd=ROOT, capture_output=True, text=True)
+            if done.returncode != 0:
+                session.error(f"{name}: the install failed:\n{done.stderr[-4000:]}")
         session.run(
             python,
             "matrix/compat_cell.py",

@@ -123,6 +123,15 @@ def test_the_matrix_table_shows_failed_installs_unrun_cells_and_divergences(tmp_
     cell = {
         "versions": {"versions": {"tensorflow": "2.19.1", "keras": "3.15.1", "gymnasium": "1.4.0", "numpy": "2.1.3"}},
         "tests": {"exit_code": 1, "passed": 900, "failures": 2, "errors": 0},
+        "envs": {
+            "exit_code": 1,
+            "passed": 14,
+            "failures": 1,
+            "errors": 0,
+            "failed": [
+                "tests.test_tf_envs::test_one_step_is_gymnasiums_bit_for_bit_on_tensorflows_kernels[CartPole-v1]"
+            ],
+        },
         "replay": {
             "posts": {p: {"bit_exact": p != "cartpole", "divergence": divergence, "exit_code": 0} for p in posts}
         },
@@ -145,6 +154,10 @@ def test_the_matrix_table_shows_failed_installs_unrun_cells_and_divergences(tmp_
     assert "2.1.3" in ran and "**2 failed**, 900 passed" in ran and "differs from ep 3 (score)" in ran
     assert "changed (p=0.004); full tier: consistent (p=0.3)" in ran and "1.10 / 1.10 / 1.10" in ran
     assert "rounding (9e-08)" in ran
+    assert "**1 failed**: test_one_step_is_gymnasiums_bit_for_bit_on_tensorflows_kernels[CartPole-v1]" in ran
+    del cell["envs"]
+    (tmp_path / "ran" / "cell.json").write_text(json.dumps(cell))
+    assert "| not run |" in next(line for line in gen.table().splitlines() if line.startswith("| ran "))
     short = gen.short_table()
     assert "000, 001 (2/3)" in short and "changed or no verdict: 000" in short and "install failed" in short
 

@@ -67,6 +67,19 @@ def short_tests_text(cell: dict) -> str:
     return "all passed" if failed == 0 and t["exit_code"] == 0 else f"**{failed} failed**"
 
 
+def envs_text(cell: dict) -> str:
+    """Env parity (``tests/test_tf_envs.py`` in the cell): the TensorFlow envs against the
+    cell's Gymnasium. A cell run before the step existed says so."""
+    if "envs" not in cell:
+        return "not run"
+    e = cell["envs"]
+    failed = e["failures"] + e["errors"]
+    if failed == 0 and e["exit_code"] == 0:
+        return f"{e['passed']} passed"
+    names = sorted({name.split("::")[-1] for name in e["failed"]})
+    return f"**{failed} failed**: {', '.join(names)}"
+
+
 def replay_text(entry: dict) -> str:
     if entry["bit_exact"]:
         return "bit-exact"
@@ -115,22 +128,24 @@ def speed_text(cell: dict) -> str:
 
 def table() -> str:
     header = (
-        "| cell | TensorFlow | Keras | Gymnasium | NumPy | install | fast tests | replay 000 | replay 003 | replay 001 "
+        "| cell | TensorFlow | Keras | Gymnasium | NumPy | install | fast tests | env parity | replay 000 | replay 003 "
+        "| replay 001 "
         "| first numbers | check 000 | check 003 | check 001 | ms / reference (000 / 003 / 001) | cost (min) |"
     )
     lines = [header, "|" + "---|" * (header.count("|") - 1)]
     for name, install, cell in load_cells():
         versions = versions_text(install, cell)
         if install["exit_code"] != 0:
-            lines.append(f"| {name} | {' | '.join(versions)} | **failed** (see install.json) |" + " - |" * 10)
+            lines.append(f"| {name} | {' | '.join(versions)} | **failed** (see install.json) |" + " - |" * 11)
             continue
         if cell is None:
-            lines.append(f"| {name} | {' | '.join(versions)} | ok |" + " not run yet |" * 10)
+            lines.append(f"| {name} | {' | '.join(versions)} | ok |" + " not run yet |" * 11)
             continue
         replays = [replay_text(cell["replay"]["posts"][p]) for p in POSTS]
         checks = [check_text(cell, p) for p in POSTS]
         lines.append(
             f"| {name} | {' | '.join(versions)} | ok ({install['seconds'] / 60:.0f} min) | {tests_text(cell)} | "
+            f"{envs_text(cell)} | "
             f"{' | '.join(replays)} | {probe_text(cell)} | {' | '.join(checks)} | {speed_text(cell)} | "
             f"{cell['seconds'] / 60:.0f} |"
         )
@@ -193,6 +208,10 @@ def page() -> str:
             "How to read it:",
             "",
             '- **fast tests**: `pytest -m "not slow"` in the cell (`tests.json`; a failing suite\'s log is kept).',
+            "- **env parity**: `tests/test_tf_envs.py` in the cell: the compiled engine's TensorFlow envs against the",
+            "  cell's Gymnasium, one step from 1,000 random states per env (bit for bit on TensorFlow's kernels,",
+            "  within stated ulps under XLA) and 200-step trajectories within 1e-6 (`envs.json`); a Gymnasium",
+            "  release that changes the dynamics fails here. `not run`: the cell ran before the step existed.",
             "- **replay**: the post's committed seed 0 (Keras, faithful variant) rerun whole in the cell; `bit-exact`",
             "  means every column of `episodes.csv` but `wall_seconds` is equal, otherwise the first episode that",
             "  differs and its columns (`replay.json`).",
