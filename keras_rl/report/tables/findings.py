@@ -108,6 +108,32 @@ ROWS = [
     ("001 MountainCar DDPG", "mountaincar", "fixed", "keras", False, "goal in >= 50% of last 50", "-"),
 ]
 
+ELSEWHERE = {
+    # rows whose seeds were made on the compiled engine into a planned folder
+    ("cartpole", "issue-3080", "keras"): (
+        "cartpole/tutorial-fix/issue-3080",
+        "keras-rl reproduce cartpole --variant issue-3080 --engine compiled --seeds {seeds} --workers 1 --resume "
+        "--no-progress --min-success-rate 0 --out results/cartpole/tutorial-fix/issue-3080",
+    ),
+}
+"""(experiment, variant, framework) -> the folder under results/ and the command that made it, for a
+row not in ``run_folder``'s default place (the tutorial's community fix: its plan,
+``results/cartpole/tutorial-fix/plan.md``)."""
+
+
+def row_folder(exp: str, variant: str, fw: str, matched: bool) -> Path:
+    from keras_rl.runs.files import run_folder
+
+    if (exp, variant, fw) in ELSEWHERE:
+        return ROOT / "results" / ELSEWHERE[(exp, variant, fw)][0]
+    return run_folder(ROOT / "results", exp, variant, fw, matched)
+
+
+def row_command(exp: str, variant: str, fw: str, matched: bool, seeds: str) -> str:
+    if (exp, variant, fw) in ELSEWHERE:
+        return ELSEWHERE[(exp, variant, fw)][1].format(seeds=seeds)
+    return REPRODUCE.format(exp=exp, variant=variant, fw=fw, matched=" --matched-init" if matched else "", seeds=seeds)
+
 
 def row_numbers(folder: Path, seeds: set[int] | None = None) -> dict | None:
     """A folder's numbers over its seeds (only ``seeds``, when given)."""
@@ -213,7 +239,6 @@ def post_block(post: str) -> str:
 
 
 def table() -> str:
-    from keras_rl.runs.files import run_folder
 
     lines = [
         "| post | variant | framework | success | criterion | episodes to threshold: median (IQR) | the post | ms/step "
@@ -221,13 +246,11 @@ def table() -> str:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for post, exp, variant, fw, matched, criterion, theirs in ROWS:
-        folder = run_folder(ROOT / "results", exp, variant, fw, matched)
+        folder = row_folder(exp, variant, fw, matched)
         numbers = row_numbers(folder)
         framework = fw + (" (matched init)" if matched else "")
         span = "0-9" if numbers is None else seed_span(numbers["seeds"])
-        command = REPRODUCE.format(
-            exp=exp, variant=variant, fw=fw, matched=" --matched-init" if matched else "", seeds=span
-        )
+        command = row_command(exp, variant, fw, matched, span)
         if numbers is None:
             lines.append(
                 f"| {post} | {variant} | {framework} | not run | {criterion} | - | {theirs} | - | `{command}` |"
@@ -248,15 +271,13 @@ def table() -> str:
 def short_table() -> str:
     """The README's version: success and median episodes to threshold per row, with the seeds."""
 
-    from keras_rl.runs.files import run_folder
-
     lines = [
         "| post | variant | framework | seeds | success (95% Wilson interval) | median episodes to threshold "
         "| the post |",
         "|---|---|---|---|---|---|---|",
     ]
     for post, exp, variant, fw, matched, _criterion, theirs in ROWS:
-        numbers = row_numbers(run_folder(ROOT / "results", exp, variant, fw, matched))
+        numbers = row_numbers(row_folder(exp, variant, fw, matched))
         framework = fw + (" (matched init)" if matched else "")
         if numbers is None:
             lines.append(f"| {post} | {variant} | {framework} | - | not run | - | {theirs} |")
@@ -324,7 +345,7 @@ def changes_table() -> str:
         "|---|---|---|---|---|---|",
     ]
     for post, exp, variant, fw, matched, _criterion, _theirs in ROWS:
-        folder = run_folder(ROOT / "results", exp, variant, fw, matched)
+        folder = row_folder(exp, variant, fw, matched)
         ten, every = row_numbers(folder, FIRST_TEN), row_numbers(folder)
         name = f"{post}, {variant}, {fw}{' (matched init)' if matched else ''}"
         if ten is None or every is None or every["n"] <= 10:

@@ -14,7 +14,8 @@ within the margin, different, or inconclusive at its number of seeds.
 
 The rows: Keras against PyTorch, default and matched init (the committed ``compare`` results,
 ``results/compare/<post>/[matched-init/]result.json``); the compiled engine against the
-Gymnasium loop; seed-batched against solo runs; and each post's ablations, every quirk switched
+Gymnasium loop; the tutorial's community fix (pytorch/tutorials #3080) against the tutorial as
+published; seed-batched against solo runs; and each post's ablations, every quirk switched
 off alone against the faithful base. A comparison whose plan sets a number of seeds before its
 reading (``COMPARISONS``' ``seeds_before_reading``) is listed as pending, and not drawn, until
 both arms hold that many.
@@ -70,6 +71,15 @@ def _comparisons() -> list[Comparison]:
                 seeds_before_reading=seeds,
             )
         )
+    out.append(
+        Comparison(
+            "the tutorial's community fix vs as published",
+            "cartpole, #3080's values (Keras)",
+            "cartpole/tutorial-fix/issue-3080",
+            "engines/cartpole/compiled",
+            seeds_before_reading=100,  # results/cartpole/tutorial-fix/plan.md
+        )
+    )
     for label, batched, solo in (
         ("pendulum, batch of 10", "pendulum/seed-batch/batch10", "pendulum/faithful"),
         ("pendulum (PyTorch), batch of 10", "pendulum/seed-batch-torch/batch10", "pendulum/faithful-torch"),
