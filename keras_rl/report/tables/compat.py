@@ -19,6 +19,8 @@ COMPAT = ROOT / "results" / "compat"
 POSTS = ("pendulum", "cartpole", "mountaincar")
 POST_NAMES = {"pendulum": "000", "cartpole": "003", "mountaincar": "001"}
 FACTORS = ("tensorflow", "keras", "gymnasium", "numpy")
+ENV_IDS = ("Pendulum-v1", "CartPole-v1", "MountainCarContinuous-v0")
+"""The envs of ``tests/test_tf_envs.py``, whose parametrised names carry them."""
 SHORT_BEGIN, SHORT_END = "<!-- compat-short:begin -->", "<!-- compat-short:end -->"
 SPEED_KEYS = {
     "pendulum": "pendulum (post 000)",
@@ -76,8 +78,11 @@ def envs_text(cell: dict) -> str:
     failed = e["failures"] + e["errors"]
     if failed == 0 and e["exit_code"] == 0:
         return f"{e['passed']} passed"
-    names = sorted({name.split("::")[-1] for name in e["failed"]})
-    return f"**{failed} failed**: {', '.join(names)}"
+    envs: dict[str, int] = {}
+    for name in e["failed"]:
+        env = next((env for env in ENV_IDS if env in name), "other")
+        envs[env] = envs.get(env, 0) + 1
+    return f"**{failed} failed**: " + ", ".join(f"{env} ({n})" for env, n in envs.items()) + " (`envs.log`)"
 
 
 def replay_text(entry: dict) -> str:
