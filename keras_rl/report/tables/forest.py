@@ -74,7 +74,7 @@ def _comparisons() -> list[Comparison]:
     out.append(
         Comparison(
             "the tutorial's community fix vs as published",
-            "cartpole, #3080's values (Keras)",
+            "cartpole, pytorch/tutorials #3080's values (Keras)",
             "cartpole/tutorial-fix/issue-3080",
             "engines/cartpole/compiled",
             seeds_before_reading=100,  # results/cartpole/tutorial-fix/plan.md
