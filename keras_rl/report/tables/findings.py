@@ -106,6 +106,15 @@ ROWS = [
     ),
     ("001 MountainCar DDPG", "mountaincar", "faithful-intended", "keras", False, "last-10 spread <= 2.0", "-"),
     ("001 MountainCar DDPG", "mountaincar", "fixed", "keras", False, "goal in >= 50% of last 50", "-"),
+    (
+        "003 CartPole DQN",
+        "cartpole",
+        "issue-3080",
+        "keras",
+        False,
+        "100-ep. mean >= 475 in 600",
+        "pytorch/tutorials #3080's values (one curve)",
+    ),
 ]
 
 ELSEWHERE = {
