@@ -248,7 +248,6 @@ def post_block(post: str) -> str:
 
 
 def table() -> str:
-
     lines = [
         "| post | variant | framework | success | criterion | episodes to threshold: median (IQR) | the post | ms/step "
         "| command |",
