@@ -1,5 +1,6 @@
-"""The sensitive check tier for post 000, sized by a power computation before its runs
-(issue 35, item 2).
+"""The sensitive check tier, sized by a power computation before its runs (issue 35, item 2):
+post 000 (the tier's requirement: 80% power against a 10% move of its median), and post 003
+with the same computation on its compiled engine's committed seeds (``--post cartpole``).
 
 The question: how many fresh seeds (``n``) and how large a baseline (``m``) must ``keras-rl
 check`` compare so that a change moving post 000's median episodes to threshold by 10% (either
@@ -25,8 +26,18 @@ The plan picks the cheapest (n, m) whose power is at least 80% against both shif
 smallest baseline of those. Its runs (the baseline grown to ``m`` compiled seeds) come after
 this plan in ``git log``.
 
-    python reproductions/sensitive_plan.py            # print the plan
+    python reproductions/sensitive_plan.py            # print post 000's plan
     python reproductions/sensitive_plan.py --write    # results/checks/sensitive_plan.{json,md}
+    python reproductions/sensitive_plan.py --post cartpole --write
+                                                      # results/checks/sensitive_plan_cartpole.{json,md}
+
+Post 003 (``--post cartpole``): its statistic is the check's for it, episodes to a 100-episode
+mean of 475 within 600 (censored at 601); its source ``results/engines/cartpole/compiled``. Its
+seeds cost about six times post 000's, so its plan also names the largest fresh count whose
+seeds fit the tier's 15 minutes beside post 000's and post 001's (``BUDGET_MINUTES`` less the
+other posts' share, ``OTHERS_MINUTES``), and picks the cheapest cell with 80% power, or else
+the largest fresh count within that budget against the smallest baseline whose power is within
+``SAME_POWER`` of that count's best.
 """
 
 from __future__ import annotations
@@ -41,21 +52,31 @@ from keras_rl.report.stats import censored_mann_whitney
 from keras_rl.runs.files import atomic_write_json, atomic_write_text
 from keras_rl.runs.run_set import RunSet
 
-SOURCE = ROOT / "results" / "engines" / "pendulum" / "compiled"
+SOURCES = {post: ROOT / "results" / "engines" / post / "compiled" for post in ("pendulum", "cartpole")}
+SOURCE = SOURCES["pendulum"]
 OUT = ROOT / "results" / "checks"
 FRESH = (10, 20, 30, 40, 50, 60, 80)
 BASELINES = (100, 200, 300, 500)
+BUDGET_MINUTES = 15.0
+"""The tier's whole three-post command, at most (the issue's bound)."""
+OTHERS_MINUTES = 6.0
+"""Post 000's fresh seeds (1.4 minutes by its plan) and post 001's (at most 40 Gymnasium-loop
+seeds of about 15 s, 5 minutes on two workers), rounded up with start-up: what post 003's
+fresh seeds leave to the others."""
 SHIFTS = (0.90, 1.10)
 ALPHA = 0.01 / 3
 POWER = 0.80
 REPS = 1000
 WORKERS = 2
+SAME_POWER = 0.05
+"""Power differences this small between baseline sizes are not worth growing a baseline for."""
+POST_NAMES = {"pendulum": "post 000", "cartpole": "post 003"}
 
 
-def source() -> tuple[np.ndarray, int, float]:
+def source(folder: Path = SOURCE) -> tuple[np.ndarray, int, float]:
     """Each committed seed's episodes to threshold (budget + 1 where never), the budget, and
     the median wall seconds of a seed."""
-    summaries = RunSet(SOURCE).summaries()
+    summaries = RunSet(folder).summaries()
     budget = summaries[0].budget_episodes
     episodes = np.array([s.reached_at_episode if s.success else budget + 1 for s in summaries], float)
     return episodes, budget, float(np.median([s.wall_seconds for s in summaries]))
@@ -72,8 +93,17 @@ def power(episodes: np.ndarray, budget: int, n: int, m: int, shift: float, rng: 
     return hits / REPS
 
 
-def plan() -> dict:
-    episodes, budget, seed_seconds = source()
+def worst(cell: dict) -> float:
+    """A cell's power against the harder of the two shifts."""
+    return min(cell[f"power_x{s:.2f}"] for s in SHIFTS)
+
+
+def out_name(post: str) -> str:
+    return "sensitive_plan" if post == "pendulum" else f"sensitive_plan_{post}"
+
+
+def plan(post: str = "pendulum") -> dict:
+    episodes, budget, seed_seconds = source(SOURCES[post])
     rng = np.random.default_rng(35)
     cells = []
     for m in BASELINES:
@@ -85,8 +115,19 @@ def plan() -> dict:
             cells.append(row)
     ok = [c for c in cells if min(c[f"power_x{s:.2f}"] for s in SHIFTS) >= POWER]
     chosen = min(ok, key=lambda c: (c["fresh"], c["baseline"])) if ok else None
+    limit = BUDGET_MINUTES - OTHERS_MINUTES if post != "pendulum" else BUDGET_MINUTES
+    affordable = [c for c in cells if c["fresh_minutes"] <= limit]
+    if post != "pendulum" and (chosen is None or chosen["fresh_minutes"] > limit) and affordable:
+        # no affordable cell reaches 80%: the largest affordable fresh count, against the smallest
+        # baseline within SAME_POWER of that count's best (a bigger one buys only resampling noise)
+        most = max(c["fresh"] for c in affordable)
+        row = [c for c in affordable if c["fresh"] == most]
+        best = max(worst(c) for c in row)
+        chosen = min((c for c in row if worst(c) >= best - SAME_POWER), key=lambda c: c["baseline"])
     return {
-        "source": str(SOURCE.relative_to(ROOT)),
+        "post": post,
+        "minutes_limit": limit,
+        "source": str(SOURCES[post].relative_to(ROOT)),
         "seeds": len(episodes),
         "median_episodes": float(np.median(episodes)),
         "iqr": [float(q) for q in np.percentile(episodes, [25, 75])],
@@ -101,9 +142,9 @@ def plan() -> dict:
 
 def markdown(p: dict) -> str:
     lines = [
-        "# The sensitive check tier for post 000: sized before its runs",
+        f"# The sensitive check tier for {POST_NAMES[p.get('post', 'pendulum')]}: sized before its runs",
         "",
-        "Generated by `python reproductions/sensitive_plan.py --write` (its docstring says how); written",
+        f"Generated by `python reproductions/sensitive_plan.py{'' if p.get('post', 'pendulum') == 'pendulum' else ' --post ' + p['post']} --write` (its docstring says how); written",
         "before the baseline it sizes was grown.",
         "",
         f"Source: `{p['source']}`, {p['seeds']} seeds, median episodes to threshold {p['median_episodes']:g} "
@@ -121,6 +162,18 @@ def markdown(p: dict) -> str:
             f"{c['power_x1.10']:.2f} | {c['fresh_minutes']:.1f} |"
         )
     c = p["chosen"]
+    reaches = c is not None and min(c["power_x0.90"], c["power_x1.10"]) >= POWER
+    if c is not None and not reaches:
+        lines += [
+            "",
+            f"**No cell within {p['minutes_limit']:g} minutes of fresh seeds reaches 80% against both shifts.** "
+            f"Chosen, the most fresh seeds within it, against the smallest baseline within {SAME_POWER} of "
+            f"their best power: {c['fresh']} fresh seeds against a baseline of "
+            f"{c['baseline']}: power {c['power_x0.90']:.2f} and {c['power_x1.10']:.2f}, false alarms "
+            f"{c['false_alarm']:.4f}, about {c['fresh_minutes']:.1f} minutes of fresh seeds on two workers.",
+            "",
+        ]
+        return "\n".join(lines)
     lines += [
         "",
         (
@@ -137,13 +190,15 @@ def markdown(p: dict) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--write", action="store_true", help="write results/checks/sensitive_plan.{json,md}")
+    parser.add_argument("--write", action="store_true", help="write results/checks/sensitive_plan[_POST].{json,md}")
+    parser.add_argument("--post", choices=sorted(SOURCES), default="pendulum", help="the post to size (default pendulum)")
     args = parser.parse_args()
-    p = plan()
+    p = plan(args.post)
     if args.write:
-        atomic_write_json(OUT / "sensitive_plan.json", p)
-        atomic_write_text(OUT / "sensitive_plan.md", markdown(p))
-        print(f"wrote {Path(OUT / 'sensitive_plan.md').relative_to(ROOT)} and its JSON")
+        name = out_name(args.post)
+        atomic_write_json(OUT / f"{name}.json", p)
+        atomic_write_text(OUT / f"{name}.md", markdown(p))
+        print(f"wrote {Path(OUT / f'{name}.md').relative_to(ROOT)} and its JSON")
     else:
         print(markdown(p))
 
