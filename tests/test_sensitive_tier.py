@@ -1,5 +1,7 @@
-"""The sensitive tier's sizing (``reproductions/sensitive_plan.py``) and its held-out report
-(``reproductions/sensitive_held_out.py``), on committed runs whose answer is known."""
+"""The sensitive check tier (issue 35): its sizing (``reproductions/sensitive_plan.py``) and
+held-out report (``reproductions/sensitive_held_out.py``) on committed runs whose answer is
+known, its statistic, its refusals, how its fresh seeds run, and its committed rates
+(``keras-rl calibrate sensitive``)."""
 
 from __future__ import annotations
 
@@ -47,3 +49,84 @@ def test_the_held_out_report_flags_a_slow_mutant_and_not_the_baseline_itself(tmp
     assert float(same[5]) < 0.05 and same[6].strip().startswith("0/2 ")
     assert float(slow[5]) > 0.95 and "none: fewer than 40 seeds" in slow[6]  # 30 seeds: no disjoint check of 40
     assert "not run" in rows["batch_32"]
+
+
+def test_the_median_score_statistic_by_hand():
+    from keras_rl.check.statistics import seed_statistic
+
+    metrics, scores = [-900, -600, -350, -290, -250], [-1000, -500, -300, -200, -100]
+    scored = [{"metric": m, "score": s} for m, s in zip(metrics, scores)]
+    passes = lambda m: m > -300  # noqa: E731
+    assert seed_statistic("median_score", scored, 5, passes) == -300
+    assert seed_statistic("median_score", scored, 4, passes) == -400  # cut to 4: (-500 - 300) / 2
+    # stopped at the threshold after 5 of 8: the last metric (-250) stands for the 3 unplayed
+    assert seed_statistic("median_score", scored, 8, passes) == -250
+
+
+def test_the_sensitive_tier_refuses_a_sequential_check_and_a_bisect_with_exit_2(tmp_path, capsys):
+    from keras_rl.cli import main
+
+    assert main(["check", "pendulum", "--tier", "sensitive", "--sequential", "--out", str(tmp_path / "c")]) == 2
+    assert "no sequential design" in capsys.readouterr().err
+    code = main(["bisect", "HEAD~1", "HEAD", "--tier", "sensitive", "--out", str(tmp_path / "b")])
+    assert code == 2 and "sensitive tier has none" in capsys.readouterr().err
+    assert not (tmp_path / "c").exists() and not (tmp_path / "b").exists()
+
+
+def test_a_sensitive_check_runs_its_fresh_seeds_alone_on_the_compiled_engine(tmp_path, replace_backend):
+    """Post 000 at the sensitive tier: 50 fresh seeds from 4000, each its own compiled job,
+    against the 200-seed compiled baseline."""
+    import keras_rl.runs.jobs as jobs
+    from keras_rl.check.rules import rule_for
+    from keras_rl.cli import main
+
+    seen = []
+    replace_backend(lambda todo, backend, progress=True, after_job=None: seen.extend(todo))
+    code = main(["check", "pendulum", "--tier", "sensitive", "--workers", "1", "--no-progress", "--out", str(tmp_path)])
+    assert code == 3  # the fake ran nothing: no verdict; what matters is what was sent
+    assert not any(isinstance(j, jobs.SeedBatchJob) for j in seen)
+    assert {j.engine for j in seen} == {"compiled"}
+    assert sorted(j.config["seed"] for j in seen) == rule_for("pendulum", "sensitive").seed_list()
+    assert [j.config["seed"] for j in seen][:2] == [4000, 4001] and len(seen) == 50
+
+
+def test_the_sensitive_tiers_committed_rates_are_its_rules_on_the_committed_baselines():
+    """``keras-rl calibrate sensitive --write``: calibration.md's block is rendered from
+    keras_rl/check/sensitive.json; each rule's rates are found for it (so the check report states
+    them); post 001's rule is the statistic its criterion chose; every rate was computed on the
+    baseline committed now."""
+    import json
+
+    from keras_rl.check.calibrate import sensitive
+    from keras_rl.check.command import SENSITIVE_RATES, error_rates
+    from keras_rl.check.rules import RULES
+    from keras_rl.runs.run_set import RunSet
+
+    committed = json.loads(SENSITIVE_RATES.read_text())
+    text = (ROOT / "results" / "checks" / "calibration.md").read_text()
+    stated = text.split(sensitive.BEGIN, 1)[1].split(sensitive.END, 1)[0].strip()
+    assert stated == sensitive.render(committed), "calibration.md is stale: keras-rl calibrate sensitive --write"
+    for post, entry in committed["posts"].items():
+        rule = RULES[(post, "sensitive")]
+        assert error_rates(rule) == entry["rates"], post
+        folder = ROOT / entry["rule"]["baseline"]
+        assert entry["baseline_seeds"] == len(RunSet(folder).seed_dirs()), f"{post}: recalibrate, the baseline grew"
+        if "selection" in entry:
+            assert entry["selection"]["chosen"] == {"statistic": rule.statistic, "alpha": rule.alpha}, post
+        assert entry["rates"]["false_alarm_holm_first"] <= 0.01 / 3 + 0.002, post
+    assert committed["command_false_alarm_holm"] <= 0.01
+    pendulum = committed["posts"]["pendulum"]["rates"]["shift_power"]
+    assert min(pendulum.values()) >= 0.8, "the tier's requirement: a 10% move of post 000's median at 80%"
+
+
+def test_docs_table_of_what_each_tier_sees_is_generated_from_the_committed_rates():
+    import json
+
+    from keras_rl.check.calibrate import sensitive
+    from keras_rl.check.command import SENSITIVE_RATES
+
+    text = (ROOT / "docs" / "check.md").read_text()
+    stated = text.split(sensitive.SEES_BEGIN, 1)[1].split(sensitive.SEES_END, 1)[0].strip()
+    held = json.loads((ROOT / "results" / "checks" / "held_out.json").read_text())
+    expected = sensitive.sees_table(json.loads(SENSITIVE_RATES.read_text()), held)
+    assert stated == expected, "docs/check.md is stale: keras-rl calibrate sensitive --write"

@@ -50,10 +50,12 @@ from keras_rl.runs.summary import RunSummary
 
 CALIBRATION = Path(__file__).with_name("calibration.json")
 """The measured error rates of every rule: package data, so an installed ``keras_rl`` has them."""
+SENSITIVE_RATES = Path(__file__).with_name("sensitive.json")
+"""The sensitive tier's measured false-alarm rates and power (package data)."""
 SEQUENTIAL = Path(__file__).with_name("sequential.json")
 """Each post's calibrated sequential design and its measured rates (package data)."""
 BASELINES = Path(__file__).resolve().parents[2] / "results" / "checks"
-"""The committed baselines (``<experiment>/baseline/seed_<n>``), in a checkout. A package
+"""The committed baselines (``<experiment>/<rule.baseline>/seed_<n>``), in a checkout. A package
 installed elsewhere has none beside it: ``--against`` names a checkout's."""
 
 
@@ -181,22 +183,39 @@ def describe_plan(rule: CheckRule, fresh: list[int], baseline: int, design) -> s
     """One post's plan, as ``check --dry-run`` prints it."""
     rates = error_rates(rule)
     measured = (
-        f"measured false-alarm rate {rates['false_alarm_rate']:.3g}, power {rates['power_all']:.0%} over "
-        "the mutants (calibration.json)"
+        f"measured false-alarm rate {rates['false_alarm_rate']:.3g}, power {power_text(rates)}"
         if rates
         else "error rates not calibrated for this rule"
     )
     if design is not None:  # the fixed rule's measured rates are not the design's
         measured = f"false alarms at most {design[1]:.3g} by its design (sequential.json)"
     how = f"sequential, looks up to {design[0].stages[-1]} seeds" if design else f"alpha {rule.alpha}"
+    engine = "" if rule.engine == "gymnasium" else f" on the {rule.engine} engine"
     return (
         f"{rule.experiment} ({rule.tier}): {rule.statistic} over {rule.episodes} episodes, {how}; "
-        f"fresh seeds {fresh[0]}-{fresh[-1]} ({len(fresh)}) against a baseline of {baseline}; {measured}"
+        f"fresh seeds {fresh[0]}-{fresh[-1]} ({len(fresh)}){engine} against a baseline of {baseline}; {measured}"
     )
 
 
+def power_text(rates: dict[str, Any], short: bool = False) -> str:
+    """A rule's measured power in words: against the tuning mutants (gross / all), or for the
+    sensitive tier against a 10% move of the median and the held-out mutants."""
+    if "shift_power" in rates:
+        moved = rates["shift_power"]
+        text = f"{moved['x0.90']:.0%} / {moved['x1.10']:.0%} against a median 10% lower / higher"
+        return text if short else f"{text} (sensitive.json)"
+    if "power_gross" in rates:
+        text = f"{rates['power_gross']:.0%} / {rates['power_all']:.0%}"
+        return text if short else f"{rates['power_all']:.0%} over the mutants (calibration.json)"
+    text = f"{rates['held_out_power']:.0%} over the held-out mutants"
+    return text if short else f"{text} (sensitive.json)"
+
+
 def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, Any] | None:
-    """The calibrated error rates of exactly this rule, or None if it was never measured."""
+    """The calibrated error rates of exactly this rule, or None if it was never measured
+    (the sensitive tier's are in ``SENSITIVE_RATES``, by ``keras-rl calibrate sensitive``)."""
+    if rule.tier == "sensitive":
+        return sensitive_rates(rule)
     if not calibration.is_file():
         return None
     entry = json.loads(calibration.read_text()).get(rule.experiment, {}).get("tiers", {}).get(rule.tier)
@@ -214,6 +233,25 @@ def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, A
         None,
     )
     return measured
+
+
+def sensitive_rates(rule: CheckRule, path: Path | None = None) -> dict[str, Any] | None:
+    """The sensitive tier's measured rates of exactly this rule, or None."""
+    path = path or SENSITIVE_RATES
+    if not path.is_file():
+        return None
+    entry = json.loads(path.read_text()).get("posts", {}).get(rule.experiment)
+    if not entry:
+        return None
+    rule_of = entry["rule"]
+    if (rule_of["statistic"], rule_of["seeds"], rule_of["episodes"], rule_of["alpha"]) != (
+        rule.statistic,
+        rule.seeds,
+        rule.episodes,
+        rule.alpha,
+    ):
+        return None
+    return entry["rates"]
 
 
 def sequential_design(rule: CheckRule, path: Path = SEQUENTIAL) -> tuple[SequentialDesign, float]:
@@ -279,7 +317,7 @@ def run_check(
             fresh = list(range(rule.first_seed, rule.first_seed + designs[name][0].stages[-1]))
         else:
             fresh = seeds if seeds is not None else rule.seed_list()
-        baseline, baseline_rows = baseline_values(experiment, rule, Path(against) / name / "baseline")
+        baseline, baseline_rows = baseline_values(experiment, rule, Path(against) / name / rule.baseline)
         clash = sorted(set(fresh) & set(baseline))
         if clash:
             raise ConfigError(
@@ -366,8 +404,8 @@ def run_check(
             results.append(result)
             plots.append(plot)
     changes = {
-        experiment.name: tuple(config_changes(experiment, Path(against) / experiment.name / "baseline"))
-        for experiment, *_ in plan
+        experiment.name: tuple(config_changes(experiment, Path(against) / experiment.name / rule.baseline))
+        for experiment, rule, *_ in plan
     }
     results = [replace(r, config_changes=changes[r.experiment]) for r in results]
     for args in plots:
@@ -377,8 +415,8 @@ def run_check(
 
 
 def _run_seeds(out: Path, groups: list[tuple], options: RunOptions) -> None:
-    """Train each (experiment, rule, config, seeds) group's seeds into ``out/<experiment>/``, in
-    the rule's seed batches, all groups' jobs at once."""
+    """Train each (experiment, rule, config, seeds) group's seeds into ``out/<experiment>/``, on
+    the rule's engine, in the rule's seed batches, all groups' jobs at once."""
     from keras_rl.learners.table import batch_refusal
     from keras_rl.report.plots import draw_job_curves
     from keras_rl.runs.backends import train_seeds
@@ -387,7 +425,10 @@ def _run_seeds(out: Path, groups: list[tuple], options: RunOptions) -> None:
     jobs = []
     for experiment, rule, config, fresh in groups:
         group = [
-            SeedJob.of(config.replace(seed=s), out / experiment.name / f"seed_{s}", start="overwrite") for s in fresh
+            SeedJob.of(
+                config.replace(seed=s), out / experiment.name / f"seed_{s}", start="overwrite", engine=rule.engine
+            )
+            for s in fresh
         ]
         # a --set no stacked learner covers (post 001's learning phase) runs its seeds alone
         size = rule.seed_batch if batch_refusal(experiment.name, config.to_dict()) is None else 1
@@ -469,7 +510,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
     for r in results:
         rates = r.error_rates
         fa = f"{rates['false_alarm_rate']:.2%}" if rates else "not calibrated"
-        pw = f"{rates['power_gross']:.0%} / {rates['power_all']:.0%}" if rates else "not calibrated"
+        pw = power_text(rates, short=True) if rates else "not calibrated"
         if r.design is not None:  # the fixed rule's rates are not this design's
             fa, pw = f"{r.design['false_alarm_rate']:.2%} (sequential)", "results/checks/sequential.md"
         alpha = r.rule.alpha if r.design is None else f"{r.design['efficacy']:.3g} (sequential)"

@@ -11,7 +11,10 @@ since nothing in a run depends on its budget):
 - ``auc``: the area under the learning curve, the mean score over the episodes; a run that
   stopped at the threshold (post 000) counts its last metric, an average of scores on the
   score's scale, for each episode it did not play;
-- ``final_metric``: the metric after the last episode.
+- ``final_metric``: the metric after the last episode;
+- ``median_score``: the median of the episodes' scores (a run that stopped at the threshold
+  counts its last metric for each episode it did not play, as ``auc`` does). Post 001's
+  faithful metric swings between seeds; its scores' median does not (issue 35's sensitive tier).
 
 ``decide`` compares the baseline's values with the new ones: a two-sided Mann-Whitney U test,
 or Fisher's exact test for ``success``; "changed" when p < alpha, in either direction (for a
@@ -28,7 +31,7 @@ import numpy as np
 
 from keras_rl.report.stats import fisher_exact, mann_whitney
 
-STATISTICS = ("episodes_to_threshold", "success", "auc", "final_metric")
+STATISTICS = ("episodes_to_threshold", "success", "auc", "final_metric", "median_score")
 
 
 def _metrics(rows: list[dict[str, Any]], episodes: int) -> list[float]:
@@ -53,10 +56,10 @@ def seed_statistic(
     if name == "success":
         complete = len(rows) >= episodes
         return float(passes(metrics[-1]) and complete if success_at_end else reached is not None)
-    if name == "auc":
+    if name in ("auc", "median_score"):
         scores = [float(r["score"]) for r in rows[:episodes]]
         scores += [metrics[-1]] * (episodes - len(scores))
-        return float(np.mean(scores))
+        return float(np.mean(scores) if name == "auc" else np.median(scores))
     return metrics[-1]
 
 

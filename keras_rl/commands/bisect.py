@@ -38,7 +38,7 @@ def add_parser(sub) -> None:
 
 
 def bisect(args: argparse.Namespace) -> int:
-    from keras_rl.check.rules import RULES, TIERS
+    from keras_rl.check.rules import CALIBRATED_TIERS, RULES, TIERS
 
     known = sorted({e for e, _ in RULES}, key=["pendulum", "cartpole", "mountaincar"].index)
     names = args.experiments or known
@@ -47,6 +47,12 @@ def bisect(args: argparse.Namespace) -> int:
         raise ConfigError(f"unknown experiment {unknown[0]!r}; bisect checks {', '.join(known)}")
     if args.tier not in TIERS:
         raise ConfigError(f"unknown tier {args.tier!r}; choose one of {', '.join(TIERS)}")
+    if args.tier not in CALIBRATED_TIERS and not args.fixed_n:
+        raise ConfigError(
+            f"bisect runs each post's calibrated sequential design, which the {args.tier} tier has none of; "
+            f"choose one of {', '.join(CALIBRATED_TIERS)}, or pass --fixed-n for its fixed rule (a commit "
+            "older than the tier has no such rule, and its step gives no verdict)"
+        )
     if not 0 < args.alpha < 1:
         raise ConfigError(f"--alpha must lie in (0, 1), got {args.alpha}")
     if args.workers < 1:

@@ -90,6 +90,11 @@ def check_results(args: argparse.Namespace) -> list:
         raise ConfigError(f"unknown tier {args.tier!r}; choose one of {', '.join(TIERS)}")
     if len(set(names)) != len(names):
         raise ConfigError(f"an experiment is named twice: {' '.join(names)}")
+    if args.sequential and args.tier == "sensitive":
+        raise ConfigError(
+            "the sensitive tier has no sequential design: its fresh seeds were sized by a power computation "
+            "(results/checks/sensitive_plan.md); run it without --sequential"
+        )
     if args.sequential and args.seeds is not None:
         raise ConfigError("--seeds and --sequential do not go together: the sequential design runs its own fresh seeds")
     if args.alpha is not None and not args.sequential:

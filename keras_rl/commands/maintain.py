@@ -1,6 +1,6 @@
 """The maintainers' commands: what regenerates the checkout's committed figures.
 
-- ``keras-rl calibrate rules|family|held-out|designs|bisect-levels``: the check's calibration
+- ``keras-rl calibrate rules|family|held-out|designs|sensitive|bisect-levels``: the check's calibration
   (``keras_rl/check/calibrate/``), whose JSON ships as package data;
 - ``keras-rl tables findings|ablations|compat|forest|runs``: the generated Markdown tables
   (``keras_rl/report/tables/``), each spliced between its markers (``report/markdown.py``);
@@ -64,6 +64,14 @@ def add_parser(sub) -> None:
         "keras_rl.check.calibrate.designs",
         "the sequential check's designs: looks, bounds, error rates and expected seeds "
         "(keras_rl/check/sequential.json, results/checks/sequential.md)",
+        "--write",
+    )
+    p = _what(
+        inner,
+        "sensitive",
+        "keras_rl.check.calibrate.sensitive",
+        "the sensitive tier's false alarms, power against a 10%% move and against the held-out mutants, "
+        "and post 001's statistic (keras_rl/check/sensitive.json, calibration.md's block)",
         "--write",
     )
     p = _what(

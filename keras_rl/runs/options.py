@@ -182,7 +182,11 @@ FLAGS: dict[str, dict[str, Any]] = {
         help="print what would run and train nothing: reproduce the resolved config and how each seed "
         "folder would start; check each post's plan (rule, fresh seeds, baseline, calibrated error rates)",
     ),
-    "--tier": dict(default="smoke", help="the check's tier: smoke (minutes, in `make test`) or full (default smoke)"),
+    "--tier": dict(
+        default="smoke",
+        help="the check's tier: smoke (minutes, in `make test`), full, or sensitive (check only: a 10%% move "
+        "of post 000's median, about 15 minutes on two workers) (default smoke)",
+    ),
     "--against": dict(
         type=Path,
         default=None,

@@ -32,7 +32,7 @@ import numpy as np
 
 from keras_rl.check.calibrate.runs import REPORT, TUNE, halved, load, values
 from keras_rl.check.command import SEQUENTIAL, baseline_values
-from keras_rl.check.rules import MUTANTS, RULES, TIERS
+from keras_rl.check.rules import CALIBRATED_TIERS, MUTANTS, RULES
 from keras_rl.check.sequential import (
     DESIGN,
     calibrate,
@@ -192,7 +192,7 @@ def render(results: list[dict]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    results = [study(post, tier) for tier in TIERS for post in POSTS]
+    results = [study(post, tier) for tier in CALIBRATED_TIERS for post in POSTS]
     text = render(results)
     if not args.write:
         print(text)

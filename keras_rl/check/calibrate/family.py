@@ -20,7 +20,7 @@ import functools
 from pathlib import Path
 
 from keras_rl.check.command import baseline_values
-from keras_rl.check.rules import RULES, TIERS
+from keras_rl.check.rules import CALIBRATED_TIERS, RULES
 from keras_rl.check.statistics import (
     baseline_spread,
     check_false_alarm_rate,
@@ -43,7 +43,7 @@ def compute(with_spread: bool = True) -> dict:
     import numpy as np
 
     tiers = {}
-    for tier in TIERS:
+    for tier in CALIBRATED_TIERS:
         rules = [RULES[(post, tier)] for post in POSTS]
         alpha = rules[0].alpha
         posts, unadjusted, holm = {}, [], []
@@ -82,7 +82,7 @@ SPREAD_SIZES = (30, 100)  # the first committed baselines, and the 100 seeds iss
 def spread() -> dict:
     """How much the false-alarm rate depends on the one baseline a check is given, for each
     tier's seed counts, with baselines of 30 and of 100 seeds (``spread_entry``)."""
-    return {f"{tier}/{m}": spread_entry(tier, m) for tier in TIERS for m in SPREAD_SIZES}
+    return {f"{tier}/{m}": spread_entry(tier, m) for tier in CALIBRATED_TIERS for m in SPREAD_SIZES}
 
 
 @functools.cache  # --write draws the figure from the arrays the table was computed from
@@ -233,8 +233,8 @@ def draw_spread(path: Path) -> None:
     """The figure of the spread table: each tier's command rate over the simulated baselines."""
     from keras_rl.report.plots import plot_false_alarm_spread
 
-    rates = {tier: {m: command_rates(tier, m) for m in SPREAD_SIZES} for tier in TIERS}
-    alpha = RULES[(POSTS[0], next(iter(TIERS)))].alpha
+    rates = {tier: {m: command_rates(tier, m) for m in SPREAD_SIZES} for tier in CALIBRATED_TIERS}
+    alpha = RULES[(POSTS[0], next(iter(CALIBRATED_TIERS)))].alpha
     plot_false_alarm_spread(
         path, rates, alpha, "keras-rl check pendulum cartpole mountaincar (Holm): false-alarm rate given its baseline"
     )

@@ -28,7 +28,7 @@ import argparse
 from pathlib import Path
 
 from keras_rl.check.calibrate.runs import CHECKS, load, measure, power_cells, values
-from keras_rl.check.rules import HELD_OUT, RULES, TIERS
+from keras_rl.check.rules import CALIBRATED_TIERS, HELD_OUT, RULES
 from keras_rl.checkout import ROOT
 
 SEEDS = "0-29"
@@ -44,7 +44,7 @@ def make_commands() -> list[list[str]]:
     """The commands that make the missing held-out runs, as the tuning mutants were made."""
     out = []
     for post in POSTS:
-        episodes = max(RULES[(post, t)].episodes for t in TIERS)
+        episodes = max(RULES[(post, t)].episodes for t in CALIBRATED_TIERS)
         for m in HELD_OUT[post]:
             if folder(post, m.name).is_dir():
                 continue
@@ -68,7 +68,7 @@ def compute() -> dict:
         for m in present:
             runs = load(folder(post, m.name))
             entry["mutants"][m.name] = {"what": m.what, "tiers": {}}
-            for tier in TIERS:
+            for tier in CALIBRATED_TIERS:
                 rule = RULES[(post, tier)]
                 base = values(post, rule.statistic, rule.episodes, baseline_runs)
                 mut = values(post, rule.statistic, rule.episodes, runs)

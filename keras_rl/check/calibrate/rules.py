@@ -47,7 +47,7 @@ from keras_rl.check.calibrate.runs import (
     values,
 )
 from keras_rl.check.command import CALIBRATION
-from keras_rl.check.rules import ALPHAS, MUTANTS, RULES, TIERS
+from keras_rl.check.rules import ALPHAS, CALIBRATED_TIERS, MUTANTS, RULES
 from keras_rl.check.statistics import false_alarm_rate, power
 from keras_rl.checkout import ROOT
 from keras_rl.errors import ConfigError
@@ -70,7 +70,7 @@ for posts 000 and 003, one seed per run for post 001."""
 
 def make_commands(name: str) -> list[list[str]]:
     """The commands that make the baseline and every mutant's runs, where missing."""
-    rules = [RULES[(name, t)] for t in TIERS]
+    rules = [RULES[(name, t)] for t in CALIBRATED_TIERS]
     episodes, batch = max(r.episodes for r in rules), BASELINE_BATCH[name]
     # mutants batch as the check's fresh seeds do (auto runs a config no stacked learner covers alone)
     common = ["--no-progress", "--min-success-rate", "0", "--workers", "2", "--seed-batch", "auto"]
@@ -236,7 +236,7 @@ def calibrate(name: str) -> dict:
     missing = [m.name for m in MUTANTS[name] if not (CHECKS / name / "mutants" / m.name).is_dir()]
     if missing:  # false alarms need only the baseline; power waits for the mutants
         out: dict[str, Any] = {}
-        for tier in TIERS:
+        for tier in CALIBRATED_TIERS:
             rule = RULES[(name, tier)]
             out[tier] = {
                 "not_calibrated": f"no mutant runs yet ({', '.join(missing)})",
@@ -260,34 +260,12 @@ def calibrate(name: str) -> dict:
     held_back = {m.name: load(folders[m.name], REPORT) for m in MUTANTS[name]} if halves else None
     shortest = min(budget(CHECKS / name / "mutants" / m.name) for m in MUTANTS[name])
     out = {}
-    for tier in TIERS:
+    for tier in CALIBRATED_TIERS:
         rule = RULES[(name, tier)]
         if shortest < rule.episodes:  # a mutant run cut short would look like a failure
             out[tier] = {"not_calibrated": f"the mutant runs have {shortest} episodes; this tier needs {rule.episodes}"}
             continue
-        rows: list[dict[str, Any]] = []
-        for statistic in rule.candidates:
-            base = values(name, statistic, rule.episodes, baseline)
-            for alpha in ALPHAS:
-                per_mutant = {
-                    m.name: power(base, values(name, statistic, rule.episodes, runs), rule.seeds, statistic, alpha)
-                    for m, runs in mutants.values()
-                }
-                gross = [per_mutant[m.name] for m, _ in mutants.values() if m.gross]
-                rows.append(
-                    {
-                        "statistic": statistic,
-                        "alpha": alpha,
-                        "seeds": rule.seeds,
-                        "episodes": rule.episodes,
-                        "false_alarm_rate": false_alarm_rate(base, rule.seeds, statistic, alpha),
-                        "power": per_mutant,
-                        "power_gross": float(np.mean(gross)),
-                        "power_all": float(np.mean(list(per_mutant.values()))),
-                    }
-                )
-        eligible = [r for r in rows if r["false_alarm_rate"] <= 0.01]
-        chosen = max(eligible, key=lambda r: (r["power_gross"], r["power_all"], -rows.index(r))) if eligible else None
+        rows, chosen = choose(name, rule, baseline, mutants)
         entry = {
             "baseline_seeds": len(baseline),
             "mutant_seeds": {k: len(v[1]) for k, v in mutants.items()},
@@ -315,6 +293,37 @@ def calibrate(name: str) -> dict:
     if "candidates" in out["smoke"]:  # power only where the mutants ran as long as the old test looks
         out["smoke"]["old_k_of_n_test"] = old_test(name, baseline, mutants if shortest >= OLD_TESTS[name][4] else None)
     return out
+
+
+def choose(name: str, rule, baseline: list, mutants: dict) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
+    """The pre-registered criterion on one rule's candidates: each statistic at each alpha of
+    ``ALPHAS``, its false-alarm rate on the baseline and its power against each mutant's runs
+    (``mutants``: name -> (Mutant, runs)); chosen, among those with false alarms at most 1%,
+    the most power against the gross mutants, then against all, then the first listed."""
+    rows: list[dict[str, Any]] = []
+    for statistic in rule.candidates:
+        base = values(name, statistic, rule.episodes, baseline)
+        for alpha in ALPHAS:
+            per_mutant = {
+                m.name: power(base, values(name, statistic, rule.episodes, runs), rule.seeds, statistic, alpha)
+                for m, runs in mutants.values()
+            }
+            gross = [per_mutant[m.name] for m, _ in mutants.values() if m.gross]
+            rows.append(
+                {
+                    "statistic": statistic,
+                    "alpha": alpha,
+                    "seeds": rule.seeds,
+                    "episodes": rule.episodes,
+                    "false_alarm_rate": false_alarm_rate(base, rule.seeds, statistic, alpha),
+                    "power": per_mutant,
+                    "power_gross": float(np.mean(gross)),
+                    "power_all": float(np.mean(list(per_mutant.values()))),
+                }
+            )
+    eligible = [r for r in rows if r["false_alarm_rate"] <= 0.01]
+    chosen = max(eligible, key=lambda r: (r["power_gross"], r["power_all"], -rows.index(r))) if eligible else None
+    return rows, chosen
 
 
 def criterion_by_seeds(name: str) -> dict:
@@ -355,6 +364,19 @@ def held_out_block() -> str:
     path = CHECKS / "held_out.json"
     text = render(json.loads(path.read_text()) if path.is_file() else {})
     return f"## Held-out mutants\n\n{BEGIN}\n{text}\n{END}"
+
+
+def sensitive_block() -> str:
+    """The sensitive tier's section (``keras_rl/check/calibrate/sensitive.py --write``), kept across rewrites."""
+    from keras_rl.check.calibrate.sensitive import BEGIN, END, render
+    from keras_rl.check.command import SENSITIVE_RATES
+
+    text = (
+        render(json.loads(SENSITIVE_RATES.read_text()))
+        if SENSITIVE_RATES.is_file()
+        else "Not computed yet: run keras-rl calibrate sensitive --write"
+    )
+    return f"## The sensitive tier\n\n{BEGIN}\n{text}\n{END}"
 
 
 def markdown(results: dict) -> str:
@@ -453,7 +475,7 @@ def markdown(results: dict) -> str:
             lines.append("")
             if "held_back" in entry:
                 lines += held_back_table(entry["held_back"], rule)
-    lines.append(held_out_block())
+    lines += [held_out_block(), "", sensitive_block()]
     return "\n".join(lines)
 
 
@@ -482,6 +504,8 @@ def rules_table(merged: dict) -> str:
         "|---|---|---|---|---|---|---|---|",
     ]
     for (name, tier), rule in RULES.items():
+        if tier not in CALIBRATED_TIERS:  # the sensitive tier: its own section of calibration.md
+            continue
         entry = merged.get(name, {}).get("tiers", {}).get(tier)
         mine = (
             entry
