@@ -39,6 +39,7 @@ from keras_rl.check.calibrate.runs import (
     REPORT,
     TUNE,
     budget,
+    choose,
     halved,
     load,
     measure,
@@ -295,37 +296,6 @@ def calibrate(name: str) -> dict:
     return out
 
 
-def choose(name: str, rule, baseline: list, mutants: dict) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
-    """The pre-registered criterion on one rule's candidates: each statistic at each alpha of
-    ``ALPHAS``, its false-alarm rate on the baseline and its power against each mutant's runs
-    (``mutants``: name -> (Mutant, runs)); chosen, among those with false alarms at most 1%,
-    the most power against the gross mutants, then against all, then the first listed."""
-    rows: list[dict[str, Any]] = []
-    for statistic in rule.candidates:
-        base = values(name, statistic, rule.episodes, baseline)
-        for alpha in ALPHAS:
-            per_mutant = {
-                m.name: power(base, values(name, statistic, rule.episodes, runs), rule.seeds, statistic, alpha)
-                for m, runs in mutants.values()
-            }
-            gross = [per_mutant[m.name] for m, _ in mutants.values() if m.gross]
-            rows.append(
-                {
-                    "statistic": statistic,
-                    "alpha": alpha,
-                    "seeds": rule.seeds,
-                    "episodes": rule.episodes,
-                    "false_alarm_rate": false_alarm_rate(base, rule.seeds, statistic, alpha),
-                    "power": per_mutant,
-                    "power_gross": float(np.mean(gross)),
-                    "power_all": float(np.mean(list(per_mutant.values()))),
-                }
-            )
-    eligible = [r for r in rows if r["false_alarm_rate"] <= 0.01]
-    chosen = max(eligible, key=lambda r: (r["power_gross"], r["power_all"], -rows.index(r))) if eligible else None
-    return rows, chosen
-
-
 def criterion_by_seeds(name: str) -> dict:
     """The post's own success criterion on baseline seeds 0-9 (where post 001's was chosen)
     beside the rest of the committed baseline (where it was not)."""
@@ -368,7 +338,7 @@ def held_out_block() -> str:
 
 def sensitive_block() -> str:
     """The sensitive tier's section (``keras_rl/check/calibrate/sensitive.py --write``), kept across rewrites."""
-    from keras_rl.check.calibrate.sensitive import BEGIN, END, render
+    from keras_rl.check.calibrate.sensitive import BEGIN, END, HEADING, render
     from keras_rl.check.command import SENSITIVE_RATES
 
     text = (
@@ -376,7 +346,7 @@ def sensitive_block() -> str:
         if SENSITIVE_RATES.is_file()
         else "Not computed yet: run keras-rl calibrate sensitive --write"
     )
-    return f"## The sensitive tier\n\n{BEGIN}\n{text}\n{END}"
+    return f"{HEADING}\n\n{BEGIN}\n{text}\n{END}"
 
 
 def markdown(results: dict) -> str:

@@ -1,19 +1,20 @@
 """What the check's calibration scripts share: committed runs read back, each run's statistic,
 and the power report of a rule against a set of changed runs.
 
-``rules.py``, ``held_out.py`` and ``designs.py`` (``keras-rl calibrate``) import from here
-(and from nothing of each other's but the blocks they render), so there is one reader of the
-runs and one power report.
+``rules.py``, ``held_out.py``, ``designs.py`` and ``sensitive.py`` (``keras-rl calibrate``)
+import from here (and from nothing of each other's but the blocks they render), so there is one
+reader of the runs, one power report and one candidate choice (``choose``).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from keras_rl.check.rules import RULES
-from keras_rl.check.statistics import decide, power, seed_statistic
+from keras_rl.check.rules import ALPHAS, RULES
+from keras_rl.check.statistics import decide, false_alarm_rate, power, seed_statistic
 from keras_rl.checkout import ROOT
 from keras_rl.registry import get_experiment
 from keras_rl.runs.files import read_episodes
@@ -129,3 +130,34 @@ def power_cells(r: dict) -> list[str]:
         f"{r['power_holm_first']:.0%}",
         f"{d['flagged']}/{d['checks']} [{d['ci95'][0]:.0%}, {d['ci95'][1]:.0%}]" if d else "none (n > seeds)",
     ]
+
+
+def choose(name: str, rule, baseline: list, mutants: dict) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
+    """The pre-registered criterion on one rule's candidates: each statistic at each alpha of
+    ``ALPHAS``, its false-alarm rate on the baseline and its power against each mutant's runs
+    (``mutants``: name -> (Mutant, runs)); chosen, among those with false alarms at most 1%,
+    the most power against the gross mutants, then against all, then the first listed."""
+    rows: list[dict[str, Any]] = []
+    for statistic in rule.candidates:
+        base = values(name, statistic, rule.episodes, baseline)
+        for alpha in ALPHAS:
+            per_mutant = {
+                m.name: power(base, values(name, statistic, rule.episodes, runs), rule.seeds, statistic, alpha)
+                for m, runs in mutants.values()
+            }
+            gross = [per_mutant[m.name] for m, _ in mutants.values() if m.gross]
+            rows.append(
+                {
+                    "statistic": statistic,
+                    "alpha": alpha,
+                    "seeds": rule.seeds,
+                    "episodes": rule.episodes,
+                    "false_alarm_rate": false_alarm_rate(base, rule.seeds, statistic, alpha),
+                    "power": per_mutant,
+                    "power_gross": float(np.mean(gross)),
+                    "power_all": float(np.mean(list(per_mutant.values()))),
+                }
+            )
+    eligible = [r for r in rows if r["false_alarm_rate"] <= 0.01]
+    chosen = max(eligible, key=lambda r: (r["power_gross"], r["power_all"], -rows.index(r))) if eligible else None
+    return rows, chosen

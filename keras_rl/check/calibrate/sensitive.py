@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from keras_rl.check.calibrate.runs import CHECKS, HOLM_LEVEL, TUNE, halved, load, measure, power_cells, values
+from keras_rl.check.calibrate.runs import CHECKS, HOLM_LEVEL, TUNE, choose, halved, load, measure, power_cells, values
 from keras_rl.check.rules import HELD_OUT, MUTANTS, RULES
 from keras_rl.check.statistics import check_false_alarm_rate, decide, family_false_alarm_rate, power
 from keras_rl.checkout import ROOT
@@ -46,6 +46,7 @@ SHIFTS = (0.90, 1.10)
 SHIFT_DRAWS = 2000
 REPEATS = 20_000
 BEGIN, END = "<!-- sensitive:begin -->", "<!-- sensitive:end -->"
+HEADING = "## The sensitive tier"
 SEES_BEGIN, SEES_END = "<!-- check-sees:begin -->", "<!-- check-sees:end -->"
 """docs/check.md's table of what each tier sees of the held-out mutants."""
 HELD_OUT_FOLDER = {"pendulum": "held-out-compiled", "cartpole": "held-out", "mountaincar": "held-out"}
@@ -63,8 +64,6 @@ def shift_power(baseline: np.ndarray, n: int, budget: int, shift: float, alpha: 
 
 
 def post_entry(post: str) -> dict:
-    from keras_rl.check.calibrate.rules import choose
-
     rule = RULES[(post, TIER)]
     baseline_runs = load(CHECKS / post / rule.baseline)
     entry: dict = {
@@ -243,8 +242,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     import json
 
-    from keras_rl.check.calibrate.rules import markdown
-    from keras_rl.check.command import CALIBRATION, SENSITIVE_RATES
+    from keras_rl.check.command import SENSITIVE_RATES
     from keras_rl.report.markdown import replace_block
     from keras_rl.runs.files import atomic_write_json, atomic_write_text
 
@@ -252,7 +250,10 @@ def run(args: argparse.Namespace) -> int:
     docs = ROOT / "docs" / "check.md"
     held = json.loads((CHECKS / "held_out.json").read_text())
     atomic_write_text(docs, replace_block(docs.read_text(), SEES_BEGIN, SEES_END, sees_table(data, held)))
-    measured = json.loads(CALIBRATION.read_text())  # the page whole, its sensitive block from the new JSON
-    atomic_write_text(CHECKS / "calibration.md", markdown({k: measured[k] for k in sorted(measured)}))
+    page = CHECKS / "calibration.md"
+    current = page.read_text()
+    if BEGIN not in current:  # where ``calibrate/rules.markdown`` puts it: after the held-out block
+        current = current.rstrip("\n") + f"\n\n{HEADING}\n\n{BEGIN}\n{END}"
+    atomic_write_text(page, replace_block(current, BEGIN, END, text))
     print(f"updated {SENSITIVE_RATES}, {CHECKS / 'calibration.md'} and {docs}")
     return 0
