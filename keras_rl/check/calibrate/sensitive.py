@@ -77,7 +77,7 @@ def post_entry(post: str) -> dict:
         },
         "baseline_seeds": len(baseline_runs),
     }
-    if rule.candidates:
+    if rule.candidates != (rule.statistic,):  # a choice was made among several
         folders = [CHECKS / post / "mutants" / m.name for m in MUTANTS[post]]
         seeds = TUNE if halved(folders) else None
         mutants = {m.name: (m, load(f, seeds)) for m, f in zip(MUTANTS[post], folders)}
