@@ -183,7 +183,8 @@ def describe_plan(rule: CheckRule, fresh: list[int], baseline: int, design) -> s
     """One post's plan, as ``check --dry-run`` prints it."""
     rates = error_rates(rule)
     measured = (
-        f"measured false-alarm rate {rates['false_alarm_rate']:.3g}, power {power_text(rates)}"
+        f"measured false-alarm rate {rates['false_alarm_rate']:.3g}, power "
+        f"{power_text(rates, source=(SENSITIVE_RATES if rule.tier == 'sensitive' else CALIBRATION).name)}"
         if rates
         else "error rates not calibrated for this rule"
     )
@@ -197,18 +198,20 @@ def describe_plan(rule: CheckRule, fresh: list[int], baseline: int, design) -> s
     )
 
 
-def power_text(rates: dict[str, Any], short: bool = False) -> str:
+def power_text(rates: dict[str, Any], short: bool = False, source: str = "calibration.json") -> str:
     """A rule's measured power in words: against the tuning mutants (gross / all), or for the
-    sensitive tier against a 10% move of the median and the held-out mutants."""
+    sensitive tier against a 10% move of the median and the held-out mutants; ``source``: the
+    file it was read from, named in the long form."""
     if "shift_power" in rates:
         moved = rates["shift_power"]
         text = f"{moved['x0.90']:.0%} / {moved['x1.10']:.0%} against a median 10% lower / higher"
-        return text if short else f"{text} (sensitive.json)"
-    if "power_gross" in rates:
-        text = f"{rates['power_gross']:.0%} / {rates['power_all']:.0%}"
-        return text if short else f"{rates['power_all']:.0%} over the mutants (calibration.json)"
-    text = f"{rates['held_out_power']:.0%} over the held-out mutants"
-    return text if short else f"{text} (sensitive.json)"
+    elif "power_gross" in rates:
+        if short:
+            return f"{rates['power_gross']:.0%} / {rates['power_all']:.0%}"
+        text = f"{rates['power_all']:.0%} over the mutants"
+    else:
+        text = f"{rates['held_out_power']:.0%} over the held-out mutants"
+    return text if short else f"{text} ({source})"
 
 
 def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, Any] | None:
