@@ -11,6 +11,7 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -130,3 +131,31 @@ def test_docs_table_of_what_each_tier_sees_is_generated_from_the_committed_rates
     held = json.loads((ROOT / "results" / "checks" / "held_out.json").read_text())
     expected = sensitive.sees_table(json.loads(SENSITIVE_RATES.read_text()), held)
     assert stated == expected, "docs/check.md is stale: keras-rl calibrate sensitive --write"
+
+
+@pytest.mark.slow
+def test_a_real_sensitive_check_trains_on_the_compiled_engine_and_reports_its_measured_rates(tmp_path):
+    """Two fresh post-000 seeds through the whole command (one process, bounded by the
+    subprocess timeout): each trains on the compiled engine, the verdict is tested against the
+    200-seed compiled baseline, and check.md states the tier's measured rates."""
+    import json
+    import subprocess
+    import sys
+
+    out = tmp_path / "check"
+    proc = subprocess.run(
+        [sys.executable, "-m", "keras_rl", "check", "pendulum", "--tier", "sensitive", "--seeds", "4000-4001"]
+        + ["--workers", "1", "--no-progress", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode in (0, 1), proc.stderr[-2000:]
+    report = json.loads((out / "check.json").read_text())
+    (entry,) = report["experiments"]
+    assert entry["rule"]["engine"] == "compiled" and len(entry["baseline"]) == 200 and len(entry["new"]) == 2
+    for seed in (4000, 4001):
+        summary = json.loads((out / "pendulum" / f"seed_{seed}" / "summary.json").read_text())
+        assert summary["provenance"]["engine"] == "compiled" and summary["status"] == "completed"
+    text = (out / "check.md").read_text()
+    assert "against a median 10% lower / higher" in text and "tier sensitive" in text
