@@ -238,9 +238,8 @@ def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, A
     return measured
 
 
-def sensitive_rates(rule: CheckRule, path: Path | None = None) -> dict[str, Any] | None:
+def sensitive_rates(rule: CheckRule, path: Path = SENSITIVE_RATES) -> dict[str, Any] | None:
     """The sensitive tier's measured rates of exactly this rule, or None."""
-    path = path or SENSITIVE_RATES
     if not path.is_file():
         return None
     entry = json.loads(path.read_text()).get("posts", {}).get(rule.experiment)

@@ -17,12 +17,12 @@ The tier's sizes were computed before its runs (``reproductions/sensitive_plan.p
   drawn with replacement, their episodes times 0.90 or 1.10 (rounded; past the budget they never
   got there), tested against the whole baseline, ``SHIFT_DRAWS`` times, at alpha / 3.
 - **Post 001's statistic**: chosen among the rule's candidates by the rules' pre-registered
-  criterion (``calibrate/rules.choose``) on the tuning mutants' seeds 0-14 (``MUTANTS``), at the
-  tier's 40 fresh seeds; ``tests/test_check.py`` fails if the rule is not the one chosen.
+  criterion (``calibrate/runs.choose``) on the tuning mutants' seeds 0-14 (``MUTANTS``), at the
+  tier's 40 fresh seeds; ``tests/test_sensitive_tier.py`` fails if the rule is not the one chosen.
 - **Held-out mutants** (``HELD_OUT``, never used to choose): power at alpha and alpha / 3,
   a seed bootstrap, and the runs cut into disjoint real checks with their Clopper-Pearson
   interval (``calibrate/runs.measure``). Post 000's were rerun on the compiled engine
-  (``results/checks/pendulum/held-out-compiled``, 60 seeds each); post 003's are the Gymnasium
+  (``results/checks/pendulum/held-out-compiled``, 200 seeds each); post 003's are the Gymnasium
   loop's 30 (``held-out``): its compiled engine reads equivalent to that loop on 100 seeds each
   (``results/engines/cartpole/report.md``: median ratio 1.01, 90% 0.92-1.06), so its rows carry
   that caveat; post 001 has one engine.
