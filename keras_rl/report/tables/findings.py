@@ -307,9 +307,13 @@ def compare_table() -> str:
 
     lines = [
         "| experiment | torch init | success keras / torch (Fisher p) | episodes to threshold, median keras / torch "
-        "| keras - torch [95% CI] | Mann-Whitney p | equivalence, success ±0.15 / median ±10% (TOST) | report |",
-        "|---|---|---|---|---|---|---|---|",
+        "| keras - torch [95% CI] | Mann-Whitney p | equivalence, success ±0.15 / median ±10% (TOST) | report "
+        "| at the planned seeds (`results/compare/seed_plan.md`) |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
+    from keras_rl.report.certified import certifications, reading
+
+    planned = {(c.post, c.matched_init): c for c in certifications()}
     g = lambda v: "-" if v is None else f"{v:.2g}"  # noqa: E731  (p-values)
     m = lambda v: "-" if v is None else f"{v:g}"  # noqa: E731  (medians, exact)
     for path in sorted((ROOT / "results" / "compare").glob("**/result.json")):
@@ -329,9 +333,18 @@ def compare_table() -> str:
             f"| {r['experiment']} ({r['variant']}) | {'matched to Keras' if r['matched_init'] else 'torch default'} "
             f"| {k['successes']}/{len(k['seeds'])} / {t['successes']}/{len(t['seeds'])} ({g(r['fisher_p'])}) "
             f"| {m(k['median'])} / {m(t['median'])} | {diff} | {g(r['mann_whitney'][1])} | {readings} "
-            f"| [{link}]({link}) |"
+            f"| [{link}]({link}) | {_planned_cell(reading(planned[(r['experiment'], r['matched_init'])]))} |"
         )
     return "\n".join(lines)
+
+
+def _planned_cell(read: dict) -> str:
+    """A comparison at its planned seeds: the two readings, or how many seeds each arm holds."""
+    if read["pending"]:
+        keras, torch = read["held"]
+        return f"pending: Keras {keras}, PyTorch {torch} of {read['planned']} seeds"
+    readings = " / ".join(e.reading.replace(" within the margin", "") for e in read["judged"])
+    return f"{readings} ({read['planned']} seeds each)"
 
 
 FIRST_TEN = set(range(10))

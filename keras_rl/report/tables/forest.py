@@ -13,7 +13,8 @@ shows its estimate, its 90% interval (TOST), the margin band, and its reading: e
 within the margin, different, or inconclusive at its number of seeds.
 
 The rows: Keras against PyTorch, default and matched init (the committed ``compare`` results,
-``results/compare/<post>/[matched-init/]result.json``); the compiled engine against the
+``results/compare/<post>/[matched-init/]result.json``, 30 seeds) and again at the seeds the plan
+asked for (``report.certified``: pending until both arms hold them); the compiled engine against the
 Gymnasium loop; the tutorial's community fix (pytorch/tutorials #3080) against the tutorial as
 published; seed-batched against solo runs; and each post's ablations, every quirk switched
 off alone against the faithful base. A comparison whose plan sets a number of seeds before its
@@ -52,15 +53,21 @@ class Comparison:
     result: str | None = None
     """A committed ``compare`` result (``results/compare/...``), which holds both arms."""
     seeds_before_reading: int = 0
+    certified: Any = None
+    """A Keras-against-PyTorch comparison at its planned seeds (``report.certified``)."""
 
 
 def _comparisons() -> list[Comparison]:
+    from keras_rl.report.certified import certifications
+
     out = []
     for post in ("pendulum", "cartpole", "mountaincar"):
         out.append(Comparison("Keras vs PyTorch", post, result=f"compare/{post}/result.json"))
         out.append(
             Comparison("Keras vs PyTorch, matched init", post, result=f"compare/{post}/matched-init/result.json")
         )
+    for c in certifications():
+        out.append(Comparison("Keras vs PyTorch, the planned seeds", f"{c.label} ({c.planned} planned)", certified=c))
     for post, seeds in (("pendulum", 100), ("cartpole", 100)):
         out.append(
             Comparison(
@@ -114,8 +121,21 @@ def _hits(records: list[dict[str, Any]]) -> list[int]:
 
 def row(c: Comparison) -> dict[str, Any]:
     """One comparison's numbers and readings (or why it is pending)."""
+    from keras_rl.report.certified import reading
     from keras_rl.report.equivalence import framework_verdict
 
+    if c.certified is not None:
+        read = reading(c.certified)
+        held = read["held"]
+        if read["pending"]:
+            return {
+                "group": c.group,
+                "label": c.label,
+                "source": ", ".join(c.certified.keras + c.certified.torch),
+                "seeds": f"Keras {held[0]}, PyTorch {held[1]} of {read['planned']}",
+                "pending": True,
+            }
+        return _judged(c, ", ".join(c.certified.keras + c.certified.torch), read["planned"], read["judged"])
     if c.result is not None:
         result = json.loads((RESULTS / c.result).read_text())
         arms = [result["frameworks"][fw] for fw in ("keras", "torch")]
@@ -136,14 +156,17 @@ def row(c: Comparison) -> dict[str, Any]:
         hits = [_hits(r) for r in arms_records]
         successes = [sum(bool(r["success"]) for r in rs) for rs in arms_records]
         budget = int(arms_records[1][0]["budget_episodes"])
-    _, (success, speed) = framework_verdict(
-        (successes[0], successes[1]), (seeds[0], seeds[1]), (hits[0], hits[1]), budget
-    )
+    _, judged = framework_verdict((successes[0], successes[1]), (seeds[0], seeds[1]), (hits[0], hits[1]), budget)
+    return _judged(c, source, seeds[0] if seeds[0] == seeds[1] else seeds, judged)
+
+
+def _judged(c: Comparison, source: str, seeds: Any, judged: list) -> dict[str, Any]:
+    success, speed = judged
     return {
         "group": c.group,
         "label": c.label,
         "source": source,
-        "seeds": seeds[0] if seeds[0] == seeds[1] else seeds,
+        "seeds": seeds,
         "pending": False,
         **{
             name: {
