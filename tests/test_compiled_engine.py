@@ -116,7 +116,17 @@ def test_evaluation_and_tensorboard_during_training(tmp_path):
 def test_what_the_compiled_engine_cannot_run_is_refused_before_training(tmp_path):
     engine = get_engine("compiled")
     mountaincar = get_experiment("mountaincar")
-    assert "runs pendulum and cartpole" in engine.refusal(mountaincar, mountaincar.config_cls.for_variant("faithful"))
+    assert engine.refusal(mountaincar, mountaincar.config_cls.for_variant("faithful")) is None
+    assert engine.refusal(mountaincar, mountaincar.config_cls.for_variant("faithful-intended")) is None
+    fixed = engine.refusal(mountaincar, mountaincar.config_cls.for_variant("fixed"))
+    assert "popping_buffer=True (P001-POP)" in fixed and "--engine gymnasium" in fixed
+    for field, value, quirk in (
+        ("episode_returns_as_rewards", False, "P001-RETURNS"),
+        ("exploration", "ou", "P001-NOEXPLORE"),
+        ("learning_phase_training", True, "P001-PHASE"),
+    ):
+        why = engine.refusal(mountaincar, mountaincar.config_cls.for_variant("faithful", **{field: value}))
+        assert f"{field}=" in why and quirk in why
     torch = config(framework="torch")
     assert "Keras learner" in engine.refusal(get_experiment("pendulum"), torch)
     with pytest.raises(ConfigError, match="one seed per program"):
@@ -234,7 +244,7 @@ def test_post_003_resumes_bit_for_bit_on_the_compiled_engine(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("post", ["pendulum", "cartpole"])
+@pytest.mark.parametrize("post", ["pendulum", "cartpole", "mountaincar"])
 def test_a_seed_on_a_kept_program_plays_what_it_plays_alone(tmp_path, post):
     """A worker keeps each config's compiled program for its next seed (``ProgramCache``): seed 1
     run after seed 0 on seed 0's program (its learner loaded with seed 1's initial state, the
@@ -244,8 +254,12 @@ def test_a_seed_on_a_kept_program_plays_what_it_plays_alone(tmp_path, post):
     program)."""
     from keras_rl.train.compiled import PROGRAMS
 
-    make, run, read = (config, train, columns) if post == "pendulum" else (cartpole, train_cartpole, cartpole_columns)
-    episodes = {"episodes": 4} if post == "pendulum" else {"episodes": 25}
+    make, run, read = {
+        "pendulum": (config, train, columns),
+        "cartpole": (cartpole, train_cartpole, cartpole_columns),
+        "mountaincar": (mountaincar, train_mountaincar, columns),
+    }[post]
+    episodes = {"pendulum": {"episodes": 4}, "cartpole": {"episodes": 25}, "mountaincar": {"episodes": 3}}[post]
     PROGRAMS.clear()
     run("compiled", make(seed=1, **episodes), tmp_path / "alone")
     PROGRAMS.clear()
@@ -280,6 +294,9 @@ def test_the_program_cache_keys_on_what_shapes_the_program_and_keeps_a_few():
 
             self.ring = tf.Variable([1.0, 2.0])
 
+        def reset(self):
+            self.ring.assign([0.0, 0.0])
+
     made = []
 
     def make(c, learner):
@@ -293,3 +310,87 @@ def test_the_program_cache_keys_on_what_shapes_the_program_and_keeps_a_few():
     cache.take("pendulum", config(tau=0.01), Learner(2), make)
     cache.take("pendulum", config(tau=0.02), Learner(3), make)  # a third config: the oldest goes
     assert len(cache.kept) == 2 and cache.key("pendulum", config()) not in cache.kept
+
+
+def mountaincar(**changes):
+    values = {"seed": 0, "episodes": 8, **changes}
+    return get_experiment("mountaincar").config_cls.for_variant("faithful", **values)
+
+
+def train_mountaincar(engine: str, c, folder: Path, settings: TrainSettings = QUIET, should_stop=None):
+    return get_engine(engine).train(get_experiment("mountaincar"), [c], [folder], settings, should_stop=should_stop)[0]
+
+
+@pytest.mark.slow
+def test_post_001_on_both_engines_agrees_over_the_first_episodes(tmp_path):
+    """Post 001's acting has no draws (P001-NOEXPLORE) and its bursts pop from the loop's own
+    buffer and generator, so the engines differ only by rounding: the actor inside the episode
+    program against its own XLA program (measured, seed 0: scores within about 1e-7 relative,
+    losses within 2e-7, over the first 8 episodes, every burst at the same episode)."""
+    c = mountaincar()
+    loop, compiled = (
+        train_mountaincar("gymnasium", c, tmp_path / "loop"),
+        train_mountaincar("compiled", c, tmp_path / "compiled"),
+    )
+    assert loop.status == compiled.status == "completed"
+    a, b = columns(tmp_path / "loop"), columns(tmp_path / "compiled")
+    assert a["episode"] == b["episode"] and a["steps"] == b["steps"] and a["total_steps"] == b["total_steps"]
+    np.testing.assert_allclose(b["score"], a["score"], rtol=1e-5)
+    trained = [i for i, v in enumerate(a["critic_loss"]) if v is not None]
+    assert len(trained) >= 6 and trained == [i for i, v in enumerate(b["critic_loss"]) if v is not None]
+    for name in LOSSES:
+        np.testing.assert_allclose([b[name][i] for i in trained], [a[name][i] for i in trained], rtol=1e-5, atol=1e-6)
+    assert json.loads((tmp_path / "compiled" / "summary.json").read_text())["provenance"]["engine"] == "compiled"
+
+
+@pytest.mark.slow
+def test_post_001_resumes_bit_for_bit_on_the_compiled_engine(tmp_path):
+    """The popping buffer's rows and generator travel in the checkpoint (its bursts continue
+    from the same buffer), with the learner's state."""
+    train_mountaincar("compiled", mountaincar(episodes=6), tmp_path / "straight")
+    stops = iter([False, False, True])
+    cut = train_mountaincar(
+        "compiled", mountaincar(episodes=6), tmp_path / "cut", TrainSettings(progress=False), lambda: next(stops)
+    )
+    assert cut.status == "interrupted" and cut.episodes_run == 3
+    resumed = train_mountaincar(
+        "compiled", mountaincar(episodes=6), tmp_path / "cut", TrainSettings(progress=False, resume=True)
+    )
+    assert resumed.status == "completed"
+    assert columns(tmp_path / "cut") == columns(tmp_path / "straight")
+
+
+@pytest.mark.slow
+def test_a_post_001_burst_equals_the_learners_own_updates_within_1e_6():
+    """The burst program (the learner's own update traced into a loop over padded batches, the
+    pad never trained) against the learner's compiled ``train`` batch by batch, from the same
+    weights: the losses and the weights after it."""
+    import tensorflow as tf
+
+    from keras_rl.learners.table import implementation
+    from keras_rl.seeding import seed_everything
+    from keras_rl.train.compiled import MountainCarProgram
+
+    c = mountaincar()
+    experiment = get_experiment("mountaincar")
+    spec = experiment.env_spec(experiment.make_env(c))
+
+    def learner():
+        seed_everything(0)
+        return implementation("mountaincar", "keras").load()(c, spec)
+
+    solo, traced = learner(), learner()
+    program = MountainCarProgram(c, traced)
+    count = 5
+    rows = np.random.default_rng(0).normal(size=(count, c.batch_size, solo.layout.width)).astype(np.float32)
+    rows[..., -1] = rows[..., -1] > 0  # done flags
+    expected = [[float(v) for v in solo.train(batch).values()] for batch in rows]
+    padded = np.zeros((program.burst_size, c.batch_size, solo.layout.width), np.float32)
+    padded[:count] = rows
+    padded[count:] = 1e6  # never trained on: a pad that did train would wreck the weights
+    got = program.burst(tf.constant(padded), tf.constant(count)).numpy()
+    np.testing.assert_allclose(got[:count], expected, rtol=1e-6)
+    assert not got[count:].any()
+    for name, weights in solo.weights().items():
+        for a, b in zip(weights, traced.weights()[name]):
+            np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-6)

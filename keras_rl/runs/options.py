@@ -147,7 +147,7 @@ FLAGS: dict[str, dict[str, Any]] = {
         choices=ENGINE_NAMES,
         default="gymnasium",
         help="gymnasium (the reference loop: Gymnasium's envs, one learner call per env step; the default) "
-        "or compiled (each episode one XLA program; posts 000 and 003 in Keras so far)",
+        "or compiled (each episode one XLA program; posts 000, 001 and 003 in Keras)",
     ),
     "--seeds": dict(
         default=None,

@@ -17,10 +17,12 @@ the threshold, ``summary.json``, whose provenance names the engine), checkpoints
 boundaries for ``--resume`` (bit for bit), Ctrl-C and SIGTERM between episodes, TensorBoard,
 evaluation during training and the final weights.
 
-Posts 000 and 003 (Keras) run here, every quirk switch honoured; anything else is refused
-before it trains, with the reason (``CompiledEngine.refusal``). Post 003's episodes end when
-the pole falls, so its program plays a chunk of up to 128 steps or to the episode's end; the
-host lays out the chunk's draws (epsilon-greedy's uniform and random action, the sample
+Posts 000, 003 and 001 (Keras) run here, every quirk switch honoured or refused before it
+trains, with the reason and the switch (``CompiledEngine.refusal``); so is anything else. Post
+001's episode is its acting alone (it trains only at an episode's end, P001-RETURNS), then its
+burst is a second program over the batches the loop's own popping buffer pops (``MountainCarRun``).
+Post 003's episodes end when the pole falls, so its program plays a chunk of up to 128 steps
+or to the episode's end; the host lays out the chunk's draws (epsilon-greedy's uniform and random action, the sample
 indices) in the loop's order, keeps each generator's state after every step, and after the
 chunk sets each one where the loop's would stand after the steps played. Its draws depend on
 nothing the program computes, so no counter-based generator is needed: the streams are the
@@ -51,7 +53,7 @@ from keras_rl.runs.lifecycle import check_resume_config
 from keras_rl.runs.signals import signal_name, stop_signals_as_flag, stop_signals_deferred
 from keras_rl.runs.summary import RunSummary, Status
 from keras_rl.seeding import configure_tensorflow, seed_everything
-from keras_rl.tf_envs import MAX_STEPS, CartPole, Pendulum
+from keras_rl.tf_envs import MAX_STEPS, CartPole, MountainCarContinuous, Pendulum
 from keras_rl.train.loop import SeedRun, _progress_bar, _TensorBoard
 from keras_rl.train.settings import TrainSettings
 
@@ -70,7 +72,7 @@ class CompiledEngine:
             return "the compiled engine runs the Keras learner; the PyTorch side runs with --engine gymnasium"
         if config.env_id != ENV_IDS[experiment.name]:
             return f"the compiled engine has {ENV_IDS[experiment.name]} in TensorFlow, not env_id {config.env_id!r}"
-        return None
+        return RUNS[experiment.name].refusal(config)
 
     def train(
         self,
@@ -136,6 +138,9 @@ class PendulumProgram:
             obs = next_obs
         return score, losses.stack()
 
+    def reset(self) -> None:
+        self.ring.assign(tf.zeros_like(self.ring))
+
 
 class ProgramCache:
     """The compiled programs of this process, one per program-shaping config, kept for the next
@@ -172,7 +177,7 @@ class ProgramCache:
         learner, program = self.kept.pop(key)
         self.kept[key] = (learner, program)  # the most recently used last
         learner.load_state_dict(fresh.state_dict())
-        program.ring.assign(tf.zeros_like(program.ring))
+        program.reset()
         return learner, program
 
     def clear(self) -> None:
@@ -190,6 +195,11 @@ class CompiledRun:
     def make_program(self, config, learner):
         raise NotImplementedError
 
+    @classmethod
+    def refusal(cls, config) -> str | None:
+        """Why this post's config cannot run here (a quirk switch the program does not honour), or None."""
+        return None
+
     def _play_episode(self) -> tuple[float, int, EpisodeStats] | str:
         """One episode: its score, its steps and its learner statistics, or why the run stopped."""
         raise NotImplementedError
@@ -205,6 +215,7 @@ class CompiledRun:
         fresh = implementation(experiment.name, c.framework).load()(c, spec)  # this seed's initial weights
         agent = experiment.assemble(c, spec, fresh, self.env.action_space)
         self.buffer, self.explorer, self.schedule = agent.buffer, agent.explorer, agent.schedule
+        self.transitions = agent.transitions
         self.action_space = self.env.action_space
         self.learner, self.program = PROGRAMS.take(experiment.name, c, fresh, self.make_program)
         self.recorder = RunRecorder(out_dir, self.learner.loss_names)
@@ -297,7 +308,7 @@ class CompiledRun:
             if self.evaluator is not None and self.evaluator.due(self.episode):
                 self.evaluator.evaluate(
                     self.episode,
-                    lambda obs: self.learner.act(np.asarray(obs, np.float32)),
+                    lambda obs: self.learner.act(self.transitions.observe(obs)),  # as the policy sees it (P001)
                     self.learner.save,
                     self.writer,
                 )
@@ -333,15 +344,23 @@ class CompiledRun:
             },
             "engine_state": {
                 "learner": self.learner.state_dict(),
-                "ring": self.program.ring.numpy(),
-                "stored": self.stored,
+                **self._replay_state(),
                 "updates": self.tally.total_updates,
-                "buffer_rng": rng_state(self.buffer.rng),
                 "explorer": self.explorer.state_dict(),
                 "env_rng": rng_state(self.env.unwrapped.np_random),
                 "action_space_rng": rng_state(self.action_space.np_random),
             },
         }
+
+    def _replay_state(self) -> dict[str, Any]:
+        """What the replay holds between episodes: the program's ring, how much was stored, and
+        the sampling generator's state."""
+        return {"ring": self.program.ring.numpy(), "stored": self.stored, "buffer_rng": rng_state(self.buffer.rng)}
+
+    def _load_replay_state(self, own: dict[str, Any]) -> None:
+        self.program.ring.assign(own["ring"])
+        self.stored = int(own["stored"])
+        set_rng_state(self.buffer.rng, own["buffer_rng"])
 
     def _write_checkpoint(self) -> None:
         write_checkpoint(self.recorder.out_dir, self._snapshot())
@@ -362,9 +381,8 @@ class CompiledRun:
         self.status, self.message = seed["status"], seed["message"]
         self.episode, self.saved = int(seed["episode"]), bool(seed["saved"])
         self.learner.load_state_dict(own["learner"])
-        self.program.ring.assign(own["ring"])
-        self.stored, self.tally.total_updates = int(own["stored"]), int(own["updates"])
-        set_rng_state(self.buffer.rng, own["buffer_rng"])
+        self._load_replay_state(own)
+        self.tally.total_updates = int(own["updates"])
         self.explorer.load_state_dict(own["explorer"])
         set_rng_state(self.env.unwrapped.np_random, own["env_rng"])
         set_rng_state(self.action_space.np_random, own["action_space_rng"])
@@ -511,6 +529,9 @@ class CartPoleProgram:
             t += 1
         return state, t, ended, losses.stack()
 
+    def reset(self) -> None:
+        self.ring.assign(tf.zeros_like(self.ring))
+
 
 class CartPoleRun(CompiledRun):
     """Post 003 in Keras: an episode in chunks of up to ``CartPoleProgram.BLOCK`` steps. The host
@@ -579,6 +600,146 @@ class CartPoleRun(CompiledRun):
         return float(played), played, self.tally.stats()
 
 
-RUNS: dict[str, type[CompiledRun]] = {"pendulum": PendulumRun, "cartpole": CartPoleRun}
+class MountainCarProgram:
+    """Post 001's two programs: an episode's acting (up to 999 steps of the actor on the
+    normalised state and the env, no training: its transitions reach the buffer only at the
+    episode's end, P001-RETURNS) and a training burst (the learner's own update over the
+    burst's batches, P001-POP and P001-TRIGGER)."""
+
+    def __init__(self, config, learner):
+        c = self.config = config
+        self.learner = learner
+        self.env = MountainCarContinuous()
+        self.steps = MAX_STEPS["MountainCarContinuous-v0"]
+        env = self.env
+        # the observation space's bounds as Gymnasium keeps them (float32): P001's (s - low) / (high - low)
+        self.obs_low = np.array([env.min_position, -env.max_speed], np.float32)
+        self.obs_span = np.array([env.max_position, env.max_speed], np.float32) - self.obs_low
+        capacity = c.train_start + self.steps + 1  # the most the popping buffer can hold (posts/mountaincar.py)
+        self.burst_size = -(-(capacity - c.train_down_to) // c.batch_size)
+        """The most batches one burst pops."""
+        self.episode = step_function(  # kept as concrete functions: no per-call signature dispatch
+            self._episode, True, tf.TensorSpec([2], tf.float64)
+        ).get_concrete_function()
+        self.burst = step_function(
+            self._burst,
+            True,
+            tf.TensorSpec([self.burst_size, c.batch_size, learner.layout.width], tf.float32),
+            tf.TensorSpec([], tf.int32),  # batches this burst pops
+        ).get_concrete_function()
+
+    def _episode(self, state):
+        learner, env, steps = self.learner, self.env, self.steps
+        low, span = tf.constant(self.obs_low), tf.constant(self.obs_span)
+        observations = tf.TensorArray(tf.float32, steps, element_shape=[2])
+        actions = tf.TensorArray(tf.float32, steps, element_shape=[1])
+        rewards = tf.TensorArray(tf.float64, steps, element_shape=[])
+        terminals = tf.TensorArray(tf.bool, steps, element_shape=[])
+        t = tf.constant(0)
+        ended = tf.constant(False)
+        while t < steps and not ended:
+            action = learner.actor(((env.observe(state) - low) / span)[None, :])[0]
+            state, obs, reward, terminated = env.step(state, action, tf.equal(t, 0))
+            observations = observations.write(t, obs)
+            actions = actions.write(t, action)
+            rewards = rewards.write(t, reward)
+            terminals = terminals.write(t, terminated)
+            ended = terminated
+            t += 1
+        return t, observations.stack(), actions.stack(), rewards.stack(), terminals.stack()
+
+    def _burst(self, batches, count):
+        learner = self.learner
+        names = learner.loss_names
+        losses = tf.TensorArray(tf.float32, self.burst_size, element_shape=[len(names)])
+        for k in tf.range(self.burst_size):
+
+            def update(k=k):
+                out = learner.update(batches[k])
+                return tf.stack([out[name] for name in names])
+
+            losses = losses.write(k, tf.cond(k < count, update, lambda: tf.zeros([len(names)], tf.float32)))
+        return losses.stack()
+
+    def reset(self) -> None:
+        """Nothing to clear: the popping buffer is the host's (a fresh one each seed)."""
+
+
+class MountainCarRun(CompiledRun):
+    """Post 001 in Keras: each episode's acting one program call, then, where the buffer holds
+    more than ``train_start``, its burst one more. The host stores the episode's transitions as
+    the loop stores them (``TransitionRule``: the normalised state, the raw next state, the
+    standardised discounted returns) into the loop's own popping buffer, which pops the burst's
+    batches from its own generator (no update touches it), so both engines train on the same
+    batches."""
+
+    SWITCHES = {
+        "popping_buffer": (True, "P001-POP", "the ring buffer trains every env step"),
+        "episode_returns_as_rewards": (True, "P001-RETURNS", "transitions stored every step can train mid-episode"),
+        "exploration": ("none", "P001-NOEXPLORE", "OU noise is drawn per step of an episode of unknown length"),
+        "learning_phase_training": (False, "P001-PHASE", "networks in training mode draw noise inside the act"),
+    }
+    """The switches the programs need at their faithful setting: an episode acts with fixed
+    weights only when nothing trains before its end."""
+
+    @classmethod
+    def refusal(cls, config) -> str | None:
+        for field, (wanted, quirk, why) in cls.SWITCHES.items():
+            if getattr(config, field) != wanted:
+                return (
+                    f"the compiled engine runs post 001 with {field}={wanted!r} ({quirk}) only, not "
+                    f"{getattr(config, field)!r} ({why}); run it with --engine gymnasium"
+                )
+        return None
+
+    def make_program(self, config, learner):
+        return MountainCarProgram(config, learner)
+
+    def _replay_state(self) -> dict[str, Any]:
+        return {"buffer": self.buffer.state_dict()}
+
+    def _load_replay_state(self, own: dict[str, Any]) -> None:
+        self.buffer.load_state_dict(own["buffer"])
+
+    def _play_episode(self) -> tuple[float, int, EpisodeStats] | str:
+        state = self._reset_env()
+        steps, observations, actions, rewards, terminals = self.program.episode(tf.constant(state))
+        steps = int(steps)
+        observations, actions, terminals = observations.numpy(), actions.numpy(), terminals.numpy()
+        rewards = rewards.numpy()
+        self.tally.reset()
+        rule, score = self.transitions, 0.0
+        rule.begin_episode()
+        acted_on = rule.observe(state.astype(np.float32))  # what Gymnasium's reset returned
+        for t in range(steps):
+            truncated = t + 1 == self.program.steps
+            self.buffer.add_rows(
+                rule.rows(acted_on, actions[t], float(rewards[t]), observations[t], bool(terminals[t]), truncated)
+            )
+            acted_on = rule.observe(observations[t])
+            score += float(rewards[t])
+        total = self.run_.total_steps + steps
+        batches = self.schedule.batches(self.buffer, total)  # at the episode's last step, as the loop
+        if batches:
+            stopped = self._train_burst(batches, total)
+            if stopped is not None:
+                return stopped
+        return score, steps, self.tally.stats()
+
+    def _train_burst(self, batches: list[np.ndarray], total: int) -> str | None:
+        program = self.program
+        stacked = np.zeros((program.burst_size, *batches[0].shape), np.float32)
+        stacked[: len(batches)] = batches
+        losses = program.burst(tf.constant(stacked), tf.constant(len(batches), tf.int32)).numpy()
+        names = self.learner.loss_names
+        for k in range(len(batches)):
+            try:
+                self.tally.add(dict(zip(names, losses[k])), f"env step {total}")
+            except NonFiniteLossError as exc:
+                return str(exc)
+        return None
+
+
+RUNS: dict[str, type[CompiledRun]] = {"pendulum": PendulumRun, "cartpole": CartPoleRun, "mountaincar": MountainCarRun}
 """The posts the compiled engine runs, each with its host side."""
-ENV_IDS = {"pendulum": "Pendulum-v1", "cartpole": "CartPole-v1"}
+ENV_IDS = {"pendulum": "Pendulum-v1", "cartpole": "CartPole-v1", "mountaincar": "MountainCarContinuous-v0"}
