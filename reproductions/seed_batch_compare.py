@@ -5,6 +5,9 @@ Gymnasium loop): where they part, and whether it matters.
         results/pendulum/seed-batch/batch10 --write results/pendulum/seed-batch/report.md
     python reproductions/seed_batch_compare.py results/engines/pendulum/gymnasium \
         results/engines/pendulum/compiled --labels gymnasium,compiled --write results/engines/pendulum/report.md
+    python reproductions/seed_batch_compare.py \
+        results/checks/mountaincar/baseline,results/mountaincar/faithful-seeds-100-199 \
+        results/engines/mountaincar/compiled --labels gymnasium,compiled --write results/engines/mountaincar/report.md
 
 For each seed: the first episode whose row differs (every column but ``wall_seconds``: a
 loss rounded differently in the 8th digit counts), the first episode whose score differs (the
@@ -57,7 +60,11 @@ def _batch_walls(summaries: list[RunSummary], size: int) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("solo", type=Path, help="the reference arm (solo seeds; the Gymnasium loop)")
+    parser.add_argument(
+        "solo",
+        help="the reference arm (solo seeds; the Gymnasium loop): a run-set folder, or several "
+        "joined by commas (an arm that grew in steps; the first folder holding a seed is read)",
+    )
     parser.add_argument("batched", type=Path, help="the arm judged against it")
     parser.add_argument("--batch-size", type=int, default=None, help="the --seed-batch the batched runs used")
     parser.add_argument(
@@ -66,7 +73,13 @@ def main() -> None:
     parser.add_argument("--write", type=Path, default=None, help="also write the report here (markdown)")
     args = parser.parse_args()
     ref, judged_arm = args.labels.split(",")
-    seeds = RunSet(args.solo).seeds
+    reference: dict[int, Path] = {}
+    for folder in map(Path, args.solo.split(",")):
+        if not folder.is_dir():
+            parser.error(f"{folder} is not a folder of run folders")
+        for seed in RunSet(folder).seeds:
+            reference.setdefault(seed, folder)
+    seeds = sorted(reference)
     flags = (f" --batch-size {args.batch_size}" if args.batch_size else "") + (
         f" --labels {args.labels}" if args.labels != "solo,batched" else ""
     )
@@ -82,10 +95,11 @@ def main() -> None:
     ]
     solo_s, batch_s = [], []
     for seed in seeds:
-        a, b = RunSummary.read(args.solo / f"seed_{seed}"), RunSummary.read(args.batched / f"seed_{seed}")
+        a, b = RunSummary.read(reference[seed] / f"seed_{seed}"), RunSummary.read(args.batched / f"seed_{seed}")
         solo_s.append(a)
         batch_s.append(b)
-        ra, rb = rows(args.solo / f"seed_{seed}" / "episodes.csv"), rows(args.batched / f"seed_{seed}" / "episodes.csv")
+        ra = rows(reference[seed] / f"seed_{seed}" / "episodes.csv")
+        rb = rows(args.batched / f"seed_{seed}" / "episodes.csv")
         first = _first_difference(ra, rb, lambda r: r)
         first_score = _first_difference(ra, rb, lambda r: (r["steps"], r["score"]))
         lines.append(
@@ -96,7 +110,7 @@ def main() -> None:
     hits_b = [s.reached_at_episode for s in batch_s if s.success]
     n = len(seeds)
     diff = median_difference_ci(hits_b, hits_a, np.random.default_rng(0)) if hits_a and hits_b else None
-    budget = json.loads((args.solo / f"seed_{seeds[0]}" / "config.json").read_text())["episodes"]
+    budget = json.loads((reference[seeds[0]] / f"seed_{seeds[0]}" / "config.json").read_text())["episodes"]
     _, p = censored_mann_whitney(episodes_with_censoring(hits_b, n), episodes_with_censoring(hits_a, n), budget)
     fisher = fisher_exact(len(hits_b), n, len(hits_a), n)
     headline, judged = framework_verdict((len(hits_b), len(hits_a)), (n, n), (hits_b, hits_a), budget)

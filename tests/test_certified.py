@@ -33,13 +33,14 @@ def arms(tmp_path, monkeypatch):
     return tmp_path
 
 
-def test_an_arm_reads_its_sets_in_order_and_skips_unfinished_seeds(arms):
+def test_an_arm_reads_its_sets_in_order_and_skips_interrupted_seeds(arms):
     _seed(arms, "k-first", 0, 10)
     _seed(arms, "k-more", 0, 10)  # the same run again: the first set's is read
     _seed(arms, "k-more", 1, None)
     _seed(arms, "k-more", 2, 12, status="interrupted")
+    _seed(arms, "k-more", 4, None, status="non_finite_loss")  # what the config does: a seed of the arm
     held = arm(("k-first", "k-more", "not-committed-yet"), arms)
-    assert sorted(held) == [0, 1]
+    assert sorted(held) == [0, 1, 4]
     assert held[1]["success"] is False
 
 

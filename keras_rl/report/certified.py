@@ -24,6 +24,7 @@ from typing import Any
 
 from keras_rl.checkout import ROOT
 from keras_rl.errors import RunFolderError
+from keras_rl.runs.reuse import OUTCOMES
 
 RESULTS = ROOT / "results"
 PLAN = RESULTS / "compare" / "seed_plan.json"
@@ -72,8 +73,9 @@ def certifications() -> list[Certification]:
 
 
 def arm(folders: tuple[str, ...], root: Path = RESULTS) -> dict[int, dict[str, Any]]:
-    """Seed -> the ``summary.json`` of its finished run, over the run sets of one arm (a set not
-    committed yet holds nothing). A seed held twice must have the same outcome in both sets."""
+    """Seed -> the ``summary.json`` of its finished run (completed, or stopped by a non-finite
+    loss: ``runs.reuse.OUTCOMES``), over the run sets of one arm (a set not committed yet holds
+    nothing). A seed held twice must have the same outcome in both sets."""
     from keras_rl.runs.run_set import RunSet
 
     seeds: dict[int, dict[str, Any]] = {}
@@ -82,7 +84,7 @@ def arm(folders: tuple[str, ...], root: Path = RESULTS) -> dict[int, dict[str, A
         if not (root / folder).is_dir():
             continue
         for record in RunSet(root / folder).summary_records():
-            if record.get("status") != "completed":
+            if record.get("status") not in OUTCOMES:  # interrupted or failed: not yet what the seed does
                 continue
             seed = int(record["seed"])
             if seed not in seeds:

@@ -47,9 +47,10 @@ BEGIN, END = "<!-- forest:begin -->", "<!-- forest:end -->"
 class Comparison:
     group: str
     label: str
-    first: str = ""
-    """The first arm's run-set folder (under ``results/``); or ``compare``'s result.json below."""
-    second: str = ""
+    first: str | tuple[str, ...] = ""
+    """The first arm's run-set folder (under ``results/``), or its folders where it grew in steps
+    (``report.certified.arm``); or ``compare``'s result.json below."""
+    second: str | tuple[str, ...] = ""
     result: str | None = None
     """A committed ``compare`` result (``results/compare/...``), which holds both arms."""
     seeds_before_reading: int = 0
@@ -78,6 +79,15 @@ def _comparisons() -> list[Comparison]:
                 seeds_before_reading=seeds,
             )
         )
+    out.append(  # results/engines/mountaincar/plan.md: inconclusive at 100 seeds, so read again at 200
+        Comparison(
+            "compiled engine vs Gymnasium loop",
+            "mountaincar",
+            "engines/mountaincar/compiled",
+            ("checks/mountaincar/baseline", "mountaincar/faithful-seeds-100-199"),
+            seeds_before_reading=200,
+        )
+    )
     out.append(
         Comparison(
             "the tutorial's community fix vs as published",
@@ -108,11 +118,11 @@ def _comparisons() -> list[Comparison]:
     return out
 
 
-def _arm(folder: str) -> dict[int, dict[str, Any]]:
-    """Seed -> its summary, for the run set at ``results/<folder>``."""
-    from keras_rl.runs.run_set import RunSet
+def _arm(folders: str | tuple[str, ...]) -> dict[int, dict[str, Any]]:
+    """Seed -> its summary, for the run set(s) under ``results/``."""
+    from keras_rl.report.certified import arm
 
-    return {int(record["seed"]): record for record in RunSet(RESULTS / folder).summary_records()}
+    return arm((folders,) if isinstance(folders, str) else folders, RESULTS)
 
 
 def _hits(records: list[dict[str, Any]]) -> list[int]:
@@ -148,7 +158,7 @@ def row(c: Comparison) -> dict[str, Any]:
         first, second = _arm(c.first), _arm(c.second)
         common = sorted(set(first) & set(second))
         n = len(common)
-        source = f"{c.first} and {c.second}"
+        source = " and ".join(x if isinstance(x, str) else " + ".join(x) for x in (c.first, c.second))
         if n < max(c.seeds_before_reading, 1):
             return {"group": c.group, "label": c.label, "source": source, "seeds": n, "pending": True}
         arms_records = [[first[s] for s in common], [second[s] for s in common]]
