@@ -3,6 +3,7 @@
     python benchmarks/engines.py                 # post 000, 40 episodes (8,000 steps), 3 rounds
     python benchmarks/engines.py --episodes 100 --rounds 5
     python benchmarks/engines.py --experiment cartpole --episodes 300 --rounds 1   # post 003
+    python benchmarks/engines.py --experiment mountaincar --episodes 30 --rounds 3  # post 001
     python benchmarks/engines.py --markdown      # the table for docs/performance.md
     python benchmarks/engines.py --batch 10      # and the Gymnasium loop's seed batch of 10, per seed
 
@@ -42,7 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--experiment", choices=("pendulum", "cartpole"), default="pendulum")
+    parser.add_argument("--experiment", choices=("pendulum", "cartpole", "mountaincar"), default="pendulum")
     parser.add_argument("--episodes", type=int, default=40)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--markdown", action="store_true", help="print the result as a Markdown table")
@@ -64,7 +65,7 @@ def main() -> None:
     config = experiment.config_cls.for_variant(
         "faithful", seed=0, episodes=args.episodes, stop_at_threshold=False, **changes
     )
-    first = 4 if args.experiment == "pendulum" else args.episodes // 2 - 1
+    first = args.episodes // 2 - 1 if args.experiment == "cartpole" else 4
     from keras_rl.runs.files import read_episodes
 
     arms = ["gymnasium", "compiled"] + ([f"gymnasium, batch of {args.batch}"] if args.batch else [])
