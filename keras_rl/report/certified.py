@@ -30,14 +30,14 @@ RESULTS = ROOT / "results"
 PLAN = RESULTS / "compare" / "seed_plan.json"
 
 KERAS_ARMS = {
-    "pendulum": ("pendulum/faithful", "engines/pendulum/gymnasium"),
+    "pendulum": ("pendulum/faithful", "engines/pendulum/gymnasium", "pendulum/faithful-seeds-100-149"),
     "cartpole": ("cartpole/faithful", "engines/cartpole/gymnasium"),
     "mountaincar": ("mountaincar/faithful", "checks/mountaincar/baseline", "mountaincar/faithful-seeds-100-199"),
 }
 """Keras's arm of each post (the same arm for both inits: matched init changes PyTorch's side)."""
 
 TORCH_ARMS = {
-    ("pendulum", False): ("pendulum/faithful-torch",),
+    ("pendulum", False): ("pendulum/faithful-torch", "pendulum/faithful-torch-seeds-30-149"),
     ("pendulum", True): ("pendulum/faithful-torch-matched-init", "pendulum/faithful-torch-matched-init-seeds-30-99"),
     ("cartpole", False): ("cartpole/faithful-torch", "cartpole/faithful-torch-seeds-30-199"),
     ("cartpole", True): ("cartpole/faithful-torch-matched-init",),
