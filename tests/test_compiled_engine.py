@@ -155,26 +155,37 @@ def test_the_option_names_every_engine():
     assert sorted(ENGINE_NAMES) == sorted(ENGINES)
 
 
+def twin_learners(post: str, c):
+    """Two Keras learners of ``c`` with the same initial weights (one to train alone, one traced)."""
+    from keras_rl.learners.table import implementation
+    from keras_rl.seeding import seed_everything
+
+    experiment = get_experiment(post)
+    spec = experiment.env_spec(experiment.make_env(c))
+
+    def learner():
+        seed_everything(0)
+        return implementation(post, "keras").load()(c, spec)
+
+    return learner(), learner()
+
+
+def random_rows(*shape: int) -> np.ndarray:
+    """Packed transition rows of ``shape`` (the last axis the row width), done flags 0 or 1."""
+    rows = np.random.default_rng(0).normal(size=shape).astype(np.float32)
+    rows[..., -1] = rows[..., -1] > 0
+    return rows
+
+
 @pytest.mark.slow
 def test_one_update_inside_the_episode_program_equals_the_learners_own_within_1e_6():
     """The learner's update traced into the bigger program (a loop, a ``tf.cond``, the ring) against
     the learner's own compiled ``train`` on the same rows, from the same weights."""
     import tensorflow as tf
 
-    from keras_rl.learners.table import implementation
-    from keras_rl.seeding import seed_everything
-
     c = config()
-    experiment = get_experiment("pendulum")
-    spec = experiment.env_spec(experiment.make_env(c))
-
-    def learner():
-        seed_everything(0)
-        return implementation("pendulum", "keras").load()(c, spec)
-
-    solo, traced = learner(), learner()
-    rows = np.random.default_rng(0).normal(size=(c.batch_size, solo.layout.width)).astype(np.float32)
-    rows[:, -1] = rows[:, -1] > 0  # done flags
+    solo, traced = twin_learners("pendulum", c)
+    rows = random_rows(c.batch_size, solo.layout.width)
     losses = solo.train(rows)
 
     ring = tf.Variable(tf.zeros([c.buffer_size, traced.layout.width], tf.float32))
@@ -229,18 +240,27 @@ def test_post_003_on_both_engines_plays_the_same_episodes(tmp_path):
 
 
 @pytest.mark.slow
-def test_post_003_resumes_bit_for_bit_on_the_compiled_engine(tmp_path):
-    train_cartpole("compiled", cartpole(episodes=20), tmp_path / "straight")
-    stops = iter([False] * 9 + [True])
-    cut = train_cartpole(
-        "compiled", cartpole(episodes=20), tmp_path / "cut", TrainSettings(progress=False), lambda: next(stops)
+@pytest.mark.parametrize("post", ["cartpole", "mountaincar"])
+def test_an_interrupted_run_resumes_bit_for_bit_on_the_compiled_engine(tmp_path, post):
+    """Post 003 (its generators' states) and post 001 (the popping buffer's rows and generator,
+    so its bursts continue from the same buffer) travel in the checkpoint with the learner's state."""
+    make, run, read = (
+        (cartpole, train_cartpole, cartpole_columns)
+        if post == "cartpole"
+        else (
+            mountaincar,
+            train_mountaincar,
+            columns,
+        )
     )
-    assert cut.status == "interrupted" and cut.episodes_run == 10
-    resumed = train_cartpole(
-        "compiled", cartpole(episodes=20), tmp_path / "cut", TrainSettings(progress=False, resume=True)
-    )
+    episodes, cut_after = (20, 10) if post == "cartpole" else (6, 3)
+    run("compiled", make(episodes=episodes), tmp_path / "straight")
+    stops = iter([False] * (cut_after - 1) + [True])
+    cut = run("compiled", make(episodes=episodes), tmp_path / "cut", TrainSettings(progress=False), lambda: next(stops))
+    assert cut.status == "interrupted" and cut.episodes_run == cut_after
+    resumed = run("compiled", make(episodes=episodes), tmp_path / "cut", TrainSettings(progress=False, resume=True))
     assert resumed.status == "completed"
-    assert cartpole_columns(tmp_path / "cut") == cartpole_columns(tmp_path / "straight")
+    assert read(tmp_path / "cut") == read(tmp_path / "straight")
 
 
 @pytest.mark.slow
@@ -344,46 +364,19 @@ def test_post_001_on_both_engines_agrees_over_the_first_episodes(tmp_path):
 
 
 @pytest.mark.slow
-def test_post_001_resumes_bit_for_bit_on_the_compiled_engine(tmp_path):
-    """The popping buffer's rows and generator travel in the checkpoint (its bursts continue
-    from the same buffer), with the learner's state."""
-    train_mountaincar("compiled", mountaincar(episodes=6), tmp_path / "straight")
-    stops = iter([False, False, True])
-    cut = train_mountaincar(
-        "compiled", mountaincar(episodes=6), tmp_path / "cut", TrainSettings(progress=False), lambda: next(stops)
-    )
-    assert cut.status == "interrupted" and cut.episodes_run == 3
-    resumed = train_mountaincar(
-        "compiled", mountaincar(episodes=6), tmp_path / "cut", TrainSettings(progress=False, resume=True)
-    )
-    assert resumed.status == "completed"
-    assert columns(tmp_path / "cut") == columns(tmp_path / "straight")
-
-
-@pytest.mark.slow
 def test_a_post_001_burst_equals_the_learners_own_updates_within_1e_6():
     """The burst program (the learner's own update traced into a loop over padded batches, the
     pad never trained) against the learner's compiled ``train`` batch by batch, from the same
     weights: the losses and the weights after it."""
     import tensorflow as tf
 
-    from keras_rl.learners.table import implementation
-    from keras_rl.seeding import seed_everything
     from keras_rl.train.compiled import MountainCarProgram
 
     c = mountaincar()
-    experiment = get_experiment("mountaincar")
-    spec = experiment.env_spec(experiment.make_env(c))
-
-    def learner():
-        seed_everything(0)
-        return implementation("mountaincar", "keras").load()(c, spec)
-
-    solo, traced = learner(), learner()
+    solo, traced = twin_learners("mountaincar", c)
     program = MountainCarProgram(c, traced)
     count = 5
-    rows = np.random.default_rng(0).normal(size=(count, c.batch_size, solo.layout.width)).astype(np.float32)
-    rows[..., -1] = rows[..., -1] > 0  # done flags
+    rows = random_rows(count, c.batch_size, solo.layout.width)
     expected = [[float(v) for v in solo.train(batch).values()] for batch in rows]
     padded = np.zeros((program.burst_size, c.batch_size, solo.layout.width), np.float32)
     padded[:count] = rows
