@@ -42,7 +42,10 @@ TORCH_ARMS = {
     ("cartpole", False): ("cartpole/faithful-torch", "cartpole/faithful-torch-seeds-30-199"),
     ("cartpole", True): ("cartpole/faithful-torch-matched-init",),
     ("mountaincar", False): ("mountaincar/faithful-torch", "mountaincar/faithful-torch-seeds-30-199"),
-    ("mountaincar", True): ("mountaincar/faithful-torch-matched-init",),
+    ("mountaincar", True): (
+        "mountaincar/faithful-torch-matched-init",
+        "mountaincar/faithful-torch-matched-init-seeds-30-199",
+    ),
 }
 
 
