@@ -65,7 +65,7 @@ def main() -> None:
         help="the reference arm (solo seeds; the Gymnasium loop): a run-set folder, or several "
         "joined by commas (an arm that grew in steps; the first folder holding a seed is read)",
     )
-    parser.add_argument("batched", type=Path, help="the arm judged against it")
+    parser.add_argument("batched", help="the arm judged against it (one folder, or several joined by commas)")
     parser.add_argument("--batch-size", type=int, default=None, help="the --seed-batch the batched runs used")
     parser.add_argument(
         "--labels", default="solo,batched", help="the two arms' names in the report (default solo,batched)"
@@ -73,13 +73,22 @@ def main() -> None:
     parser.add_argument("--write", type=Path, default=None, help="also write the report here (markdown)")
     args = parser.parse_args()
     ref, judged_arm = args.labels.split(",")
-    reference: dict[int, Path] = {}
-    for folder in map(Path, args.solo.split(",")):
-        if not folder.is_dir():
-            parser.error(f"{folder} is not a folder of run folders")
-        for seed in RunSet(folder).seeds:
-            reference.setdefault(seed, folder)
+
+    def arm(folders: str) -> dict[int, Path]:
+        """Seed -> the first of the comma-joined folders that holds it."""
+        where: dict[int, Path] = {}
+        for folder in map(Path, folders.split(",")):
+            if not folder.is_dir():
+                parser.error(f"{folder} is not a folder of run folders")
+            for seed in RunSet(folder).seeds:
+                where.setdefault(seed, folder)
+        return where
+
+    reference, judged_runs = arm(args.solo), arm(args.batched)
     seeds = sorted(reference)
+    missing = [s for s in seeds if s not in judged_runs]
+    if missing:
+        parser.error(f"{args.batched} lacks seeds the reference holds: {missing[:10]}")
     flags = (f" --batch-size {args.batch_size}" if args.batch_size else "") + (
         f" --labels {args.labels}" if args.labels != "solo,batched" else ""
     )
@@ -95,11 +104,11 @@ def main() -> None:
     ]
     solo_s, batch_s = [], []
     for seed in seeds:
-        a, b = RunSummary.read(reference[seed] / f"seed_{seed}"), RunSummary.read(args.batched / f"seed_{seed}")
+        a, b = RunSummary.read(reference[seed] / f"seed_{seed}"), RunSummary.read(judged_runs[seed] / f"seed_{seed}")
         solo_s.append(a)
         batch_s.append(b)
         ra = rows(reference[seed] / f"seed_{seed}" / "episodes.csv")
-        rb = rows(args.batched / f"seed_{seed}" / "episodes.csv")
+        rb = rows(judged_runs[seed] / f"seed_{seed}" / "episodes.csv")
         first = _first_difference(ra, rb, lambda r: r)
         first_score = _first_difference(ra, rb, lambda r: (r["steps"], r["score"]))
         lines.append(
@@ -127,7 +136,7 @@ def main() -> None:
         + ".",
         f"- Wall time: the {ref} seeds took {sum(s.wall_seconds for s in solo_s):.0f} s of seed time in all; "
         + (
-            _batch_walls(RunSet(args.batched).summaries(), args.batch_size)
+            _batch_walls(RunSet(Path(args.batched)).summaries(), args.batch_size)
             if args.batch_size
             else f"the {judged_arm} seeds {sum(s.wall_seconds for s in batch_s):.0f} s"
         )

@@ -44,7 +44,8 @@ TORCH_ARMS = {
     ("mountaincar", False): ("mountaincar/faithful-torch", "mountaincar/faithful-torch-seeds-30-199"),
     ("mountaincar", True): (
         "mountaincar/faithful-torch-matched-init",
-        "mountaincar/faithful-torch-matched-init-seeds-30-199",
+        "mountaincar/faithful-torch-matched-init-seeds-30-199",  # seeds 30-114 (two processes: one core each)
+        "mountaincar/faithful-torch-matched-init-seeds-115-199",
     ),
 }
 
