@@ -37,7 +37,11 @@ KERAS_ARMS = {
 """Keras's arm of each post (the same arm for both inits: matched init changes PyTorch's side)."""
 
 TORCH_ARMS = {
-    ("pendulum", False): ("pendulum/faithful-torch", "pendulum/faithful-torch-seeds-30-149"),
+    ("pendulum", False): (
+        "pendulum/faithful-torch",
+        "pendulum/faithful-torch-seeds-30-149",  # seeds 30-89 (two processes: one core each)
+        "pendulum/faithful-torch-seeds-90-149",
+    ),
     ("pendulum", True): ("pendulum/faithful-torch-matched-init", "pendulum/faithful-torch-matched-init-seeds-30-99"),
     ("cartpole", False): ("cartpole/faithful-torch", "cartpole/faithful-torch-seeds-30-199"),
     ("cartpole", True): ("cartpole/faithful-torch-matched-init",),
