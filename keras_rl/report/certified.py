@@ -40,7 +40,8 @@ TORCH_ARMS = {
     ("pendulum", False): (
         "pendulum/faithful-torch",
         "pendulum/faithful-torch-seeds-30-149",  # seeds 30-89 (two processes: one core each)
-        "pendulum/faithful-torch-seeds-90-149",
+        "pendulum/faithful-torch-seeds-90-149",  # seeds 90-139
+        "pendulum/faithful-torch-seeds-140-149",
     ),
     ("pendulum", True): ("pendulum/faithful-torch-matched-init", "pendulum/faithful-torch-matched-init-seeds-30-99"),
     ("cartpole", False): ("cartpole/faithful-torch", "cartpole/faithful-torch-seeds-30-199"),
