@@ -1,8 +1,8 @@
 """Seed-batched training against one seed at a time: wall time for the same env steps.
 
-    python benchmarks/seed_batch.py                          # post 000, 8 episodes per seed
+    python benchmarks/seed_batch.py                          # post 001, 4 episodes (999 steps) per seed
     python benchmarks/seed_batch.py --experiment cartpole    # post 003, 250 episodes per seed
-    python benchmarks/seed_batch.py --experiment mountaincar # post 001, 4 episodes (999 steps) per seed
+    python benchmarks/seed_batch.py --experiment pendulum --framework torch  # post 000's port, 8 episodes
     python benchmarks/seed_batch.py --table                  # the targets table of issue #18, all posts
     python benchmarks/seed_batch.py --experiment cartpole --episodes 600 --finished-seeds 10  # mask or shrink
 
@@ -20,6 +20,9 @@ included.
 ``--table`` measures, for every post and PyTorch port that batches, 10 seeds in one process
 against one solo seed (part 1 at S=10 only) and a 30-seed study as commands (``--workers 2``
 against ``--workers 2 --seed-batch auto``), and prints them beside the targets.
+
+Post 000's Keras learner no longer batches (issue 34 retired it: ``learners/table.RETIRED``);
+its rows here were measured before, at the commits docs/performance.md names.
 
 Only ratios within one run mean much on a shared machine.
 """
@@ -183,7 +186,7 @@ def study_seconds(experiment: str, episodes: int, *extra: str, seeds: int = 10) 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--experiment", choices=sorted(OVERRIDES), default=None, help="default pendulum")
+    parser.add_argument("--experiment", choices=sorted(OVERRIDES), default=None, help="default mountaincar")
     parser.add_argument(
         "--episodes",
         type=int,
@@ -222,8 +225,12 @@ def main() -> None:
 
         configure_tensorflow(1)
         return targets_table(args.experiment, args.framework)
-    name = args.experiment or "pendulum"
+    name = args.experiment or "mountaincar"
     FRAMEWORK[0] = args.framework or "keras"
+    from keras_rl.learners.table import RETIRED
+
+    if (name, FRAMEWORK[0]) in RETIRED:
+        parser.error(f"{name} ({FRAMEWORK[0]}): {RETIRED[(name, FRAMEWORK[0])]}")
     episodes = args.episodes or DEFAULT_EPISODES[name]
 
     from keras_rl.seeding import configure_tensorflow
@@ -244,7 +251,6 @@ def main() -> None:
 
 
 TARGETS = [  # (experiment, framework, 10 seeds in one process against one solo seed: before #18, target)
-    ("pendulum", "keras", "2.18x", 2.2),
     ("cartpole", "keras", "5.75x", 4.0),
     ("mountaincar", "keras", "not batched", 3.0),
     ("pendulum", "torch", "not batched", 4.0),

@@ -1,8 +1,8 @@
 """Two arms of the same seeds (seed-batched against solo, the compiled engine against the
 Gymnasium loop): where they part, and whether it matters.
 
-    python reproductions/seed_batch_compare.py results/pendulum/seed-batch/solo --batch-size 10 \
-        results/pendulum/seed-batch/batch10 --write results/pendulum/seed-batch/report.md
+    python reproductions/seed_batch_compare.py results/mountaincar/faithful \
+        results/mountaincar/seed-batch/batch10 --batch-size 10 --write results/mountaincar/seed-batch/report.md
     python reproductions/seed_batch_compare.py results/engines/pendulum/gymnasium \
         results/engines/pendulum/compiled --labels gymnasium,compiled --write results/engines/pendulum/report.md
     python reproductions/seed_batch_compare.py \

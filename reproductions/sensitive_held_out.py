@@ -5,10 +5,11 @@
 
 The design is the one ``reproductions/sensitive_plan.py`` chose before its runs
 (``results/checks/sensitive_plan.json``: fresh seeds and baseline size, the test at 0.01 / 3);
-the baseline is the committed one (``results/checks/pendulum/sensitive-baseline``, the compiled
+the baseline is the committed one (``results/checks/pendulum/baseline``, the compiled
 engine). The held-out mutants are the check's own (``keras_rl/check/rules.HELD_OUT``, written
 down on 2026-11-23 before any was run), rerun on the compiled engine with fresh seeds from 3000
-on (no baseline seed) into ``results/checks/pendulum/held-out-compiled/<mutant>``.
+on (no baseline seed) into ``results/checks/pendulum/held-out-compiled/<mutant>``, since moved to ``held-out/``
+(issue 34 retired the Gymnasium-loop held-out runs they stood beside).
 
 For each mutant: how far it moves the median episodes to threshold (its median over the
 baseline's), the power of one check by resampling its seeds (the share of 4,000 simulated
@@ -35,8 +36,8 @@ from keras_rl.runs.run_set import RunSet
 
 CHECKS = ROOT / "results" / "checks"
 PLAN = CHECKS / "sensitive_plan.json"
-BASELINE = CHECKS / "pendulum" / "sensitive-baseline"
-MUTANTS = CHECKS / "pendulum" / "held-out-compiled"
+BASELINE = CHECKS / "pendulum" / "baseline"
+MUTANTS = CHECKS / "pendulum" / "held-out"
 DRAWS = 4000
 
 

@@ -229,6 +229,8 @@ def scenarios(p: Pass) -> None:
         "keras_rl",
         "reproduce",
         "pendulum",
+        "--framework",
+        "torch",  # post 000's Keras learner no longer batches (issue 34)
         "--seeds",
         "0-1",
         "--seed-batch",
@@ -260,6 +262,8 @@ def scenarios(p: Pass) -> None:
         [
             "reproduce",
             "pendulum",
+            "--framework",
+            "torch",
             "--seeds",
             "0-1",
             "--seed-batch",

@@ -181,9 +181,9 @@ def test_each_calibrated_rule_is_the_one_the_pre_registered_criterion_picks():
 def test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline(tmp_path):
     """``keras-rl check --tier smoke`` on this code: fresh seeds of all three posts against
     the committed baselines, Holm-adjusted over the three. Its false-alarm rate as a whole is
-    0.87% (results/checks/family.json, calibration.md, "The whole command": exact or resampled for the rules'
-    n fresh seeds against the whole 100-seed baselines; it was 2.76% before Holm), so this fails on an
-    unchanged learner about once in 115 code bases, and on a grossly broken one (the smoke
+    0.82% (results/checks/family.json, calibration.md, "The whole command": exact or resampled for the rules'
+    n fresh seeds against the whole committed baselines; it was 2.66% before Holm), so this fails on an
+    unchanged learner about once in 120 code bases, and on a grossly broken one (the smoke
     tier's measured power) nearly always. It replaces the k-of-n threshold tests of posts 000,
     001 and 003 (Keras)."""
     out = tmp_path / "check"
@@ -712,7 +712,7 @@ def test_check_runs_from_a_package_installed_outside_the_checkout(tmp_path):
     assert probe.stdout.decode().startswith(str(target)), probe
     planned = cli("check", "pendulum", "--dry-run", "--against", str(root / "results" / "checks"))
     assert planned.returncode == 0, planned.stderr
-    assert "fresh seeds 1000-1009 (10) against a baseline of 100" in planned.stdout
+    assert "fresh seeds 1000-1009 (10) on the compiled engine against a baseline of 200" in planned.stdout
     rates = command.error_rates(rule_for("pendulum", "smoke"), target / "keras_rl" / "check" / "calibration.json")
     assert rates is not None  # the installed calibration.json, whose rate the plan states
     assert f"measured false-alarm rate {rates['false_alarm_rate']:.3g}" in planned.stdout

@@ -97,7 +97,7 @@ def test_train_seeds_packs_picks_the_backend_and_runs(tmp_path, replace_backend)
         seen.update(todo=todo, backend=backend, progress=progress)
 
     replace_backend(fake_run_jobs)
-    config = get_experiment("pendulum").config_cls.for_variant("faithful", episodes=3)
+    config = get_experiment("mountaincar").config_cls.for_variant("faithful", episodes=3)
     todo = [jobs.SeedJob.of(config.replace(seed=s), tmp_path / f"seed_{s}") for s in range(4)]
     backends.train_seeds(todo, RunOptions(seed_batch=2, progress=False))
     assert [len(jobs.members(j)) for j in seen["todo"]] == [2, 2] and isinstance(seen["backend"], jobs.InProcess)

@@ -142,3 +142,33 @@ def test_seed_batch_on_sweep_runs_each_grid_point_as_a_batch_and_refuses_what_it
         str(out),
     )
     assert again.returncode == 0 and "4 already done, 0 to run" in again.stderr, again.stderr[-2000:]
+
+
+def test_a_retired_stacked_learner_is_refused_with_its_reason_and_auto_runs_its_seeds_alone(tmp_path):
+    """Post 000's Keras learner was retired for the compiled engine (issue 34): ``--seed-batch S``
+    refuses it before anything runs, naming why and what to run instead; ``auto`` runs each
+    seed alone, as where nothing batches; its PyTorch port still batches."""
+    import subprocess
+    import sys
+
+    from keras_rl.learners.table import RETIRED, STACKED, seed_batch_cap
+    from keras_rl.posts.pendulum import PendulumDDPGConfig
+    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched
+
+    assert ("pendulum", "keras") in RETIRED and ("pendulum", "keras") not in STACKED
+    out = tmp_path / "p"
+    proc = subprocess.run(
+        [sys.executable, "-m", "keras_rl", "reproduce", "pendulum", "--seeds", "0-1", "--seed-batch", "2",
+         "--dry-run", "--out", str(out)],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert proc.returncode == 2, proc.stderr
+    assert "retired" in proc.stderr and "--engine compiled" in proc.stderr and "Traceback" not in proc.stderr
+    assert not out.exists()
+    assert seed_batch_cap("pendulum", "keras") == 1 and seed_batch_cap("pendulum", "torch") > 1
+    jobs = [SeedJob.of(PendulumDDPGConfig(seed=s), tmp_path / f"seed_{s}", command="x") for s in range(4)]
+    assert batched(jobs, "auto", workers=2) == jobs
+    ported = [
+        SeedJob.of(PendulumDDPGConfig(seed=s, framework="torch"), tmp_path / f"t{s}", command="x") for s in range(4)
+    ]
+    assert all(isinstance(j, SeedBatchJob) for j in batched(ported, 2))

@@ -6,16 +6,18 @@ The loss is the *sum* over seeds of each seed's own loss: the gradient of seed k
 then exactly its solo gradient, and Adam, torch's AdamW, clip-by-value and the soft update
 are elementwise, so each slice steps as its solo run would. The optimizer's step counter is
 shared, which is exact because every seed of a batch trains on the same env steps (the
-seed-batched loop checks it: post 000's episodes are all 200 steps, and post 003's seeds
+seed-batched loop checks it: post 003's seeds
 reset on their own but train on every env step once their buffers hold one batch). Nothing
 global (a norm, a mean across seeds) enters the step.
 
-Seed k's slice starts from the very weights seed k's solo run draws: ``stack_post000`` and
+Seed k's slice starts from the very weights seed k's solo run draws: ``stack_post001`` and
 ``stack_post003`` seed Keras as a solo run does, build the solo networks, and stack them.
+Post 000's stacked learner was retired by issue 34: its compiled solo run costs less per seed
+(``learners/table.RETIRED``).
 A stack of one seed is the solo learner itself (``SoloAsStack``).
 
 The episode loop over a seed axis is ``train/loop.py``; the equivalence tests are
-``tests/test_stacked_ddpg.py``, ``tests/test_stacked_dqn.py`` and ``tests/test_stacked_post001.py``.
+``tests/test_stacked_dqn.py`` and ``tests/test_stacked_post001.py``.
 """
 
 from __future__ import annotations
@@ -31,13 +33,13 @@ from keras_rl.buffers import Layout
 from keras_rl.config import check_same_but_seed
 from keras_rl.envs import EnvSpec
 from keras_rl.learners.common import save_weights
-from keras_rl.learners.ddpg import DDPGLearner, post000_networks, post001_networks
+from keras_rl.learners.ddpg import DDPGLearner, post001_networks
 from keras_rl.learners.dqn import DQNLearner, post003_networks, post003_optimizer
 from keras_rl.learners.optimizers import SeedAdam
 from keras_rl.seeding import seed_everything
 
 NETWORKS = ("actor", "critic", "target_actor", "target_critic")
-"""Post 000's networks, as ``slice_weights`` names them."""
+"""A DDPG post's networks, as ``slice_weights`` names them."""
 DQN_NETWORKS = ("q_network", "target_network")
 """Post 003's networks."""
 
@@ -145,39 +147,6 @@ def _stacked_dense(solos: Sequence, seeds: int, units_in: int) -> StackedDense:
     layer = StackedDense(seeds, units_in, first.units, first.activation)
     layer.set_from(solos)
     return layer
-
-
-class StackedActor(keras.Model):
-    """Post 000 §2.2's actor for S seeds: Dense 64 relu x2, Dense(act, tanh), times the bound."""
-
-    def __init__(self, solos: Sequence[keras.Model], obs_dim: int):
-        super().__init__()
-        s, widths = len(solos), [obs_dim, *(d.units for d in solos[0].hidden)]
-        self.action_bound = solos[0].action_bound
-        self.hidden = [_stacked_dense([m.hidden[i] for m in solos], s, w) for i, w in enumerate(widths[:-1])]
-        self.out = _stacked_dense([m.out for m in solos], s, widths[-1])
-
-    def call(self, state):  # [S, B, obs] -> [S, B, act]
-        x = state
-        for layer in self.hidden:
-            x = layer(x)
-        return self.out(x) * self.action_bound
-
-
-class StackedCritic(keras.Model):
-    """Post 000 §2.2's critic for S seeds: concat(state, action), Dense 64 relu x2, Dense 1."""
-
-    def __init__(self, solos: Sequence[keras.Model], in_dim: int):
-        super().__init__()
-        s, widths = len(solos), [in_dim, *(d.units for d in solos[0].hidden)]
-        self.hidden = [_stacked_dense([m.hidden[i] for m in solos], s, w) for i, w in enumerate(widths[:-1])]
-        self.out = _stacked_dense([m.out for m in solos], s, widths[-1])
-
-    def call(self, state, action):  # -> [S, B, 1]
-        x = tf.concat([state, action], axis=-1)
-        for layer in self.hidden:
-            x = layer(x)
-        return self.out(x)
 
 
 class StackedMountainCarActor(keras.Model):
@@ -488,26 +457,6 @@ def _stack_ddpg(configs: Sequence, spec: EnvSpec, networks, stacked_actor, stack
     )
     learner.solo_policies = [(s[0], s[1]) for s in solos]
     return learner
-
-
-def stack_post000(configs: Sequence, spec: EnvSpec, xla: bool = True):
-    """Post 000's learner for the seeds of ``configs``."""
-    c = configs[0]
-    if len(configs) == 1:
-        from keras_rl.learners.ddpg import post000_learner
-
-        seed_everything(c.seed)
-        return SoloAsStack(post000_learner(c, spec, xla=xla))
-    obs, act = spec.obs_dim, spec.action_dim
-    return _stack_ddpg(
-        configs,
-        spec,
-        post000_networks,
-        lambda m: StackedActor(m, obs),
-        lambda m: StackedCritic(m, obs + act),
-        xla,
-        broadcast_target=c.broadcast_target,
-    )
 
 
 def stack_post001(configs: Sequence, spec: EnvSpec, xla: bool = True):

@@ -59,9 +59,10 @@ def batch_of(summary: dict) -> list[int]:
     argv = shlex.split(summary.get("command", ""))
     size = int(_flag(argv, "--seed-batch") or 1)
     seeds_text = _flag(argv, "--seeds")
-    from keras_rl.learners.table import STACKED
+    from keras_rl.learners.table import RETIRED, STACKED
 
-    if size <= 1 or seeds_text is None or (summary["experiment"], summary.get("framework", "keras")) not in STACKED:
+    batched = {*STACKED, *RETIRED}  # a set made before its stacked learner was retired batched too
+    if size <= 1 or seeds_text is None or (summary["experiment"], summary.get("framework", "keras")) not in batched:
         return [int(summary["seed"])]
     from keras_rl.cli import parse_seeds
 

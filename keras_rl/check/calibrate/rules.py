@@ -40,6 +40,7 @@ from keras_rl.check.calibrate.runs import (
     TUNE,
     budget,
     choose,
+    engine_args,
     halved,
     load,
     measure,
@@ -60,21 +61,22 @@ from keras_rl.runs.run_set import RunSet
 
 MUTANT_SEEDS = "0-9"
 MUTANT_BATCH = 10
-"""Mutant seeds 10-29 run in batches of 10 (``--seed-batch 10``), as the check's fresh seeds
-do: posts 000 and 003's seeds 0-9 were one such batch; post 001's ran solo, before it could
-batch (batched against solo for post 001: ``results/mountaincar/seed-batch/report.md``). A
-config no stacked learner covers (post 001's learning phase) runs solo."""
-BASELINE_BATCH = {"pendulum": 15, "cartpole": 15, "mountaincar": 1}
-"""How each committed baseline was made (its summaries' ``--seed-batch``): 15 seeds per batch
-for posts 000 and 003, one seed per run for post 001."""
+"""Mutant seeds 10-29 of a Gymnasium-loop post run in batches of 10 (``--seed-batch 10``), as the
+check's fresh seeds do: post 003's seeds 0-9 were one such batch; post 001's ran solo, before it
+could batch (batched against solo for post 001: ``results/mountaincar/seed-batch/report.md``). A
+config no stacked learner covers (post 001's learning phase) runs solo. A post whose rules run on
+the compiled engine (post 000 since issue 34) runs every seed there, one per program."""
+BASELINE_BATCH = {"cartpole": 15, "mountaincar": 1}
+"""How each Gymnasium-loop baseline was made (its summaries' ``--seed-batch``): 15 seeds per batch
+for post 003, one seed per run for post 001."""
 
 
 def make_commands(name: str) -> list[list[str]]:
     """The commands that make the baseline and every mutant's runs, where missing."""
     rules = [RULES[(name, t)] for t in CALIBRATED_TIERS]
-    episodes, batch = max(r.episodes for r in rules), BASELINE_BATCH[name]
+    episodes = max(r.episodes for r in rules)
     # mutants batch as the check's fresh seeds do (auto runs a config no stacked learner covers alone)
-    common = ["--no-progress", "--min-success-rate", "0", "--workers", "2", "--seed-batch", "auto"]
+    common = ["--no-progress", "--min-success-rate", "0", "--workers", "2", *engine_args(name, "auto")]
     out = []
     if not (CHECKS / name / "baseline").is_dir():
         out.append(
@@ -84,7 +86,7 @@ def make_commands(name: str) -> list[list[str]]:
                 name,
                 "--seeds",
                 "0-29",
-                *(["--seed-batch", str(batch)] if batch > 1 else []),
+                *engine_args(name, BASELINE_BATCH.get(name, 1)),
                 "--no-progress",
                 "--min-success-rate",
                 "0",
@@ -100,7 +102,7 @@ def make_commands(name: str) -> list[list[str]]:
         if folder.is_dir() and len(seed_dirs(folder)) < len(TUNE) + len(REPORT):
             # seeds 10-29 beside the committed 0-9, made alike; --make then moves them in (move_seeds)
             config = get_experiment(name).config_cls.for_variant("faithful").with_text_overrides(sets[1::2])
-            batched = [] if batch_refusal(name, config.to_dict()) else ["--seed-batch", str(MUTANT_BATCH)]
+            batched = engine_args(name, 1 if batch_refusal(name, config.to_dict()) else MUTANT_BATCH)
             out.append(
                 ["keras-rl", "reproduce", name, "--seeds", "10-29", "--episodes", str(episodes), *sets,
                  "--no-progress", "--min-success-rate", "0", "--workers", "2", *batched,

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from keras_rl.check.rules import ALPHAS, RULES
+from keras_rl.check.rules import ALPHAS, CALIBRATED_TIERS, RULES
 from keras_rl.check.statistics import decide, false_alarm_rate, power, seed_statistic
 from keras_rl.checkout import ROOT
 from keras_rl.registry import get_experiment
@@ -161,3 +161,11 @@ def choose(name: str, rule, baseline: list, mutants: dict) -> tuple[list[dict[st
     eligible = [r for r in rows if r["false_alarm_rate"] <= 0.01]
     chosen = max(eligible, key=lambda r: (r["power_gross"], r["power_all"], -rows.index(r))) if eligible else None
     return rows, chosen
+
+
+def engine_args(name: str, batch: int | str) -> list[str]:
+    """How a post's check runs are made: on its rules' engine; batched ``batch`` on the Gymnasium loop."""
+    engine = RULES[(name, CALIBRATED_TIERS[0])].engine
+    if engine != "gymnasium":
+        return ["--engine", engine]
+    return ["--seed-batch", str(batch)] if batch != 1 else []

@@ -21,8 +21,8 @@ The tier's sizes were computed before its runs (``reproductions/sensitive_plan.p
   tier's 40 fresh seeds; ``tests/test_sensitive_tier.py`` fails if the rule is not the one chosen.
 - **Held-out mutants** (``HELD_OUT``, never used to choose): power at alpha and alpha / 3,
   a seed bootstrap, and the runs cut into disjoint real checks with their Clopper-Pearson
-  interval (``calibrate/runs.measure``). Post 000's were rerun on the compiled engine
-  (``results/checks/pendulum/held-out-compiled``, 200 seeds each); post 003's are the Gymnasium
+  interval (``calibrate/runs.measure``). Post 000's are the compiled engine's
+  (``results/checks/pendulum/held-out``, 200 seeds each); post 003's are the Gymnasium
   loop's 30 (``held-out``): its compiled engine reads equivalent to that loop on 100 seeds each
   (``results/engines/cartpole/report.md``: median ratio 1.01, 90% 0.92-1.06), so its rows carry
   that caveat; post 001 has one engine.
@@ -49,7 +49,6 @@ BEGIN, END = "<!-- sensitive:begin -->", "<!-- sensitive:end -->"
 HEADING = "## The sensitive tier"
 SEES_BEGIN, SEES_END = "<!-- check-sees:begin -->", "<!-- check-sees:end -->"
 """docs/check.md's table of what each tier sees of the held-out mutants."""
-HELD_OUT_FOLDER = {"pendulum": "held-out-compiled", "cartpole": "held-out", "mountaincar": "held-out"}
 
 
 def shift_power(baseline: np.ndarray, n: int, budget: int, shift: float, alpha: float, rng) -> float:
@@ -101,7 +100,7 @@ def post_entry(post: str) -> dict:
         }
     held = {}
     for m in HELD_OUT[post]:
-        folder = CHECKS / post / HELD_OUT_FOLDER[post] / m.name
+        folder = CHECKS / post / "held-out" / m.name
         if folder.is_dir():
             runs = values(post, rule.statistic, rule.episodes, load(folder))
             held[m.name] = {"what": m.what, **measure(post, TIER, base, runs)}
@@ -111,18 +110,18 @@ def post_entry(post: str) -> dict:
             statistic: {
                 m.name: power(
                     values(post, statistic, rule.episodes, baseline_runs),
-                    values(post, statistic, rule.episodes, load(CHECKS / post / HELD_OUT_FOLDER[post] / m.name)),
+                    values(post, statistic, rule.episodes, load(CHECKS / post / "held-out" / m.name)),
                     rule.seeds,
                     statistic,
                     rule.alpha / HOLM_LEVEL,
                     rng=np.random.default_rng(13),
                 )
                 for m in HELD_OUT[post]
-                if (CHECKS / post / HELD_OUT_FOLDER[post] / m.name).is_dir()
+                if (CHECKS / post / "held-out" / m.name).is_dir()
             }
             for statistic in rule.candidates
         }
-    entry["held_out_folder"] = f"results/checks/{post}/{HELD_OUT_FOLDER[post]}"
+    entry["held_out_folder"] = f"results/checks/{post}/held-out"
     measured = [r["power_alpha"] for r in held.values()]
     rates["held_out_power"] = float(np.mean(measured)) if measured else None
     if rule.candidates != (rule.statistic,):  # chosen on the tuning mutants: the chosen row's power

@@ -44,15 +44,15 @@ MORE = (
     "(seeds 10-29, run into a fresh folder at 662a149, its seed folders merged in)"
 )
 SOURCES: dict[str, dict[str, Any]] = {
-    # post 000's first ablations predate `sweep`: one `reproduce --set SWITCH=false` folder each,
-    # against the faithful set's seeds 0-9 (copied into base/); seeds 10-29 are one sweep
+    # post 000's ablations run on the compiled engine since issue 34 retired its stacked learner
+    # (the Gymnasium loop's sets, seeds 10-29 of them batched, were regenerated there)
     "pendulum": {
-        "base": "results/pendulum/ablations/base",
-        "points": "results/pendulum/ablations",
-        "also": {"fixed (all four off)": "results/pendulum/fixed"},
-        "command": "`keras-rl reproduce pendulum --seeds 0-9 --workers 2 --no-progress --min-success-rate 0 "
-        "--set SWITCH=false --out results/pendulum/ablations/SWITCH=false` (seeds 0-9; base: "
-        "results/pendulum/faithful's), then " + MORE.format(exp="pendulum"),
+        "base": "results/pendulum/ablations-compiled/base",
+        "points": "results/pendulum/ablations-compiled",
+        "also": {"fixed (all four off)": "results/pendulum/ablations-compiled/fixed"},
+        "command": "`keras-rl reproduce pendulum --engine compiled --seeds 0-29 --set SWITCH=false --workers 1 "
+        "--resume --no-progress --min-success-rate 0 --out results/pendulum/ablations-compiled/SWITCH=false` "
+        "(base: no --set, into base/; fixed: --variant fixed, into fixed/)",
     },
     "cartpole": {
         "base": "results/cartpole/ablations/base",

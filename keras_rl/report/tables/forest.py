@@ -98,23 +98,17 @@ def _comparisons() -> list[Comparison]:
         )
     )
     for label, batched, solo in (
-        ("pendulum, batch of 10", "pendulum/seed-batch/batch10", "pendulum/faithful"),
         ("pendulum (PyTorch), batch of 10", "pendulum/seed-batch-torch/batch10", "pendulum/faithful-torch"),
         ("cartpole, batch of 15", "checks/cartpole/baseline", "cartpole/faithful"),
         ("mountaincar, batch of 10", "mountaincar/seed-batch/batch10", "mountaincar/faithful"),
     ):
         out.append(Comparison("seed-batched vs solo", label, batched, solo))
-    for post in ("pendulum", "cartpole", "mountaincar"):
-        ablations = RESULTS / post / "ablations"
-        for point in sorted(p.name for p in ablations.iterdir() if p.is_dir() and p.name != "base"):
-            out.append(
-                Comparison(
-                    f"{post} ablation vs faithful",
-                    point,
-                    f"{post}/ablations/{point}",
-                    f"{post}/ablations/base",
-                )
-            )
+    from keras_rl.report.tables.ablations import SOURCES
+
+    for post, source in SOURCES.items():
+        points, base = source["points"].removeprefix("results/"), source["base"].removeprefix("results/")
+        for point in sorted(p.name for p in (RESULTS / points).iterdir() if p.is_dir() and p.name != "base"):
+            out.append(Comparison(f"{post} ablation vs faithful", point, f"{points}/{point}", base))
     return out
 
 
