@@ -253,13 +253,18 @@ class CompiledRun:
     def _record_losses(self, losses: np.ndarray, trains: np.ndarray, steps: int) -> str | None:
         """The losses of a chunk's ``steps`` steps (those that trained) into the episode's tally,
         in order, as the loop adds them; the loop's message if one is not finite."""
+        trained = np.flatnonzero(trains[:steps])
+        first = self.run_.total_steps + self.played + 1
+        return self._tally(losses[trained], [f"env step {first + t}" for t in trained])
+
+    def _tally(self, losses: np.ndarray, where: list[str]) -> str | None:
+        """Each row of ``losses`` (one update's, in ``learner.loss_names`` order) into the
+        episode's tally, in order, ``where[k]`` naming its env step; the loop's message at the
+        first one that is not finite, the rows after it left out, as the loop stops there."""
         names = self.learner.loss_names
-        for t in np.flatnonzero(trains[:steps]):
+        for row, at in zip(losses, where):
             try:
-                self.tally.add(
-                    dict(zip(names, np.atleast_1d(losses[t]))),
-                    f"env step {self.run_.total_steps + self.played + t + 1}",
-                )
+                self.tally.add(dict(zip(names, np.atleast_1d(row))), at)
             except NonFiniteLossError as exc:
                 return str(exc)
         return None
@@ -731,13 +736,7 @@ class MountainCarRun(CompiledRun):
         stacked = np.zeros((program.burst_size, *batches[0].shape), np.float32)
         stacked[: len(batches)] = batches
         losses = program.burst(tf.constant(stacked), tf.constant(len(batches), tf.int32)).numpy()
-        names = self.learner.loss_names
-        for k in range(len(batches)):
-            try:
-                self.tally.add(dict(zip(names, losses[k])), f"env step {total}")
-            except NonFiniteLossError as exc:
-                return str(exc)
-        return None
+        return self._tally(losses[: len(batches)], [f"env step {total}"] * len(batches))
 
 
 RUNS: dict[str, type[CompiledRun]] = {"pendulum": PendulumRun, "cartpole": CartPoleRun, "mountaincar": MountainCarRun}
