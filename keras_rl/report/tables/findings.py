@@ -115,6 +115,15 @@ ROWS = [
         "100-ep. mean >= 475 in 600",
         "pytorch/tutorials #3080's values (one curve)",
     ),
+    (
+        "003 CartPole DQN",
+        "cartpole",
+        "issue-3080",
+        "torch",
+        False,
+        "100-ep. mean >= 475 in 600",
+        "pytorch/tutorials #3080's values (one curve)",
+    ),
 ]
 
 ELSEWHERE = {
@@ -123,6 +132,11 @@ ELSEWHERE = {
         "cartpole/tutorial-fix/issue-3080",
         "keras-rl reproduce cartpole --variant issue-3080 --engine compiled --seeds {seeds} --workers 1 --resume "
         "--no-progress --min-success-rate 0 --out results/cartpole/tutorial-fix/issue-3080",
+    ),
+    ("cartpole", "issue-3080", "torch"): (
+        "cartpole/tutorial-fix/issue-3080-torch",
+        "keras-rl reproduce cartpole --variant issue-3080 --framework torch --seeds {seeds} --workers 1 --resume "
+        "--no-progress --min-success-rate 0 --out results/cartpole/tutorial-fix/issue-3080-torch",
     ),
 }
 """(experiment, variant, framework) -> the folder under results/ and the command that made it, for a

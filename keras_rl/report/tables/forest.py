@@ -97,6 +97,15 @@ def _comparisons() -> list[Comparison]:
             seeds_before_reading=100,  # results/cartpole/tutorial-fix/plan.md
         )
     )
+    out.append(
+        Comparison(
+            "the tutorial's community fix vs as published",
+            "cartpole, pytorch/tutorials #3080's values (the tutorial's PyTorch code)",
+            "cartpole/tutorial-fix/issue-3080-torch",
+            "cartpole/faithful-torch",
+            seeds_before_reading=30,  # results/cartpole/tutorial-fix/plan.md
+        )
+    )
     for label, batched, solo in (
         ("pendulum (PyTorch), batch of 10", "pendulum/seed-batch-torch/batch10", "pendulum/faithful-torch"),
         ("cartpole, batch of 15", "checks/cartpole/baseline", "cartpole/faithful"),
