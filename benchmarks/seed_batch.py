@@ -1,18 +1,16 @@
 """Seed-batched training against one seed at a time: wall time for the same env steps.
 
     python benchmarks/seed_batch.py                          # post 001, 4 episodes (999 steps) per seed
-    python benchmarks/seed_batch.py --experiment cartpole    # post 003, 250 episodes per seed
     python benchmarks/seed_batch.py --experiment pendulum --framework torch  # post 000's port, 8 episodes
     python benchmarks/seed_batch.py --table                  # the targets table of issue #18, all posts
-    python benchmarks/seed_batch.py --experiment cartpole --episodes 600 --finished-seeds 10  # mask or shrink
 
 Part 1 (one process, one TensorFlow thread): one solo seed, then S = 2, 4, 8, 10 and 16
 seeds in one ``--seed-batch`` run, every seed playing its own episodes. The ratio is the
 batch's wall time to one solo seed's wall time for the same env steps per seed: post 000's
 episodes are all 200 steps (``train_start=200``, so 7 of every 8 env steps train); post
 003's vary, so the solo seed's time per env step is scaled to the batch's vector steps (its
-longest seed). Part 2 (mask or shrink): the compiled learner call alone, per vector step,
-at S = 1 .. 16, for what a finished seed costs while it is masked. Part 3 (the 10-seed
+longest seed). Part 2: the compiled learner call alone, per vector step, at S = 1 .. 16,
+for what a finished seed costs while it is masked. Part 3 (the 10-seed
 study as users run it): ``keras-rl reproduce ... --seeds 0-9`` with ``--workers 2`` (Ray,
 one seed per task) and with ``--workers 2 --seed-batch 5``, as subprocesses, start-up
 included.
@@ -21,8 +19,9 @@ included.
 against one solo seed (part 1 at S=10 only) and a 30-seed study as commands (``--workers 2``
 against ``--workers 2 --seed-batch auto``), and prints them beside the targets.
 
-Post 000's Keras learner no longer batches (issue 34 retired it: ``learners/table.RETIRED``);
-its rows here were measured before, at the commits docs/performance.md names.
+Posts 000 and 003's Keras learners no longer batch (issue 34 retired them:
+``learners/table.RETIRED``); their rows here were measured before, at the commits
+docs/performance.md names.
 
 Only ratios within one run mean much on a shared machine.
 """
@@ -79,12 +78,8 @@ def solo_seconds(experiment: str, episodes: int) -> tuple[float, int]:
         return time.perf_counter() - start, summary.total_steps
 
 
-def batch_seconds(
-    experiment: str, seeds: int, episodes: int, finished_seeds: str | None = None, keep: list | None = None
-) -> tuple[float, int]:
-    """A batch's wall time and vector steps (its longest seed's env steps). ``keep``: a list
-    that gets each seed's episodes (all columns but the wall time)."""
-    from keras_rl.runs.files import read_episodes
+def batch_seconds(experiment: str, seeds: int, episodes: int) -> tuple[float, int]:
+    """A batch's wall time and vector steps (its longest seed's env steps)."""
     from keras_rl.train.loop import run_seeds as run_seed_batch
     from keras_rl.train.settings import TrainSettings
 
@@ -92,37 +87,8 @@ def batch_seconds(
     with tempfile.TemporaryDirectory() as tmp:
         dirs = [Path(tmp) / f"seed_{s}" for s in range(seeds)]
         start = time.perf_counter()
-        summaries = run_seed_batch(exp, configs, dirs, TrainSettings(progress=False, finished_seeds=finished_seeds))
-        wall = time.perf_counter() - start
-        if keep is not None:
-            keep.extend(
-                [{k: v for k, v in r.items() if k != "wall_seconds"} for r in read_episodes(d / "episodes.csv")]
-                for d in dirs
-            )
-        return wall, max(s.total_steps for s in summaries)
-
-
-def mask_or_shrink(name: str, seeds: int, episodes: int, rounds: int) -> None:
-    """Whole runs of one batch under each policy for seeds that finish first, alternated."""
-    walls: dict[str, list[float]] = {"mask": [], "shrink": []}
-    runs: dict[str, list] = {"mask": [], "shrink": []}
-    for _ in range(rounds):
-        for policy in walls:
-            kept: list = []
-            walls[policy].append(batch_seconds(name, seeds, episodes, policy, kept)[0])
-            runs[policy].append(kept)
-    same = all(r == runs["mask"][0] for policy in runs for r in runs[policy])
-    mask, shrink = min(walls["mask"]), min(walls["shrink"])
-    print(
-        f"\n{name} ({FRAMEWORK[0]}), one batch of {seeds} seeds, {episodes} episodes each, whole runs "
-        f"({rounds} round{'s' * (rounds > 1)}, mask then shrink; best of each):"
-    )
-    print("| finished seeds | wall s (each round) | best | against mask |")
-    print("|---|---|---|---|")
-    for policy, best in (("mask", mask), ("shrink", shrink)):
-        each = ", ".join(f"{w:.1f}" for w in walls[policy])
-        print(f"| {policy} | {each} | {best:.1f} | {mask / best:.2f}x faster |")
-    print(f"every seed's episodes identical under both: {'yes' if same else 'NO'}")
+        summaries = run_seed_batch(exp, configs, dirs, TrainSettings(progress=False))
+        return time.perf_counter() - start, max(s.total_steps for s in summaries)
 
 
 def learner_call_ms(experiment: str, seeds: int, calls: int = 300) -> float:
@@ -140,8 +106,6 @@ def learner_call_ms(experiment: str, seeds: int, calls: int = 300) -> float:
     layout = learner.layout if hasattr(learner, "layout") else learner.learner.layout
     batch = configs[0].batch_size
     rows = np.random.default_rng(0).uniform(0, 1, (seeds, batch, layout.width)).astype(np.float32)
-    if experiment == "cartpole":
-        rows[..., layout.obs_dim] = rows[..., layout.obs_dim] > 0.5  # valid actions
     states = rows[:, 0, : layout.obs_dim]
     for _ in range(5):
         learner.train_and_act(rows, states)
@@ -202,15 +166,6 @@ def main() -> None:
         default=None,
         help="torch: the PyTorch ports (pendulum, mountaincar)",
     )
-    parser.add_argument(
-        "--finished-seeds",
-        type=int,
-        default=0,
-        metavar="S",
-        help="only: whole runs of one batch of S seeds with finished seeds masked, then shrunk "
-        "(--rounds times), and whether every seed's episodes are the same under both",
-    )
-    parser.add_argument("--rounds", type=int, default=1, help="rounds of --finished-seeds (default 1)")
     parser.add_argument("--skip-study", action="store_true", help="parts 1 and 2 only")
     parser.add_argument("--study-only", action="store_true", help="part 3 only")
     parser.add_argument(
@@ -236,8 +191,6 @@ def main() -> None:
     from keras_rl.seeding import configure_tensorflow
 
     configure_tensorflow(1)
-    if args.finished_seeds:
-        return mask_or_shrink(name, args.finished_seeds, episodes, args.rounds)
     if not args.study_only:
         parts_1_and_2(name, episodes)
     if args.skip_study:
@@ -251,7 +204,6 @@ def main() -> None:
 
 
 TARGETS = [  # (experiment, framework, 10 seeds in one process against one solo seed: before #18, target)
-    ("cartpole", "keras", "5.75x", 4.0),
     ("mountaincar", "keras", "not batched", 3.0),
     ("pendulum", "torch", "not batched", 4.0),
     ("mountaincar", "torch", "not batched", None),
@@ -331,7 +283,7 @@ def parts_1_and_2(name: str, episodes: int) -> None:
         wall, steps = batch_seconds(name, seeds, episodes)
         print(f"| {seeds} | --seed-batch {seeds} | {wall:.2f} | {steps} | {wall / (per_step * steps):.2f}x |")
 
-    print("\nMask or shrink: the compiled train-and-act call alone, per vector step")
+    print("\nThe compiled train-and-act call alone, per vector step")
     print("| seeds in the call | ms per call | ms per seed |")
     print("|---|---|---|")
     for seeds in (1, 2, 4, 5, 8, 10, 16):

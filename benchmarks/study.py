@@ -1,7 +1,7 @@
 """A whole study, timed as a user runs it: N seeds of a post through the CLI, on each way of
 running seeds, interleaved, in one run (issue 34's "30-seed study with --workers 2" row).
 
-    python benchmarks/study.py                                  # post 003, seeds 0-29, --workers 2, 2 rounds
+    python benchmarks/study.py                                  # post 001, seeds 0-29, --workers 2, 2 rounds
     python benchmarks/study.py --episodes 200 --rounds 1
     python benchmarks/study.py --markdown                       # the table for docs/performance.md
 
@@ -9,8 +9,9 @@ The arms, each a ``keras-rl reproduce`` command into a fresh temporary folder:
 
 - ``compiled``: ``--engine compiled`` (one XLA program per config, kept across a worker's seeds);
 - ``seed-batch auto``: the Gymnasium loop with ``--seed-batch auto`` (stacked learners), the
-  fastest way the project had before the compiled engine. Post 000's stacked learner is retired
-  (issue 34), so its study is refused; its figure in docs/performance.md was measured before.
+  fastest way the project had before the compiled engine. Posts 000 and 003's stacked learners
+  are retired (issue 34), so their studies are refused; their figures in docs/performance.md
+  were measured before, at 97a22fc0.
 
 Every arm runs the same seeds, episodes and workers; the rounds alternate the arms, so a
 noisy neighbour slows both. The wall time is the whole command's: Python and TensorFlow
@@ -58,7 +59,7 @@ def timed(argv: list[str]) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--experiment", choices=("pendulum", "cartpole"), default="cartpole")
+    parser.add_argument("--experiment", choices=("pendulum", "cartpole", "mountaincar"), default="mountaincar")
     parser.add_argument("--seeds", default="0-29")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--episodes", type=int, default=None, help="a smaller budget (default: the post's)")

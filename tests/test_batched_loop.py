@@ -1,7 +1,8 @@
 """The seed-batched episode loop (keras_rl/train/loop.py over a seed axis): each seed writes its
-solo run's episodes.csv, stops on its own threshold, NaN or Ctrl-C, and episodes of any length.
-Post 000's cases batch its PyTorch port: its Keras learner no longer batches (issue 34 retired
-it for the compiled engine), and the loop is the same for every stacked learner."""
+solo run's episodes.csv and stops on its own threshold, NaN or Ctrl-C. The cases batch post
+000's PyTorch port: posts 000 and 003's Keras learners no longer batch (issue 34 retired them
+for the compiled engine), and the loop is the same for every stacked learner. Post 001's
+batch, whose seeds train in bursts of their own sizes, is ``tests/test_stacked_post001.py``'s."""
 
 from __future__ import annotations
 
@@ -154,44 +155,3 @@ def test_ctrl_c_stops_every_seed_of_a_batch_and_keeps_their_episodes(tmp_path):
         assert s.status == "interrupted" and s.episodes_run == 2  # episode 3 was cut short
         assert len(read_episodes(tmp_path / f"seed_{s.seed}" / "episodes.csv")) == 2
         assert (tmp_path / f"seed_{s.seed}" / "actor.pt").is_file()
-
-
-def _cartpole_runs(tmp_path, name, seeds, episodes, batch: bool):
-    from keras_rl.registry import get_experiment
-    from keras_rl.train.loop import run_seed
-    from keras_rl.train.loop import run_seeds as run_seed_batch
-    from keras_rl.train.settings import TrainSettings
-
-    exp = get_experiment("cartpole")
-    configs = [exp.config_cls.for_variant("faithful", seed=s, episodes=episodes) for s in seeds]
-    dirs = [tmp_path / name / f"seed_{s}" for s in seeds]
-    if batch:
-        return run_seed_batch(exp, configs, dirs, TrainSettings(progress=False))
-    return [run_seed(exp, c, d, TrainSettings(progress=False)) for c, d in zip(configs, dirs)]
-
-
-@pytest.mark.slow
-def test_cartpole_seeds_batched_play_their_solo_episodes(tmp_path):
-    """S=1 writes the solo episodes.csv bit for bit; in a batch of 4 (episodes of different
-    lengths, seeds finishing at different env steps) every seed plays the same episodes as
-    alone, and its losses agree to 1e-6."""
-    seeds, episodes = [0, 1, 2, 3], 20
-    _cartpole_runs(tmp_path, "solo", seeds, episodes, batch=False)
-    _cartpole_runs(tmp_path, "one", [2], episodes, batch=True)
-    assert _csv(tmp_path / "one" / "seed_2" / "episodes.csv") == _csv(tmp_path / "solo" / "seed_2" / "episodes.csv")
-    summaries = _cartpole_runs(tmp_path, "four", seeds, episodes, batch=True)
-    assert all(s.status == "completed" and s.episodes_run == episodes for s in summaries)
-    assert len({s.total_steps for s in summaries}) > 1  # the seeds really finished at different env steps
-    for s in seeds:
-        batched = _csv(tmp_path / "four" / f"seed_{s}" / "episodes.csv")
-        alone = _csv(tmp_path / "solo" / f"seed_{s}" / "episodes.csv")
-        assert [(r["steps"], r["score"], r["total_steps"]) for r in batched] == [
-            (r["steps"], r["score"], r["total_steps"]) for r in alone
-        ]
-        for b, a in zip(batched, alone):
-            if a["loss"]:
-                assert float(b["loss"]) == pytest.approx(float(a["loss"]), rel=1e-6)
-        assert (tmp_path / "four" / f"seed_{s}" / "q_network.weights.h5").is_file()
-    neighbours = _cartpole_runs(tmp_path, "other", [3, 4, 5, 6], episodes, batch=True)
-    assert neighbours[0].status == "completed"
-    assert _csv(tmp_path / "other" / "seed_3" / "episodes.csv") == _csv(tmp_path / "four" / "seed_3" / "episodes.csv")

@@ -182,7 +182,7 @@ def test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline(
     """``keras-rl check --tier smoke`` on this code: fresh seeds of all three posts against
     the committed baselines, Holm-adjusted over the three. Its false-alarm rate as a whole is
     0.82% (results/checks/family.json, calibration.md, "The whole command": exact or resampled for the rules'
-    n fresh seeds against the whole committed baselines; it was 2.66% before Holm), so this fails on an
+    n fresh seeds against the whole committed baselines; it was 2.72% before Holm), so this fails on an
     unchanged learner about once in 120 code bases, and on a grossly broken one (the smoke
     tier's measured power) nearly always. It replaces the k-of-n threshold tests of posts 000,
     001 and 003 (Keras)."""

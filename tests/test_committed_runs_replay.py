@@ -91,20 +91,21 @@ def test_committed_run_reproduces_bit_for_bit(tmp_path, folder, experiment, extr
 
 BATCH_CASES = [
     # (committed set, experiment, the batch of seeds its command made together, episodes to rerun)
-    # (post 000's batched baseline was regenerated on the compiled engine when issue 34 retired its
-    # stacked learner: its seeds 0-99 are engines/pendulum/compiled's, replayed below)
-    pytest.param("checks/cartpole/baseline", "cartpole", "0-14", 60, id="post003-batch-of-15-first60"),
+    # (posts 000 and 003's batched sets were regenerated on the compiled engine when issue 34
+    # retired their stacked learners: their compiled seeds are replayed below)
+    pytest.param("mountaincar/seed-batch/batch10", "mountaincar", "0-9", 3, id="post001-batch-of-10-first3"),
 ]
 
 
 @pytest.mark.parametrize("folder, experiment, seeds, episodes", BATCH_CASES)
 def test_committed_seed_batch_reproduces_bit_for_bit(tmp_path, folder, experiment, seeds, episodes):
-    """A committed seed-batched set (``--seed-batch 15``): each seed's bits depend on its batch
+    """A committed seed-batched set (``--seed-batch 10``): each seed's bits depend on its batch
     mates, so the same batch is rerun and every seed compared."""
     committed = RESULTS / folder
     first, last = (int(x) for x in seeds.split("-"))
     summary = json.loads((committed / f"seed_{first}" / "summary.json").read_text())
-    assert f"--seeds 0-29 --workers 2 --seed-batch {last - first + 1}" in summary["command"]  # batches 0-14, 15-29
+    assert f"--seed-batch {last - first + 1}" in summary["command"]
+    assert summary["provenance"]["seed_batch"] == list(range(first, last + 1))
     why = why_not_bit_exact(summary.get("provenance", {}))
     if why is not None:
         warnings.warn(f"{folder} was {why}: only 5 episodes are compared", stacklevel=2)

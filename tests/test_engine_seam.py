@@ -76,7 +76,6 @@ def test_only_learners_that_declare_masks_are_given_them():
     from keras_rl.torch import stacked as torch_stacked
 
     assert stacked.SoloAsStack.takes_masks is False
-    assert stacked.StackedDQNLearner.takes_masks is False
     assert stacked.StackedDDPGLearner.takes_masks is True
     assert torch_stacked.StackedTorchDDPGLearner.takes_masks is True
     solo = stacked.SoloAsStack(learner=type("L", (), {"loss_names": ("q",), "compile": lambda self: None})())

@@ -175,8 +175,14 @@ def test_the_manifest_lists_every_committed_run_set_as_it_is():
     sets = {e["set"]: e for e in entries}
     for post in ("pendulum", "cartpole", "mountaincar"):
         assert f"{post}/faithful" in sets and f"checks/{post}/baseline" in sets
-    # seeds 0-29 ran in two batches of 15, seeds 30-99 (issue #21) with --seed-batch 15 from seed 30
-    assert sets["checks/cartpole/baseline"]["batches"] == [list(range(a, min(a + 15, 100))) for a in range(0, 100, 15)]
+    # post 001's batched-against-solo set: seeds 0-29 in three batches of 10, made by two commands
+    assert sets["mountaincar/seed-batch/batch10"]["batches"] == [list(range(a, a + 10)) for a in (0, 10, 20)]
+    # post 003's compiled seeds 0-99 are the engine comparison's, the check baseline's (compiled since
+    # issue 34) and, seeds 0-29, the ablations' base: counted once
+    assert sets["engines/cartpole/compiled"]["copies"] == {
+        "cartpole/ablations-compiled/base": list(range(30)),
+        "checks/cartpole/baseline": list(range(30, 100)),
+    }
     # the faithful post-001 set is the check baseline's 30 solo runs again, counted once
     assert sets["mountaincar/faithful"]["copies"] == {"checks/mountaincar/baseline": list(range(30))}
     assert gen.cost(sets["mountaincar/faithful"]) == 0 and not sets["checks/mountaincar/baseline"]["copies"]
@@ -230,3 +236,27 @@ def test_the_forest_plot_and_its_tables_match_the_committed_runs():
                 assert v["reading"] in ("equivalent within the margin", "different", "inconclusive")
                 if v["estimate"] is not None:
                     assert v["low"] <= v["estimate"] <= v["high"]
+
+
+def test_the_manifest_splits_the_regeneration_cost_by_how_the_runs_ran():
+    gen = load_generator("manifest")
+
+    def entry(framework, command, minutes, seeds=2, copies=None):
+        return {
+            "framework": framework,
+            "commands": [command],
+            "process_minutes": minutes,
+            "seeds": list(range(seeds)),
+            "copies": copies or {},
+        }
+
+    entries = [
+        entry("torch", "keras-rl reproduce cartpole --framework torch", 60.0),
+        entry("keras", "keras-rl reproduce cartpole --engine compiled --seeds 0-1", 30.0),
+        entry("keras", "keras-rl reproduce cartpole --seeds 0-1", 90.0, copies={"other": [0]}),  # half counted
+    ]
+    assert gen.by_kind(entries) == {
+        "PyTorch": 60.0,
+        "Keras on the Gymnasium loop": 45.0,
+        "Keras on the compiled engine": 30.0,
+    }

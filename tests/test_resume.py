@@ -166,13 +166,13 @@ def test_a_budget_below_what_was_played_or_a_batch_without_a_final_checkpoint_is
 
 
 BATCH_CASES = [  # experiment, framework, seeds, episodes, kill after this many episodes are on disk for seed 1
-    ("cartpole", "keras", "1-3", 50, 30),  # episodes of different lengths: checkpoints fall mid-episode for some
+    ("mountaincar", "keras", "1-3", 8, 5),  # post 003's Keras learner no longer batches either (issue 34)
     ("pendulum", "torch", "1-2", 12, 7),  # post 000's Keras learner no longer batches (issue 34)
 ]
 
 
 @pytest.mark.parametrize(
-    "experiment, framework, seeds, episodes, kill_after", BATCH_CASES, ids=[c[0] for c in BATCH_CASES]
+    "experiment, framework, seeds, episodes, kill_after", BATCH_CASES, ids=[f"{c[0]}-{c[1]}" for c in BATCH_CASES]
 )
 def test_a_killed_and_resumed_batch_equals_an_uninterrupted_batch_for_every_seed(
     tmp_path, experiment, framework, seeds, episodes, kill_after

@@ -7,11 +7,11 @@ import pytest
 
 
 def test_only_jobs_that_differ_in_the_seed_share_a_batch(tmp_path):
-    from keras_rl.posts.cartpole import CartPoleDQNConfig
+    from keras_rl.posts.mountaincar import MountainCarDDPGConfig
     from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched
 
     def job(seed, framework="keras", gamma=0.99, start="new"):
-        config = CartPoleDQNConfig(seed=seed, framework=framework, gamma=gamma)
+        config = MountainCarDDPGConfig(seed=seed, framework=framework, gamma=gamma)
         return SeedJob.of(config, tmp_path / f"{framework}-{gamma}" / f"seed_{seed}", start=start, command="x")
 
     jobs = [job(s, gamma=g) for g in (0.99, 0.9) for s in range(3)] + [job(0, "torch"), job(7, start="resume")]
@@ -40,15 +40,19 @@ def test_auto_batches_are_as_even_as_the_cap_and_the_workers_allow(seeds, worker
     assert math.ceil(jobs / workers) == math.ceil(seeds / (workers * cap))  # no more rounds than the cap forces
 
 
-def test_seed_batch_auto_packs_each_post_by_its_cap(tmp_path):
+def test_seed_batch_auto_packs_each_post_by_its_cap(tmp_path, monkeypatch):
+    from keras_rl.learners import table
     from keras_rl.learners.table import SEED_BATCH_CAP, seed_batch_cap
     from keras_rl.posts.cartpole import CartPoleDQNConfig
+    from keras_rl.posts.mountaincar import MountainCarDDPGConfig
     from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched
 
-    jobs = [SeedJob.of(CartPoleDQNConfig(seed=s), tmp_path / f"seed_{s}", command="x") for s in range(30)]
+    jobs = [SeedJob.of(MountainCarDDPGConfig(seed=s), tmp_path / f"seed_{s}", command="x") for s in range(30)]
+    assert seed_batch_cap("mountaincar", "keras") == SEED_BATCH_CAP[("mountaincar", "keras")] == 16
+    assert [len(b.jobs) for b in batched(jobs, "auto", workers=2)] == [15, 15]
+    monkeypatch.setitem(table.SEED_BATCH_CAP, ("mountaincar", "keras"), 10)
     packed = batched(jobs, "auto", workers=2)
     assert [len(b.jobs) for b in packed if isinstance(b, SeedBatchJob)] == [8, 8, 8, 6]
-    assert seed_batch_cap("cartpole", "keras") == SEED_BATCH_CAP[("cartpole", "keras")] == 10
     assert seed_batch_cap("cartpole", "torch") == 1  # the tutorial's code: one seed per run
     torch = [SeedJob.of(CartPoleDQNConfig(seed=s, framework="torch"), tmp_path / f"t{s}", command="x") for s in (0, 1)]
     assert batched(torch, "auto", workers=2) == torch
@@ -107,7 +111,9 @@ def test_seed_batch_on_sweep_runs_each_grid_point_as_a_batch_and_refuses_what_it
     out = tmp_path / "sweep"
     proc = cli(
         "sweep",
-        "cartpole",
+        "pendulum",
+        "--framework",
+        "torch",
         "--grid",
         "gamma=0.99,0.9",
         "--seeds",
@@ -128,7 +134,9 @@ def test_seed_batch_on_sweep_runs_each_grid_point_as_a_batch_and_refuses_what_it
             assert summary["provenance"]["seed_batch"] == [0, 1]
     again = cli(
         "sweep",
-        "cartpole",
+        "pendulum",
+        "--framework",
+        "torch",
         "--grid",
         "gamma=0.99,0.9",
         "--seeds",
@@ -145,9 +153,9 @@ def test_seed_batch_on_sweep_runs_each_grid_point_as_a_batch_and_refuses_what_it
 
 
 def test_a_retired_stacked_learner_is_refused_with_its_reason_and_auto_runs_its_seeds_alone(tmp_path):
-    """Post 000's Keras learner was retired for the compiled engine (issue 34): ``--seed-batch S``
-    refuses it before anything runs, naming why and what to run instead; ``auto`` runs each
-    seed alone, as where nothing batches; its PyTorch port still batches."""
+    """Posts 000 and 003's Keras learners were retired for the compiled engine (issue 34):
+    ``--seed-batch S`` refuses them before anything runs, naming why and what to run instead;
+    ``auto`` runs each seed alone, as where nothing batches; post 000's PyTorch port still batches."""
     import subprocess
     import sys
 
@@ -155,16 +163,19 @@ def test_a_retired_stacked_learner_is_refused_with_its_reason_and_auto_runs_its_
     from keras_rl.posts.pendulum import PendulumDDPGConfig
     from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched
 
-    assert ("pendulum", "keras") in RETIRED and ("pendulum", "keras") not in STACKED
-    out = tmp_path / "p"
-    proc = subprocess.run(
-        [sys.executable, "-m", "keras_rl", "reproduce", "pendulum", "--seeds", "0-1", "--seed-batch", "2",
-         "--dry-run", "--out", str(out)],
-        capture_output=True, text=True, timeout=600,
-    )  # fmt: skip
-    assert proc.returncode == 2, proc.stderr
-    assert "retired" in proc.stderr and "--engine compiled" in proc.stderr and "Traceback" not in proc.stderr
-    assert not out.exists()
+    for post in ("pendulum", "cartpole"):
+        assert (post, "keras") in RETIRED and (post, "keras") not in STACKED
+        out = tmp_path / post
+        proc = subprocess.run(
+            [sys.executable, "-m", "keras_rl", "reproduce", post, "--seeds", "0-1", "--seed-batch", "2",
+             "--dry-run", "--out", str(out)],
+            capture_output=True, text=True, timeout=600,
+        )  # fmt: skip
+        assert proc.returncode == 2, proc.stderr
+        assert "retired" in proc.stderr and "--engine compiled" in proc.stderr and "Traceback" not in proc.stderr
+        assert f"post {'000' if post == 'pendulum' else '003'}" in proc.stderr
+        assert not out.exists()
+    assert seed_batch_cap("cartpole", "keras") == 1
     assert seed_batch_cap("pendulum", "keras") == 1 and seed_batch_cap("pendulum", "torch") > 1
     jobs = [SeedJob.of(PendulumDDPGConfig(seed=s), tmp_path / f"seed_{s}", command="x") for s in range(4)]
     assert batched(jobs, "auto", workers=2) == jobs

@@ -1,21 +1,26 @@
-"""TensorBoard logging: the scalars a run writes read back, solo and seed-batched."""
+"""TensorBoard logging: the scalars a run writes read back, solo and seed-batched (post 000's
+PyTorch port, which still batches; the loop writes them alike for every learner). The compiled
+engine's are tests/test_compiled_engine.py's."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from clitools import run_cli
 
 from keras_rl.runs.files import read_episodes
 
 
-@pytest.mark.parametrize("seed_batch", [1, 2])
+@pytest.mark.parametrize("framework, seed_batch", [("keras", 1), ("torch", 1), ("torch", 2)])
 @pytest.mark.slow
-def test_tensorboard_scalars_read_back(tmp_path, seed_batch):
+def test_tensorboard_scalars_read_back(tmp_path, framework, seed_batch):
     import tensorflow as tf
 
     proc = run_cli(
         "reproduce",
-        "cartpole",
+        "pendulum",
+        "--framework",
+        framework,
         "--seeds",
         "0-1",
         "--episodes",
@@ -30,12 +35,16 @@ def test_tensorboard_scalars_read_back(tmp_path, seed_batch):
     )
     assert proc.returncode == 1, proc.stderr
     runs = sorted(p.name for p in (tmp_path / "tb").iterdir())
-    assert runs == ["cartpole-faithful-keras-seed0", "cartpole-faithful-keras-seed1"]
+    assert runs == [f"pendulum-faithful-{framework}-seed0", f"pendulum-faithful-{framework}-seed1"]
     scores = {}
     for event_file in (tmp_path / "tb" / runs[0]).glob("events.out.tfevents.*"):
         for event in tf.compat.v1.train.summary_iterator(str(event_file)):
             for value in event.summary.value:
                 if value.tag == "score":
                     scores[event.step] = float(tf.make_ndarray(value.tensor))
-    expected = {r["episode"]: r["score"] for r in read_episodes(tmp_path / "runs" / "seed_0" / "episodes.csv")}
+    # TensorBoard keeps float32 scalars: each score as float32 rounds it, exactly
+    expected = {
+        r["episode"]: float(np.float32(r["score"]))
+        for r in read_episodes(tmp_path / "runs" / "seed_0" / "episodes.csv")
+    }
     assert scores == expected

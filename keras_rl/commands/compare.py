@@ -8,7 +8,6 @@ from pathlib import Path
 
 from keras_rl.commands.common import (
     EXIT_OK,
-    _check_seed_batch,
     _check_writable_dir,
     _stopped,
     parse_seeds,
@@ -69,8 +68,7 @@ def compare_result(args: argparse.Namespace):
     if not args.reuse_only:
         _check_writable_dir(args.runs, "--runs")
     options.check_address()
-    _check_seed_batch(options.seed_batch, args.experiment, "keras")
-    from keras_rl.learners.table import compared_frameworks, stacked_implementation
+    from keras_rl.learners.table import RETIRED, compared_frameworks, stacked_implementation
     from keras_rl.registry import get_experiment
 
     experiment = get_experiment(args.experiment)
@@ -83,9 +81,12 @@ def compare_result(args: argparse.Namespace):
             except ConfigError:
                 alone.append(framework)
         if alone:  # reproduce refuses --seed-batch there; compare batches what it can, and says so
+            why = "".join(
+                f" ({fw}: {RETIRED[(experiment.name, fw)]})" for fw in alone if (experiment.name, fw) in RETIRED
+            )
             print(
                 f"warning: --seed-batch {options.seed_batch}: {experiment.name} in {', '.join(alone)} has no "
-                "seed-batched version, so its seeds run alone",
+                f"seed-batched version, so its seeds run alone{why}",
                 file=sys.stderr,
             )
     from keras_rl.report.compare import compare as write_compare

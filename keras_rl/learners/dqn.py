@@ -72,7 +72,7 @@ class DQNLearner:
         ).get_concrete_function()
 
     def input_specs(self) -> tuple[tf.TensorSpec, tf.TensorSpec]:
-        """Packed rows [B, width] and one state [obs] (the seed-batched learner adds a seed axis)."""
+        """Packed rows [B, width] and one state [obs]."""
         return tf.TensorSpec([None, self.layout.width], tf.float32), tf.TensorSpec([self.layout.obs_dim], tf.float32)
 
     # -- the Learner protocol --------------------------------------------------------------
@@ -118,9 +118,7 @@ class DQNLearner:
     # -- traced ----------------------------------------------------------------------------
     def update(self, batch: Batch | tf.Tensor) -> dict[str, tf.Tensor]:
         """In [None] ``optimize_model``: Q(s,a), V(s') from the target net, Huber, clip, AdamW.
-        Shapes are [B, ...], or [S, B, ...] for S stacked seeds: each seed's loss is the mean
-        over its own batch, and the gradient is taken of their sum (``total_loss``). On a
-        ``Batch``, or on packed rows (``buffers.Layout``), which it splits; rows arrive as
+        Shapes are [B, ...]. On a ``Batch``, or on packed rows (``buffers.Layout``), which it splits; rows arrive as
         float32, and the networks may compute in float64 (the parity tests do)."""
         if not isinstance(batch, Batch):
             batch = self.layout.split(tf.cast(batch, self.q_network.compute_dtype))
@@ -132,18 +130,13 @@ class DQNLearner:
         with tf.GradientTape() as tape:
             q_values = self.q_network(states)  # [B, A]
             state_action_values = tf.gather(q_values, actions[..., None], batch_dims=actions.shape.rank)[..., 0]
-            loss = huber(state_action_values - expected, axis=-1)  # a scalar, or [S]
-            total = self.total_loss(loss)
-        grads = tape.gradient(total, self.q_network.trainable_variables)
+            loss = huber(state_action_values - expected, axis=-1)  # a scalar
+        grads = tape.gradient(loss, self.q_network.trainable_variables)
         # torch.nn.utils.clip_grad_value_(policy_net.parameters(), 100), before optimizer.step()
         grads = [tf.clip_by_value(g, -self.grad_clip_value, self.grad_clip_value) for g in grads]
         self.optimizer.apply_gradients(zip(grads, self.q_network.trainable_variables))
         self._soft_update()
         return {"loss": loss}
-
-    def total_loss(self, loss: tf.Tensor) -> tf.Tensor:
-        """What the gradient is taken of: the loss itself (the stacked learner: the sum over seeds)."""
-        return loss
 
     def _soft_update(self):
         soft_update(self.target_network.variables, self.q_network.variables, self.tau)

@@ -3,21 +3,18 @@
 Each layer holds a kernel ``[S, in, out]`` and a bias ``[S, out]`` and is applied with a
 batched matmul (``einsum("sbi,sio->sbo")``), so seed k's slice sees only seed k's data.
 The loss is the *sum* over seeds of each seed's own loss: the gradient of seed k's slice is
-then exactly its solo gradient, and Adam, torch's AdamW, clip-by-value and the soft update
-are elementwise, so each slice steps as its solo run would. The optimizer's step counter is
-shared, which is exact because every seed of a batch trains on the same env steps (the
-seed-batched loop checks it: post 003's seeds
-reset on their own but train on every env step once their buffers hold one batch). Nothing
-global (a norm, a mean across seeds) enters the step.
+then exactly its solo gradient, and Adam (one step counter per seed, ``SeedAdam``) and the
+soft update are elementwise, so each slice steps as its solo run would. Nothing global (a
+norm, a mean across seeds) enters the step.
 
-Seed k's slice starts from the very weights seed k's solo run draws: ``stack_post001`` and
-``stack_post003`` seed Keras as a solo run does, build the solo networks, and stack them.
-Post 000's stacked learner was retired by issue 34: its compiled solo run costs less per seed
+Seed k's slice starts from the very weights seed k's solo run draws: ``stack_post001`` seeds
+Keras as a solo run does, builds the solo networks, and stacks them. Posts 000 and 003's
+stacked learners were retired by issue 34: their compiled solo runs cost less per seed
 (``learners/table.RETIRED``).
 A stack of one seed is the solo learner itself (``SoloAsStack``).
 
 The episode loop over a seed axis is ``train/loop.py``; the equivalence tests are
-``tests/test_stacked_dqn.py`` and ``tests/test_stacked_post001.py``.
+``tests/test_stacked_post001.py``.
 """
 
 from __future__ import annotations
@@ -34,31 +31,17 @@ from keras_rl.config import check_same_but_seed
 from keras_rl.envs import EnvSpec
 from keras_rl.learners.common import save_weights
 from keras_rl.learners.ddpg import DDPGLearner, post001_networks
-from keras_rl.learners.dqn import DQNLearner, post003_networks, post003_optimizer
 from keras_rl.learners.optimizers import SeedAdam
 from keras_rl.seeding import seed_everything
 
 NETWORKS = ("actor", "critic", "target_actor", "target_critic")
 """A DDPG post's networks, as ``slice_weights`` names them."""
-DQN_NETWORKS = ("q_network", "target_network")
-"""Post 003's networks."""
-
-
-def layers_of(model) -> list:
-    """A network's Dense (or StackedDense) layers in order: post 000's ``hidden`` + ``out``,
-    post 003's ``dense``."""
-    return list(model.dense) if hasattr(model, "dense") else [*model.hidden, model.out]
 
 
 def model_variables(model) -> list:
     """A solo network's variables in order, but for a noise layer's seed-generator state
     (post 001's GaussianNoise, the identity at learning phase 0): what a stack holds of it."""
     return [v for v in model.variables if "seed_generator" not in v.path]
-
-
-def layer_weights(model) -> list[np.ndarray]:
-    """(kernel, bias) of each layer of a network, solo or stacked, in layer order."""
-    return [v.numpy() for layer in layers_of(model) for v in (layer.kernel, layer.bias)]
 
 
 class SliceState:
@@ -297,78 +280,6 @@ class StackedDDPGLearner(SliceState, DDPGLearner):
         save_weights(critic, Path(run_dir) / "critic.weights.h5")
 
 
-class StackedQNetwork(keras.Model):
-    """Post 003 In [16]'s ``DQN`` for S seeds: Linear 128, relu, Linear 128, relu, Linear n_actions."""
-
-    def __init__(self, solos: Sequence[keras.Model]):
-        super().__init__()
-        s, n = len(solos), len(solos[0].dense)
-        self.dense = [
-            StackedDense(s, d.kernel.shape[0], d.units, "relu" if i < n - 1 else None)
-            for i, d in enumerate(solos[0].dense)
-        ]
-        for i, layer in enumerate(self.dense):
-            layer.set_from([m.dense[i] for m in solos])
-
-    def call(self, state):  # [S, B, obs] -> [S, B, n_actions]
-        x = state
-        for layer in self.dense:
-            x = layer(x)
-        return x
-
-
-class StackedDQNLearner(SliceState, DQNLearner):
-    """Post 003's ``optimize_model`` (Huber, clip-by-value 100, torch's AdamW with amsgrad)
-    and its every-step soft update, for S seeds in one call: ``DQNLearner``'s own update on
-    [S, B, ...] batches, its gradient taken of the sum of the seeds' losses."""
-
-    takes_masks = False
-
-    def __init__(self, q_network, target_network, optimizer, *, seeds: int, **kwargs):
-        self.seeds = seeds
-        self.solo_networks: list[keras.Model] = []  # seed k's solo policy net, for saving
-        super().__init__(q_network, target_network, optimizer, **kwargs)
-
-    def input_specs(self) -> tuple[tf.TensorSpec, tf.TensorSpec]:
-        return (
-            tf.TensorSpec([self.seeds, None, self.layout.width], tf.float32),
-            tf.TensorSpec([self.seeds, self.layout.obs_dim], tf.float32),
-        )
-
-    def total_loss(self, loss: tf.Tensor) -> tf.Tensor:
-        return tf.reduce_sum(loss)  # each slice gets its solo gradient
-
-    def act(self, states: np.ndarray) -> np.ndarray:
-        """Each seed's greedy action ``[S]`` for its state ``[S, obs]``."""
-        self.compile()
-        return self._act(tf.constant(states, tf.float32)).numpy()
-
-    def train_and_act(self, rows: np.ndarray, states: np.ndarray, separate: bool = False):
-        """The update, then the greedy actions for ``states`` (a seed whose episode just
-        ended passes its next episode's first state): one call even when ``separate``,
-        since the solo run's separate ``act`` reads the same updated weights."""
-        self.compile()
-        losses, actions = self._train_and_act(tf.constant(rows), tf.constant(states, tf.float32))
-        return losses, actions.numpy()
-
-    def step_without_batch(self, states: np.ndarray, episode_ended: bool = False) -> np.ndarray:
-        """Before the first batch the tutorial's soft update still runs every step."""
-        self.compile()
-        return self._sync_and_act(tf.constant(states, tf.float32)).numpy()
-
-    def slice_weights(self, k: int) -> dict[str, list[np.ndarray]]:
-        return {name: [w[k] for w in layer_weights(getattr(self, name))] for name in DQN_NETWORKS}
-
-    def save_slice(self, k: int, run_dir) -> None:
-        """Seed k's policy net as a solo run saves it (``q_network.weights.h5``)."""
-        network = self.solo_networks[k]
-        network.set_weights(self.slice_weights(k)["q_network"])
-        save_weights(network, Path(run_dir) / "q_network.weights.h5")
-
-    def _greedy(self, states):
-        return tf.argmax(self.q_network(states[:, None, :])[:, 0], axis=-1, output_type=tf.int32)  # [S]
-
-
 class SoloAsStack:
     """Any solo learner (Keras or PyTorch) behind the stacked interface, for a seed axis of
     one: XLA rounds a one-row batched matmul differently from Dense's matmul (about 1e-7,
@@ -488,27 +399,3 @@ def stack_post001(configs: Sequence, spec: EnvSpec, xla: bool = True):
         actor_gradient=c.actor_gradient,
         dqda_at_buffer_actions=c.dqda_at_buffer_actions,
     )
-
-
-def stack_post003(configs: Sequence, spec: EnvSpec, xla: bool = True):
-    """Post 003's learner for the seeds of ``configs``, each slice from its solo run's weights."""
-    c = configs[0]
-    if len(configs) == 1:
-        from keras_rl.learners.dqn import post003_learner
-
-        seed_everything(c.seed)
-        return SoloAsStack(post003_learner(c, spec, xla=xla))
-    solos = _per_seed(configs, lambda config: post003_networks(config, spec))
-    learner = StackedDQNLearner(
-        StackedQNetwork([q for q, _ in solos]),
-        StackedQNetwork([t for _, t in solos]),
-        post003_optimizer(c),
-        gamma=c.gamma,
-        tau=c.tau,
-        grad_clip_value=c.grad_clip_value,
-        layout=Layout(spec.obs_dim, 1),
-        seeds=len(configs),
-        xla=xla,
-    )
-    learner.solo_networks = [q for q, _ in solos]
-    return learner

@@ -41,7 +41,6 @@ IMPLEMENTATIONS: dict[tuple[str, str], Implementation] = {
 
 
 STACKED: dict[tuple[str, str], Implementation] = {
-    ("cartpole", "keras"): Implementation("keras_rl.learners.stacked:stack_post003"),
     ("mountaincar", "keras"): Implementation("keras_rl.learners.stacked:stack_post001"),
     ("pendulum", "torch"): Implementation("keras_rl.torch.stacked:stack_post000"),
     ("mountaincar", "torch"): Implementation("keras_rl.torch.stacked:stack_post001"),
@@ -52,6 +51,10 @@ RETIRED: dict[tuple[str, str], str] = {
     ("pendulum", "keras"): (
         "a compiled solo run costs 0.69x a seed of the Gymnasium loop's batch of 10 (docs/performance.md), "
         "so issue 34 retired post 000's stacked Keras learner; run its seeds with --engine compiled"
+    ),
+    ("cartpole", "keras"): (
+        "a compiled solo run costs 0.57x a seed of the Gymnasium loop's batch of 10 (docs/performance.md), "
+        "so issue 34 retired post 003's stacked Keras learner; run its seeds with --engine compiled"
     ),
 }
 """Seed-batched learners retired because the compiled engine (``train/compiled.py``) runs a
@@ -78,27 +81,12 @@ def batch_refusal(experiment: str, config: dict) -> str | None:
     return f"{field}={str(value).lower()} ({why})" if config.get(field) == value else None
 
 
-FINISHED_SEEDS: dict[tuple[str, str], str] = {("cartpole", "keras"): "shrink"}
-"""What a seed batch does with a seed that finishes before the others, where it is not
-``mask`` (the seed stays in the stacked update on rows of zeros): ``shrink`` rebuilds the
-stack without it (``train/loop.PartsAxis``), so later updates cost what a smaller batch
-costs, for a rebuild and compile of a few seconds. Both give every seed the same bits
-(``tests/test_finished_seeds.py``); the choice is speed alone, by measurement
-(``benchmarks/seed_batch.py --finished-seeds``, docs/performance.md)."""
-
-
-def finished_seeds_default(experiment: str, framework: str) -> str:
-    return FINISHED_SEEDS.get((experiment, framework), "mask")
-
-
 SEED_BATCH_CAP: dict[tuple[str, str], int] = {
-    ("cartpole", "keras"): 10,
     ("mountaincar", "keras"): 16,
     ("pendulum", "torch"): 16,
     ("mountaincar", "torch"): 16,
 }
-"""The most seeds ``--seed-batch auto`` puts in one batch. Post 003's cost per seed rises
-past 10 (the learner call: 0.19 ms per seed at 10 seeds, 0.29 ms at 16); the others' still
+"""The most seeds ``--seed-batch auto`` puts in one batch. Each post's cost per seed still
 falls at 16, the largest size measured (2026-11-23, whole batches against one solo seed
 over as many steps: post 001 2.38x at 10 seeds, 3.37x at 16; post 000's PyTorch port 4.88x
 and 6.31x). Measured with ``benchmarks/seed_batch.py --experiment NAME [--framework torch]

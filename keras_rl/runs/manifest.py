@@ -141,6 +141,22 @@ def cost(entry: dict) -> float:
     return entry["process_minutes"] * (1 - copied / len(entry["seeds"]))
 
 
+def by_kind(entries: list[dict]) -> dict[str, float]:
+    """Process-minutes counted once (``cost``), by how the runs ran: PyTorch, Keras on the
+    compiled engine (``--engine compiled`` in a command), Keras on the Gymnasium loop; the
+    largest first."""
+    out: dict[str, float] = {}
+    for e in entries:
+        if e["framework"] == "torch":
+            kind = "PyTorch"
+        elif any("--engine compiled" in c for c in e["commands"]):
+            kind = "Keras on the compiled engine"
+        else:
+            kind = "Keras on the Gymnasium loop"
+        out[kind] = out.get(kind, 0.0) + cost(e)
+    return dict(sorted(out.items(), key=lambda item: -item[1]))
+
+
 def markdown(entries: list[dict]) -> str:
     total = sum(e["process_minutes"] for e in entries)
     unique = sum(cost(e) for e in entries)
@@ -158,6 +174,9 @@ def markdown(entries: list[dict]) -> str:
         f'and episodes but for wall time; the "copies" column): counted once, the sets cost {unique:.0f} '
         f"process-minutes ({unique / 60:.1f} process-hours, about {unique / 120:.1f} hours of wall time on two "
         "workers). The minutes are the runs' recorded wall times, most measured beside other work.",
+        "Counted once, by how they ran: "
+        + "; ".join(f"{kind} {minutes / 60:.1f} process-hours" for kind, minutes in by_kind(entries).items())
+        + ".",
         "",
         "| set | experiment / variant / framework | seeds | batches | process-min | copies | made by |",
         "|---|---|---|---|---|---|---|",

@@ -20,10 +20,8 @@ learner call trains every seed and picks every next action; then ended episodes 
 recorded. A seed that finishes (threshold, budget, or a non-finite loss of its own) stops
 its env and its records at once; in the learner it is masked (its slice keeps stepping on
 rows of zeros, and nothing of it reaches the other slices: the loss is a sum of per-seed
-losses, Adam and the soft update are elementwise) or, where the post's
-``learners/table.FINISHED_SEEDS`` says ``shrink``, the stack is rebuilt without it (never
-below two seeds). A slice computes the same bits in a stack of any size, so the two
-differ in speed only (``tests/test_finished_seeds.py``).
+losses, Adam and the soft update are elementwise). (Post 003's stacked learner could also
+rebuild its stack without a finished seed; it went with that learner, issue 34.)
 
 Checkpoints (``--resume``): every ``checkpoint_every`` episodes per seed, and when a signal
 or the dispatcher stops the batch, every seed writes the state at the current vector step
@@ -54,7 +52,7 @@ from keras_rl.config import check_same_but_seed
 from keras_rl.errors import ConfigError, NonFiniteLossError, RunFolderError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.axis import SeedAxisLearner
-from keras_rl.learners.table import finished_seeds_default, implementation, stacked_implementation
+from keras_rl.learners.table import implementation, stacked_implementation
 from keras_rl.rngs import global_rng_state, set_global_rng_state
 from keras_rl.runs.checkpoint import delete_checkpoints, read_batch_checkpoints, write_checkpoint
 from keras_rl.runs.evaluate import TrainingEvaluator
@@ -97,10 +95,7 @@ def run_seeds(
     ``episodes.csv`` with every finished episode and a ``summary.json`` whose ``status``
     says how that seed ended; the summary is rewritten after every episode. ``settings``
     (``train/settings.TrainSettings``) says how: resume, checkpoints, TensorBoard, evaluation
-    during training, the command line to record, and what a batch does with a finished seed
-    (``mask`` keeps its slice in the stack, ``shrink`` rebuilds the stack without it: the
-    same bits, ``tests/test_finished_seeds.py``; a resumed batch rebuilds the stack its
-    checkpoints record). ``envs`` may be passed in, one per seed (tests wrap envs).
+    during training and the command line to record. ``envs`` may be passed in, one per seed (tests wrap envs).
     ``should_stop`` is asked whenever an episode ends; True stops the batch as a signal
     would (a distributed backend's stop flag).
     """
@@ -109,7 +104,7 @@ def run_seeds(
     if len({c.episodes for c in configs}) != 1:
         raise ConfigError("seed-batched runs share one budget")
     configure_tensorflow(settings.threads)
-    axis, envs = build_seed_axis(experiment, configs, envs, settings.finished_seeds)
+    axis, envs = build_seed_axis(experiment, configs, envs)
     axis.compile()  # the learner's own method: its trace runs from this frame
     seeds = [
         _Seed(experiment, c, env, Path(d), axis.loss_names, settings.command)
@@ -166,11 +161,9 @@ def run_seeds(
     return [s.final for s in seeds if s.final is not None]
 
 
-def build_seed_axis(experiment: Experiment, configs: list, envs: Sequence | None, finished_seeds: str | None = None):
+def build_seed_axis(experiment: Experiment, configs: list, envs: Sequence | None):
     """The seed axis for ``configs``, and each seed's env, built in the order a solo run
-    draws its initial weights (Keras seeded with the seed, env, then the learner).
-    ``finished_seeds``: ``mask`` or ``shrink`` (``PartsAxis``) for a stacked learner; None
-    takes the post's (``learners/table.FINISHED_SEEDS``)."""
+    draws its initial weights (Keras seeded with the seed, env, then the learner)."""
     c = configs[0]
     impl = implementation(experiment.name, c.framework)
     if len(configs) == 1:
@@ -191,43 +184,24 @@ def build_seed_axis(experiment: Experiment, configs: list, envs: Sequence | None
 
         learner = SoloAsStack(impl.load()(c, spec))
         return PartsAxis([experiment.assemble(c, spec, learner, envs[0].action_space)], learner), envs
-    stack = stacked_implementation(experiment.name, c.framework).load()
-    learner = stack(configs, spec)
+    learner = stacked_implementation(experiment.name, c.framework).load()(configs, spec)
     agents = [experiment.assemble(config, spec, learner, env.action_space) for config, env in zip(configs, envs)]
-    return (
-        PartsAxis(
-            agents,
-            learner,
-            rebuild=lambda keep: stack([configs[k] for k in keep], spec),
-            shrink=(finished_seeds or finished_seeds_default(experiment.name, c.framework)) == "shrink",
-        ),
-        envs,
-    )
+    return PartsAxis(agents, learner), envs
 
 
 class PartsAxis:
     """Each seed's agent parts (``agents/skeleton.Agent``'s phases) and one learner that
     holds the seed axis (stacked calls: ``[S, ...]`` in, ``[S, ...]`` out).
 
-    ``live`` lists the seeds in the learner's stack, in stack order. Under the ``shrink``
-    policy for finished seeds, ``drop`` takes finished seeds out of the stack: the learner is
-    rebuilt (``rebuild``, for the given seeds) for the seeds still running, from their slices,
-    so each later call costs what a batch of that size costs. Under ``mask``, a finished seed
-    stays in the stack on rows of zeros."""
+    ``live`` lists the seeds in the learner's stack, in stack order: every seed of the batch
+    (a finished seed stays in the stack on rows of zeros)."""
 
-    def __init__(
-        self,
-        agents: list,
-        learner: SeedAxisLearner,
-        rebuild: Callable[[list[int]], SeedAxisLearner] | None = None,
-        shrink=False,
-    ):
-        self.agents, self.learner, self.rebuild, self.shrink = agents, learner, rebuild, shrink
+    def __init__(self, agents: list, learner: SeedAxisLearner):
+        self.agents, self.learner = agents, learner
         self.compile = learner.compile  # the learner's own (a rebuilt stack traces on its first call)
         self.loss_names = tuple(learner.loss_names)
         self.batches: list[list] = [[] for _ in agents]
         self.live = list(range(len(agents)))
-        self.parked: dict[int, dict] = {}  # a dropped seed's slice as it left the stack (its checkpoint)
         self.raw: dict[int, Any] = {}  # each live seed's action from the learner, before exploration
 
     def _act(self, states: np.ndarray) -> None:
@@ -319,34 +293,6 @@ class PartsAxis:
             self.agents[k].reset_episode_stats()
             self.agents[k].explore(self.raw[k])
 
-    def drop(self, ks: list[int]) -> None:
-        """Take finished seeds ``ks`` out of the stack (``shrink``; a no-op under ``mask``).
-        The stack never goes below two seeds: a stack of one would be another program, the
-        solo learner's, with another state layout."""
-        keep = [k for k in self.live if k not in ks]
-        if self.shrink and len(keep) < len(self.live) and len(keep) >= 2:
-            self.shrink_to(keep)
-
-    def shrink_to(self, keep: list[int]) -> None:
-        """Rebuild the learner for the seeds ``keep`` (a subset of ``live``), each from its
-        slice; the others' slices are parked for their checkpoints. The rebuild leaves
-        Python's and NumPy's global generators as they were, so it draws nothing a seed sees."""
-        if keep == self.live:
-            return
-        if self.rebuild is None:
-            raise ConfigError("this learner cannot drop finished seeds from its stack")
-        slices = {k: self.learner.slice_state(j) for j, k in enumerate(self.live)}
-        self.parked.update({k: v for k, v in slices.items() if k not in keep})
-        rngs = global_rng_state()
-        learner = self.rebuild(keep)
-        set_global_rng_state(rngs)
-        for j, k in enumerate(keep):
-            learner.load_slice_state(j, slices[k])
-        self.learner, self.live = learner, list(keep)
-        self.raw = {k: self.raw[k] for k in keep if k in self.raw}
-        for agent in self.agents:  # its phases never call it; the old stack is freed
-            agent.learner = learner
-
     def action(self, k: int):
         return self.agents[k]._action
 
@@ -357,8 +303,7 @@ class PartsAxis:
         self.learner.save_slice(self.live.index(k), run_dir)
 
     def seed_state(self, k: int) -> dict[str, Any]:
-        learner = self.parked[k] if k in self.parked else self.learner.slice_state(self.live.index(k))
-        return {"parts": self.agents[k].parts_state(), "learner": learner}
+        return {"parts": self.agents[k].parts_state(), "learner": self.learner.slice_state(self.live.index(k))}
 
     def load_seed_state(self, k: int, state: dict[str, Any]) -> None:
         self.agents[k].load_parts_state(state["parts"])
@@ -382,9 +327,6 @@ class WholeAgentAxis:
 
     def compile(self) -> None:
         """Nothing to trace: the tutorial's own code runs eagerly."""
-
-    def drop(self, ks: list[int]) -> None:
-        """One seed: nothing to take out."""
 
     def begin(self, k: int, obs) -> None:
         self._obs = obs  # its begin_episode resets the tally: it runs after the episode is recorded
@@ -703,8 +645,6 @@ class _Batch:
             stopped = [k for k, s in enumerate(seeds) if not s.active and s.final is None]
             for k in stopped:  # it stopped on this step: its files and summary now
                 self.flush(k)
-            if stopped and any(s.active for s in seeds):
-                axis.drop([k for k, s in enumerate(seeds) if not s.active])
             # the dispatcher's flag costs a round trip (a Ray actor call): asked when an episode ends
             if interrupted or (ended and should_stop is not None and should_stop()):
                 by = signal_name(interrupted) if interrupted else "the dispatcher's stop request (Ctrl-C or SIGTERM)"
@@ -727,7 +667,6 @@ class _Batch:
             "batch": self.batch,
             "vector_step": self.vector_step,
             "global_rng": global_rng_state(),
-            "live": [self.batch[k] for k in self.axis.live],  # the learner's stack, shrunk or whole
         }
         for k, s in enumerate(self.seeds):
             write_checkpoint(s.recorder.out_dir, {**shared, "seed": s.snapshot(), "axis": self.axis.seed_state(k)})
@@ -752,9 +691,6 @@ class _Batch:
         set_global_rng_state(states[0]["global_rng"])
         self.vector_step = int(states[0]["vector_step"])
         self.started = True
-        # the stack as it was when the checkpoints were taken (shrunk or whole: the same bits)
-        if len(self.seeds) > 1:
-            self.axis.shrink_to([self.batch.index(seed) for seed in states[0].get("live", self.batch)])
 
     # -- the end ------------------------------------------------------------------------------
     def flush(self, k: int) -> None:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
 
 from keras_rl.runs.evaluate import EvalSchedule
 
@@ -33,9 +32,6 @@ class TrainSettings:
     """The command line to record in each summary (a Ray worker's own argv is not it)."""
     evaluation: EvalSchedule | None = None
     """Greedy evaluations during training (``--eval-every``), or none."""
-    finished_seeds: Literal["mask", "shrink"] | None = None
-    """What a seed batch does with a seed that has finished while others run; None takes the
-    post's choice (``learners/table.FINISHED_SEEDS``)."""
 
 
 DEFAULT_SETTINGS = TrainSettings()

@@ -61,14 +61,14 @@ from keras_rl.runs.run_set import RunSet
 
 MUTANT_SEEDS = "0-9"
 MUTANT_BATCH = 10
-"""Mutant seeds 10-29 of a Gymnasium-loop post run in batches of 10 (``--seed-batch 10``), as the
-check's fresh seeds do: post 003's seeds 0-9 were one such batch; post 001's ran solo, before it
-could batch (batched against solo for post 001: ``results/mountaincar/seed-batch/report.md``). A
-config no stacked learner covers (post 001's learning phase) runs solo. A post whose rules run on
-the compiled engine (post 000 since issue 34) runs every seed there, one per program."""
-BASELINE_BATCH = {"cartpole": 15, "mountaincar": 1}
-"""How each Gymnasium-loop baseline was made (its summaries' ``--seed-batch``): 15 seeds per batch
-for post 003, one seed per run for post 001."""
+"""Mutant seeds 10-29 of a Gymnasium-loop post (post 001) run in batches of 10 (``--seed-batch
+10``), as the check's fresh seeds do; its seeds 0-9 ran solo, before it could batch (batched
+against solo: ``results/mountaincar/seed-batch/report.md``). A config no stacked learner covers
+(post 001's learning phase) runs solo. A post whose rules run on the compiled engine (posts 000
+and 003 since issue 34 retired their stacked learners) runs every seed there, one per program."""
+BASELINE_BATCH = {"mountaincar": 1}
+"""How each Gymnasium-loop baseline was made (its summaries' ``--seed-batch``): one seed per run
+for post 001."""
 
 
 def make_commands(name: str) -> list[list[str]]:

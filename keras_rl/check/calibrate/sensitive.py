@@ -21,11 +21,9 @@ The tier's sizes were computed before its runs (``reproductions/sensitive_plan.p
   tier's 40 fresh seeds; ``tests/test_sensitive_tier.py`` fails if the rule is not the one chosen.
 - **Held-out mutants** (``HELD_OUT``, never used to choose): power at alpha and alpha / 3,
   a seed bootstrap, and the runs cut into disjoint real checks with their Clopper-Pearson
-  interval (``calibrate/runs.measure``). Post 000's are the compiled engine's
-  (``results/checks/pendulum/held-out``, 200 seeds each); post 003's are the Gymnasium
-  loop's 30 (``held-out``): its compiled engine reads equivalent to that loop on 100 seeds each
-  (``results/engines/cartpole/report.md``: median ratio 1.01, 90% 0.92-1.06), so its rows carry
-  that caveat; post 001 has one engine.
+  interval (``calibrate/runs.measure``). Posts 000 and 003's are the compiled engine's, as
+  their rules' fresh seeds are (``results/checks/<post>/held-out``: post 000's 200 seeds each,
+  post 003's 30); post 001's the Gymnasium loop's 30, batched.
 """
 
 from __future__ import annotations

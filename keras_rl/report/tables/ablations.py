@@ -45,7 +45,7 @@ MORE = (
 )
 SOURCES: dict[str, dict[str, Any]] = {
     # post 000's ablations run on the compiled engine since issue 34 retired its stacked learner
-    # (the Gymnasium loop's sets, seeds 10-29 of them batched, were regenerated there)
+    # (the Gymnasium loop's sets, seeds 10-29 of them batched, were regenerated there);
     "pendulum": {
         "base": "results/pendulum/ablations-compiled/base",
         "points": "results/pendulum/ablations-compiled",
@@ -54,11 +54,14 @@ SOURCES: dict[str, dict[str, Any]] = {
         "--resume --no-progress --min-success-rate 0 --out results/pendulum/ablations-compiled/SWITCH=false` "
         "(base: no --set, into base/; fixed: --variant fixed, into fixed/)",
     },
+    # post 003's likewise (its Gymnasium-loop sets had been batched, seeds 0-9 by 10, 10-29 auto)
     "cartpole": {
-        "base": "results/cartpole/ablations/base",
-        "points": "results/cartpole/ablations",
+        "base": "results/cartpole/ablations-compiled/base",
+        "points": "results/cartpole/ablations-compiled",
         "also": {},
-        "command": f"`{SWEEP.format(exp='cartpole', batch=' --seed-batch 10')}`, then " + MORE.format(exp="cartpole"),
+        "command": "`keras-rl reproduce cartpole --engine compiled --seeds 0-29 --set SWITCH=VALUE --workers 1 "
+        "--resume --no-progress --min-success-rate 0 --out results/cartpole/ablations-compiled/SWITCH=VALUE` "
+        "(base: no --set; its seeds are results/engines/cartpole/compiled's seeds 0-29, made by that command, copied)",
     },
     "mountaincar": {
         "base": "results/mountaincar/ablations/base",

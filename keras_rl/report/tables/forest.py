@@ -108,7 +108,6 @@ def _comparisons() -> list[Comparison]:
     )
     for label, batched, solo in (
         ("pendulum (PyTorch), batch of 10", "pendulum/seed-batch-torch/batch10", "pendulum/faithful-torch"),
-        ("cartpole, batch of 15", "checks/cartpole/baseline", "cartpole/faithful"),
         ("mountaincar, batch of 10", "mountaincar/seed-batch/batch10", "mountaincar/faithful"),
     ):
         out.append(Comparison("seed-batched vs solo", label, batched, solo))
