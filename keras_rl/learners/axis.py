@@ -2,10 +2,11 @@
 that holds a seed axis. Every array in or out has the seed axis first (``[S, ...]``).
 
 Three kinds implement it: ``learners/stacked.SoloAsStack`` (any solo learner, S=1, call for
-call the solo run), the stacked Keras learners (``learners/stacked.py``) and the stacked
-PyTorch learner (``torch/stacked.py``). ``takes_masks`` says whether ``train`` accepts a
-``mask`` (post 001's bursts, where seeds train different numbers of batches on one env
-step); the loop refuses such a batch for a learner without it, before it trains.
+call the solo run), post 001's stacked Keras learner (``learners/stacked.py``; posts 000 and
+003's were retired for the compiled engine) and the stacked PyTorch learner
+(``torch/stacked.py``). ``takes_masks`` says whether ``train`` accepts a ``mask`` (post 001's
+bursts, where seeds train different numbers of batches on one env step); the loop refuses such
+a batch for a learner without it, before it trains.
 """
 
 from __future__ import annotations
