@@ -31,8 +31,13 @@ PLAN = RESULTS / "compare" / "seed_plan.json"
 
 KERAS_ARMS = {
     "pendulum": ("pendulum/faithful", "engines/pendulum/gymnasium", "pendulum/faithful-seeds-100-149"),
-    "cartpole": ("cartpole/faithful", "engines/cartpole/gymnasium"),
-    "mountaincar": ("mountaincar/faithful", "checks/mountaincar/baseline", "mountaincar/faithful-seeds-100-199"),
+    "cartpole": ("cartpole/faithful", "engines/cartpole/gymnasium", "cartpole/faithful-seeds-100-199"),
+    "mountaincar": (
+        "mountaincar/faithful",
+        "checks/mountaincar/baseline",
+        "mountaincar/faithful-seeds-100-199",
+        "mountaincar/faithful-seeds-200-599",
+    ),
 }
 """Keras's arm of each post (the same arm for both inits: matched init changes PyTorch's side)."""
 
@@ -51,6 +56,7 @@ TORCH_ARMS = {
         "mountaincar/faithful-torch-matched-init",
         "mountaincar/faithful-torch-matched-init-seeds-30-199",  # seeds 30-114 (two processes: one core each)
         "mountaincar/faithful-torch-matched-init-seeds-115-199",
+        "mountaincar/faithful-torch-matched-init-seeds-200-599",
     ),
 }
 

@@ -95,9 +95,9 @@ def run_seeds(
     ``episodes.csv`` with every finished episode and a ``summary.json`` whose ``status``
     says how that seed ended; the summary is rewritten after every episode. ``settings``
     (``train/settings.TrainSettings``) says how: resume, checkpoints, TensorBoard, evaluation
-    during training and the command line to record. ``envs`` may be passed in, one per seed (tests wrap envs).
-    ``should_stop`` is asked whenever an episode ends; True stops the batch as a signal
-    would (a distributed backend's stop flag).
+    during training and the command line to record. ``envs`` may be passed in, one per seed
+    (tests wrap envs). ``should_stop`` is asked whenever an episode ends; True stops the batch
+    as a signal would (a distributed backend's stop flag).
     """
     configs = list(configs)
     check_same_but_seed(configs)
@@ -198,7 +198,7 @@ class PartsAxis:
 
     def __init__(self, agents: list, learner: SeedAxisLearner):
         self.agents, self.learner = agents, learner
-        self.compile = learner.compile  # the learner's own (a rebuilt stack traces on its first call)
+        self.compile = learner.compile  # the learner's own
         self.loss_names = tuple(learner.loss_names)
         self.batches: list[list] = [[] for _ in agents]
         self.live = list(range(len(agents)))
