@@ -53,10 +53,10 @@ def main() -> None:
         parser.error("--rounds must be at least 1")
     if args.batch == 1 or args.batch < 0:
         parser.error("--batch must be 0 (none) or at least 2")
-    from keras_rl.learners.table import RETIRED
+    from keras_rl.learners.table import no_stacked_learner
 
-    if args.batch and (args.experiment, "keras") in RETIRED:
-        parser.error(f"--batch: {RETIRED[(args.experiment, 'keras')]}")
+    if args.batch and (why := no_stacked_learner(args.experiment, "keras")):
+        parser.error(why)
 
     from keras_rl.registry import get_experiment
     from keras_rl.train.engine import get_engine

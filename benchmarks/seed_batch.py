@@ -182,10 +182,10 @@ def main() -> None:
         return targets_table(args.experiment, args.framework)
     name = args.experiment or "mountaincar"
     FRAMEWORK[0] = args.framework or "keras"
-    from keras_rl.learners.table import RETIRED
+    from keras_rl.learners.table import no_stacked_learner
 
-    if (name, FRAMEWORK[0]) in RETIRED:
-        parser.error(f"{name} ({FRAMEWORK[0]}): {RETIRED[(name, FRAMEWORK[0])]}")
+    if why := no_stacked_learner(name, FRAMEWORK[0]):
+        parser.error(why)
     episodes = args.episodes or DEFAULT_EPISODES[name]
 
     from keras_rl.seeding import configure_tensorflow

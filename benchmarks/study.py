@@ -68,10 +68,10 @@ def main() -> None:
     args = parser.parse_args()
     if args.rounds < 1 or args.workers < 1 or (args.episodes is not None and args.episodes < 1):
         parser.error("--rounds, --workers and --episodes must be at least 1")
-    from keras_rl.learners.table import RETIRED
+    from keras_rl.learners.table import no_stacked_learner
 
-    if (args.experiment, "keras") in RETIRED:  # its committed study figure was measured before (docs/performance.md)
-        parser.error(f"the seed-batch arm: {RETIRED[(args.experiment, 'keras')]}")
+    if why := no_stacked_learner(args.experiment, "keras"):  # its committed figure was measured before
+        parser.error(why)
 
     times: dict[str, list[float]] = {arm: [] for arm in ARMS}
     for _ in range(args.rounds):

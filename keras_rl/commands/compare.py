@@ -68,18 +68,13 @@ def compare_result(args: argparse.Namespace):
     if not args.reuse_only:
         _check_writable_dir(args.runs, "--runs")
     options.check_address()
-    from keras_rl.learners.table import RETIRED, compared_frameworks, stacked_implementation
+    from keras_rl.learners.table import RETIRED, compared_frameworks, no_stacked_learner
     from keras_rl.registry import get_experiment
 
     experiment = get_experiment(args.experiment)
     compared = compared_frameworks(experiment.name)  # a clear error where there is nothing to compare
     if options.seed_batch == "auto" or int(options.seed_batch) > 1:
-        alone = []
-        for framework in compared:
-            try:
-                stacked_implementation(experiment.name, framework)
-            except ConfigError:
-                alone.append(framework)
+        alone = [framework for framework in compared if no_stacked_learner(experiment.name, framework)]
         if alone:  # reproduce refuses --seed-batch there; compare batches what it can, and says so
             why = "".join(
                 f" ({fw}: {RETIRED[(experiment.name, fw)]})" for fw in alone if (experiment.name, fw) in RETIRED

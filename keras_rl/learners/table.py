@@ -98,16 +98,24 @@ def seed_batch_cap(experiment: str, framework: str) -> int:
     return SEED_BATCH_CAP.get((experiment, framework), 1) if (experiment, framework) in STACKED else 1
 
 
+def no_stacked_learner(experiment: str, framework: str) -> str | None:
+    """Why ``--seed-batch`` cannot batch this post in this framework (retired, or never built),
+    or None where it can: the one wording the CLI and the benchmarks refuse or warn with."""
+    if (experiment, framework) in RETIRED:
+        return f"--seed-batch: {RETIRED[(experiment, framework)]}"
+    if (experiment, framework) not in STACKED:
+        have = ", ".join(f"{e} ({f})" for e, f in STACKED)
+        return f"--seed-batch has no {framework} learner for {experiment} yet; it has: {have}"
+    return None
+
+
 def stacked_implementation(experiment: str, framework: str) -> Implementation:
     from keras_rl.errors import ConfigError
 
-    if (experiment, framework) in RETIRED:
-        raise ConfigError(f"--seed-batch: {RETIRED[(experiment, framework)]}")
-    try:
-        return STACKED[(experiment, framework)]
-    except KeyError:
-        have = ", ".join(f"{e} ({f})" for e, f in STACKED)
-        raise ConfigError(f"--seed-batch has no {framework} learner for {experiment} yet; it has: {have}") from None
+    why = no_stacked_learner(experiment, framework)
+    if why is not None:
+        raise ConfigError(why)
+    return STACKED[(experiment, framework)]
 
 
 def frameworks(experiment: str) -> tuple[str, ...]:
