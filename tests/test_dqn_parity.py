@@ -196,3 +196,43 @@ def test_soft_update_every_step_before_training_matches_state_dict_arithmetic():
         ours.learner.step_without_batch(state, want_action=True)
         theirs.soft_update()
     assert_same_weights(ours, theirs, atol=1e-7)
+
+
+def _memory_equal(a, b):
+    assert len(a) == len(b)
+    for x, y in zip(a, b):
+        for u, v in zip(x, y):
+            assert (u is None) == (v is None)
+            if u is not None:
+                assert u.dtype == v.dtype and u.shape == v.shape and torch.equal(u, v)
+
+
+def test_the_tutorials_checkpointed_memory_is_arrays_and_gives_back_every_transition():
+    """``ReplayMemory.arrays`` (what a checkpoint holds) restores each transition's values,
+    dtype, shape and terminal ``None``; a memory mixing dtypes stays a list, and a list (the
+    layout of checkpoints written before the arrays) restores as it was."""
+    import pickle
+
+    config = CartPoleDQNConfig(seed=3).replace(framework="torch")
+    rng = np.random.default_rng(3)
+    agent = TutorialDQNAgent(config, SPEC, gym.spaces.Discrete(2))
+    agent.memory.memory.extend(as_transitions(*random_batch(rng, terminal_share=0.3)))
+    saved = agent.memory.arrays()
+    assert isinstance(saved, dict) and saved["final"].sum() == sum(t.next_state is None for t in agent.memory.memory)
+    other = TutorialDQNAgent(config, SPEC, gym.spaces.Discrete(2))
+    other.memory.restore(pickle.loads(pickle.dumps(saved)))
+    _memory_equal(agent.memory.memory, other.memory.memory)
+    for t in other.memory.memory:  # each tensor its own storage: a view would pickle every row with it
+        assert all(v is None or v.untyped_storage().nbytes() == v.numel() * v.element_size() for v in t)
+    # the restored memory trains to the same bits: one update from each on the same sample
+    mine, theirs = (a.optimize_model(list(a.memory.memory)).item() for a in (agent, other))
+    assert mine == theirs
+
+    mixed = as_transitions(*random_batch(rng)) + as_transitions(*random_batch(rng), dtype=torch.float64)
+    agent.memory.memory.clear()
+    agent.memory.memory.extend(mixed)
+    assert isinstance(agent.memory.arrays(), list)
+    other.memory.restore(list(mixed))
+    _memory_equal(mixed, other.memory.memory)
+    agent.memory.memory.clear()
+    assert agent.memory.arrays() == []
