@@ -106,6 +106,19 @@ def test_the_issue_3080_variant_is_the_four_values_the_issue_proposes_and_nothin
     assert epsilon(fix, 100_000) < 1e-28
 
 
+def test_the_pr_3384_variant_is_the_three_values_the_merged_tutorial_changed_and_nothing_else():
+    """pytorch/tutorials PR #3384 (merged 2025-06-16): ``EPS_END = 0.01``, ``EPS_DECAY = 2500``,
+    ``LR = 3e-4``; ``EPS_START = 0.9``, ``TAU``, ``GAMMA``, ``BATCH_SIZE`` and the rest stay the
+    tutorial's. Epsilon falls to e^-1 of its way down after 2,500 env steps, not 1,000."""
+    faithful = CartPoleDQNConfig.for_variant("faithful")
+    fix = CartPoleDQNConfig.for_variant("pr-3384")
+    changed = {k: v for k, v in fix.to_dict().items() if faithful.to_dict()[k] != v}
+    assert changed == {"variant": "pr-3384", "eps_end": 0.01, "eps_decay": 2500.0, "q_lr": 3e-4}
+    assert epsilon(fix, 0) == epsilon(faithful, 0) == pytest.approx(0.9)
+    assert epsilon(fix, 2500) == pytest.approx(0.01 + 0.89 * math.exp(-1))
+    assert epsilon(fix, 100_000) == pytest.approx(0.01)
+
+
 def test_the_tutorials_pytorch_code_reads_the_variants_values():
     """The tutorial's own code (``torch/dqn_tutorial.py``) takes the same config: its AdamW has the
     variant's learning rate and its ``select_action`` draws at the variant's epsilon."""

@@ -36,6 +36,11 @@ class CartPoleDQNConfig(ExperimentConfig):
         # proposes these four values, backed by one learning curve; the tutorial's maintainers
         # invited a PR with them. Not the post's code: a community fix, measured (docs/findings.md).
         "issue-3080": {"eps_start": 1.0, "eps_end": 0.0, "eps_decay": 1500.0, "q_lr": 5e-4},
+        # pytorch/tutorials PR #3384 ("Update hyper params and set seeds", "Fixes #3080"; merged
+        # 2025-06-16; it replaced PR #3380): the values the tutorial has published since, read from
+        # copies of the merged file (results/cartpole/tutorial-fix/plan.md). It also added a
+        # seeding block, left commented out; every run here is seeded anyway.
+        "pr-3384": {"eps_end": 0.01, "eps_decay": 2500.0, "q_lr": 3e-4},
     }
     QUIRKS: ClassVar = {"weight_decay": ("P003-WD", 0.0), "init": ("P003-INIT", "keras")}
     RENAMED: ClassVar = {"hidden_units": lambda v: {"q_hidden_units": v}, "lr": lambda v: {"q_lr": v}}
