@@ -49,8 +49,12 @@ TORCH_ARMS = {
         "pendulum/faithful-torch-seeds-140-149",
     ),
     ("pendulum", True): ("pendulum/faithful-torch-matched-init", "pendulum/faithful-torch-matched-init-seeds-30-99"),
-    ("cartpole", False): ("cartpole/faithful-torch", "cartpole/faithful-torch-seeds-30-199"),
-    ("cartpole", True): ("cartpole/faithful-torch-matched-init",),
+    ("cartpole", False): (
+        "cartpole/faithful-torch",
+        "cartpole/faithful-torch-seeds-30-199",  # seeds 30-113, at 5d750908
+        "cartpole/faithful-torch-seeds-114-199",  # at 56448599 (the compact checkpoint; the same arithmetic)
+    ),
+    ("cartpole", True): ("cartpole/faithful-torch-matched-init", "cartpole/faithful-torch-matched-init-seeds-30-199"),
     ("mountaincar", False): ("mountaincar/faithful-torch", "mountaincar/faithful-torch-seeds-30-199"),
     ("mountaincar", True): (
         "mountaincar/faithful-torch-matched-init",

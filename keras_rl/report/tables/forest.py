@@ -106,6 +106,24 @@ def _comparisons() -> list[Comparison]:
             seeds_before_reading=30,  # results/cartpole/tutorial-fix/plan.md
         )
     )
+    out.append(
+        Comparison(
+            "the tutorial's community fix vs as published",
+            "cartpole, pytorch/tutorials PR #3384's values (Keras)",
+            "cartpole/tutorial-fix/pr-3384",
+            "engines/cartpole/compiled",
+            seeds_before_reading=100,  # results/cartpole/tutorial-fix/plan.md, its addendum
+        )
+    )
+    out.append(
+        Comparison(
+            "the tutorial's community fix vs as published",
+            "cartpole, pytorch/tutorials PR #3384's values (the tutorial's PyTorch code)",
+            "cartpole/tutorial-fix/pr-3384-torch",
+            "cartpole/faithful-torch",
+            seeds_before_reading=30,  # results/cartpole/tutorial-fix/plan.md, its addendum
+        )
+    )
     for label, batched, solo in (
         ("pendulum (PyTorch), batch of 10", "pendulum/seed-batch-torch/batch10", "pendulum/faithful-torch"),
         ("mountaincar, batch of 10", "mountaincar/seed-batch/batch10", "mountaincar/faithful"),
