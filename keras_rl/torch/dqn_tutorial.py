@@ -45,7 +45,7 @@ class ReplayMemory:
 
     def arrays(self) -> dict | list:
         """The memory as one array per field, for a checkpoint: pickling it as 40,000 small
-        tensors took seconds per checkpoint, most of a seed's time (``benchmarks/checkpoint.py``).
+        tensors took seconds per checkpoint (``benchmarks/checkpoint.py``).
         Each field keeps its dtype; a memory whose items differ in dtype (none that the loop
         writes) stays a list of transitions, so ``restore`` gives back the same values always."""
         items = list(self.memory)
