@@ -124,6 +124,24 @@ ROWS = [
         "100-ep. mean >= 475 in 600",
         "pytorch/tutorials #3080's values (one curve)",
     ),
+    (
+        "003 CartPole DQN",
+        "cartpole",
+        "pr-3384",
+        "keras",
+        False,
+        "100-ep. mean >= 475 in 600",
+        "pytorch/tutorials PR #3384's values, merged (two runs)",
+    ),
+    (
+        "003 CartPole DQN",
+        "cartpole",
+        "pr-3384",
+        "torch",
+        False,
+        "100-ep. mean >= 475 in 600",
+        "pytorch/tutorials PR #3384's values, merged (two runs)",
+    ),
 ]
 
 ELSEWHERE = {
@@ -137,6 +155,16 @@ ELSEWHERE = {
         "cartpole/tutorial-fix/issue-3080-torch",
         "keras-rl reproduce cartpole --variant issue-3080 --framework torch --seeds {seeds} --workers 1 --resume "
         "--no-progress --min-success-rate 0 --out results/cartpole/tutorial-fix/issue-3080-torch",
+    ),
+    ("cartpole", "pr-3384", "keras"): (
+        "cartpole/tutorial-fix/pr-3384",
+        "keras-rl reproduce cartpole --variant pr-3384 --engine compiled --seeds {seeds} --workers 1 --resume "
+        "--no-progress --min-success-rate 0 --out results/cartpole/tutorial-fix/pr-3384",
+    ),
+    ("cartpole", "pr-3384", "torch"): (
+        "cartpole/tutorial-fix/pr-3384-torch",
+        "keras-rl reproduce cartpole --variant pr-3384 --framework torch --seeds {seeds} --workers 1 --resume "
+        "--no-progress --min-success-rate 0 --out results/cartpole/tutorial-fix/pr-3384-torch",
     ),
 }
 """(experiment, variant, framework) -> the folder under results/ and the command that made it, for a
