@@ -26,6 +26,7 @@ from keras_rl.checkout import ROOT
 from keras_rl.report.markdown import replace_block
 from keras_rl.report.stats import wilson_interval
 from keras_rl.report.tables.runs import load, runs_table, seed_span
+from keras_rl.report.tutorial_fix import FRAMEWORKS, TUTORIAL_FIXES
 from keras_rl.runs.run_set import RunSet
 
 BEGIN, END = "<!-- findings-table:begin -->", "<!-- findings-table:end -->"
@@ -44,145 +45,46 @@ REPRODUCE = (
     "--min-success-rate 0"
 )
 
+PENDULUM = ("000 Pendulum DDPG", "pendulum")
+CARTPOLE = ("003 CartPole DQN", "cartpole")
+MOUNTAINCAR = ("001 MountainCar DDPG", "mountaincar")
+CARTPOLE_SUCCESS = "100-ep. mean >= 475 in 600"
+MOUNTAINCAR_SUCCESS = "last-10 spread <= 2.0"
+CARTPOLE_SAID, MOUNTAINCAR_SAID = '"500 within 600" (no number)', '"roughly converged within 100"'
+
 # (post, experiment, variant, framework, matched init, success criterion, the post's own number)
 ROWS = [
-    ("000 Pendulum DDPG", "pendulum", "faithful", "keras", False, "EMA > -300", "153 (one run)"),
-    ("000 Pendulum DDPG", "pendulum", "faithful", "torch", False, "EMA > -300", "153 (one run)"),
-    ("000 Pendulum DDPG", "pendulum", "faithful", "torch", True, "EMA > -300", "153 (one run)"),
-    ("000 Pendulum DDPG", "pendulum", "fixed", "keras", False, "EMA > -300", "-"),
-    (
-        "003 CartPole DQN",
-        "cartpole",
-        "faithful",
-        "keras",
-        False,
-        "100-ep. mean >= 475 in 600",
-        '"500 within 600" (no number)',
-    ),
-    (
-        "003 CartPole DQN",
-        "cartpole",
-        "faithful",
-        "torch",
-        False,
-        "100-ep. mean >= 475 in 600",
-        '"500 within 600" (no number)',
-    ),
-    (
-        "003 CartPole DQN",
-        "cartpole",
-        "faithful",
-        "torch",
-        True,
-        "100-ep. mean >= 475 in 600",
-        '"500 within 600" (no number)',
-    ),
-    (
-        "001 MountainCar DDPG",
-        "mountaincar",
-        "faithful",
-        "keras",
-        False,
-        "last-10 spread <= 2.0",
-        '"roughly converged within 100"',
-    ),
-    (
-        "001 MountainCar DDPG",
-        "mountaincar",
-        "faithful",
-        "torch",
-        False,
-        "last-10 spread <= 2.0",
-        '"roughly converged within 100"',
-    ),
-    (
-        "001 MountainCar DDPG",
-        "mountaincar",
-        "faithful",
-        "torch",
-        True,
-        "last-10 spread <= 2.0",
-        '"roughly converged within 100"',
-    ),
-    ("001 MountainCar DDPG", "mountaincar", "faithful-intended", "keras", False, "last-10 spread <= 2.0", "-"),
-    ("001 MountainCar DDPG", "mountaincar", "fixed", "keras", False, "goal in >= 50% of last 50", "-"),
-    (
-        "003 CartPole DQN",
-        "cartpole",
-        "issue-3080",
-        "keras",
-        False,
-        "100-ep. mean >= 475 in 600",
-        "pytorch/tutorials #3080's values (one curve)",
-    ),
-    (
-        "003 CartPole DQN",
-        "cartpole",
-        "issue-3080",
-        "torch",
-        False,
-        "100-ep. mean >= 475 in 600",
-        "pytorch/tutorials #3080's values (one curve)",
-    ),
-    (
-        "003 CartPole DQN",
-        "cartpole",
-        "pr-3384",
-        "keras",
-        False,
-        "100-ep. mean >= 475 in 600",
-        "pytorch/tutorials PR #3384's values, merged (two runs)",
-    ),
-    (
-        "003 CartPole DQN",
-        "cartpole",
-        "pr-3384",
-        "torch",
-        False,
-        "100-ep. mean >= 475 in 600",
-        "pytorch/tutorials PR #3384's values, merged (two runs)",
-    ),
+    (*PENDULUM, "faithful", "keras", False, "EMA > -300", "153 (one run)"),
+    (*PENDULUM, "faithful", "torch", False, "EMA > -300", "153 (one run)"),
+    (*PENDULUM, "faithful", "torch", True, "EMA > -300", "153 (one run)"),
+    (*PENDULUM, "fixed", "keras", False, "EMA > -300", "-"),
+    (*CARTPOLE, "faithful", "keras", False, CARTPOLE_SUCCESS, CARTPOLE_SAID),
+    (*CARTPOLE, "faithful", "torch", False, CARTPOLE_SUCCESS, CARTPOLE_SAID),
+    (*CARTPOLE, "faithful", "torch", True, CARTPOLE_SUCCESS, CARTPOLE_SAID),
+    (*MOUNTAINCAR, "faithful", "keras", False, MOUNTAINCAR_SUCCESS, MOUNTAINCAR_SAID),
+    (*MOUNTAINCAR, "faithful", "torch", False, MOUNTAINCAR_SUCCESS, MOUNTAINCAR_SAID),
+    (*MOUNTAINCAR, "faithful", "torch", True, MOUNTAINCAR_SUCCESS, MOUNTAINCAR_SAID),
+    (*MOUNTAINCAR, "faithful-intended", "keras", False, MOUNTAINCAR_SUCCESS, "-"),
+    (*MOUNTAINCAR, "fixed", "keras", False, "goal in >= 50% of last 50", "-"),
+    *((*CARTPOLE, fix.variant, fw, False, CARTPOLE_SUCCESS, fix.said) for fix in TUTORIAL_FIXES for fw in FRAMEWORKS),
 ]
 
-ELSEWHERE = {
-    # rows whose seeds were made on the compiled engine into a planned folder
-    ("cartpole", "issue-3080", "keras"): (
-        "cartpole/tutorial-fix/issue-3080",
-        "keras-rl reproduce cartpole --variant issue-3080 --engine compiled --seeds {seeds} --workers 1 --resume "
-        "--no-progress --min-success-rate 0 --out results/cartpole/tutorial-fix/issue-3080",
-    ),
-    ("cartpole", "issue-3080", "torch"): (
-        "cartpole/tutorial-fix/issue-3080-torch",
-        "keras-rl reproduce cartpole --variant issue-3080 --framework torch --seeds {seeds} --workers 1 --resume "
-        "--no-progress --min-success-rate 0 --out results/cartpole/tutorial-fix/issue-3080-torch",
-    ),
-    ("cartpole", "pr-3384", "keras"): (
-        "cartpole/tutorial-fix/pr-3384",
-        "keras-rl reproduce cartpole --variant pr-3384 --engine compiled --seeds {seeds} --workers 1 --resume "
-        "--no-progress --min-success-rate 0 --out results/cartpole/tutorial-fix/pr-3384",
-    ),
-    ("cartpole", "pr-3384", "torch"): (
-        "cartpole/tutorial-fix/pr-3384-torch",
-        "keras-rl reproduce cartpole --variant pr-3384 --framework torch --seeds {seeds} --workers 1 --resume "
-        "--no-progress --min-success-rate 0 --out results/cartpole/tutorial-fix/pr-3384-torch",
-    ),
-}
-"""(experiment, variant, framework) -> the folder under results/ and the command that made it, for a
-row not in ``run_folder``'s default place (the tutorial's community fix: its plan,
-``results/cartpole/tutorial-fix/plan.md``)."""
+ELSEWHERE = {("cartpole", fix.variant): fix for fix in TUTORIAL_FIXES}
+"""(experiment, variant) -> the tutorial's community fix whose folders and commands its rows take
+(``report/tutorial_fix.py``), for rows not in ``run_folder``'s default place."""
 
 
 def row_folder(exp: str, variant: str, fw: str, matched: bool) -> Path:
     from keras_rl.runs.files import run_folder
 
-    if (exp, variant, fw) in ELSEWHERE:
-        return ROOT / "results" / ELSEWHERE[(exp, variant, fw)][0]
+    if (exp, variant) in ELSEWHERE:
+        return ROOT / "results" / ELSEWHERE[(exp, variant)].folder(fw)
     return run_folder(ROOT / "results", exp, variant, fw, matched)
 
 
 def row_command(exp: str, variant: str, fw: str, matched: bool, seeds: str) -> str:
-    if (exp, variant, fw) in ELSEWHERE:
-        return ELSEWHERE[(exp, variant, fw)][1].format(seeds=seeds)
+    if (exp, variant) in ELSEWHERE:
+        return ELSEWHERE[(exp, variant)].command(fw, seeds)
     return REPRODUCE.format(exp=exp, variant=variant, fw=fw, matched=" --matched-init" if matched else "", seeds=seeds)
 
 

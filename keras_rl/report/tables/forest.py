@@ -60,6 +60,7 @@ class Comparison:
 
 def _comparisons() -> list[Comparison]:
     from keras_rl.report.certified import certifications
+    from keras_rl.report.tutorial_fix import FRAMEWORKS, PLANNED_SEEDS, PUBLISHED, TUTORIAL_FIXES
 
     out = []
     for post in ("pendulum", "cartpole", "mountaincar"):
@@ -88,42 +89,17 @@ def _comparisons() -> list[Comparison]:
             seeds_before_reading=200,
         )
     )
-    out.append(
-        Comparison(
-            "the tutorial's community fix vs as published",
-            "cartpole, pytorch/tutorials #3080's values (Keras)",
-            "cartpole/tutorial-fix/issue-3080",
-            "engines/cartpole/compiled",
-            seeds_before_reading=100,  # results/cartpole/tutorial-fix/plan.md
-        )
-    )
-    out.append(
-        Comparison(
-            "the tutorial's community fix vs as published",
-            "cartpole, pytorch/tutorials #3080's values (the tutorial's PyTorch code)",
-            "cartpole/tutorial-fix/issue-3080-torch",
-            "cartpole/faithful-torch",
-            seeds_before_reading=30,  # results/cartpole/tutorial-fix/plan.md
-        )
-    )
-    out.append(
-        Comparison(
-            "the tutorial's community fix vs as published",
-            "cartpole, pytorch/tutorials PR #3384's values (Keras)",
-            "cartpole/tutorial-fix/pr-3384",
-            "engines/cartpole/compiled",
-            seeds_before_reading=100,  # results/cartpole/tutorial-fix/plan.md, its addendum
-        )
-    )
-    out.append(
-        Comparison(
-            "the tutorial's community fix vs as published",
-            "cartpole, pytorch/tutorials PR #3384's values (the tutorial's PyTorch code)",
-            "cartpole/tutorial-fix/pr-3384-torch",
-            "cartpole/faithful-torch",
-            seeds_before_reading=30,  # results/cartpole/tutorial-fix/plan.md, its addendum
-        )
-    )
+    for fix in TUTORIAL_FIXES:  # results/cartpole/tutorial-fix/plan.md (and its addendum)
+        for fw in FRAMEWORKS:
+            out.append(
+                Comparison(
+                    "the tutorial's community fix vs as published",
+                    fix.label(fw),
+                    fix.folder(fw),
+                    PUBLISHED[fw],
+                    seeds_before_reading=PLANNED_SEEDS[fw],
+                )
+            )
     for label, batched, solo in (
         ("pendulum (PyTorch), batch of 10", "pendulum/seed-batch-torch/batch10", "pendulum/faithful-torch"),
         ("mountaincar, batch of 10", "mountaincar/seed-batch/batch10", "mountaincar/faithful"),
