@@ -193,22 +193,21 @@ class PartsAxis:
     """Each seed's agent parts (``agents/skeleton.Agent``'s phases) and one learner that
     holds the seed axis (stacked calls: ``[S, ...]`` in, ``[S, ...]`` out).
 
-    ``live`` lists the seeds in the learner's stack, in stack order: every seed of the batch
-    (a finished seed stays in the stack on rows of zeros)."""
+    Seed k of the batch is row k of every stacked call, for the whole run (a finished seed
+    stays in the stack on rows of zeros)."""
 
     def __init__(self, agents: list, learner: SeedAxisLearner):
         self.agents, self.learner = agents, learner
         self.compile = learner.compile  # the learner's own
         self.loss_names = tuple(learner.loss_names)
         self.batches: list[list] = [[] for _ in agents]
-        self.live = list(range(len(agents)))
-        self.raw: dict[int, Any] = {}  # each live seed's action from the learner, before exploration
+        self.raw: list[Any] = []  # each seed's action from the learner, before exploration
 
     def _act(self, states: np.ndarray) -> None:
-        self.raw = dict(zip(self.live, self.learner.act(states)))
+        self.raw = list(self.learner.act(states))
 
     def _states(self) -> np.ndarray:
-        return np.stack([self.agents[k].state for k in self.live])
+        return np.stack([agent.state for agent in self.agents])
 
     def begin(self, k: int, obs) -> None:
         self.agents[k].start_episode(obs)
@@ -217,8 +216,8 @@ class PartsAxis:
         for agent in self.agents:
             agent.reset_episode_stats()
         self._act(self._states())
-        for k in self.live:
-            self.agents[k].explore(self.raw[k])
+        for agent, raw in zip(self.agents, self.raw):
+            agent.explore(raw)
 
     def store(self, k: int, reward: float, obs, terminated: bool, truncated: bool) -> None:
         self.batches[k] = self.agents[k].store(reward, obs, terminated, truncated)
@@ -227,9 +226,8 @@ class PartsAxis:
         """Every running seed's updates of this env step and every seed's next action, in
         the calls the solo run makes (``skeleton.run_updates``) with a seed axis; returns
         the seeds whose loss went non-finite, with the message."""
-        live = self.live
-        trains = [running[k] for k in live]
-        counts = [len(self.batches[k]) if t else 0 for k, t in zip(live, trains)]
+        trains = list(running)
+        counts = [len(batches) if t else 0 for batches, t in zip(self.batches, trains)]
         n = max(counts, default=0)
         alike = len({c for c, t in zip(counts, trains) if t}) <= 1
         if not alike and not self.learner.takes_masks:
@@ -238,7 +236,7 @@ class PartsAxis:
             )
         states = self._states()
         if n == 0:
-            self.raw = dict(zip(live, self.learner.step_without_batch(states, episode_ended=any_ended)))
+            self.raw = list(self.learner.step_without_batch(states, episode_ended=any_ended))
             return {}
         rounds = []  # (losses [S] by name, which stack slots trained)
         if alike:  # every running seed trains n batches: the solo run's calls, stacked
@@ -246,7 +244,7 @@ class PartsAxis:
             for i in range(n - 1):
                 rounds.append((_numpy(self.learner.train(self._rows(i, trains))), trains))
             last, raw = self.learner.train_and_act(self._rows(n - 1, trains), states, separate=separate)
-            self.raw = dict(zip(live, raw))
+            self.raw = list(raw)
             rounds.append((_numpy(last), trains))
         else:  # post 001's bursts: round i trains the seeds with more than i batches, the others masked
             for i in range(n):
@@ -254,11 +252,11 @@ class PartsAxis:
                 rounds.append((_numpy(self.learner.train(self._rows(i, mask), mask=np.array(mask))), mask))
             self._act(states)
         failed = {}
-        for j, k in enumerate(live):
-            if trains[j]:
+        for k, agent in enumerate(self.agents):
+            if trains[k]:
                 try:
-                    self.agents[k].record_losses(
-                        [{name: v[j] for name, v in losses.items()} for losses, trained in rounds if trained[j]]
+                    agent.record_losses(
+                        [{name: v[k] for name, v in losses.items()} for losses, trained in rounds if trained[k]]
                     )
                 except NonFiniteLossError as exc:
                     failed[k] = str(exc)
@@ -267,9 +265,8 @@ class PartsAxis:
     def _rows(self, i: int, trains: list[bool]) -> np.ndarray:
         """Update i's rows ``[S, B, width]`` (one per stack slot); a slot that does not train
         on it gives rows of zeros."""
-        live = self.live
-        shape = next(self.batches[k][i].shape for k, t in zip(live, trains) if t)
-        return np.stack([self.batches[k][i] if t else np.zeros(shape, np.float32) for k, t in zip(live, trains)])
+        shape = next(batches[i].shape for batches, t in zip(self.batches, trains) if t)
+        return np.stack([batches[i] if t else np.zeros(shape, np.float32) for batches, t in zip(self.batches, trains)])
 
     def next_actions(self, running: list[bool], restarted: set[int]) -> None:
         for k, agent in enumerate(self.agents):
@@ -282,8 +279,8 @@ class PartsAxis:
         """Seed k's policy action for ``obs``, without exploration or update (the others' rows
         are their current states, and their actions are dropped)."""
         states = self._states()
-        states[self.live.index(k)] = self.agents[k].transitions.observe(obs)
-        return self.learner.act(states)[self.live.index(k)]
+        states[k] = self.agents[k].transitions.observe(obs)
+        return self.learner.act(states)[k]
 
     def restart_actions(self, ks: list[int]) -> None:
         """First actions of seeds that resume past the budget they completed: the updated
@@ -300,14 +297,14 @@ class PartsAxis:
         return self.agents[k].end_episode()
 
     def save(self, k: int, run_dir: Path) -> None:
-        self.learner.save_slice(self.live.index(k), run_dir)
+        self.learner.save_slice(k, run_dir)
 
     def seed_state(self, k: int) -> dict[str, Any]:
-        return {"parts": self.agents[k].parts_state(), "learner": self.learner.slice_state(self.live.index(k))}
+        return {"parts": self.agents[k].parts_state(), "learner": self.learner.slice_state(k)}
 
     def load_seed_state(self, k: int, state: dict[str, Any]) -> None:
         self.agents[k].load_parts_state(state["parts"])
-        self.learner.load_slice_state(self.live.index(k), state["learner"])
+        self.learner.load_slice_state(k, state["learner"])
 
 
 def _numpy(losses) -> dict[str, np.ndarray]:
@@ -317,8 +314,6 @@ def _numpy(losses) -> dict[str, np.ndarray]:
 class WholeAgentAxis:
     """A seed axis of one whole agent that trains itself inside its ``step`` (post 003's
     PyTorch tutorial): the loop's phases call its verbs in the solo order."""
-
-    live = [0]
 
     def __init__(self, agent):
         self.agent = agent
