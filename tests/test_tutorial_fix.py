@@ -88,3 +88,23 @@ def test_each_committed_report_is_what_its_command_makes_of_the_committed_folder
         assert (tmp_path / report.name).read_text().replace(str(tmp_path / report.name), "") == text.replace(
             str(report.relative_to(ROOT)), ""
         ), f"{report.relative_to(ROOT)} is stale: rerun its command"
+
+
+def test_each_proposals_folders_were_made_by_the_command_the_findings_print():
+    """``keras_rl/report/tutorial_fix.py`` is the one home of each proposal's folders and commands:
+    every committed seed of each arm records that command (its own seed range aside), on the
+    variant and framework the arm claims."""
+    import re
+
+    from keras_rl.report.tutorial_fix import FRAMEWORKS, PLANNED_SEEDS, TUTORIAL_FIXES
+
+    for fix in TUTORIAL_FIXES:
+        for fw in FRAMEWORKS:
+            folder = ROOT / "results" / fix.folder(fw)
+            summaries = [json.loads(p.read_text()) for p in sorted(folder.glob("seed_*/summary.json"))]
+            assert len(summaries) >= PLANNED_SEEDS[fw], (folder, len(summaries))
+            for s in summaries:
+                made = re.sub(r"--seeds \S+", "--seeds {seeds}", s["command"])
+                assert made == fix.command(fw, "{seeds}"), (folder, s["seed"], s["command"])
+                config = json.loads((folder / f"seed_{s['seed']}" / "config.json").read_text())
+                assert config["variant"] == fix.variant and config["framework"] == fw, (folder, s["seed"])
