@@ -260,3 +260,11 @@ def test_the_manifest_splits_the_regeneration_cost_by_how_the_runs_ran():
         "Keras on the Gymnasium loop": 45.0,
         "Keras on the compiled engine": 30.0,
     }
+    # 135 process-minutes counted once, against 3 hours on two workers (360): within it; on a
+    # tenth of the budget's workers' minutes (one worker, 0.3 h) over it, PyTorch alone 3.3x
+    assert gen.budget_line(entries).endswith("(2 workers, 6 process-hours): within it.")
+    gen.BUDGET_HOURS, saved = 0.3, gen.BUDGET_HOURS
+    try:
+        assert gen.budget_line(entries, workers=1).endswith(": 7.5x over it; the PyTorch sets alone are 3.3x over.")
+    finally:
+        gen.BUDGET_HOURS = saved

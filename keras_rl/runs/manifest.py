@@ -9,7 +9,7 @@ set, whether the rerun agrees with what is committed.
 A set is a folder of ``seed_<n>/`` run folders. Its cost is in process-minutes: a seed run
 alone costs its wall time, a seed batch (``--seed-batch``) the wall time of the batch, once.
 
-``--rerun`` reruns each set with ``keras-rl reproduce --config <seed>/config.json`` (the exact
+``--regenerate`` reruns each set with ``keras-rl reproduce --config <seed>/config.json`` (the exact
 config, whichever command made it), batch by batch as the set was made (the batch's seeds are
 in each summary, or else in its command's ``--seeds``/``--seed-batch``), with ``--resume``: a
 rerun stopped midway continues where it was. Then, per set: where the CPU model and the library
@@ -157,6 +157,26 @@ def by_kind(entries: list[dict]) -> dict[str, float]:
     return dict(sorted(out.items(), key=lambda item: -item[1]))
 
 
+BUDGET_HOURS = 3.0
+"""The regeneration budget asked of ``results/`` on this 2-core machine, in wall hours."""
+
+
+def budget_line(entries: list[dict], workers: int = 2) -> str:
+    """How the sets, counted once, stand against ``BUDGET_HOURS`` of wall time on ``workers``
+    workers, and how far the costliest kind of run alone is over it."""
+    budget = BUDGET_HOURS * 60 * workers
+    unique = sum(cost(e) for e in entries)
+    kind, minutes = next(iter(by_kind(entries).items()))
+    verdict = "within it" if unique <= budget else f"{unique / budget:.1f}x over it"
+    line = (
+        f"Against a {BUDGET_HOURS:g}-hour regeneration on this machine ({workers} workers, "
+        f"{budget / 60:g} process-hours): {verdict}"
+    )
+    if unique > budget:
+        line += f"; the {kind} sets alone are {minutes / budget:.1f}x over"
+    return line + "."
+
+
 def markdown(entries: list[dict]) -> str:
     total = sum(e["process_minutes"] for e in entries)
     unique = sum(cost(e) for e in entries)
@@ -176,7 +196,8 @@ def markdown(entries: list[dict]) -> str:
         "workers). The minutes are the runs' recorded wall times, most measured beside other work.",
         "Counted once, by how they ran: "
         + "; ".join(f"{kind} {minutes / 60:.1f} process-hours" for kind, minutes in by_kind(entries).items())
-        + ".",
+        + ". "
+        + budget_line(entries),
         "",
         "| set | experiment / variant / framework | seeds | batches | process-min | copies | made by |",
         "|---|---|---|---|---|---|---|",
