@@ -97,14 +97,15 @@ def test_each_proposals_folders_were_made_by_the_command_the_findings_print():
     import re
 
     from keras_rl.report.tutorial_fix import FRAMEWORKS, PLANNED_SEEDS, TUTORIAL_FIXES
+    from keras_rl.runs.run_set import RunSet
 
     for fix in TUTORIAL_FIXES:
         for fw in FRAMEWORKS:
-            folder = ROOT / "results" / fix.folder(fw)
-            summaries = [json.loads(p.read_text()) for p in sorted(folder.glob("seed_*/summary.json"))]
-            assert len(summaries) >= PLANNED_SEEDS[fw], (folder, len(summaries))
-            for s in summaries:
+            runs = RunSet(ROOT / "results" / fix.folder(fw))
+            summaries, configs = runs.summary_records(), runs.configs()
+            assert len(summaries) >= PLANNED_SEEDS[fw], (runs, len(summaries))
+            for s, config in zip(summaries, configs, strict=True):
                 made = re.sub(r"--seeds \S+", "--seeds {seeds}", s["command"])
-                assert made == fix.command(fw, "{seeds}"), (folder, s["seed"], s["command"])
-                config = json.loads((folder / f"seed_{s['seed']}" / "config.json").read_text())
-                assert config["variant"] == fix.variant and config["framework"] == fw, (folder, s["seed"])
+                assert made == fix.command(fw, "{seeds}"), (fix.folder(fw), s["seed"], s["command"])
+                assert config["seed"] == s["seed"], (fix.folder(fw), s["seed"])
+                assert config["variant"] == fix.variant and config["framework"] == fw, (fix.folder(fw), s["seed"])
