@@ -28,8 +28,13 @@ class TutorialFix:
     """``--variant`` of ``keras-rl reproduce cartpole`` (``posts/cartpole.py``'s VARIANTS)."""
     upstream: str
     """The proposal, named as a fact about the world."""
-    said: str
-    """The findings table's "the post's own number" cell: what upstream backed it with."""
+    shown: str
+    """What upstream backed it with, as the findings table's cell goes on after ``upstream``."""
+
+    @property
+    def said(self) -> str:
+        """The findings table's "the post's own number" cell."""
+        return self.upstream + self.shown
 
     def folder(self, fw: str) -> str:
         """The arm's run-set folder under ``results/``."""
@@ -48,8 +53,6 @@ class TutorialFix:
 
 
 TUTORIAL_FIXES = (
-    TutorialFix("issue-3080", "pytorch/tutorials #3080's values", "pytorch/tutorials #3080's values (one curve)"),
-    TutorialFix(
-        "pr-3384", "pytorch/tutorials PR #3384's values", "pytorch/tutorials PR #3384's values, merged (two runs)"
-    ),
+    TutorialFix("issue-3080", "pytorch/tutorials #3080's values", " (one curve)"),
+    TutorialFix("pr-3384", "pytorch/tutorials PR #3384's values", ", merged (two runs)"),
 )

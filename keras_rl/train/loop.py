@@ -226,10 +226,9 @@ class PartsAxis:
         """Every running seed's updates of this env step and every seed's next action, in
         the calls the solo run makes (``skeleton.run_updates``) with a seed axis; returns
         the seeds whose loss went non-finite, with the message."""
-        trains = list(running)
-        counts = [len(batches) if t else 0 for batches, t in zip(self.batches, trains)]
+        counts = [len(batches) if t else 0 for batches, t in zip(self.batches, running)]
         n = max(counts, default=0)
-        alike = len({c for c, t in zip(counts, trains) if t}) <= 1
+        alike = len({c for c, t in zip(counts, running) if t}) <= 1
         if not alike and not self.learner.takes_masks:
             raise ConfigError(
                 "seed-batched runs of this learner need the seeds to train the same number of batches on each env step"
@@ -242,10 +241,10 @@ class PartsAxis:
         if alike:  # every running seed trains n batches: the solo run's calls, stacked
             separate = any_ended or not self.agents[0].schedule.fuse_act
             for i in range(n - 1):
-                rounds.append((_numpy(self.learner.train(self._rows(i, trains))), trains))
-            last, raw = self.learner.train_and_act(self._rows(n - 1, trains), states, separate=separate)
+                rounds.append((_numpy(self.learner.train(self._rows(i, running))), running))
+            last, raw = self.learner.train_and_act(self._rows(n - 1, running), states, separate=separate)
             self.raw = list(raw)
-            rounds.append((_numpy(last), trains))
+            rounds.append((_numpy(last), running))
         else:  # post 001's bursts: round i trains the seeds with more than i batches, the others masked
             for i in range(n):
                 mask = [c > i for c in counts]
@@ -253,7 +252,7 @@ class PartsAxis:
             self._act(states)
         failed = {}
         for k, agent in enumerate(self.agents):
-            if trains[k]:
+            if running[k]:
                 try:
                     agent.record_losses(
                         [{name: v[k] for name, v in losses.items()} for losses, trained in rounds if trained[k]]
