@@ -18,6 +18,19 @@ The readings, each with its seeds and interval:
 
 A seed counts only when it has finished (``summary.json`` status ``completed``); the report
 names how many each arm holds.
+
+An arm may be several folders, comma-joined, where it grew in steps (the published PyTorch arm is
+``results/cartpole/faithful-torch`` for seeds 0-29 and ``faithful-torch-seeds-30-199`` after): a
+seed held twice is read from the first folder listed, and both must agree on its outcome.
+``--seeds`` reads both arms on those seeds only, and each arm must hold every one of them
+finished; without it, an arm is every finished seed its folders hold. ``--first-look`` names the
+seeds a planned earlier reading used (plan.md's addenda: a comparison read once at 30 seeds and
+again at 100): the report then gives that reading too, from the same folders.
+
+    python reproductions/tutorial_fix.py \
+        results/cartpole/faithful-torch,results/cartpole/faithful-torch-seeds-30-199 \
+        results/cartpole/tutorial-fix/pr-3384-torch --labels published,pr-3384 --seeds 0-99 \
+        --first-look 0-29 --write results/cartpole/tutorial-fix/report-pr-3384-torch-100.md
 """
 
 from __future__ import annotations
@@ -25,13 +38,16 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 import numpy as np
 
+from keras_rl.commands.common import parse_seeds
+from keras_rl.errors import ConfigError
 from keras_rl.posts.cartpole import tutorial_num_episodes
 from keras_rl.report.equivalence import episodes_with_censoring, median_ratio_equivalence, success_rate_equivalence
 from keras_rl.report.stats import wilson_interval
+from keras_rl.report.tables.runs import seed_span
 from keras_rl.runs.files import atomic_write_text, read_episodes
 from keras_rl.runs.run_set import RunSet
 
@@ -44,22 +60,53 @@ def fail(message: str) -> NoReturn:
     raise SystemExit(2)
 
 
-def arm(folder: Path) -> dict:
-    """One arm's finished seeds: successes, episodes to threshold, and the first 50 episodes."""
-    finished = [s for s in RunSet(folder).summaries() if s.status == "completed"]
-    if not finished:
-        fail(f"{folder} holds no finished seed")
+def held_seeds(folders: list[Path]) -> dict[int, tuple[Path, Any]]:
+    """Seed -> (the folder read, its finished run's summary) over an arm's folders; a seed held
+    twice is read from the first folder listed, and the two must agree on its outcome."""
+    held: dict[int, tuple[Path, Any]] = {}
+    for folder in folders:
+        for s in RunSet(folder).summaries():
+            if s.status != "completed":
+                continue
+            if s.seed in held:
+                first, t = held[s.seed]
+                if (t.success, t.reached_at_episode) != (s.success, s.reached_at_episode):
+                    fail(
+                        f"seed {s.seed} is in {first} and {folder} with different outcomes "
+                        f"({t.reached_at_episode} and {s.reached_at_episode}): not the same run, so they "
+                        "cannot make one arm"
+                    )
+                continue
+            held[s.seed] = (folder, s)
+    return held
+
+
+def arm(folders: list[Path], seeds: list[int] | None = None) -> dict:
+    """One arm's finished seeds (only ``seeds``, each of which it must hold, when given):
+    successes, episodes to threshold, and the first 50 episodes."""
+    name = " + ".join(str(f) for f in folders)
+    held = held_seeds(folders)
+    if seeds is not None:
+        missing = [x for x in seeds if x not in held]
+        if missing:
+            asked = f"the {len(seeds)} asked for ({seed_span(seeds)})"
+            fail(f"{name} lacks finished seed(s) {seed_span(missing)} of {asked}")
+        held = {x: held[x] for x in seeds}
+    if not held:
+        fail(f"{name} holds no finished seed")
+    finished = [s for _, s in held.values()]
     budgets = {s.budget_episodes for s in finished}
     if len(budgets) != 1:
-        fail(f"{folder}'s seeds ran different budgets ({sorted(budgets)})")
+        fail(f"{name}'s seeds ran different budgets ({sorted(budgets)})")
     first = []
-    for s in finished:
-        steps = [int(r["steps"]) for r in read_episodes(folder / f"seed_{s.seed}" / "episodes.csv")[:CPU_EPISODES]]
+    for seed in sorted(held):
+        folder, _ = held[seed]
+        steps = [int(r["steps"]) for r in read_episodes(folder / f"seed_{seed}" / "episodes.csv")[:CPU_EPISODES]]
         first.append((float(np.mean(steps)), max(steps)))
     hits = [s.reached_at_episode for s in finished if s.success]
     return {
-        "folder": folder,
-        "seeds": sorted(s.seed for s in finished),
+        "folder": name,
+        "seeds": sorted(held),
         "n": len(finished),
         "successes": len(hits),
         "hits": hits,
@@ -78,14 +125,20 @@ def seed_text(seeds: list[int]) -> str:
     return f"{seeds[0]}-{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else f"{len(seeds)} seeds"
 
 
-def report(a: dict, b: dict, labels: tuple[str, str], command: str) -> str:
+def readings(a: dict, b: dict) -> list[str]:
+    """The fix's arm ``b`` minus the published ``a``: the two pre-registered readings' sentences."""
     if a["budget"] != b["budget"]:
         fail(f"the arms ran different budgets ({a['budget']} and {b['budget']} episodes)")
-    budget = a["budget"]
     success = success_rate_equivalence(b["successes"], b["n"], a["successes"], a["n"])
     speed = median_ratio_equivalence(
-        episodes_with_censoring(b["hits"], b["n"]), episodes_with_censoring(a["hits"], a["n"]), budget
+        episodes_with_censoring(b["hits"], b["n"]), episodes_with_censoring(a["hits"], a["n"]), a["budget"]
     )
+    return [success.sentence(), speed.sentence()]
+
+
+def report(a: dict, b: dict, labels: tuple[str, str], command: str, first_look: tuple[dict, dict] | None = None) -> str:
+    said = readings(a, b)
+    budget = a["budget"]
     lines = [
         f"# {labels[1]} against {labels[0]}: post 003 (CartPole-v1 DQN)",
         "",
@@ -107,35 +160,63 @@ def report(a: dict, b: dict, labels: tuple[str, str], command: str) -> str:
         "",
         f"{labels[1]} minus {labels[0]}, judged on the margins set before the runs (2026-11-23):",
         "",
-        f"- {success.sentence()}",
-        f"- {speed.sentence()}",
+        *(f"- {x}" for x in said),
         "",
     ]
+    if first_look is not None:
+        earlier = seed_text(first_look[0]["seeds"])
+        lines += [
+            f"This is a second look, planned in `plan.md` before its runs. The first reading, on seeds {earlier} "
+            "of the same arms, stays as it was:",
+            "",
+            *(f"- {x}" for x in readings(*first_look)),
+            "",
+        ]
     return "\n".join(lines)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("published", type=Path, help="the tutorial as published (the reference arm)")
-    parser.add_argument("fix", type=Path, help="the fix's arm")
+    parser.add_argument("published", help="the tutorial as published (the reference arm): folder[,folder...]")
+    parser.add_argument("fix", help="the fix's arm: folder[,folder...]")
     parser.add_argument("--labels", default="published,fix", help="the two arms' names, comma-separated")
+    parser.add_argument("--seeds", default=None, help="read both arms on these seeds only (each must hold them all)")
+    parser.add_argument("--first-look", default=None, help="also give the planned earlier reading on these seeds")
     parser.add_argument("--write", type=Path, default=None, help="write the report here (else print it)")
     args = parser.parse_args()
     labels = tuple(args.labels.split(","))
     if len(labels) != 2 or not all(labels):
         parser.error("--labels takes two names, comma-separated")
-    for folder in (args.published, args.fix):
-        if not folder.is_dir():
-            parser.error(f"{folder} is not a folder of run folders")
-    command = f"python reproductions/tutorial_fix.py {args.published} {args.fix} --labels {args.labels}" + (
-        f" --write {args.write}" if args.write else ""
+    arms = []
+    for text in (args.published, args.fix):
+        folders = [Path(x) for x in text.split(",")]
+        for folder in folders:
+            if not folder.is_dir():
+                parser.error(f"{folder} is not a folder of run folders")
+        arms.append(folders)
+    seeds, first_seeds = (None if x is None else seeds_of(parser, x) for x in (args.seeds, args.first_look))
+    if first_seeds is not None and seeds is not None and not set(first_seeds) < set(seeds):
+        parser.error(f"--first-look {args.first_look} is not a smaller part of --seeds {args.seeds}")
+    command = (
+        f"python reproductions/tutorial_fix.py {args.published} {args.fix} --labels {args.labels}"
+        + (f" --seeds {args.seeds}" if args.seeds else "")
+        + (f" --first-look {args.first_look}" if args.first_look else "")
+        + (f" --write {args.write}" if args.write else "")
     )
-    text = report(arm(args.published), arm(args.fix), (labels[0], labels[1]), command)
+    first_look = None if first_seeds is None else (arm(arms[0], first_seeds), arm(arms[1], first_seeds))
+    text = report(arm(arms[0], seeds), arm(arms[1], seeds), (labels[0], labels[1]), command, first_look)
     if args.write:
         atomic_write_text(args.write, text)
         print(f"wrote {args.write}")
     else:
         print(text)
+
+
+def seeds_of(parser: argparse.ArgumentParser, text: str) -> list[int]:
+    try:
+        return parse_seeds(text)
+    except ConfigError as e:
+        parser.error(str(e))
 
 
 if __name__ == "__main__":

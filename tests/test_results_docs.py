@@ -238,6 +238,36 @@ def test_the_forest_plot_and_its_tables_match_the_committed_runs():
                     assert v["low"] <= v["estimate"] <= v["high"]
 
 
+def test_a_planned_reading_reads_its_seeds_only_and_waits_for_all_of_them(tmp_path, monkeypatch):
+    """A comparison planned at N seeds (``first_seeds_only``: the tutorial fix's first and second
+    looks) reads seeds 0 to N - 1 of both arms, whatever else they hold, and is pending until
+    both hold every one of them: no reading of a part-landed arm."""
+    import shutil
+
+    gen = load_generator("forest")
+    sources = {"a": ROOT / "results" / "cartpole" / "faithful-torch", "b": ROOT / "results" / "cartpole" / "faithful"}
+
+    def put(name: str, seeds: range, under: str | None = None) -> None:
+        for s in seeds:
+            shutil.copytree(sources[name] / f"seed_{s}", tmp_path / (under or name) / f"seed_{s}")
+
+    put("a", range(0, 14))
+    put("b", range(0, 8))
+    monkeypatch.setattr(gen, "RESULTS", tmp_path)
+    planned = gen.Comparison("g", "planned at 10", "a", "b", seeds_before_reading=10, first_seeds_only=True)
+    early = gen.row(planned)
+    assert early["pending"] and early["seeds"] == 8
+    put("b", range(8, 12))  # now both hold 0-9, and more
+    read = gen.row(planned)
+    assert not read["pending"] and read["seeds"] == 10
+    put("a", range(0, 10), under="a10")
+    put("b", range(0, 10), under="b10")
+    exactly = gen.row(gen.Comparison("g", "planned at 10", "a10", "b10", seeds_before_reading=10))
+    assert {k: read[k] for k in ("success", "speed")} == {k: exactly[k] for k in ("success", "speed")}
+    unplanned = gen.row(gen.Comparison("g", "planned at 10", "a", "b", seeds_before_reading=10))
+    assert unplanned["seeds"] == 12  # without the plan, every seed both hold
+
+
 def test_the_manifest_splits_the_regeneration_cost_by_how_the_runs_ran():
     gen = load_generator("manifest")
 

@@ -15,12 +15,13 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PUBLISHED = ROOT / "results" / "engines" / "cartpole" / "compiled"
+FIX = ROOT / "results" / "cartpole" / "tutorial-fix" / "issue-3080"
 
 
-def arm(tmp_path: Path, name: str, seeds: range) -> Path:
+def arm(tmp_path: Path, name: str, seeds: range, source: Path = PUBLISHED) -> Path:
     folder = tmp_path / name
     for seed in seeds:
-        shutil.copytree(PUBLISHED / f"seed_{seed}", folder / f"seed_{seed}")
+        shutil.copytree(source / f"seed_{seed}", folder / f"seed_{seed}")
     return folder
 
 
@@ -52,6 +53,63 @@ def test_the_report_counts_what_the_folders_hold(tmp_path):
         assert f"| {wins}/10 (" in row and f"| {np.median(means):.1f} (" in row
     assert "issue-3080 minus published" in text and "success rate difference: **" in text
     assert "tutorial_fix.py" in text  # the command that made it
+
+
+def report_rows(path: Path) -> list[list[str]]:
+    """The report's two arm rows, from the seeds column on."""
+    lines = path.read_text().splitlines()
+    return [line.split(" | ")[2:] for line in lines if line.startswith(("| published", "| fix"))]
+
+
+def test_an_arm_in_several_folders_reads_as_one(tmp_path):
+    """An arm that grew in steps (folders comma-joined) reads as that arm in one folder: a seed held
+    twice is read once, and the report's numbers are those of the one-folder arm."""
+    whole, fix = arm(tmp_path, "whole", range(0, 12)), arm(tmp_path, "fix", range(0, 12), FIX)
+    part1, part2 = arm(tmp_path, "part1", range(0, 7)), arm(tmp_path, "part2", range(5, 12))  # 5, 6 twice
+    one, split = tmp_path / "one.md", tmp_path / "split.md"
+    assert run(str(whole), str(fix), "--write", str(one)).returncode == 0
+    proc = run(f"{part1},{part2}", str(fix), "--write", str(split))
+    assert proc.returncode == 0, proc.stderr
+    assert report_rows(one) == report_rows(split) and len(report_rows(one)) == 2
+    assert f"`{part1} + {part2}`" in split.read_text()
+    assert one.read_text().split("judged on")[1] == split.read_text().split("judged on")[1]
+
+
+def test_a_seed_held_twice_with_different_outcomes_is_refused(tmp_path):
+    part1, part2 = arm(tmp_path, "part1", range(0, 3)), arm(tmp_path, "part2", range(2, 5))
+    summary = part2 / "seed_2" / "summary.json"
+    record = json.loads(summary.read_text())
+    record["success"], record["reached_at_episode"] = (False, None) if record["success"] else (True, 321)
+    summary.write_text(json.dumps(record))
+    proc = run(f"{part1},{part2}", str(part1))
+    assert proc.returncode == 2 and "seed 2 is in" in proc.stderr and "different outcomes" in proc.stderr
+
+
+def test_seeds_reads_those_seeds_only_and_each_arm_must_hold_them(tmp_path):
+    a, b = arm(tmp_path, "a", range(0, 14)), arm(tmp_path, "b", range(6, 20), FIX)
+    picked, exact = tmp_path / "picked.md", tmp_path / "exact.md"
+    proc = run(str(a), str(b), "--seeds", "0-9", "--write", str(picked))
+    assert proc.returncode == 2 and f"{b} lacks finished seed(s) 0-5 of the 10 asked for (0-9)" in proc.stderr
+    assert not picked.exists()  # nothing written
+    assert run(str(a), str(b), "--seeds", "6-13", "--write", str(picked)).returncode == 0
+    a2, b2 = arm(tmp_path, "a2", range(6, 14)), arm(tmp_path, "b2", range(6, 14), FIX)
+    assert run(str(a2), str(b2), "--write", str(exact)).returncode == 0
+    assert report_rows(picked) == report_rows(exact) and report_rows(picked)[0][0] == "6-13 (8)"
+    assert "--seeds 6-13" in picked.read_text()
+
+
+def test_a_first_look_gives_the_earlier_reading_from_the_same_folders(tmp_path):
+    a, b = arm(tmp_path, "a", range(0, 20)), arm(tmp_path, "b", range(0, 20), FIX)
+    both, early = tmp_path / "both.md", tmp_path / "early.md"
+    assert run(str(a), str(b), "--seeds", "0-19", "--first-look", "0-9", "--write", str(both)).returncode == 0
+    assert run(str(a), str(b), "--seeds", "0-9", "--write", str(early)).returncode == 0
+    second = both.read_text().split("This is a second look")
+    assert len(second) == 2 and "on seeds 0-9 of the same arms" in second[1]
+    first_reading = second[1].split("stays as it was:")[1].strip()
+    assert first_reading == early.read_text().split("the runs (2026-11-23):")[1].strip()
+    assert "10 seeds each" in first_reading and "20 seeds each" in second[0]
+    proc = run(str(a), str(b), "--seeds", "0-9", "--first-look", "0-19")
+    assert proc.returncode == 2 and "--first-look 0-19 is not a smaller part of --seeds 0-9" in proc.stderr
 
 
 def test_an_empty_arm_or_a_missing_folder_is_refused(tmp_path):

@@ -54,13 +54,16 @@ class Comparison:
     result: str | None = None
     """A committed ``compare`` result (``results/compare/...``), which holds both arms."""
     seeds_before_reading: int = 0
+    first_seeds_only: bool = False
+    """Read on seeds 0 to ``seeds_before_reading`` - 1 of both arms and on no other (a planned
+    reading at that many seeds, where an arm holds more), pending until both hold all of them."""
     certified: Any = None
     """A Keras-against-PyTorch comparison at its planned seeds (``report.certified``)."""
 
 
 def _comparisons() -> list[Comparison]:
     from keras_rl.report.certified import certifications
-    from keras_rl.report.tutorial_fix import FRAMEWORKS, PLANNED_SEEDS, PUBLISHED, TUTORIAL_FIXES
+    from keras_rl.report.tutorial_fix import FRAMEWORKS, PUBLISHED, TUTORIAL_FIXES
 
     out = []
     for post in ("pendulum", "cartpole", "mountaincar"):
@@ -89,17 +92,19 @@ def _comparisons() -> list[Comparison]:
             seeds_before_reading=200,
         )
     )
-    for fix in TUTORIAL_FIXES:  # results/cartpole/tutorial-fix/plan.md (and its addendum)
+    for fix in TUTORIAL_FIXES:  # results/cartpole/tutorial-fix/plan.md (and its addenda)
         for fw in FRAMEWORKS:
-            out.append(
-                Comparison(
-                    "the tutorial's community fix vs as published",
-                    fix.label(fw),
-                    fix.folder(fw),
-                    PUBLISHED[fw],
-                    seeds_before_reading=PLANNED_SEEDS[fw],
+            for seeds in fix.readings(fw):
+                out.append(
+                    Comparison(
+                        "the tutorial's community fix vs as published",
+                        fix.label(fw, seeds),
+                        fix.folder(fw),
+                        PUBLISHED[fw],
+                        seeds_before_reading=seeds,
+                        first_seeds_only=True,
+                    )
                 )
-            )
     for label, batched, solo in (
         ("pendulum (PyTorch), batch of 10", "pendulum/seed-batch-torch/batch10", "pendulum/faithful-torch"),
         ("mountaincar, batch of 10", "mountaincar/seed-batch/batch10", "mountaincar/faithful"),
@@ -153,6 +158,8 @@ def row(c: Comparison) -> dict[str, Any]:
     else:
         first, second = _arm(c.first), _arm(c.second)
         common = sorted(set(first) & set(second))
+        if c.first_seeds_only:
+            common = [s for s in common if s < c.seeds_before_reading]
         n = len(common)
         source = " and ".join(x if isinstance(x, str) else " + ".join(x) for x in (c.first, c.second))
         if n < max(c.seeds_before_reading, 1):
