@@ -298,3 +298,32 @@ def test_the_manifest_splits_the_regeneration_cost_by_how_the_runs_ran():
         assert gen.budget_line(entries, workers=1).endswith(": 7.5x over it; the PyTorch sets alone are 3.3x over.")
     finally:
         gen.BUDGET_HOURS = saved
+
+
+def test_the_performance_page_quotes_the_manifests_regeneration_cost():
+    """``docs/performance.md``'s "all of results/ regenerated" row is written by hand: it must quote
+    the committed manifest's figures (counted once, by kind, and the two ratios to the budget)."""
+    manifest = (ROOT / "results" / "MANIFEST.md").read_text()
+    total = re.search(r"counted once, the sets cost \d+ process-minutes \(([\d.]+) process-hours", manifest)
+    kinds = re.search(
+        r"PyTorch ([\d.]+) process-hours; Keras on the Gymnasium loop ([\d.]+) process-hours; "
+        r"Keras on the compiled engine ([\d.]+) process-hours\. .*?: ([\d.]+)x over it; "
+        r"the PyTorch sets alone are ([\d.]+)x over",
+        manifest,
+    )
+    assert total and kinds, "results/MANIFEST.md no longer states its cost the way this test reads it"
+    torch, gymnasium, compiled, over, torch_over = kinds.groups()
+    row = next(
+        line
+        for line in (ROOT / "docs" / "performance.md").read_text().splitlines()
+        if line.startswith("| all of `results/` regenerated")
+    )
+    for quoted in (
+        f"cost {total.group(1)} process-hours",
+        f"{over}x the 6 process-hours",
+        f"{torch} of them are PyTorch runs",
+        f"{torch_over}x the budget alone",
+        f"{gymnasium} Keras Gymnasium-loop runs",
+        f"{compiled} compiled-engine runs",
+    ):
+        assert quoted in row, f"docs/performance.md's regeneration row lacks {quoted!r}: quote results/MANIFEST.md"
