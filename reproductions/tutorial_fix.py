@@ -16,12 +16,13 @@ The readings, each with its seeds and interval:
   read from the first 50 rows of each run: per seed the mean duration of episodes 1-50 and the
   longest episode, as the median and quartiles over the seeds.
 
-A seed counts only when it has finished (``summary.json`` status ``completed``); the report
-names how many each arm holds.
+A seed counts only when it has finished (``summary.json`` status ``completed``, or stopped by a
+non-finite loss: ``runs.reuse.OUTCOMES``); the report names how many each arm holds.
 
 An arm may be several folders, comma-joined, where it grew in steps (the published PyTorch arm is
 ``results/cartpole/faithful-torch`` for seeds 0-29 and ``faithful-torch-seeds-30-199`` after): a
-seed held twice is read from the first folder listed, and both must agree on its outcome.
+seed held twice is read from the first folder listed, and both must agree on its outcome
+(``report.certified.arm_where``, the arms of the Keras-against-PyTorch comparisons).
 ``--seeds`` reads both arms on those seeds only, and each arm must hold every one of them
 finished; without it, an arm is every finished seed its folders hold. ``--first-look`` names the
 seeds a planned earlier reading used (plan.md's addenda: a comparison read once at 30 seeds and
@@ -38,18 +39,18 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import NoReturn
 
 import numpy as np
 
 from keras_rl.commands.common import parse_seeds
-from keras_rl.errors import ConfigError
+from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.posts.cartpole import tutorial_num_episodes
+from keras_rl.report.certified import arm_where
 from keras_rl.report.equivalence import episodes_with_censoring, median_ratio_equivalence, success_rate_equivalence
 from keras_rl.report.stats import wilson_interval
 from keras_rl.report.tables.runs import seed_span
 from keras_rl.runs.files import atomic_write_text, read_episodes
-from keras_rl.runs.run_set import RunSet
 
 CPU_EPISODES = tutorial_num_episodes(cuda_available=False)
 
@@ -60,32 +61,14 @@ def fail(message: str) -> NoReturn:
     raise SystemExit(2)
 
 
-def held_seeds(folders: list[Path]) -> dict[int, tuple[Path, Any]]:
-    """Seed -> (the folder read, its finished run's summary) over an arm's folders; a seed held
-    twice is read from the first folder listed, and the two must agree on its outcome."""
-    held: dict[int, tuple[Path, Any]] = {}
-    for folder in folders:
-        for s in RunSet(folder).summaries():
-            if s.status != "completed":
-                continue
-            if s.seed in held:
-                first, t = held[s.seed]
-                if (t.success, t.reached_at_episode) != (s.success, s.reached_at_episode):
-                    fail(
-                        f"seed {s.seed} is in {first} and {folder} with different outcomes "
-                        f"({t.reached_at_episode} and {s.reached_at_episode}): not the same run, so they "
-                        "cannot make one arm"
-                    )
-                continue
-            held[s.seed] = (folder, s)
-    return held
-
-
 def arm(folders: list[Path], seeds: list[int] | None = None) -> dict:
     """One arm's finished seeds (only ``seeds``, each of which it must hold, when given):
     successes, episodes to threshold, and the first 50 episodes."""
     name = " + ".join(str(f) for f in folders)
-    held = held_seeds(folders)
+    try:
+        held = arm_where(tuple(str(f) for f in folders), Path("."))
+    except RunFolderError as e:
+        fail(str(e))
     if seeds is not None:
         missing = [x for x in seeds if x not in held]
         if missing:
@@ -95,15 +78,15 @@ def arm(folders: list[Path], seeds: list[int] | None = None) -> dict:
     if not held:
         fail(f"{name} holds no finished seed")
     finished = [s for _, s in held.values()]
-    budgets = {s.budget_episodes for s in finished}
+    budgets = {s["budget_episodes"] for s in finished}
     if len(budgets) != 1:
         fail(f"{name}'s seeds ran different budgets ({sorted(budgets)})")
     first = []
     for seed in sorted(held):
         folder, _ = held[seed]
-        steps = [int(r["steps"]) for r in read_episodes(folder / f"seed_{seed}" / "episodes.csv")[:CPU_EPISODES]]
+        steps = [int(r["steps"]) for r in read_episodes(Path(folder) / f"seed_{seed}" / "episodes.csv")[:CPU_EPISODES]]
         first.append((float(np.mean(steps)), max(steps)))
-    hits = [s.reached_at_episode for s in finished if s.success]
+    hits = [s["reached_at_episode"] for s in finished if s["success"]]
     return {
         "folder": name,
         "seeds": sorted(held),

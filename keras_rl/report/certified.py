@@ -95,10 +95,14 @@ def arm(folders: tuple[str, ...], root: Path = RESULTS) -> dict[int, dict[str, A
     """Seed -> the ``summary.json`` of its finished run (completed, or stopped by a non-finite
     loss: ``runs.reuse.OUTCOMES``), over the run sets of one arm (a set not committed yet holds
     nothing). A seed held twice must have the same outcome in both sets."""
+    return {seed: record for seed, (_, record) in arm_where(folders, root).items()}
+
+
+def arm_where(folders: tuple[str, ...], root: Path = RESULTS) -> dict[int, tuple[str, dict[str, Any]]]:
+    """``arm``, each seed with the folder it is read from (the first listed that holds it)."""
     from keras_rl.runs.run_set import RunSet
 
-    seeds: dict[int, dict[str, Any]] = {}
-    where: dict[int, str] = {}
+    seeds: dict[int, tuple[str, dict[str, Any]]] = {}
     for folder in folders:
         if not (root / folder).is_dir():
             continue
@@ -107,12 +111,12 @@ def arm(folders: tuple[str, ...], root: Path = RESULTS) -> dict[int, dict[str, A
                 continue
             seed = int(record["seed"])
             if seed not in seeds:
-                seeds[seed], where[seed] = record, folder
+                seeds[seed] = (folder, record)
                 continue
-            held = seeds[seed]
+            where, held = seeds[seed]
             if (held["success"], held["reached_at_episode"]) != (record["success"], record["reached_at_episode"]):
                 raise RunFolderError(
-                    f"seed {seed} is in {where[seed]} and {folder} with different outcomes "
+                    f"seed {seed} is in {where} and {folder} with different outcomes "
                     f"({held['reached_at_episode']} and {record['reached_at_episode']}): not the same run, "
                     "so they cannot make one arm"
                 )
