@@ -33,7 +33,9 @@ os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 
-def filled_agent(transitions: int):
+def filled_agent(transitions: int, as_written: bool = False, env=None):
+    """Seed 0's ``TutorialDQNAgent`` with ``transitions`` CartPole transitions from random
+    actions in its memory, stepped on ``env`` (a new CartPole when none is given)."""
     import gymnasium as gym
     import torch
 
@@ -41,8 +43,9 @@ def filled_agent(transitions: int):
     from keras_rl.posts.cartpole import CartPoleDQNConfig
     from keras_rl.torch.dqn_tutorial import TutorialDQNAgent
 
-    env = gym.make("CartPole-v1")
-    agent = TutorialDQNAgent(CartPoleDQNConfig(seed=0, framework="torch"), EnvSpec(4, 1, n_actions=2), env.action_space)
+    env = env or gym.make("CartPole-v1")
+    config = CartPoleDQNConfig(seed=0, framework="torch")
+    agent = TutorialDQNAgent(config, EnvSpec(4, 1, n_actions=2), env.action_space, as_written=as_written)
     env.action_space.seed(0)
     obs, _ = env.reset(seed=0)
     state = torch.tensor(obs, dtype=torch.float32).unsqueeze(0)

@@ -39,6 +39,10 @@ CASES = [
         "pendulum/faithful-torch/seed_0", "pendulum", ("--framework", "torch"), 12, id="post000-torch-seed0-first12"
     ),
     pytest.param("cartpole/faithful/seed_0", "cartpole", (), 60, id="post003-seed0-first60"),
+    # 200 episodes: 12,176 steps, past the tutorial's memory of 10,000, so its eviction is replayed too
+    pytest.param(
+        "cartpole/faithful-torch/seed_0", "cartpole", ("--framework", "torch"), 200, id="post003-torch-seed0-first200"
+    ),
 ]
 
 
