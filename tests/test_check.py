@@ -416,7 +416,35 @@ def test_the_committed_family_wise_rates_are_what_the_baselines_give():
     root = Path(__file__).resolve().parents[1]
     family = import_module("keras_rl.check.calibrate.family")
     committed = json.loads((root / "results" / "checks" / "family.json").read_text())
-    assert family.compute() == committed, "results/checks/family.json is stale: keras-rl calibrate family --write"
+    # to the last few bits: numpy's percentiles of the same rates differ in the last bit between
+    # CPUs (measured 2026-11-26: 0.0017970801494322588 committed, ...259 on an AVX-512 EPYC host)
+    assert same_to_rounding(family.compute(), committed), (
+        "results/checks/family.json is stale: keras-rl calibrate family --write"
+    )
+
+
+def same_to_rounding(got, want, rel: float = 1e-12) -> bool:
+    """Equal JSON values, floats within ``rel`` of each other (a few bits), all else exactly."""
+    import math
+
+    if isinstance(want, dict):
+        return (
+            isinstance(got, dict) and got.keys() == want.keys() and all(same_to_rounding(got[k], want[k]) for k in want)
+        )
+    if isinstance(want, list):
+        return isinstance(got, list) and len(got) == len(want) and all(map(same_to_rounding, got, want))
+    if isinstance(want, float) and isinstance(got, float):
+        return math.isclose(got, want, rel_tol=rel, abs_tol=0.0)
+    return type(got) is type(want) and got == want
+
+
+def test_same_to_rounding_forgives_the_last_bits_and_nothing_else():
+    want = {"spread": {"median": 0.0017970801494322588, "seeds": 30, "tier": "smoke", "rates": [0.01, 0.002]}}
+    assert same_to_rounding({"spread": {**want["spread"], "median": 0.001797080149432259}}, want)
+    assert not same_to_rounding({"spread": {**want["spread"], "median": 0.0017971}}, want)
+    assert not same_to_rounding({"spread": {**want["spread"], "seeds": 31}}, want)
+    assert not same_to_rounding({"spread": {**want["spread"], "rates": [0.01]}}, want)
+    assert not same_to_rounding({"spread": {**want["spread"], "extra": 1}}, want)
 
 
 @pytest.mark.slow
