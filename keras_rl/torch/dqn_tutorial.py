@@ -5,7 +5,7 @@ What changed from the notebook: globals became attributes (``steps_done``, the n
 the optimizer, ``memory``), Python's ``random`` became a seeded ``random.Random``, and the
 device is the CPU. The arithmetic and its order are the tutorial's.
 
-Two pieces run faster than written, to the same bits (``as_written=True`` runs them as
+Three pieces run faster than written, to the same bits (``as_written=True`` runs them as
 written; ``tests/test_dqn_tutorial_fast.py`` trains both and compares every weight, and the
 committed PyTorch runs replay bit for bit):
 - the batch: the memory also keeps its transitions as rows of preallocated tensors
@@ -13,7 +13,11 @@ committed PyTorch runs replay bit for bit):
   (``sample(range(n), k)`` makes the draws ``sample(memory, k)`` makes) and gathers them by
   index, instead of ``torch.cat`` over 128 one-row tensors per field;
 - the soft update: each target parameter becomes ``policy * TAU + target * (1 - TAU)`` in
-  place, instead of building and loading two state dicts; the same two products and sum.
+  place, instead of building and loading two state dicts; the same two products and sum;
+- AdamW's multi-tensor step (``foreach=True``, the default the tutorial's optimizer takes on a
+  GPU): on a CPU the same per-tensor operations as its single-tensor loop. A checkpoint from
+  before keeps its own setting on resume (``load_state_dict`` restores the param groups), and
+  steps to the same bits either way.
 ``benchmarks/torch_tutorial_step.py`` measures what that saves.
 """
 
