@@ -8,8 +8,8 @@ docstring of ``keras_rl/torch/dqn_tutorial.py`` says what changed).
 
 It ends with what the floor means for regenerating ``results/``: the env steps of the committed
 PyTorch post 003 seeds (every set ``results/MANIFEST.json`` lists, and the least issue 35 asked
-for: 100 seeds per arm of the certified comparison at each init, 30 for each proposed fix),
-times the update alone.
+for: the seed plan's seeds per arm of the certified comparison at each init, 200, and the
+planned 30 for each proposed fix), times the update alone.
 
 Both agents start from the same seed and a memory filled to the tutorial's capacity (10,000
 CartPole transitions from random actions: where a 600-episode seed spends nearly all of its
@@ -66,11 +66,14 @@ class Arm:
 
 def committed_steps() -> dict[str, tuple[int, int]]:
     """Seeds and env steps (``total_steps``) of the committed PyTorch post 003 runs: all of them,
-    and the least the issue asked for."""
+    and the least issue 35 asked for (the seed plan's seeds per arm of the certified comparison at
+    each init, ``report.certified.certifications``, and the planned PyTorch seeds of each proposed
+    fix, ``report.tutorial_fix``)."""
     import json
 
     from keras_rl.checkout import ROOT
-    from keras_rl.report.certified import TORCH_ARMS, arm
+    from keras_rl.report.certified import arm, certifications
+    from keras_rl.report.tutorial_fix import PLANNED_SEEDS, TUTORIAL_FIXES
     from keras_rl.runs.run_set import RunSet
 
     sets = [s["set"] for s in json.loads((ROOT / "results" / "MANIFEST.json").read_text())]
@@ -80,16 +83,9 @@ def committed_steps() -> dict[str, tuple[int, int]]:
         for r in RunSet(ROOT / "results" / name).summary_records()
         if r.get("experiment") == "cartpole" and r.get("framework") == "torch"
     ]
-    least = [
-        arm(folders)[seed]
-        for folders, seeds in (
-            (TORCH_ARMS[("cartpole", False)], 100),
-            (TORCH_ARMS[("cartpole", True)], 100),
-            (("cartpole/tutorial-fix/issue-3080-torch",), 30),
-            (("cartpole/tutorial-fix/pr-3384-torch",), 30),
-        )
-        for seed in range(seeds)
-    ]
+    arms = [(c.torch, c.planned) for c in certifications() if c.post == "cartpole"]
+    arms += [((fix.folder("torch"),), PLANNED_SEEDS["torch"]) for fix in TUTORIAL_FIXES]
+    least = [arm(folders)[seed] for folders, seeds in arms for seed in range(seeds)]
     return {
         "every committed seed": (len(every), sum(int(r["total_steps"]) for r in every)),
         "the least issue 35 asked for": (len(least), sum(int(r["total_steps"]) for r in least)),
