@@ -5,6 +5,7 @@ keras-rl compare pendulum --seeds 0-9 --workers 2 --runs runs --out runs/compare
 keras-rl sweep pendulum --grid tau=0.001,0.005 --seeds 0-3 --workers 2 --out runs/s
 keras-rl evaluate runs/pendulum/seed_0 --episodes 5 --gif pendulum.gif
 keras-rl aggregate results/pendulum/faithful
+keras-rl pack runs/pendulum/faithful       # a finished set's seed folders into one runs.parquet
 keras-rl check pendulum cartpole mountaincar --tier smoke
 keras-rl list
 keras-rl tables findings --write       # the maintainers' commands: calibrate, tables, manifest
@@ -17,7 +18,7 @@ import sys
 from collections.abc import Sequence
 
 from keras_rl import __version__
-from keras_rl.commands import aggregate, bisect, check, compare, evaluate, maintain, reproduce, sweep
+from keras_rl.commands import aggregate, bisect, check, compare, evaluate, maintain, pack, reproduce, sweep
 from keras_rl.commands.check import check_results
 from keras_rl.commands.common import EXIT_CRITERION, EXIT_NO_VERDICT, EXIT_OK, EXIT_USAGE, MAX_SEEDS, parse_seeds
 from keras_rl.commands.compare import compare_result
@@ -47,6 +48,7 @@ COMMANDS = {
     "compare": compare.compare,
     "sweep": sweep.sweep,
     "aggregate": aggregate.aggregate,
+    "pack": pack.pack,
     "list": aggregate.list_experiments,
     "calibrate": maintain.run,
     "tables": maintain.run,
@@ -61,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"keras-rl {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    for module in (reproduce, evaluate, compare, sweep, aggregate, check, bisect):
+    for module in (reproduce, evaluate, compare, sweep, aggregate, pack, check, bisect):
         module.add_parser(sub)
     aggregate.add_list_parser(sub)
     maintain.add_parser(sub)

@@ -20,8 +20,6 @@ Mann-Whitney U p (``keras_rl/report/stats.py``).
 from __future__ import annotations
 
 import argparse
-import csv
-import json
 from pathlib import Path
 
 import numpy as np
@@ -33,9 +31,9 @@ from keras_rl.runs.run_set import RunSet
 from keras_rl.runs.summary import RunSummary
 
 
-def rows(path: Path) -> list[dict[str, str]]:
-    with open(path, newline="") as fh:
-        return [{k: v for k, v in r.items() if k != "wall_seconds"} for r in csv.DictReader(fh)]
+def rows(seed_dir: Path) -> list[dict[str, str]]:
+    """A seed's rows as written, without wall time (its folder, or its set's runs.parquet)."""
+    return RunSet.seed_at(seed_dir).text_rows()
 
 
 def _first_difference(ra: list[dict], rb: list[dict], key) -> int | None:
@@ -104,11 +102,11 @@ def main() -> None:
     ]
     solo_s, batch_s = [], []
     for seed in seeds:
-        a, b = RunSummary.read(reference[seed] / f"seed_{seed}"), RunSummary.read(judged_runs[seed] / f"seed_{seed}")
+        a, b = (RunSet.seed_at(held[seed] / f"seed_{seed}").summary() for held in (reference, judged_runs))
         solo_s.append(a)
         batch_s.append(b)
-        ra = rows(reference[seed] / f"seed_{seed}" / "episodes.csv")
-        rb = rows(judged_runs[seed] / f"seed_{seed}" / "episodes.csv")
+        ra = rows(reference[seed] / f"seed_{seed}")
+        rb = rows(judged_runs[seed] / f"seed_{seed}")
         first = _first_difference(ra, rb, lambda r: r)
         first_score = _first_difference(ra, rb, lambda r: (r["steps"], r["score"]))
         lines.append(
@@ -119,7 +117,7 @@ def main() -> None:
     hits_b = [s.reached_at_episode for s in batch_s if s.success]
     n = len(seeds)
     diff = median_difference_ci(hits_b, hits_a, np.random.default_rng(0)) if hits_a and hits_b else None
-    budget = json.loads((reference[seeds[0]] / f"seed_{seeds[0]}" / "config.json").read_text())["episodes"]
+    budget = RunSet.seed_at(reference[seeds[0]] / f"seed_{seeds[0]}").config()["episodes"]
     _, p = censored_mann_whitney(episodes_with_censoring(hits_b, n), episodes_with_censoring(hits_a, n), budget)
     fisher = fisher_exact(len(hits_b), n, len(hits_a), n)
     headline, judged = framework_verdict((len(hits_b), len(hits_a)), (n, n), (hits_b, hits_a), budget)

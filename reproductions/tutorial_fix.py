@@ -50,7 +50,8 @@ from keras_rl.report.certified import arm_where
 from keras_rl.report.equivalence import episodes_with_censoring, median_ratio_equivalence, success_rate_equivalence
 from keras_rl.report.stats import wilson_interval
 from keras_rl.report.tables.runs import seed_span
-from keras_rl.runs.files import atomic_write_text, read_episodes
+from keras_rl.runs.files import atomic_write_text
+from keras_rl.runs.run_set import RunSet
 
 CPU_EPISODES = tutorial_num_episodes(cuda_available=False)
 
@@ -84,7 +85,7 @@ def arm(folders: list[Path], seeds: list[int] | None = None) -> dict:
     first = []
     for seed in sorted(held):
         folder, _ = held[seed]
-        steps = [int(r["steps"]) for r in read_episodes(Path(folder) / f"seed_{seed}" / "episodes.csv")[:CPU_EPISODES]]
+        steps = [int(r["steps"]) for r in RunSet.seed_at(Path(folder) / f"seed_{seed}").rows()[:CPU_EPISODES]]
         first.append((float(np.mean(steps)), max(steps)))
     hits = [s["reached_at_episode"] for s in finished if s["success"]]
     return {

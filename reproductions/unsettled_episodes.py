@@ -14,17 +14,14 @@ import argparse
 from pathlib import Path
 
 from keras_rl.report.stats import mann_whitney
-from keras_rl.runs.files import read_episodes
 from keras_rl.runs.run_set import RunSet
 
 
 def unsettled(folder: Path, first: int, last: int, threshold: float) -> dict[int, int]:
     counts = {}
-    for seed_dir in RunSet(folder).seed_dirs():
-        rows = read_episodes(seed_dir / "episodes.csv")
-        counts[int(seed_dir.name.split("_")[1])] = sum(
-            row["metric"] > threshold for row in rows if first <= row["episode"] <= last
-        )
+    for run in RunSet(folder).runs():
+        rows = run.rows()
+        counts[run.seed] = sum(row["metric"] > threshold for row in rows if first <= row["episode"] <= last)
     return counts
 
 

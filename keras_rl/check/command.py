@@ -103,46 +103,45 @@ def baseline_values(
 ) -> tuple[dict[int, float], dict[int, list[dict[str, Any]]]]:
     """Each baseline seed's statistic (and its rows, for the plot); a clear error if the
     folder is not a finished faithful baseline."""
-    seed_dirs = RunSet(folder).seed_dirs()
-    if not seed_dirs:
+    runs = RunSet(folder).runs()
+    if not runs:
         raise RunFolderError(
-            f"no baseline at {folder} (expected seed_<n>/ folders); --against names the folder "
+            f"no baseline at {folder} (expected seed_<n>/ folders or a runs.parquet); --against names the folder "
             "that holds <experiment>/baseline"
         )
     values, rows_of = {}, {}
     first = None
-    for seed_dir in seed_dirs:
-        summary = RunSummary.read(seed_dir)
+    for run in runs:
+        summary = run.summary()
         if summary.experiment != experiment.name:
             raise RunFolderError(
-                f"{seed_dir} is a baseline of {summary.experiment}, not of {experiment.name}: "
+                f"{run.where} is a baseline of {summary.experiment}, not of {experiment.name}: "
                 f"--against names the folder that holds {experiment.name}/baseline"
             )
-        made = experiment.config_cls.from_dict(json.loads((seed_dir / "config.json").read_text()))
+        made = experiment.config_cls.from_dict(run.config())
         # The faithful variant as the code that made the baseline had it: a default changed since
         # is what the check exists to see, so it is reported (config_changes), never refused.
         if made.variant != "faithful":
             raise RunFolderError(
-                f"{seed_dir} is a run of the {made.variant!r} variant; a baseline must be the faithful variant"
+                f"{run.where} is a run of the {made.variant!r} variant; a baseline must be the faithful variant"
             )
         first = made if first is None else first
         differing = made.differs_from(first)
         if differing:
             raise RunFolderError(
-                f"{seed_dir} was made with another config than {seed_dirs[0]} ({', '.join(differing[:3])} "
+                f"{run.where} was made with another config than {runs[0].where} ({', '.join(differing[:3])} "
                 "differ); a baseline's runs share one config but for the seed"
             )
         if summary.status != "completed":
-            raise RunFolderError(f"{seed_dir} did not finish ({summary.status}); a baseline needs finished runs")
-        rows = read_episodes(seed_dir / "episodes.csv", expected_rows=summary.rows_expected)
+            raise RunFolderError(f"{run.where} did not finish ({summary.status}); a baseline needs finished runs")
+        rows = run.rows(expected_rows=summary.rows_expected)
         values[summary.seed], rows_of[summary.seed] = _statistic(experiment, rule, rows), rows
     return values, rows_of
 
 
 def baseline_config(experiment, folder: Path):
     """The config the baseline's runs share (its first seed's ``config.json``)."""
-    seed_dir = RunSet(folder).seed_dirs()[0]
-    return experiment.config_cls.from_dict(json.loads((seed_dir / "config.json").read_text()))
+    return experiment.config_cls.from_dict(RunSet(folder).runs()[0].config())
 
 
 def config_changes(experiment, folder: Path) -> list[str]:

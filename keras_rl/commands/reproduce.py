@@ -18,6 +18,7 @@ from keras_rl.commands.common import (
     parse_seeds,
 )
 from keras_rl.errors import ConfigError
+from keras_rl.runs.files import refuse_packed
 from keras_rl.runs.lifecycle import _kept_runs, _start_modes
 from keras_rl.runs.options import RUN_FLAGS, RunOptions, path_arg, shared_flags
 
@@ -137,6 +138,8 @@ def reproduce(args: argparse.Namespace) -> int:
     if args.tensorboard is not None:
         _check_writable_dir(args.tensorboard, "--tensorboard")
     seed_dirs = [out / f"seed_{s}" for s in seeds]
+    for seed_dir in seed_dirs:
+        refuse_packed(seed_dir)
     if evaluation is not None and getattr(base, "learning_phase_training", False):
         raise ConfigError(
             "--eval-every does not cover learning_phase_training=true: its noise layer draws from "

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +11,7 @@ from keras_rl.errors import RunFolderError
 from keras_rl.registry import get_experiment
 from keras_rl.report.plots import plot_seed_curve, plt, save_figure
 from keras_rl.report.stats import episodes_to_threshold_stats
-from keras_rl.runs.files import atomic_write_text, read_episodes
+from keras_rl.runs.files import atomic_write_text
 from keras_rl.runs.run_set import RunSet
 from keras_rl.runs.summary import RunSummary
 
@@ -29,14 +28,17 @@ def write_aggregate(
     metric_label: str,
     post_reference: str = "",
 ) -> dict[str, Any]:
-    """Write ``summary.md`` and ``curves.png`` for the seeds in ``summaries``."""
+    """Write ``summary.md`` and ``curves.png`` for the seeds in ``summaries`` (the set in
+    ``out_dir``, folders or packed)."""
     out_dir = Path(out_dir)
     summaries = sorted(summaries, key=lambda s: s.seed)
+    runs = {r.seed: r for r in RunSet(out_dir).runs()}
     curves = {}  # every seed's rows, read (and checked) before anything is written
     for s in summaries:
-        csv_path = out_dir / f"seed_{s.seed}" / "episodes.csv"
-        if csv_path.is_file():
-            curves[s.seed] = read_episodes(csv_path, expected_rows=s.rows_expected)
+        if s.seed in runs:
+            rows = runs[s.seed].rows(expected_rows=s.rows_expected)
+            if rows:
+                curves[s.seed] = rows
     stats = episodes_to_threshold_stats([s.reached_at_episode for s in summaries], [s.success for s in summaries])
     walls = [s.wall_seconds for s in summaries]
     lines = [
@@ -85,16 +87,11 @@ def rebuild(parent: Path, x_axis: str = "episode") -> dict[str, Any]:
     """Rewrite ``summary.md``, ``curves.png`` and each seed's ``curve.png`` of a multi-seed
     folder from its seeds' files."""
     parent = Path(parent)
-    seed_dirs = RunSet(parent).seed_dirs(holding="config.json")
-    if not seed_dirs:
-        raise RunFolderError(f"{parent} holds no seed_*/ run folders")
-    summaries, configs = [], []
-    for seed_dir in seed_dirs:
-        summaries.append(RunSummary.read(seed_dir))
-        try:
-            configs.append(json.loads((seed_dir / "config.json").read_text()))
-        except (OSError, ValueError) as exc:
-            raise RunFolderError(f"{seed_dir / 'config.json'} is corrupt ({exc})") from None
+    runs = RunSet(parent).runs(holding="config.json")
+    if not runs:
+        raise RunFolderError(f"{parent} holds no seed_*/ run folders and no runs.parquet")
+    summaries = [r.summary() for r in runs]
+    configs = [r.config() for r in runs]
     keys = {(c["experiment"], c["variant"], c.get("framework", "keras")) for c in configs}
     if len(keys) != 1:
         raise RunFolderError(f"{parent} mixes runs of different experiments/variants/frameworks: {sorted(keys)}")
@@ -102,17 +99,18 @@ def rebuild(parent: Path, x_axis: str = "episode") -> dict[str, Any]:
     experiment = get_experiment(name)
     loaded = [experiment.config_cls.from_dict(c) for c in configs]
     first = loaded[0].to_dict()
-    for seed_dir, config in zip(seed_dirs[1:], loaded[1:]):
+    for run, config in zip(runs[1:], loaded[1:]):
         other = config.to_dict()
         differing = loaded[0].differs_from(config)
         if differing:
             k = differing[0]
             raise RunFolderError(
-                f"{seed_dir} was made with a different config than {seed_dirs[0]} "
+                f"{run.where} was made with a different config than {runs[0].where} "
                 f"({k}={other[k]!r} there, {first[k]!r} here); refusing to aggregate mixed runs"
             )
-    for seed_dir, config in zip(seed_dirs, loaded):
-        plot_seed_curve(seed_dir, experiment, config, x_axis=x_axis)
+    for run, config in zip(runs, loaded):
+        if run.folder is not None:  # a packed set keeps no per-seed picture
+            plot_seed_curve(run.folder, experiment, config, x_axis=x_axis)
     return write_aggregate(
         parent,
         summaries,

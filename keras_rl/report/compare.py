@@ -24,7 +24,7 @@ from keras_rl.report.stats import (
     iqm_ci,
     median_difference_ci,
 )
-from keras_rl.runs.files import atomic_write_json, atomic_write_text, finite_or_none, read_episodes, run_folder
+from keras_rl.runs.files import atomic_write_json, atomic_write_text, finite_or_none, run_folder
 from keras_rl.runs.summary import RunSummary
 
 FRAMEWORKS = ("keras", "torch")
@@ -33,17 +33,21 @@ FRAMEWORKS = ("keras", "torch")
 
 
 def load_runs(folder: Path, seeds: list[int]) -> list[dict[str, Any]]:
-    """Each seed's summary and rows; a RunFolderError names a seed whose files are missing or corrupt."""
+    """Each seed's summary and rows (from its folder or the packed set); a RunFolderError names a
+    seed whose files are missing or corrupt."""
+    from keras_rl.runs.run_set import RunSet
+
+    have = {r.seed: r for r in RunSet(folder).runs()}
     runs = []
     for seed in seeds:
-        seed_dir = folder / f"seed_{seed}"
-        summary = RunSummary.read(seed_dir)
-        csv_path = seed_dir / "episodes.csv"
-        if not csv_path.is_file():
-            raise RunFolderError(f"seed {seed}: {csv_path} is missing (the run wrote no episode)")
-        runs.append(
-            {"seed": seed, "summary": summary, "rows": read_episodes(csv_path, expected_rows=summary.rows_expected)}
-        )
+        if seed not in have:
+            RunSummary.read(folder / f"seed_{seed}")  # names what is missing
+        run = have[seed]
+        summary = run.summary()
+        rows = run.rows(expected_rows=summary.rows_expected)
+        if not rows and run.folder is not None and not (run.folder / "episodes.csv").is_file():
+            raise RunFolderError(f"seed {seed}: {run.folder / 'episodes.csv'} is missing (the run wrote no episode)")
+        runs.append({"seed": seed, "summary": summary, "rows": rows})
     return runs
 
 

@@ -26,7 +26,8 @@ from keras_rl.report.stats import (
     median_difference_ci,
     success_difference_ci,
 )
-from keras_rl.runs.files import atomic_write_json, atomic_write_text, read_episodes
+from keras_rl.runs.files import atomic_write_json, atomic_write_text
+from keras_rl.runs.run_set import RunSet
 from keras_rl.runs.summary import RunSummary
 
 
@@ -99,14 +100,11 @@ def write_sweep_report(
                 experiment.post_reference,
             )
     criterion = next((s.criterion for ss in summaries.values() for s in ss), "")
-    curves = {
-        name: [
-            read_episodes(out / name / f"seed_{s.seed}" / "episodes.csv", expected_rows=s.rows_expected)
-            for s in ss
-            if (out / name / f"seed_{s.seed}" / "episodes.csv").is_file()
-        ]
-        for name, ss in summaries.items()
-    }
+    curves = {}
+    for name, ss in summaries.items():
+        runs = {r.seed: r for r in RunSet(out / name).runs()}
+        rows = [runs[s.seed].rows(expected_rows=s.rows_expected) if s.seed in runs else [] for s in ss]
+        curves[name] = [r for r in rows if r]
     plot_sweep(
         out / "sweep.png",
         curves,

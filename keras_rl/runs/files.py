@@ -14,6 +14,7 @@ import io
 import json
 import math
 import os
+import re
 import tempfile
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -181,6 +182,22 @@ class RunRecorder:
             self._text = (self.rows, len(self.rows), text)
 
 
+def refuse_packed(run_dir: Path) -> None:
+    """A seed that its set's ``runs.parquet`` holds is never written again beside it."""
+    from keras_rl.errors import RunFolderError
+
+    packed = run_dir.parent / "runs.parquet"
+    if not packed.is_file() or re.fullmatch(r"seed_(\d+)", run_dir.name) is None:
+        return
+    from keras_rl.runs.packed import open_packed
+
+    if int(run_dir.name[5:]) in open_packed(packed).seeds:
+        raise RunFolderError(
+            f"seed {run_dir.name[5:]} of {run_dir.parent} is packed in {packed}, and a packed run is "
+            "never rewritten: pass another --out (or --runs) to run it again"
+        )
+
+
 @contextlib.contextmanager
 def run_folder_locks(run_dirs: Iterable[Path]):
     """One writer per run folder: an exclusive ``flock`` on ``.<folder>.lock`` beside each
@@ -195,9 +212,11 @@ def run_folder_locks(run_dirs: Iterable[Path]):
     from keras_rl.errors import RunFolderError
 
     handles: list[tuple[Path, Any]] = []
+    run_dirs = [Path(d) for d in run_dirs]
+    for run_dir in run_dirs:
+        refuse_packed(run_dir)
     try:
         for run_dir in run_dirs:
-            run_dir = Path(run_dir)
             run_dir.parent.mkdir(parents=True, exist_ok=True)
             path = run_dir.parent / f".{run_dir.name}.lock"
             while True:

@@ -31,16 +31,16 @@ from pathlib import Path
 
 from keras_rl.checkout import ROOT
 from keras_rl.errors import ConfigError
-from keras_rl.runs.run_set import RunSet, seed_of
+from keras_rl.runs.run_set import RunSet, SeedRun
 
 RESULTS = ROOT / "results"
 NOT_COMMITTED = ("make-reproduce",)  # `make reproduce` writes here; .gitignore keeps it out of results/
 
 
-def find_sets(results: Path = RESULTS) -> dict[str, list[Path]]:
-    """Set (its path under results/) -> its seed folders, in seed order."""
+def find_sets(results: Path = RESULTS) -> dict[str, list[SeedRun]]:
+    """Set (its path under results/) -> its seeds, in seed order."""
     sets = {
-        run_set.folder.relative_to(results).as_posix(): run_set.seed_dirs(holding="summary.json")
+        run_set.folder.relative_to(results).as_posix(): run_set.runs()
         for run_set in RunSet.find(results)
         if run_set.folder.relative_to(results).parts[0] not in NOT_COMMITTED
     }
@@ -73,8 +73,8 @@ def batch_of(summary: dict) -> list[int]:
     return [int(summary["seed"])]
 
 
-def describe(name: str, folders: list[Path]) -> dict:
-    summaries = [json.loads((f / "summary.json").read_text()) for f in folders]
+def describe(name: str, runs: list[SeedRun]) -> dict:
+    summaries = [r.summary_record() for r in runs]
     batches: dict[tuple[int, ...], float] = {}
     for s in summaries:
         key = tuple(batch_of(s))
@@ -98,20 +98,16 @@ def describe(name: str, folders: list[Path]) -> dict:
     }
 
 
-def run_key(folder: Path) -> str:
+def run_key(run: SeedRun) -> str:
     """What makes two seed runs the same run: the config and every column of every episode
     but wall time (``episodes.csv``), and the seeds it was batched with."""
-    import csv
     import hashlib
 
-    summary = json.loads((folder / "summary.json").read_text())
     digest = hashlib.sha256()
-    digest.update(json.dumps(json.loads((folder / "config.json").read_text()), sort_keys=True).encode())
-    digest.update(json.dumps(batch_of(summary)).encode())
-    if (folder / "episodes.csv").is_file():
-        with open(folder / "episodes.csv", newline="") as fh:
-            for row in csv.DictReader(fh):
-                digest.update(json.dumps({k: v for k, v in row.items() if k != "wall_seconds"}).encode())
+    digest.update(json.dumps(run.config(), sort_keys=True).encode())
+    digest.update(json.dumps(batch_of(run.summary_record())).encode())
+    for row in run.text_rows():
+        digest.update(json.dumps(row).encode())
     return digest.hexdigest()
 
 
@@ -120,13 +116,13 @@ def manifest(results: Path = RESULTS) -> list[dict]:
     listed before it (``run_key``; a set extended by copying, say), counted once in the cost."""
     entries: list[dict] = []
     seen: dict = {}
-    for name, folders in find_sets(results).items():
-        entry = describe(name, folders)
+    for name, runs in find_sets(results).items():
+        entry = describe(name, runs)
         copies: dict[str, list[int]] = {}
-        for folder in folders:
-            key = run_key(folder)
+        for run in runs:
+            key = run_key(run)
             if key in seen:
-                copies.setdefault(seen[key], []).append(seed_of(folder))
+                copies.setdefault(seen[key], []).append(run.seed)
             else:
                 seen[key] = name
         entry["copies"] = copies
@@ -225,12 +221,12 @@ def rerun_set(entry: dict, out: Path, workers: int) -> dict:
     """Rerun one set batch by batch with ``--resume``, then compare it with the committed one."""
     from keras_rl.runs.replay import first_divergence, seed_rows
 
-    committed = RESULTS / entry["set"]
+    committed = RunSet(RESULTS / entry["set"])
     target = out / entry["set"]
     codes = []
     for batch in entry["batches"]:
         seeds = ",".join(str(s) for s in batch)
-        config = committed / f"seed_{batch[0]}" / "config.json"
+        config = committed.run(batch[0]).config_path(out / ".configs" / entry["set"])
         command = [
             sys.executable, "-m", "keras_rl", "reproduce", entry["experiment"], "--config", str(config),
             "--seeds", seeds, "--seed-batch", str(len(batch)), "--workers", str(workers), "--no-progress",
@@ -244,8 +240,9 @@ def rerun_set(entry: dict, out: Path, workers: int) -> dict:
     same_versions = all(mine.get(k) == v for k, v in entry["versions"].items() if k not in ("keras_rl", "torch"))
     by_seed: dict[int, dict | None] = {}
     for seed in entry["seeds"]:
-        theirs, ours = committed / f"seed_{seed}" / "episodes.csv", target / f"seed_{seed}" / "episodes.csv"
-        by_seed[seed] = first_divergence(seed_rows(theirs), seed_rows(ours)).as_dict() if ours.is_file() else None
+        ours = target / f"seed_{seed}" / "episodes.csv"
+        theirs = committed.run(seed).text_rows()
+        by_seed[seed] = first_divergence(theirs, seed_rows(ours)).as_dict() if ours.is_file() else None
     exact = sum(d is not None and d["first_episode"] is None for d in by_seed.values())
     result = {
         "set": entry["set"],
@@ -265,20 +262,14 @@ def rerun_set(entry: dict, out: Path, workers: int) -> dict:
     return result
 
 
-def _distribution_p(committed: Path, target: Path, seeds: list[int]) -> float | None:
+def _distribution_p(committed: RunSet, target: Path, seeds: list[int]) -> float | None:
     from keras_rl.report.stats import mann_whitney
 
-    def finals(folder: Path) -> list[float]:
-        out = []
-        for s in seeds:
-            path = folder / f"seed_{s}" / "summary.json"
-            if path.is_file():
-                value = json.loads(path.read_text()).get("final_metric")
-                if value is not None:
-                    out.append(float(value))
-        return out
+    def finals(run_set: RunSet) -> list[float]:
+        records = {r.seed: r.summary_record() for r in run_set.runs()}
+        return [float(records[s]["final_metric"]) for s in seeds if records.get(s, {}).get("final_metric") is not None]
 
-    a, b = finals(committed), finals(target)
+    a, b = finals(committed), finals(RunSet(target))
     if len(a) < 2 or len(b) < 2:
         return None
     if a == b:

@@ -88,11 +88,15 @@ class Replay:
 
 
 def plan_replay(folder: Path, experiment: str, episodes: int | None = None) -> Replay:
-    """The replay of a committed seed folder: its first ``episodes`` rows, or the whole run
-    (a run that ended before its budget is rerun with its own budget, so it ends the same way)."""
+    """The replay of a committed seed (``<set>/seed_<n>``, a folder or packed in the set's
+    ``runs.parquet``): its first ``episodes`` rows, or the whole run (a run that ended before its
+    budget is rerun with its own budget, so it ends the same way)."""
+    from keras_rl.runs.run_set import RunSet
+
     folder = Path(folder)
-    config = json.loads((folder / "config.json").read_text())
-    rows = seed_rows(folder / "episodes.csv")
+    run = RunSet.seed_at(folder)
+    config = run.config()
+    rows = run.text_rows()
     expected = rows[:episodes] if episodes is not None else rows
     budget = len(expected) if episodes is not None else int(config["episodes"])
     return Replay(folder, experiment, str(config["variant"]), int(config["seed"]), budget, expected)

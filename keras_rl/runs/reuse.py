@@ -26,6 +26,9 @@ def check_reusable(seed_dir: Path, expected, code_version: str | None) -> str | 
     ``from_dict``, which fills today's defaults and maps renamed fields: it matches only
     if the default is wanted.
     """
+    packed = packed_run(seed_dir)
+    if packed is not None and not seed_dir.exists():
+        return _check_made(packed.where, packed.summary(), packed.config(), expected, code_version)
     if not (seed_dir / "summary.json").is_file():
         if seed_dir.is_dir() and any(seed_dir.iterdir()):  # not a run this project made: never removed unasked
             held = ", ".join(sorted(p.name for p in seed_dir.iterdir())[:5])
@@ -36,34 +39,56 @@ def check_reusable(seed_dir: Path, expected, code_version: str | None) -> str | 
             )
         return "missing"
     summary = RunSummary.read(seed_dir)
-    made_by = made_by_experiment(seed_dir)
+    try:
+        values = json.loads((seed_dir / "config.json").read_text())
+    except (OSError, ValueError) as exc:
+        raise RunFolderError(f"{seed_dir} is corrupt ({exc}); delete it or pass --rerun") from None
+    why = _check_made(str(seed_dir), summary, values, expected, code_version)
+    if why is None and joins_its_stopped_batch(seed_dir):
+        return JOINS_BATCH
+    return why
+
+
+def packed_run(seed_dir: Path):
+    """The seed ``seed_dir`` is named for, where its set's ``runs.parquet`` holds it (else None)."""
+    from keras_rl.runs.run_set import SEED_FOLDER, RunSet
+
+    if SEED_FOLDER.fullmatch(seed_dir.name) is None or not (seed_dir.parent / "runs.parquet").is_file():
+        return None
+    try:
+        return RunSet.seed_at(seed_dir)
+    except RunFolderError:
+        return None
+
+
+def _check_made(where: str, summary: RunSummary, values, expected, code_version: str | None) -> str | None:
+    """``check_reusable`` for a run that is there, from its summary and recorded config."""
+    made_by = values.get("experiment") if isinstance(values, dict) else None
     if made_by is not None and made_by != expected.experiment:
         raise RunFolderError(
-            f"{seed_dir} holds a run made by {made_by}, not {expected.experiment}; "
+            f"{where} holds a run made by {made_by}, not {expected.experiment}; "
             "pass --out (or --runs) for another folder"
         )
     try:
-        made_config = type(expected).from_dict(json.loads((seed_dir / "config.json").read_text()))
-    except (OSError, ValueError) as exc:
-        raise RunFolderError(f"{seed_dir} is corrupt ({exc}); delete it or pass --rerun") from None
+        made_config = type(expected).from_dict(values)
+    except (TypeError, ValueError) as exc:
+        raise RunFolderError(f"{where} is corrupt ({exc}); delete it or pass --rerun") from None
     made, wanted = made_config.to_dict(), expected.to_dict()
     differing = made_config.differs_from(expected)
     if differing:
         which = ", ".join(f"{k}={made.get(k)!r} here, {wanted[k]!r} wanted" for k in differing[:3])
         raise RunFolderError(
-            f"{seed_dir} was made with a different config ({which}); "
+            f"{where} was made with a different config ({which}); "
             "refusing to mix runs: pass --rerun to replace it, or --runs to use another folder"
         )
     theirs = code_version_of(summary.provenance, summary.versions.get("keras_rl"))
     if code_version is not None and theirs != code_version:  # None: report what is there (--reuse-only)
         raise RunFolderError(
-            f"{seed_dir} was made by code version {theirs}, this is {code_version}; "
+            f"{where} was made by code version {theirs}, this is {code_version}; "
             "refusing to mix code versions: pass --rerun to replace it"
         )
     if summary.status not in OUTCOMES:
         return f"unfinished ({summary.status})"
-    if joins_its_stopped_batch(seed_dir):
-        return JOINS_BATCH
     return None
 
 

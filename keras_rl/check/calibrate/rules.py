@@ -45,6 +45,7 @@ from keras_rl.check.calibrate.runs import (
     load,
     measure,
     power_cells,
+    seed_count,
     seed_dirs,
     values,
 )
@@ -99,7 +100,7 @@ def make_commands(name: str) -> list[list[str]]:
     for m in MUTANTS[name]:
         folder = CHECKS / name / "mutants" / m.name
         sets = [a for k, v in m.overrides.items() for a in ("--set", f"{k}={v}")]
-        if folder.is_dir() and len(seed_dirs(folder)) < len(TUNE) + len(REPORT):
+        if folder.is_dir() and seed_count(folder) < len(TUNE) + len(REPORT):
             # seeds 10-29 beside the committed 0-9, made alike; --make then moves them in (move_seeds)
             config = get_experiment(name).config_cls.for_variant("faithful").with_text_overrides(sets[1::2])
             batched = engine_args(name, 1 if batch_refusal(name, config.to_dict()) else MUTANT_BATCH)

@@ -17,9 +17,7 @@ from keras_rl.check.rules import ALPHAS, CALIBRATED_TIERS, RULES
 from keras_rl.check.statistics import decide, false_alarm_rate, power, seed_statistic
 from keras_rl.checkout import ROOT
 from keras_rl.registry import get_experiment
-from keras_rl.runs.files import read_episodes
 from keras_rl.runs.run_set import RunSet
-from keras_rl.runs.summary import RunSummary
 
 CHECKS = ROOT / "results" / "checks"
 HOLM_LEVEL = 3
@@ -31,7 +29,13 @@ looked at in those choices, report the power."""
 
 
 def seed_dirs(folder: Path) -> list[Path]:
+    """The live ``seed_<n>/`` folders of ``folder`` (what ``--make`` moves)."""
     return RunSet(folder).seed_dirs()
+
+
+def seed_count(folder: Path) -> int:
+    """The seeds ``folder`` holds, in folders or packed."""
+    return len(RunSet(folder).runs())
 
 
 def budget(folder: Path) -> int:
@@ -42,22 +46,22 @@ def budget(folder: Path) -> int:
 def load(folder: Path, seeds: range | None = None) -> list[list[dict] | None]:
     """Each run's episode rows, in seed order (``None`` for a run that blew up); only
     ``seeds`` if given, and then every one of them must be there."""
-    dirs = seed_dirs(folder)
+    runs = RunSet(folder).runs()
     if seeds is not None:
-        have = {int(d.name.split("_")[1]): d for d in dirs}
+        have = {r.seed: r for r in runs}
         missing = [s for s in seeds if s not in have]
         if missing:
             raise SystemExit(f"error: {folder} has no seed_{missing[0]} ({len(missing)} of seeds {seeds} missing)")
-        dirs = [have[s] for s in seeds]
-    runs = []
-    for seed_dir in dirs:
-        summary = RunSummary.read(seed_dir)
+        runs = [have[s] for s in seeds]
+    out = []
+    for run in runs:
+        summary = run.summary()
         if summary.status not in ("completed", "non_finite_loss"):
-            raise SystemExit(f"error: {seed_dir} did not finish ({summary.status})")
-        runs.append(read_episodes(seed_dir / "episodes.csv") if summary.status == "completed" else None)
-    if not runs:
+            raise SystemExit(f"error: {run.where} did not finish ({summary.status})")
+        out.append(run.rows() if summary.status == "completed" else None)
+    if not out:
         raise SystemExit(f"error: no runs under {folder}")
-    return runs
+    return out
 
 
 def values(name: str, statistic: str, episodes: int, runs: list, delay: int = 0) -> np.ndarray:
@@ -79,7 +83,7 @@ def values(name: str, statistic: str, episodes: int, runs: list, delay: int = 0)
 
 def halved(folders: list[Path]) -> bool:
     """Whether every mutant folder holds the 30 runs the tuning and reporting halves need."""
-    return all(len(seed_dirs(f)) >= len(TUNE) + len(REPORT) for f in folders)
+    return all(seed_count(f) >= len(TUNE) + len(REPORT) for f in folders)
 
 
 def clopper_pearson(k: int, n: int) -> tuple[float, float]:

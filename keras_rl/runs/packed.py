@@ -1,0 +1,412 @@
+"""A packed run set: every seed of a finished set in one Parquet file, ``runs.parquet``.
+
+Live runs write per-seed folders (``seed_<n>/``: resume, checkpoints, locks). ``keras-rl pack``
+turns a finished set into one file in the set's folder, and removes the seed folders only once
+the file reads back to what they held:
+
+- one row per episode, ``seed`` first, then ``episodes.csv``'s columns, typed (``episode``,
+  ``steps`` and ``total_steps`` as int64, the rest float64, an empty loss as null), sorted by
+  seed and episode; wall time (the one column that is not a function of the seed) as whole
+  milliseconds, ``wall_ms`` (``wall_seconds`` * 1000, rounded);
+- the file's metadata under the key ``keras_rl``: JSON holding the set's distinct configs once
+  (``seed`` null), and for each seed its ``summary.json``, the index of the config it ran and
+  any other small file its folder held (``evaluation.json``), zstd-compressed (see ``metadata``).
+
+``pandas.read_parquet(path)`` or ``polars.read_parquet(path)`` reads the episodes without this
+module; ``metadata(path)`` is the rest in three lines of pyarrow. Every record of a seed comes
+back as it was written: ``config.json`` and ``summary.json`` byte for byte, ``episodes.csv``
+in every column but wall time (``extract`` writes the folder again). Nothing here imports
+TensorFlow.
+"""
+
+from __future__ import annotations
+
+import base64
+import functools
+import json
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from keras_rl.errors import RunFolderError
+from keras_rl.runs.files import INTEGER_COLUMNS, atomic_write_bytes, atomic_write_text, format_row, read_episodes
+
+PACKED = "runs.parquet"
+"""The packed set's file name, in the set's folder."""
+FORMAT = 1
+RECORDS = ("config.json", "summary.json", "episodes.csv")
+"""What every seed folder holds; other small text files travel in the metadata as they are."""
+SMALL_FILE = 1 << 20
+"""A seed folder's other files are packed when they are text (``.json``, ``.md``, ``.txt``) under 1 MiB."""
+TEXT_SUFFIXES = (".json", ".md", ".txt")
+WALL, WALL_MS = "wall_seconds", "wall_ms"
+
+
+def _stored(column: str) -> str:
+    """The Parquet column that holds ``episodes.csv``'s ``column``."""
+    return WALL_MS if column == WALL else column
+
+
+def _encoding(column: str) -> str:
+    """Each column's Parquet encoding, chosen by measurement over the committed sets (zstd after
+    it): counters as deltas, scores split by byte stream, the rest plain: 29% smaller than one
+    encoding for all."""
+    if column in ("seed", "episode", "total_steps", WALL_MS):
+        return "DELTA_BINARY_PACKED"
+    if column in ("score", "steps"):
+        return "BYTE_STREAM_SPLIT"
+    return "PLAIN"
+
+
+def _json_text(value: Any) -> str:
+    """What ``atomic_write_json`` writes for ``value``."""
+    from keras_rl.runs.files import finite_or_none
+
+    return json.dumps(finite_or_none(value), indent=2, allow_nan=False) + "\n"
+
+
+def _pyarrow():
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:  # pragma: no cover - pyarrow is a dependency
+        raise RunFolderError("reading or writing a packed run set needs pyarrow: pip install pyarrow") from None
+    return pa, pq
+
+
+def metadata(path: Path) -> dict[str, Any]:
+    """The packed set's configs and per-seed records (the file's ``keras_rl`` metadata)."""
+    pa, pq = _pyarrow()
+    try:
+        meta = pq.read_schema(path).metadata or {}
+    except (OSError, pa.ArrowException) as exc:
+        raise RunFolderError(f"{path} is not a readable Parquet file ({exc})") from None
+    raw = meta.get(b"keras_rl")
+    if raw is None:
+        raise RunFolderError(f"{path} is a Parquet file without keras_rl's records: not a packed run set")
+    head = json.loads(raw)
+    if head.get("format") != FORMAT:
+        raise RunFolderError(f"{path} is packed in format {head.get('format')!r}; this keras-rl reads {FORMAT}")
+    body = pa.decompress(base64.b64decode(head["records"]), decompressed_size=head["size"], codec="zstd", asbytes=True)
+    return {**head, "records": json.loads(body)}
+
+
+@dataclass(frozen=True)
+class SeedRecord:
+    """One seed of a packed set: its files' contents and its episodes."""
+
+    seed: int
+    config_text: str
+    summary_text: str
+    columns: tuple[str, ...]
+    rows: list[dict[str, Any]]
+    files: dict[str, str]
+
+    def text_rows(self) -> list[dict[str, str]]:
+        """The rows as ``episodes.csv`` writes them, without the timing column."""
+        from keras_rl.runs.replay import TIMING_COLUMNS
+
+        kept = tuple(c for c in self.columns if c not in TIMING_COLUMNS)
+        return [format_row(row, kept) for row in self.rows]
+
+
+class PackedSet:
+    """A ``runs.parquet`` read once (cached by path, size and modification time)."""
+
+    def __init__(self, path: Path):
+        self.path = Path(path)
+        head = metadata(self.path)
+        self.columns: tuple[str, ...] = tuple(head["columns"])
+        self._configs: list[dict[str, Any]] = head["configs"]
+        self._records: dict[int, dict[str, Any]] = {int(r["seed"]): r for r in head["records"]}
+        self._episodes: dict[int, list[dict[str, Any]]] | None = None
+
+    @property
+    def seeds(self) -> list[int]:
+        return sorted(self._records)
+
+    def _rows(self) -> dict[int, list[dict[str, Any]]]:
+        if self._episodes is None:
+            _, pq = _pyarrow()
+            table = pq.read_table(self.path)
+            values = {name: table.column(_stored(name)).to_pylist() for name in ("seed", *self.columns)}
+            if WALL in values:
+                values[WALL] = [None if ms is None else ms / 1000 for ms in values[WALL]]
+            by_seed: dict[int, list[dict[str, Any]]] = {s: [] for s in self._records}
+            for i, seed in enumerate(values["seed"]):
+                by_seed[seed].append({c: values[c][i] for c in self.columns})
+            self._episodes = by_seed
+        return self._episodes
+
+    def record(self, seed: int) -> SeedRecord:
+        if seed not in self._records:
+            raise RunFolderError(f"{self.path} holds no seed {seed} (it holds {_ranges(self.seeds)})")
+        r = self._records[seed]
+        if "config_text" in r:
+            config_text = r["config_text"]
+        else:
+            config = dict(self._configs[r["config"]])
+            config["seed"] = seed
+            config_text = _json_text(config)
+        summary_text = r.get("summary_text") or _json_text(r["summary"])
+        return SeedRecord(seed, config_text, summary_text, self.columns, self._rows()[seed], dict(r.get("files", {})))
+
+    def summary_record(self, seed: int) -> dict[str, Any]:
+        r = self._records[seed]
+        return json.loads(r["summary_text"]) if "summary_text" in r else r["summary"]
+
+    def config(self, seed: int) -> dict[str, Any]:
+        return json.loads(self.record(seed).config_text) if "config_text" in self._records[seed] else self._config(seed)
+
+    def _config(self, seed: int) -> dict[str, Any]:
+        config = dict(self._configs[self._records[seed]["config"]])
+        config["seed"] = seed
+        return config
+
+    def rows(self, seed: int) -> list[dict[str, Any]]:
+        if seed not in self._records:
+            raise RunFolderError(f"{self.path} holds no seed {seed}")
+        return [dict(row) for row in self._rows()[seed]]
+
+
+@functools.lru_cache(maxsize=8)
+def _open(path: str, size: int, mtime_ns: int) -> PackedSet:
+    return PackedSet(Path(path))
+
+
+def open_packed(path: Path) -> PackedSet:
+    """The packed set at ``path``, read once per version of the file."""
+    path = Path(path)
+    try:
+        stat = path.stat()
+    except OSError as exc:
+        raise RunFolderError(f"cannot read {path} ({exc.strerror or exc})") from None
+    return _open(str(path.resolve()), stat.st_size, stat.st_mtime_ns)
+
+
+def _ranges(seeds: Iterable[int]) -> str:
+    """``0-29, 40`` for seeds 0 to 29 and 40."""
+    spans: list[list[int]] = []
+    for s in sorted(seeds):
+        if spans and spans[-1][1] == s - 1:
+            spans[-1][1] = s
+        else:
+            spans.append([s, s])
+    return ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in spans) or "none"
+
+
+# -- packing ---------------------------------------------------------------------------------
+
+
+def _seed_entry(seed_dir: Path, seed: int, configs: dict[str, int], config_list: list) -> tuple[dict, list, tuple]:
+    """One seed folder's record for the metadata, its typed rows and its columns; a
+    RunFolderError for a folder that cannot be packed without losing something."""
+    from keras_rl.runs.replay import seed_rows
+    from keras_rl.runs.summary import RunSummary
+
+    files = {p.name: p for p in seed_dir.iterdir() if not p.name.startswith(".")}
+    missing = [n for n in RECORDS if n not in files]
+    if missing:
+        raise RunFolderError(f"{seed_dir} lacks {', '.join(missing)}: only finished runs are packed")
+    others = {n: p for n, p in files.items() if n not in RECORDS}
+    unpackable = [
+        n
+        for n, p in others.items()
+        if not p.is_file() or p.suffix not in TEXT_SUFFIXES or p.stat().st_size > SMALL_FILE
+    ]
+    if unpackable:
+        raise RunFolderError(
+            f"{seed_dir} holds {', '.join(sorted(unpackable))}, which a packed set does not keep (weights, "
+            "checkpoints, pictures): pack with --keep-folders, or move them out first"
+        )
+    summary_text = files["summary.json"].read_text()
+    summary = RunSummary.read(seed_dir)
+    if summary.status == "running":
+        raise RunFolderError(f"{seed_dir} is still running (summary.json says so): only finished runs are packed")
+    if summary.seed != seed:
+        raise RunFolderError(f"{seed_dir} holds the run of seed {summary.seed}, not {seed}")
+    entry: dict[str, Any] = {"seed": seed}
+    parsed_summary = json.loads(summary_text)
+    if _json_text(parsed_summary) == summary_text:
+        entry["summary"] = parsed_summary
+    else:  # written by another writer: kept as it is
+        entry["summary_text"] = summary_text
+    config_text = files["config.json"].read_text()
+    config = json.loads(config_text)
+    if config.get("seed") == seed and _json_text(config) == config_text:
+        shared = dict(config)
+        shared["seed"] = None
+        key = json.dumps(shared)
+        if key not in configs:
+            configs[key] = len(config_list)
+            config_list.append(shared)
+        entry["config"] = configs[key]
+    else:
+        entry["config_text"] = config_text
+    if others:
+        entry["files"] = {n: others[n].read_text() for n in sorted(others)}
+    csv_path = files["episodes.csv"]
+    rows = read_episodes(csv_path, expected_rows=summary.rows_expected)
+    with open(csv_path, newline="") as fh:
+        header = fh.readline().strip().split(",")
+    columns = tuple(header)
+    typed = [
+        {**row, WALL: None if row[WALL] is None else round(row[WALL] * 1000) / 1000} if WALL in row else row
+        for row in rows
+    ]
+    record = SeedRecord(seed, "", "", columns, typed, {})
+    if record.text_rows() != seed_rows(csv_path):
+        raise RunFolderError(
+            f"{csv_path} is not written as keras-rl writes episodes (a value that does not read back to "
+            "its own text): it cannot be packed without changing it"
+        )
+    return entry, typed, columns
+
+
+def pack_table(seed_dirs: list[tuple[int, Path]], existing: PackedSet | None = None):
+    """The Parquet table of ``existing``'s seeds and the folders ``seed_dirs``, and its metadata."""
+    pa, _ = _pyarrow()
+    configs: dict[str, int] = {}
+    config_list: list[dict[str, Any]] = []
+    entries: dict[int, dict] = {}
+    rows_of: dict[int, list[dict[str, Any]]] = {}
+    columns: tuple[str, ...] | None = None
+    if existing is not None:
+        columns = existing.columns
+        for seed in existing.seeds:
+            r = dict(existing._records[seed])
+            if "config" in r:
+                shared = existing._configs[r["config"]]
+                key = json.dumps(shared)
+                if key not in configs:
+                    configs[key] = len(config_list)
+                    config_list.append(shared)
+                r["config"] = configs[key]
+            entries[seed], rows_of[seed] = r, existing.rows(seed)
+    for seed, seed_dir in seed_dirs:
+        if seed in entries:
+            raise RunFolderError(f"seed {seed} is both in {existing.path if existing else '?'} and in {seed_dir}")
+        entry, rows, cols = _seed_entry(seed_dir, seed, configs, config_list)
+        if columns is not None and cols != columns:
+            raise RunFolderError(
+                f"{seed_dir / 'episodes.csv'} has columns {', '.join(cols)}, the set's other seeds "
+                f"{', '.join(columns)}: one set, one kind of run"
+            )
+        columns = cols
+        entries[seed], rows_of[seed] = entry, rows
+    if columns is None:
+        raise RunFolderError("nothing to pack: no seed_<n>/ folder with a finished run")
+    order = sorted(entries)
+    data: dict[str, list] = {"seed": [s for s in order for _ in rows_of[s]]}
+    for c in columns:
+        data[_stored(c)] = [row.get(c) for s in order for row in rows_of[s]]
+    if WALL in columns:
+        data[WALL_MS] = [None if v is None else round(v * 1000) for v in data[WALL_MS]]
+    fields = [pa.field("seed", pa.int64(), nullable=False)] + [
+        pa.field(_stored(c), pa.int64() if c in (*INTEGER_COLUMNS, WALL) else pa.float64()) for c in columns
+    ]
+    body = json.dumps([entries[s] for s in order], separators=(",", ":"), allow_nan=False).encode()
+    head = {
+        "format": FORMAT,
+        "columns": list(columns),
+        "configs": config_list,
+        "size": len(body),
+        "records": base64.b64encode(pa.compress(body, codec="zstd", asbytes=True)).decode("ascii"),
+    }
+    schema = pa.schema(fields, metadata={b"keras_rl": json.dumps(head, separators=(",", ":")).encode()})
+    return pa.table(data, schema=schema)
+
+
+def write_table(table, path: Path) -> None:
+    """The table to ``path`` atomically: zstd at level 19, each column in its own encoding."""
+    import io
+
+    _, pq = _pyarrow()
+    buf = io.BytesIO()
+    pq.write_table(
+        table,
+        buf,
+        compression="zstd",
+        compression_level=19,
+        use_dictionary=False,
+        column_encoding={name: _encoding(name) for name in table.schema.names},
+        write_statistics=False,
+    )
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def extract(packed: PackedSet, seed: int, dest: Path) -> Path:
+    """The seed's folder as it was before packing (``wall_seconds`` to the millisecond) at ``dest``."""
+    from keras_rl.runs.files import episodes_csv_text
+
+    record = packed.record(seed)
+    dest = Path(dest)
+    dest.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(dest / "config.json", record.config_text)
+    atomic_write_text(dest / "summary.json", record.summary_text)
+    atomic_write_text(dest / "episodes.csv", episodes_csv_text(record.rows, record.columns))
+    for name, text in record.files.items():
+        atomic_write_text(dest / name, text)
+    return dest
+
+
+def pack(folder: Path, keep_folders: bool = False) -> tuple[Path, list[int]]:
+    """Pack the finished ``seed_<n>/`` folders of ``folder`` into ``folder/runs.parquet`` (with
+    the seeds it already holds), check that the file reads back to every record, then remove the
+    folders (unless ``keep_folders``). Returns the file and the seeds newly packed."""
+    import shutil
+
+    from keras_rl.runs.run_set import SEED_FOLDER, seed_of
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise RunFolderError(f"{folder} is not a folder")
+    path = folder / PACKED
+    existing = open_packed(path) if path.is_file() else None
+    dirs = sorted(
+        (p for p in folder.iterdir() if SEED_FOLDER.fullmatch(p.name) and p.is_dir()),
+        key=seed_of,
+    )
+    if not dirs:
+        if existing is not None:
+            return path, []
+        raise RunFolderError(f"{folder} holds no seed_<n>/ folders to pack")
+    table = pack_table([(seed_of(d), d) for d in dirs], existing)
+    tmp = folder / f".{PACKED}.new"
+    write_table(table, tmp)
+    try:
+        check_packed(open_packed(tmp), [(seed_of(d), d) for d in dirs])
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    os.replace(tmp, path)
+    if not keep_folders:
+        for d in dirs:
+            shutil.rmtree(d)
+    return path, [seed_of(d) for d in dirs]
+
+
+def check_packed(packed: PackedSet, seed_dirs: list[tuple[int, Path]]) -> None:
+    """Each folder's records read back from ``packed`` as they are on disk: ``config.json``,
+    ``summary.json`` and the other files byte for byte, ``episodes.csv`` in every column but
+    wall time, and wall time within half a millisecond."""
+    from keras_rl.runs.replay import seed_rows
+
+    for seed, seed_dir in seed_dirs:
+        record = packed.record(seed)
+        for name, text in (("config.json", record.config_text), ("summary.json", record.summary_text)):
+            if (seed_dir / name).read_text() != text:
+                raise RunFolderError(f"{packed.path}: seed {seed}'s {name} does not read back as written")
+        for name, text in record.files.items():
+            if (seed_dir / name).read_text() != text:
+                raise RunFolderError(f"{packed.path}: seed {seed}'s {name} does not read back as written")
+        if record.text_rows() != seed_rows(seed_dir / "episodes.csv"):
+            raise RunFolderError(f"{packed.path}: seed {seed}'s episodes do not read back as written")
+        walls = [r.get("wall_seconds") for r in read_episodes(seed_dir / "episodes.csv")]
+        if any(
+            (a is None) != (b is None) or (a is not None and abs(a - b) > 5e-4 + 1e-9)
+            for a, b in zip(walls, (r.get("wall_seconds") for r in record.rows))
+        ):
+            raise RunFolderError(f"{packed.path}: seed {seed}'s wall times do not read back to the millisecond")
