@@ -91,6 +91,15 @@ class SeedRun:
             return seed_rows(self.folder / "episodes.csv")
         return self.run_set.packed().record(self.seed).text_rows()
 
+    def file_text(self, name: str) -> str:
+        """Another file of the seed's (``evaluation.json``): its folder's, or the packed copy."""
+        if self.folder is not None:
+            return (self.folder / name).read_text()
+        files = self.run_set.packed().record(self.seed).files
+        if name not in files:
+            raise RunFolderError(f"{self.where} holds no {name}")
+        return files[name]
+
     def config_path(self, scratch: Path) -> Path:
         """A ``config.json`` of this seed on disk (written under ``scratch`` where it is packed)."""
         if self.folder is not None:

@@ -161,9 +161,7 @@ def post_block(post: str) -> str:
     elif post == "post001":
         folders = [results / "mountaincar" / "faithful", results / "mountaincar" / "faithful-intended"]
         fixed = results / "mountaincar" / "fixed"
-        evaluated = [
-            (s["seed"], json.loads((fixed / f"seed_{s['seed']}" / "evaluation.json").read_text())) for s in load(fixed)
-        ]
+        evaluated = [(r.seed, json.loads(r.file_text("evaluation.json"))) for r in RunSet(fixed).runs()]
         rows = []
         for start in range(0, len(evaluated), 10):
             chunk = evaluated[start : start + 10]
