@@ -22,6 +22,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from keras_rl.runs.run_set import RunSet
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -298,7 +300,8 @@ def round_two(p: Pass) -> None:
     p.expect(
         "r2.5 --config not UTF-8", ["reproduce", "pendulum", "--config", str(bad), "--dry-run", *out], 2, "not JSON"
     )
-    config = (p.clone / "results" / "pendulum" / "faithful" / "seed_0" / "config.json").read_text()
+    config = RunSet.seed_at(p.clone / "results" / "pendulum" / "faithful" / "seed_0").extract(w / "committed-0")
+    config = (config / "config.json").read_text()
     nosuch = w / "nosuch.json"
     nosuch.write_text(config.replace('"variant": "faithful"', '"variant": "nosuch"'))
     p.expect(
@@ -329,7 +332,9 @@ def seed_folder(p: Pass) -> Path:
 
 
 def a_pendulum_run_without_weights(p: Pass, status: str) -> Path:
-    committed = p.clone / "results" / "pendulum" / "faithful" / "seed_0"
+    committed = RunSet.seed_at(p.clone / "results" / "pendulum" / "faithful" / "seed_0").extract(
+        p.work / f"committed-{status}"
+    )
     run = p.work / f"no-weights-{status}" / "seed_0"
     run.mkdir(parents=True)
     shutil.copy(committed / "config.json", run / "config.json")
@@ -430,7 +435,7 @@ def statistics_and_sweeps(p: Pass) -> None:
     w = p.work
     against = w / "against1" / "pendulum" / "baseline"
     against.mkdir(parents=True)
-    shutil.copytree(p.clone / "results" / "checks" / "pendulum" / "baseline" / "seed_0", against / "seed_0")
+    RunSet.seed_at(p.clone / "results" / "checks" / "pendulum" / "baseline" / "seed_0").extract(against / "seed_0")
     p.expect(
         "r2.8 check against a 1-seed baseline",
         ["check", "pendulum", "--against", str(w / "against1"), "--out", str(w / "C8")],

@@ -9,12 +9,13 @@ import shutil
 from pathlib import Path
 
 import pytest
+from committed import committed_seed
 
 from keras_rl.cli import main, parse_seeds
 from keras_rl.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parent.parent
-PENDULUM_SEED = ROOT / "results" / "pendulum" / "faithful" / "seed_0"
+PENDULUM_SEED = committed_seed("pendulum/faithful/seed_0")
 
 
 def _exit_2(argv, capsys, message: str) -> str:
@@ -138,7 +139,7 @@ def test_check_against_a_one_seed_baseline_exits_2(capsys, tmp_path, replace_bac
     replace_backend(lambda *a, **k: pytest.fail("trained against a useless baseline"))
     baseline = tmp_path / "against" / "pendulum" / "baseline"
     baseline.mkdir(parents=True)
-    shutil.copytree(ROOT / "results" / "checks" / "pendulum" / "baseline" / "seed_0", baseline / "seed_0")
+    shutil.copytree(committed_seed("checks/pendulum/baseline/seed_0"), baseline / "seed_0")
     _exit_2(
         ["check", "pendulum", "--against", str(tmp_path / "against"), "--out", str(tmp_path / "check")],
         capsys,
@@ -163,8 +164,8 @@ def test_a_changed_default_is_reported_beside_the_verdict_not_refused(tmp_path):
         seed = baseline / f"seed_{s}"
         seed.mkdir(parents=True)
         for name in ("summary.json", "episodes.csv"):
-            shutil.copy(committed / f"seed_{s}" / name, seed / name)
-        values = json.loads((committed / f"seed_{s}" / "config.json").read_text())
+            shutil.copy(committed_seed(f"checks/pendulum/baseline/seed_{s}") / name, seed / name)
+        values = json.loads((committed_seed(f"checks/pendulum/baseline/seed_{s}") / "config.json").read_text())
         (seed / "config.json").write_text(json.dumps({**values, "actor_lr": 0.002}))
     values, _ = command.baseline_values(experiment, rule_for("pendulum", "smoke"), baseline)
     assert sorted(values) == [0, 1, 2]
@@ -244,7 +245,7 @@ def test_a_bad_ray_address_from_the_environment_is_named_as_such(capsys, tmp_pat
 
 # -- 9. a sweep point whose loss turns NaN is a result, named, not a failed command ------------------
 def test_a_sweep_names_each_nan_stop_and_does_not_fail_on_it(capsys, tmp_path, replace_backend):
-    template = ROOT / "results" / "mountaincar" / "faithful" / "seed_0"
+    template = committed_seed("mountaincar/faithful/seed_0")
 
     def fake_run_jobs(todo, backend, progress=True, after_job=None):
         for job in todo:

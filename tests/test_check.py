@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from committed import committed_seed
 
 from keras_rl.check import command
 from keras_rl.check.rules import MUTANTS, RULES, rule_for
@@ -211,7 +212,7 @@ def test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline(
     report = json.loads((out / "check.json").read_text())
     assert [e["experiment"] for e in report["experiments"]] == ["pendulum", "cartpole", "mountaincar"]
     for e in report["experiments"]:
-        committed = len(RunSet(CHECKS / e["experiment"] / "baseline").seed_dirs())
+        committed = len(RunSet(CHECKS / e["experiment"] / "baseline").seeds)
         assert e["verdict"] == "consistent" and len(e["new"]) == e["rule"]["seeds"]
         assert len(e["baseline"]) == committed >= 30  # the whole committed baseline
         assert not set(e["new"]) & set(e["baseline"])  # fresh seeds
@@ -642,7 +643,7 @@ def test_calibration_reads_the_halves_it_names_and_refuses_a_missing_seed(tmp_pa
     baseline = root / "results" / "checks" / "pendulum" / "baseline"
     assert len(runs.load(baseline, range(3, 5))) == 2
     for seed in (0, 2):
-        (tmp_path / f"seed_{seed}").symlink_to(baseline / f"seed_{seed}")
+        (tmp_path / f"seed_{seed}").symlink_to(committed_seed(f"checks/pendulum/baseline/seed_{seed}"))
     with pytest.raises(SystemExit, match="has no seed_1"):
         runs.load(tmp_path, range(0, 3))
     assert not runs.halved([tmp_path]) and runs.halved([])
@@ -662,7 +663,7 @@ def test_every_committed_error_rate_was_computed_on_the_whole_committed_baseline
     """A baseline that grew (issue #21: 30 seeds to 100) leaves every rate computed on the old
     one stale: each results JSON records the baseline size it used, which must be the seed
     folders committed now."""
-    committed = {p.parent.name: len(RunSet(p).seed_dirs()) for p in CHECKS.glob("*/baseline")}
+    committed = {p.parent.name: len(RunSet(p).seeds) for p in CHECKS.glob("*/baseline")}
     assert committed and all(n >= 30 for n in committed.values()), committed
     calibration = json.loads((command.CALIBRATION).read_text())
     for post, entry in calibration.items():

@@ -6,10 +6,10 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 from clitools import run_cli
+from committed import committed_seed
 
 from keras_rl.cli import build_parser, main, parse_seeds
 
@@ -160,7 +160,7 @@ def test_reproduce_reruns_a_recorded_config_and_dry_run_trains_nothing(tmp_path)
     first 20 episodes bit for bit), and `--dry-run` prints the config and the folders only."""
     import csv
 
-    committed = Path(__file__).resolve().parent.parent / "results" / "cartpole" / "faithful" / "seed_0"
+    committed = committed_seed("cartpole/faithful/seed_0")
     dry = run_cli(
         "reproduce", "cartpole", "--config", str(committed / "config.json"), "--dry-run", "--out", str(tmp_path / "dry")
     )

@@ -16,7 +16,6 @@ float rounding (``agree``): counts exactly, every other number within a relative
 
 from __future__ import annotations
 
-import json
 import math
 import subprocess
 import sys
@@ -26,6 +25,7 @@ from pathlib import Path
 import pytest
 
 from keras_rl.runs.replay import plan_replay, seed_rows, why_not_bit_exact
+from keras_rl.runs.run_set import RunSet
 
 pytestmark = pytest.mark.slow  # every test here trains whole runs
 
@@ -48,6 +48,15 @@ CASES = [
 
 def read_rows(path: Path) -> list[dict[str, str]]:
     return seed_rows(path)
+
+
+def committed_rows(seed_path: Path) -> list[dict[str, str]]:
+    """A committed seed's rows as written (from its set's runs.parquet), without wall time."""
+    return RunSet.seed_at(seed_path).text_rows()
+
+
+def committed_summary(seed_path: Path) -> dict:
+    return RunSet.seed_at(seed_path).summary_record()
 
 
 def agree(want: dict[str, str], have: dict[str, str], exact: bool) -> bool:
@@ -73,7 +82,7 @@ def test_committed_run_reproduces_bit_for_bit(tmp_path, folder, experiment, extr
     committed = RESULTS / folder
     if "--framework" in extra:
         pytest.importorskip("torch", reason="needs the torch extra")
-    summary = json.loads((committed / "summary.json").read_text())
+    summary = committed_summary(committed)
     why = why_not_bit_exact(summary.get("provenance", {}))
     if why is not None:
         warnings.warn(
@@ -107,7 +116,7 @@ def test_committed_seed_batch_reproduces_bit_for_bit(tmp_path, folder, experimen
     mates, so the same batch is rerun and every seed compared."""
     committed = RESULTS / folder
     first, last = (int(x) for x in seeds.split("-"))
-    summary = json.loads((committed / f"seed_{first}" / "summary.json").read_text())
+    summary = committed_summary(committed / f"seed_{first}")
     assert f"--seed-batch {last - first + 1}" in summary["command"]
     assert summary["provenance"]["seed_batch"] == list(range(first, last + 1))
     why = why_not_bit_exact(summary.get("provenance", {}))
@@ -140,7 +149,7 @@ def test_committed_seed_batch_reproduces_bit_for_bit(tmp_path, folder, experimen
     )
     assert proc.returncode == 0, proc.stderr
     for seed in range(first, last + 1):
-        expected = read_rows(committed / f"seed_{seed}" / "episodes.csv")[:episodes]
+        expected = committed_rows(committed / f"seed_{seed}")[:episodes]
         got = read_rows(out / f"seed_{seed}" / "episodes.csv")
         assert len(got) == len(expected), f"seed {seed}"
         for want, have in zip(expected, got):
@@ -162,7 +171,7 @@ def test_committed_compiled_seeds_replay_bit_for_bit_on_one_kept_program(tmp_pat
     program (``train/compiled.py:ProgramCache``): each seed's rows are the committed ones."""
     committed = RESULTS / folder
     first, last = (int(x) for x in seeds.split("-"))
-    summary = json.loads((committed / f"seed_{first}" / "summary.json").read_text())
+    summary = committed_summary(committed / f"seed_{first}")
     assert summary["provenance"]["engine"] == "compiled" and "--workers 1" in summary["command"]
     why = why_not_bit_exact(summary.get("provenance", {}))
     if why is not None:
@@ -179,7 +188,7 @@ def test_committed_compiled_seeds_replay_bit_for_bit_on_one_kept_program(tmp_pat
     )
     assert proc.returncode == 0, proc.stderr
     for seed in range(first, last + 1):
-        expected = read_rows(committed / f"seed_{seed}" / "episodes.csv")
+        expected = committed_rows(committed / f"seed_{seed}")
         expected = expected[:episodes] if episodes else expected
         got = read_rows(out / f"seed_{seed}" / "episodes.csv")
         assert len(got) == len(expected), f"seed {seed}"

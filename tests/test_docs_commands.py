@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from keras_rl.cli import build_parser, main
+from keras_rl.runs.run_set import RunSet
 
 ROOT = Path(__file__).resolve().parent.parent
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -123,9 +124,9 @@ def test_the_readmes_commands_chain():
 def test_no_message_advises_overwriting_committed_results(capsys):
     """A command aimed at a committed results/ folder is told to use its own --out, not
     --overwrite, which would replace committed results."""
-    seed = ROOT / "results" / "pendulum" / "faithful" / "seed_0"
-    assert seed.is_dir()
-    assert main(["reproduce", "pendulum", "--seeds", "0", "--dry-run", "--out", str(seed.parent)]) == 2
+    committed = ROOT / "results" / "pendulum" / "faithful"
+    assert 0 in RunSet(committed).seeds
+    assert main(["reproduce", "pendulum", "--seeds", "0", "--dry-run", "--out", str(committed)]) == 2
     err = capsys.readouterr().err
     assert "--overwrite" not in err and "pass --out for a folder of your own" in err
 

@@ -9,6 +9,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+from committed import committed_seed
 
 from keras_rl.errors import ConfigError
 from keras_rl.runs import jobs
@@ -17,7 +18,7 @@ from keras_rl.train import engine as engines
 from keras_rl.train.settings import TrainSettings
 
 ROOT = Path(__file__).resolve().parent.parent
-PENDULUM_SEED = ROOT / "results" / "pendulum" / "faithful" / "seed_0"
+PENDULUM_SEED = committed_seed("pendulum/faithful/seed_0")
 
 
 class RecordingEngine:

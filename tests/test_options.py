@@ -9,6 +9,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+from committed import committed_seed
 
 from keras_rl.cli import build_parser, main, parse_args
 from keras_rl.errors import ConfigError
@@ -139,7 +140,7 @@ def test_set_folders_are_named_from_parsed_values(capsys):
 
 def test_resume_keeps_a_completed_run_by_its_summary_status(tmp_path, capsys):
     out = tmp_path / "runs"
-    shutil.copytree(REPO / "results" / "pendulum" / "faithful" / "seed_0", out / "seed_0")
+    shutil.copytree(committed_seed("pendulum/faithful/seed_0"), out / "seed_0")
     assert main(["reproduce", "pendulum", "--seeds", "0-1", "--out", str(out), "--resume", "--dry-run"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[-2].endswith("(completed, kept)") and lines[-1].endswith("seed_1 (new)")

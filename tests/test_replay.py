@@ -6,6 +6,8 @@ import csv
 import json
 from pathlib import Path
 
+from committed import committed_seed
+
 from keras_rl.runs.replay import first_divergence, plan_replay, seed_rows
 
 RESULTS = Path(__file__).resolve().parent.parent / "results"
@@ -43,9 +45,10 @@ def test_the_timing_column_is_not_compared(tmp_path):
 
 def test_a_whole_run_replays_with_its_own_budget_and_a_cut_one_with_its_length():
     folder = RESULTS / "pendulum" / "faithful" / "seed_0"
-    config = json.loads((folder / "config.json").read_text())
-    whole = plan_replay(folder, "pendulum")
-    assert whole.budget == config["episodes"] and len(whole.expected) == len(seed_rows(folder / "episodes.csv"))
+    config = json.loads((committed_seed("pendulum/faithful/seed_0") / "config.json").read_text())
+    whole = plan_replay(folder, "pendulum")  # read from the packed set
+    assert whole.expected == seed_rows(committed_seed("pendulum/faithful/seed_0") / "episodes.csv")
+    assert whole.budget == config["episodes"]
     first = plan_replay(folder, "pendulum", 7)
     assert first.budget == 7 and len(first.expected) == 7
     command = first.command(Path("OUT"), "--framework", "torch", python="py")

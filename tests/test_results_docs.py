@@ -85,16 +85,13 @@ def test_fidelitys_measured_effect_tables_are_up_to_date():
 
 
 def test_every_committed_run_records_the_commit_and_clean_tree_that_made_it():
-    import json
 
-    summaries = sorted((ROOT / "results").glob("**/seed_*/summary.json"))
+    from keras_rl.runs.run_set import RunSet
+
+    summaries = [(r.where, r.summary_record()) for s in RunSet.find(ROOT / "results") for r in s.runs()]
     assert len(summaries) > 500
-    missing = [
-        str(p.parent.relative_to(ROOT))
-        for p in summaries
-        if not json.loads(p.read_text()).get("provenance", {}).get("commit")
-    ]
-    dirty = [str(p.parent.relative_to(ROOT)) for p in summaries if json.loads(p.read_text())["provenance"].get("dirty")]
+    missing = [where for where, s in summaries if not s.get("provenance", {}).get("commit")]
+    dirty = [where for where, s in summaries if s["provenance"].get("dirty")]
     assert not missing, f"runs without provenance (regenerate them): {missing[:5]}"
     assert not dirty, f"runs made from a dirty tree (regenerate them from a clean checkout): {dirty[:5]}"
 
@@ -242,14 +239,14 @@ def test_a_planned_reading_reads_its_seeds_only_and_waits_for_all_of_them(tmp_pa
     """A comparison planned at N seeds (``first_seeds_only``: the tutorial fix's first and second
     looks) reads seeds 0 to N - 1 of both arms, whatever else they hold, and is pending until
     both hold every one of them: no reading of a part-landed arm."""
-    import shutil
+    from keras_rl.runs.run_set import RunSet
 
     gen = load_generator("forest")
     sources = {"a": ROOT / "results" / "cartpole" / "faithful-torch", "b": ROOT / "results" / "cartpole" / "faithful"}
 
     def put(name: str, seeds: range, under: str | None = None) -> None:
         for s in seeds:
-            shutil.copytree(sources[name] / f"seed_{s}", tmp_path / (under or name) / f"seed_{s}")
+            RunSet.seed_at(sources[name] / f"seed_{s}").extract(tmp_path / (under or name) / f"seed_{s}")
 
     put("a", range(0, 14))
     put("b", range(0, 8))

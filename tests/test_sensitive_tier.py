@@ -7,11 +7,11 @@ from __future__ import annotations
 
 import importlib.util
 import re
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
+from committed import copy_seeds
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -38,15 +38,8 @@ def test_the_held_out_report_flags_a_slow_mutant_and_not_the_baseline_itself(tmp
     mutants = tmp_path / "held-out-compiled"
     # the baseline's own seeds 100-199 as a "mutant" that changes nothing, and 30 of the
     # committed runs of critic_lr x0.3 (median about 190 episodes against 126) as one that does
-    first_hundred = {f"seed_{i}" for i in range(100)}
-    shutil.copytree(report.BASELINE, mutants / "buffer_x0.5", ignore=lambda d, names: first_hundred & set(names))
-    committed = report.MUTANTS / "critic_lr_x0.3"
-    thirty = {f"seed_{i}" for i in range(3000, 3030)}
-    shutil.copytree(
-        committed,
-        mutants / "critic_lr_x0.3",
-        ignore=lambda d, names: {n for n in names if n.startswith("seed_") and n not in thirty},
-    )
+    copy_seeds(report.BASELINE, mutants / "buffer_x0.5", lambda seed: seed >= 100)
+    copy_seeds(report.MUTANTS / "critic_lr_x0.3", mutants / "critic_lr_x0.3", lambda seed: 3000 <= seed < 3030)
     monkeypatch.setattr(report, "MUTANTS", mutants)
     monkeypatch.setattr(report, "DRAWS", 400)
     rows = {line.split("|")[1].strip(): line for line in report.table().splitlines() if line.startswith("| ")}
@@ -116,7 +109,7 @@ def test_the_sensitive_tiers_committed_rates_are_its_rules_on_the_committed_base
         rule = RULES[(post, "sensitive")]
         assert error_rates(rule) == entry["rates"], post
         folder = ROOT / entry["rule"]["baseline"]
-        assert entry["baseline_seeds"] == len(RunSet(folder).seed_dirs()), f"{post}: recalibrate, the baseline grew"
+        assert entry["baseline_seeds"] == len(RunSet(folder).seeds), f"{post}: recalibrate, the baseline grew"
         if "selection" in entry:
             assert entry["selection"]["chosen"] == {"statistic": rule.statistic, "alpha": rule.alpha}, post
         assert entry["rates"]["false_alarm_holm_first"] <= 0.01 / 3 + 0.002, post

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import csv
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from committed import copy_seeds
 
 ROOT = Path(__file__).resolve().parents[1]
 PUBLISHED = ROOT / "results" / "engines" / "cartpole" / "compiled"
@@ -19,10 +19,7 @@ FIX = ROOT / "results" / "cartpole" / "tutorial-fix" / "issue-3080"
 
 
 def arm(tmp_path: Path, name: str, seeds: range, source: Path = PUBLISHED) -> Path:
-    folder = tmp_path / name
-    for seed in seeds:
-        shutil.copytree(source / f"seed_{seed}", folder / f"seed_{seed}")
-    return folder
+    return copy_seeds(source, tmp_path / name, lambda seed: seed in seeds)
 
 
 def run(*args: str) -> subprocess.CompletedProcess:

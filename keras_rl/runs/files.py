@@ -194,7 +194,7 @@ def refuse_packed(run_dir: Path) -> None:
     if int(run_dir.name[5:]) in open_packed(packed).seeds:
         raise RunFolderError(
             f"seed {run_dir.name[5:]} of {run_dir.parent} is packed in {packed}, and a packed run is "
-            "never rewritten: pass another --out (or --runs) to run it again"
+            "never rewritten: pass --out for a folder of your own"
         )
 
 

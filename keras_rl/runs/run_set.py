@@ -100,6 +100,19 @@ class SeedRun:
             raise RunFolderError(f"{self.where} holds no {name}")
         return files[name]
 
+    def extract(self, dest: Path) -> Path:
+        """This seed as a run folder at ``dest``: a copy of its folder, or its packed records
+        written out (``config.json`` and ``summary.json`` as they were, ``episodes.csv`` with
+        wall time to the millisecond)."""
+        if self.folder is not None:
+            import shutil
+
+            shutil.copytree(self.folder, dest)
+            return Path(dest)
+        from keras_rl.runs.packed import extract
+
+        return extract(self.run_set.packed(), self.seed, dest)
+
     def config_path(self, scratch: Path) -> Path:
         """A ``config.json`` of this seed on disk (written under ``scratch`` where it is packed)."""
         if self.folder is not None:
