@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import tempfile
 from pathlib import Path
 
-from keras_rl.errors import ConfigError
+from keras_rl.errors import ConfigError, KerasRLError
 
 EXIT_OK, EXIT_CRITERION, EXIT_USAGE, EXIT_NO_VERDICT = 0, 1, 2, 3
 MAX_SEEDS = 10_000
@@ -110,6 +111,22 @@ def _check_seed_batch(seed_batch: int | str, experiment: str, framework: str) ->
         stacked_implementation(experiment, framework)  # a clear error if there is none
 
 
+def _config_text(path: Path) -> str:
+    """A recorded ``config.json``: the file, or where ``<set>/seed_<n>`` is packed, its copy in the
+    set's ``runs.parquet`` (``results/cartpole/faithful/seed_0/config.json`` names either)."""
+    from keras_rl.runs.run_set import SEED_FOLDER, RunSet
+
+    seed_dir = path.parent if path.name == "config.json" else path
+    if not path.is_file() and SEED_FOLDER.fullmatch(seed_dir.name) and (seed_dir.parent / "runs.parquet").is_file():
+        try:
+            run = RunSet.seed_at(seed_dir)
+        except KerasRLError:
+            pass
+        else:
+            return json.dumps(run.config())
+    return path.read_text()
+
+
 def _recorded_config(experiment, args: argparse.Namespace):
     """``--config``: the config a run folder recorded; the options it settles must not be given too."""
     import json
@@ -121,7 +138,7 @@ def _recorded_config(experiment, args: argparse.Namespace):
         raise ConfigError(f"--config gives the variant and framework; drop {', '.join(given)}")
     path = args.config if args.config.name == "config.json" or not args.config.is_dir() else args.config / "config.json"
     try:
-        values = json.loads(path.read_text())
+        values = json.loads(_config_text(path))
     except OSError as exc:
         raise ConfigError(f"--config {path}: cannot read it ({exc.strerror or exc})") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:

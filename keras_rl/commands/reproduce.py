@@ -18,9 +18,9 @@ from keras_rl.commands.common import (
     parse_seeds,
 )
 from keras_rl.errors import ConfigError
-from keras_rl.runs.files import refuse_packed
 from keras_rl.runs.lifecycle import _kept_runs, _start_modes
 from keras_rl.runs.options import RUN_FLAGS, RunOptions, path_arg, shared_flags
+from keras_rl.runs.packed import refuse_packed
 
 
 def add_parser(sub) -> None:

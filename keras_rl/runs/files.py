@@ -31,6 +31,28 @@ def run_folder(runs_root: Path, experiment: str, variant: str, framework: str, m
     return Path(runs_root) / experiment / f"{variant}{suffix}"
 
 
+SEED_FOLDER = re.compile(r"seed_(\d+)")
+"""The name of a run folder: ``seed_<n>``."""
+
+
+def seed_of(seed_dir: Path) -> int:
+    """The seed a run folder is named for (a ValueError for a name that is not ``seed_<n>``)."""
+    match = SEED_FOLDER.fullmatch(Path(seed_dir).name)
+    if match is None:
+        raise ValueError(f"{seed_dir} is not named seed_<n>")
+    return int(match.group(1))
+
+
+TIMING_COLUMNS = ("wall_seconds",)
+"""The one column of ``episodes.csv`` that is not a function of the seed."""
+
+
+def seed_rows(path: Path) -> list[dict[str, str]]:
+    """The rows of an ``episodes.csv`` as the exact text written, without the timing column."""
+    with open(path, newline="") as fh:
+        return [{k: v for k, v in row.items() if k not in TIMING_COLUMNS} for row in csv.DictReader(fh)]
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
@@ -182,22 +204,6 @@ class RunRecorder:
             self._text = (self.rows, len(self.rows), text)
 
 
-def refuse_packed(run_dir: Path) -> None:
-    """A seed that its set's ``runs.parquet`` holds is never written again beside it."""
-    from keras_rl.errors import RunFolderError
-
-    packed = run_dir.parent / "runs.parquet"
-    if not packed.is_file() or re.fullmatch(r"seed_(\d+)", run_dir.name) is None:
-        return
-    from keras_rl.runs.packed import open_packed
-
-    if int(run_dir.name[5:]) in open_packed(packed).seeds:
-        raise RunFolderError(
-            f"seed {run_dir.name[5:]} of {run_dir.parent} is packed in {packed}, and a packed run is "
-            "never rewritten: pass --out for a folder of your own"
-        )
-
-
 @contextlib.contextmanager
 def run_folder_locks(run_dirs: Iterable[Path]):
     """One writer per run folder: an exclusive ``flock`` on ``.<folder>.lock`` beside each
@@ -212,9 +218,6 @@ def run_folder_locks(run_dirs: Iterable[Path]):
     from keras_rl.errors import RunFolderError
 
     handles: list[tuple[Path, Any]] = []
-    run_dirs = [Path(d) for d in run_dirs]
-    for run_dir in run_dirs:
-        refuse_packed(run_dir)
     try:
         for run_dir in run_dirs:
             run_dir.parent.mkdir(parents=True, exist_ok=True)

@@ -27,6 +27,7 @@ from keras_rl.registry import get_experiment
 from keras_rl.runs.checkpoint import checkpoint_batch
 from keras_rl.runs.evaluate import EvalSchedule
 from keras_rl.runs.files import run_folder_locks
+from keras_rl.runs.packed import refuse_packed
 from keras_rl.runs.provenance import command_line
 from keras_rl.runs.signals import sigterm_as_interrupt
 from keras_rl.runs.summary import RunSummary
@@ -167,6 +168,8 @@ def opened(job, progress: bool = True, position: int = 0) -> Iterator[Callable[.
     experiment = get_experiment(group[0].experiment)
     configs = [experiment.config_cls.from_dict(j.config) for j in group]
     first = group[0]
+    for j in group:
+        refuse_packed(Path(j.out_dir))
     with run_folder_locks(j.out_dir for j in group):
         for j in group:
             if j.start == "overwrite" and Path(j.out_dir).exists():

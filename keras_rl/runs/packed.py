@@ -31,7 +31,17 @@ from pathlib import Path
 from typing import Any
 
 from keras_rl.errors import RunFolderError
-from keras_rl.runs.files import INTEGER_COLUMNS, atomic_write_bytes, atomic_write_text, format_row, read_episodes
+from keras_rl.runs.files import (
+    INTEGER_COLUMNS,
+    SEED_FOLDER,
+    TIMING_COLUMNS,
+    atomic_write_bytes,
+    atomic_write_text,
+    format_row,
+    read_episodes,
+    seed_of,
+    seed_rows,
+)
 
 PACKED = "runs.parquet"
 """The packed set's file name, in the set's folder."""
@@ -106,8 +116,6 @@ class SeedRecord:
 
     def text_rows(self) -> list[dict[str, str]]:
         """The rows as ``episodes.csv`` writes them, without the timing column."""
-        from keras_rl.runs.replay import TIMING_COLUMNS
-
         kept = tuple(c for c in self.columns if c not in TIMING_COLUMNS)
         return [format_row(row, kept) for row in self.rows]
 
@@ -121,24 +129,33 @@ class PackedSet:
         self.columns: tuple[str, ...] = tuple(head["columns"])
         self._configs: list[dict[str, Any]] = head["configs"]
         self._records: dict[int, dict[str, Any]] = {int(r["seed"]): r for r in head["records"]}
-        self._episodes: dict[int, list[dict[str, Any]]] | None = None
+        self._episodes: tuple[Any, dict[int, tuple[int, int]]] | None = None
 
     @property
     def seeds(self) -> list[int]:
         return sorted(self._records)
 
-    def _rows(self) -> dict[int, list[dict[str, Any]]]:
+    def _slices(self) -> tuple[Any, dict[int, tuple[int, int]]]:
+        """The episodes table (read once) and each seed's first row and row count in it."""
         if self._episodes is None:
+            import numpy as np
+
             _, pq = _pyarrow()
             table = pq.read_table(self.path)
-            values = {name: table.column(_stored(name)).to_pylist() for name in ("seed", *self.columns)}
-            if WALL in values:
-                values[WALL] = [None if ms is None else ms / 1000 for ms in values[WALL]]
-            by_seed: dict[int, list[dict[str, Any]]] = {s: [] for s in self._records}
-            for i, seed in enumerate(values["seed"]):
-                by_seed[seed].append({c: values[c][i] for c in self.columns})
-            self._episodes = by_seed
+            seeds, first, count = np.unique(table.column("seed").to_numpy(), return_index=True, return_counts=True)
+            spans = {int(s): (int(i), int(n)) for s, i, n in zip(seeds, first, count)}
+            self._episodes = (table, spans)
         return self._episodes
+
+    def _seed_rows(self, seed: int) -> list[dict[str, Any]]:
+        table, spans = self._slices()
+        if seed not in spans:
+            return []
+        part = table.slice(*spans[seed])
+        values = {c: part.column(_stored(c)).to_pylist() for c in self.columns}
+        if WALL in values:
+            values[WALL] = [None if ms is None else ms / 1000 for ms in values[WALL]]
+        return [dict(zip(self.columns, row)) for row in zip(*(values[c] for c in self.columns))]
 
     def record(self, seed: int) -> SeedRecord:
         if seed not in self._records:
@@ -151,7 +168,9 @@ class PackedSet:
             config["seed"] = seed
             config_text = _json_text(config)
         summary_text = r.get("summary_text") or _json_text(r["summary"])
-        return SeedRecord(seed, config_text, summary_text, self.columns, self._rows()[seed], dict(r.get("files", {})))
+        return SeedRecord(
+            seed, config_text, summary_text, self.columns, self._seed_rows(seed), dict(r.get("files", {}))
+        )
 
     def summary_record(self, seed: int) -> dict[str, Any]:
         r = self._records[seed]
@@ -168,10 +187,10 @@ class PackedSet:
     def rows(self, seed: int) -> list[dict[str, Any]]:
         if seed not in self._records:
             raise RunFolderError(f"{self.path} holds no seed {seed}")
-        return [dict(row) for row in self._rows()[seed]]
+        return self._seed_rows(seed)
 
 
-@functools.lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=128)
 def _open(path: str, size: int, mtime_ns: int) -> PackedSet:
     return PackedSet(Path(path))
 
@@ -197,13 +216,25 @@ def _ranges(seeds: Iterable[int]) -> str:
     return ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in spans) or "none"
 
 
+def refuse_packed(run_dir: Path) -> None:
+    """A seed that its set's ``runs.parquet`` holds is never written again beside it."""
+    run_dir = Path(run_dir)
+    packed = run_dir.parent / PACKED
+    if not packed.is_file() or SEED_FOLDER.fullmatch(run_dir.name) is None:
+        return
+    if seed_of(run_dir) in open_packed(packed).seeds:
+        raise RunFolderError(
+            f"seed {run_dir.name[5:]} of {run_dir.parent} is packed in {packed}, and a packed run is "
+            "never rewritten: pass --out for a folder of your own"
+        )
+
+
 # -- packing ---------------------------------------------------------------------------------
 
 
 def _seed_entry(seed_dir: Path, seed: int, configs: dict[str, int], config_list: list) -> tuple[dict, list, tuple]:
     """One seed folder's record for the metadata, its typed rows and its columns; a
     RunFolderError for a folder that cannot be packed without losing something."""
-    from keras_rl.runs.replay import seed_rows
     from keras_rl.runs.summary import RunSummary
 
     files = {p.name: p for p in seed_dir.iterdir() if not p.name.startswith(".")}
@@ -358,8 +389,6 @@ def pack(folder: Path, keep_folders: bool = False) -> tuple[Path, list[int]]:
     folders (unless ``keep_folders``). Returns the file and the seeds newly packed."""
     import shutil
 
-    from keras_rl.runs.run_set import SEED_FOLDER, seed_of
-
     folder = Path(folder)
     if not folder.is_dir():
         raise RunFolderError(f"{folder} is not a folder")
@@ -392,8 +421,6 @@ def check_packed(packed: PackedSet, seed_dirs: list[tuple[int, Path]]) -> None:
     """Each folder's records read back from ``packed`` as they are on disk: ``config.json``,
     ``summary.json`` and the other files byte for byte, ``episodes.csv`` in every column but
     wall time, and wall time within half a millisecond."""
-    from keras_rl.runs.replay import seed_rows
-
     for seed, seed_dir in seed_dirs:
         record = packed.record(seed)
         for name, text in (("config.json", record.config_text), ("summary.json", record.summary_text)):

@@ -9,19 +9,22 @@ replay test (``tests/test_committed_runs_replay.py``) and the version matrix
 
 from __future__ import annotations
 
-import csv
 import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-TIMING_COLUMNS = ("wall_seconds",)  # the one column that is not a function of the seed
+from keras_rl.runs.files import TIMING_COLUMNS, seed_rows
 
-
-def seed_rows(path: Path) -> list[dict[str, str]]:
-    """The rows of an ``episodes.csv`` as the exact text written, without the timing column."""
-    with open(path, newline="") as fh:
-        return [{k: v for k, v in row.items() if k not in TIMING_COLUMNS} for row in csv.DictReader(fh)]
+__all__ = [
+    "TIMING_COLUMNS",
+    "Divergence",
+    "Replay",
+    "first_divergence",
+    "plan_replay",
+    "seed_rows",
+    "why_not_bit_exact",
+]
 
 
 @dataclass(frozen=True)

@@ -14,24 +14,15 @@ come in seed order. Nothing here imports TensorFlow.
 from __future__ import annotations
 
 import json
-import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from keras_rl.errors import RunFolderError
+from keras_rl.runs.files import SEED_FOLDER, seed_of
 
-SEED_FOLDER = re.compile(r"seed_(\d+)")
-"""The name of a run folder: ``seed_<n>``."""
-
-
-def seed_of(seed_dir: Path) -> int:
-    """The seed a run folder is named for (a ValueError for a name that is not ``seed_<n>``)."""
-    match = SEED_FOLDER.fullmatch(Path(seed_dir).name)
-    if match is None:
-        raise ValueError(f"{seed_dir} is not named seed_<n>")
-    return int(match.group(1))
+__all__ = ["SEED_FOLDER", "RunSet", "SeedRun", "seed_of"]
 
 
 @dataclass(frozen=True)
@@ -85,7 +76,7 @@ class SeedRun:
 
     def text_rows(self) -> list[dict[str, str]]:
         """The rows as the exact text written, without the timing column (what a replay compares)."""
-        from keras_rl.runs.replay import seed_rows
+        from keras_rl.runs.files import seed_rows
 
         if self.folder is not None:
             return seed_rows(self.folder / "episodes.csv")
