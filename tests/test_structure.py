@@ -243,42 +243,6 @@ def test_every_command_trains_its_seeds_one_way():
     assert callers == [], callers
 
 
-@pytest.mark.slow
-def test_one_parameter_reaches_its_use_through_at_most_eight_frames(tmp_path, monkeypatch):
-    """Issue 33: the call stack inside ``soft_update`` while ``keras-rl reproduce pendulum --set
-    tau=0.005`` builds and traces its learner. Counted: the project's own functions from
-    ``main`` to ``soft_update``, both included, and autograph's converted copies of them. It
-    was 17 (``main → reproduce → train_seeds → run_jobs → run → execute → train → run_seeds →
-    build_seed_axis → post000_learner → with_adam → __init__ → compile_step → _train_rows →
-    update → soft_update_targets → soft_update``); CleanRL takes 2, SB3 5."""
-    import traceback
-
-    import tensorflow as tf
-
-    import keras_rl.learners.ddpg as ddpg
-    from keras_rl.cli import main
-
-    package = str(Path(__file__).resolve().parents[1] / "keras_rl")
-    stacks: list = []
-    real = ddpg.soft_update
-
-    @tf.autograph.experimental.do_not_convert
-    def soft_update(target, source, tau, seeds=None):
-        if not stacks:
-            stacks.append([(f.name, f.filename) for f in traceback.extract_stack()])
-            assert tau == 0.005  # the value from the command line, as a float
-        return real(target, source, tau, seeds)
-
-    monkeypatch.setattr(ddpg, "soft_update", soft_update)
-    argv = ["reproduce", "pendulum", "--set", "tau=0.005", "--episodes", "1", "--seeds", "0", "--workers", "1"]
-    main([*argv, "--no-progress", "--min-success-rate", "0", "--out", str(tmp_path / "run")])
-    (stack,) = stacks
-    ours = [name for name, file in stack[:-1] if file.startswith(package) or "__autograph_generated_file" in file]
-    path = [*ours, "soft_update"]
-    assert path[0] == "main" and "tf__update" in path, path
-    assert len(path) <= 8, " -> ".join(path)
-
-
 def test_reproductions_holds_the_ledger_settlements_and_analyses_only():
     """Issue 33: the calibration and the table generators are package commands
     (``keras-rl calibrate``, ``keras-rl tables``, ``keras-rl manifest``), the matrix scripts sit

@@ -297,7 +297,9 @@ class SoloAsStack:
                 f"{type(learner).__name__} has no compile() (keras_rl/learners/protocol.Learner): a learner "
                 "traces its compiled steps there, or defines it to do nothing"
             )
-        self.compile = learner.compile  # the solo learner's own: no frame of ours between
+
+    def compile(self) -> None:
+        self.learner.compile()
 
     @staticmethod
     def _one(losses) -> dict[str, np.ndarray]:

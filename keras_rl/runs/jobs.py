@@ -12,12 +12,10 @@ outcome is read back from disk, so an interrupted worker still reports what it k
 
 from __future__ import annotations
 
-import functools
 import json
 import math
 import shutil
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, Protocol
@@ -157,13 +155,10 @@ class JobsOutcome:
     interrupted: bool = False
 
 
-@contextmanager
-def opened(job, progress: bool = True, position: int = 0) -> Iterator[Callable[..., list[RunSummary]]]:
-    """A job (a seed, or a batch of seeds) made ready to train here: its folders locked (a second
-    command writing them is refused) and, for ``overwrite``, cleared whole (no weights or
-    ``evaluation.json`` of the old run survive). Yields its engine's ``train``
-    (``train/engine.py``) with every argument bound but ``should_stop``; the caller calls it
-    itself, so no frame of ours stands between the backend and the engine."""
+def run_job(job, progress: bool = True, position: int = 0, should_stop=None) -> list[RunSummary]:
+    """Train a job (a seed, or a batch of seeds) here on its engine (``train/engine.py``): its
+    folders locked (a second command writing them is refused) and, for ``overwrite``, cleared
+    whole (no weights or ``evaluation.json`` of the old run survive). Returns each seed's summary."""
     group = members(job)
     experiment = get_experiment(group[0].experiment)
     configs = [experiment.config_cls.from_dict(j.config) for j in group]
@@ -184,7 +179,7 @@ def opened(job, progress: bool = True, position: int = 0) -> Iterator[Callable[.
             evaluation=first.evaluation,
         )
         engine = get_engine(first.engine)
-        yield functools.partial(engine.train, experiment, configs, [j.out_dir for j in group], settings)
+        return engine.train(experiment, configs, [j.out_dir for j in group], settings, should_stop=should_stop)
 
 
 def job_summary(summaries: list[RunSummary]) -> RunSummary:
@@ -196,8 +191,7 @@ def execute(job, progress: bool = True, position: int = 0, should_stop=None) -> 
     """Run one job here on its engine (a Ray worker's call); ``job_summary`` of its seeds.
     Drawing ``curve.png`` is the command's job (``train_seeds(..., after_job=...)``): nothing
     a worker imports reaches plotting."""
-    with opened(job, progress, position) as train:
-        return job_summary(train(should_stop=should_stop))
+    return job_summary(run_job(job, progress, position, should_stop))
 
 
 AfterJob = Callable[["SeedJob | SeedBatchJob"], None]
@@ -215,8 +209,7 @@ class InProcess:
             with sigterm_as_interrupt():  # between seeds too, SIGTERM stops like Ctrl-C
                 for job in jobs:
                     try:
-                        with opened(job, progress) as train:
-                            status = job_summary(train()).status
+                        status = job_summary(run_job(job, progress)).status
                     finally:
                         if after_job is not None:
                             after_job(job)

@@ -1,4 +1,4 @@
-"""The engine seam: what a backend calls (``runs/jobs.opened``) to train a set of seeds.
+"""The engine seam: what a backend calls (``runs/jobs.run_job``) to train a set of seeds.
 
 An engine takes one experiment, the seeds' configs (equal but for the seed), their run
 folders and one ``TrainSettings``, trains them, and leaves in each folder what the project's
@@ -54,7 +54,16 @@ class GymnasiumEngine:
     def refusal(self, experiment: Experiment, config) -> str | None:
         return None
 
-    train = staticmethod(run_seeds)  # the loop itself: no frame between the dispatcher and it
+    def train(
+        self,
+        experiment: Experiment,
+        configs: Sequence,
+        out_dirs: Sequence[Path],
+        settings: TrainSettings,
+        *,
+        should_stop: Callable[[], bool] | None = None,
+    ) -> list[RunSummary]:
+        return run_seeds(experiment, configs, out_dirs, settings, should_stop=should_stop)
 
 
 ENGINES: dict[str, Engine] = {"gymnasium": GymnasiumEngine(), "compiled": CompiledEngine()}

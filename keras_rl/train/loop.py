@@ -105,7 +105,7 @@ def run_seeds(
         raise ConfigError("seed-batched runs share one budget")
     configure_tensorflow(settings.threads)
     axis, envs = build_seed_axis(experiment, configs, envs)
-    axis.compile()  # the learner's own method: its trace runs from this frame
+    axis.compile()
     seeds = [
         _Seed(experiment, c, env, Path(d), axis.loss_names, settings.command)
         for c, env, d in zip(configs, envs, out_dirs)
@@ -198,10 +198,13 @@ class PartsAxis:
 
     def __init__(self, agents: list, learner: SeedAxisLearner):
         self.agents, self.learner = agents, learner
-        self.compile = learner.compile  # the learner's own
         self.loss_names = tuple(learner.loss_names)
         self.batches: list[list] = [[] for _ in agents]
         self.raw: list[Any] = []  # each seed's action from the learner, before exploration
+
+    def compile(self) -> None:
+        """The learner traces its compiled steps (once, before the first env step)."""
+        self.learner.compile()
 
     def _act(self, states: np.ndarray) -> None:
         self.raw = list(self.learner.act(states))
