@@ -16,7 +16,7 @@ install: $(BIN)/python
 	$(BIN)/pip install --quiet -c constraints.txt -e .
 
 install-test: $(BIN)/python
-	$(BIN)/pip install --quiet -c constraints.txt -e ".[test,torch]"
+	$(BIN)/pip install --quiet -c constraints.txt -e ".[test,torch,ray]"
 
 ## The main reproduction: post 000's faithful DDPG on Pendulum-v1 to EMA > -300.
 reproduce: install

@@ -707,44 +707,89 @@ def test_the_smallest_delay_is_searched_only_where_the_delayed_metric_is_defined
     assert module.delay_text({"delay": None, "defined_up_to": 250, "episodes": 250}) == "none up to 250 episodes"
 
 
-@pytest.mark.slow
-def test_check_runs_from_a_package_installed_outside_the_checkout(tmp_path):
-    """``pip install .`` (not editable) into a folder of its own, then ``check --dry-run`` from
-    another directory: the rules and the calibrated rates load from the installed package
-    (package data), the plan names them; without ``--against`` it says where baselines are."""
+def test_the_packaged_baselines_are_the_committed_ones():
+    """The check's baselines travel as package data (``keras_rl/check/baselines``): byte for
+    byte the committed packed sets, so an installed package checks against what a checkout does."""
+    root = Path(__file__).resolve().parents[1]
+    for post in ("pendulum", "cartpole", "mountaincar"):
+        packaged = command.PACKAGED_BASELINES / post / "baseline" / "runs.parquet"
+        committed = root / "results" / "checks" / post / "baseline" / "runs.parquet"
+        assert packaged.read_bytes() == committed.read_bytes(), (
+            f"{packaged} is stale: cp {committed.relative_to(root)} {packaged.relative_to(root)}"
+        )
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory):
+    """The wheel built from this checkout, installed into a folder of its own (its dependencies are
+    this environment's), and a directory outside the checkout to run it from."""
     import subprocess
     import sys
 
     root = Path(__file__).resolve().parents[1]
-    target = tmp_path / "site"
+    tmp = tmp_path_factory.mktemp("installed")
+    dist, target = tmp / "dist", tmp / "site"
+    pip = [sys.executable, "-m", "pip", "-q"]
     subprocess.run(
-        [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation", "--target", str(target)]
-        + [str(root)],
+        [*pip, "wheel", "--no-deps", "--no-build-isolation", "-w", str(dist), str(root)],
         check=True,
         capture_output=True,
-        cwd=tmp_path,
+        cwd=tmp,
         timeout=300,
     )
-    assert (target / "keras_rl" / "check" / "calibration.json").is_file()
-    env = {**__import__("os").environ, "PYTHONPATH": str(target)}
-    where = tmp_path / "elsewhere"
+    (wheel,) = dist.glob("keras_rl_repro-*.whl")
+    subprocess.run(
+        [*pip, "install", "--no-deps", "--target", str(target), str(wheel)], check=True, cwd=tmp, timeout=300
+    )
+    where = tmp / "elsewhere"
     where.mkdir()
+    return target, where, {**__import__("os").environ, "PYTHONPATH": str(target)}
 
-    def cli(*args):
-        return subprocess.run(
-            [sys.executable, "-m", "keras_rl", *args], cwd=where, env=env, capture_output=True, text=True, timeout=300
-        )
 
+def installed_cli(installed, *args):
+    import subprocess
+    import sys
+
+    _, where, env = installed
+    return subprocess.run(
+        [sys.executable, "-m", "keras_rl", *args], cwd=where, env=env, capture_output=True, text=True, timeout=900
+    )
+
+
+@pytest.mark.slow
+def test_check_runs_from_a_package_installed_outside_the_checkout(installed):
+    """The wheel installed into a folder of its own, then ``check --dry-run`` from another
+    directory: the rules, the calibrated rates and the baselines load from the installed package
+    (package data), and the plan names them."""
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+    target, where, env = installed
+    assert (target / "keras_rl" / "check" / "calibration.json").is_file()
+    assert (target / "keras_rl" / "check" / "baselines" / "pendulum" / "baseline" / "runs.parquet").is_file()
     probe = subprocess.run(
         [sys.executable, "-c", "import keras_rl; print(keras_rl.__file__)"], cwd=where, env=env, capture_output=True
     )
     assert probe.stdout.decode().startswith(str(target)), probe
-    planned = cli("check", "pendulum", "--dry-run", "--against", str(root / "results" / "checks"))
-    assert planned.returncode == 0, planned.stderr
-    assert "fresh seeds 1000-1009 (10) on the compiled engine against a baseline of 200" in planned.stdout
+    for against in ((), ("--against", str(root / "results" / "checks"))):
+        planned = installed_cli(installed, "check", "pendulum", "--dry-run", *against)
+        assert planned.returncode == 0, planned.stderr
+        assert "fresh seeds 1000-1009 (10) on the compiled engine against a baseline of 200" in planned.stdout
     rates = command.error_rates(rule_for("pendulum", "smoke"), target / "keras_rl" / "check" / "calibration.json")
     assert rates is not None  # the installed calibration.json, whose rate the plan states
     assert f"measured false-alarm rate {rates['false_alarm_rate']:.3g}" in planned.stdout
     assert not (where / "check-runs").exists()  # a dry run writes nothing
-    bare = cli("check", "pendulum", "--dry-run")
-    assert bare.returncode == 2 and "pass --against FOLDER" in bare.stderr, bare.stderr
+
+
+@pytest.mark.slow
+def test_an_installed_package_checks_a_post_to_a_verdict_from_another_directory(installed):
+    """Issue: the check from ``pip install``. The installed wheel trains the smoke tier's fixed
+    fresh seeds from a directory outside the checkout and reads its baselines from the package:
+    a verdict, "consistent" on a main that has not changed pendulum's learner."""
+    target, where, _ = installed
+    done = installed_cli(installed, "check", "pendulum", "--tier", "smoke", "--no-progress", "--workers", "2")
+    assert done.returncode == 0, done.stdout + done.stderr
+    report = json.loads((where / "check-runs" / "check.json").read_text())
+    assert [e["verdict"] for e in report["experiments"]] == ["consistent"], done.stdout
+    assert not (target / "results").exists()  # no checkout beside the package: its own baselines

@@ -155,6 +155,6 @@ def test_ctrl_c_leaves_valid_files_marked_unfinished(tmp_path, seeds, workers):
     assert summary["status"] == "interrupted" and summary["finished"] is False
     rows = read_episodes(csv)
     assert len(rows) >= 3 and summary["episodes_run"] == len(rows)
-    assert not list((out / "seed_0").glob(".*.tmp"))  # no half-written temporary files
+    assert not list((out / "seed_0").glob(".tmp-*"))  # no half-written temporary files
     if workers > 1:
         assert not (out / "seed_2").exists()  # the queued seed never started

@@ -299,3 +299,27 @@ def test_the_lock_files_go_when_the_block_ends(tmp_path):
     with run_folder_locks(runs):
         assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [f".seed_{s}.lock" for s in range(3)]
     assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_episodes_are_appended_not_rewritten_and_a_cut_run_is_written_anew(tmp_path):
+    """Each episode adds its line to ``episodes.csv`` in place (bytes written grow with the run,
+    not with its square); rows a resume replaced are written whole, atomically."""
+    import os
+
+    from keras_rl.runs.files import RunRecorder, read_episodes
+
+    def row(n: int) -> dict:
+        return {"episode": n, "steps": 200, "total_steps": 200 * n, "score": -1.5 * n, "metric": -1.0, "loss": None}
+
+    recorder = RunRecorder(tmp_path, ("loss",))
+    path = tmp_path / "episodes.csv"
+    recorder.add_episode(row(1))
+    first = os.stat(path).st_ino
+    head = path.read_bytes()
+    recorder.add_episode(row(2))
+    recorder.add_episode(row(3))
+    assert os.stat(path).st_ino == first and path.read_bytes().startswith(head)  # the same file, grown
+    assert [r["episode"] for r in read_episodes(path)] == [1, 2, 3]
+    recorder.rows = recorder.rows[:1]  # as a resume from an earlier checkpoint cuts them
+    recorder.add_episode(row(2))
+    assert os.stat(path).st_ino != first and [r["episode"] for r in read_episodes(path)] == [1, 2]

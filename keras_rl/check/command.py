@@ -55,18 +55,22 @@ SENSITIVE_RATES = Path(__file__).with_name("sensitive.json")
 SEQUENTIAL = Path(__file__).with_name("sequential.json")
 """Each post's calibrated sequential design and its measured rates (package data)."""
 BASELINES = Path(__file__).resolve().parents[2] / "results" / "checks"
-"""The committed baselines (``<experiment>/<rule.baseline>/seed_<n>``), in a checkout. A package
-installed elsewhere has none beside it: ``--against`` names a checkout's."""
+"""The committed baselines (``<experiment>/<rule.baseline>/runs.parquet``), in a checkout."""
+PACKAGED_BASELINES = Path(__file__).with_name("baselines")
+"""The same baselines as package data (``<experiment>/baseline/runs.parquet``, copies of the
+checkout's, which a test holds equal), so an installed package checks without a checkout."""
 
 
 def default_baselines() -> Path:
-    """``--against``'s default: this checkout's committed baselines, or a clear error."""
-    if not BASELINES.is_dir():
-        raise ConfigError(
-            f"no committed baselines beside this keras_rl ({Path(__file__).resolve().parents[1]}); "
-            "pass --against FOLDER, a checkout's results/checks"
-        )
-    return BASELINES
+    """``--against``'s default: this checkout's committed baselines, else the package's own."""
+    if BASELINES.is_dir():
+        return BASELINES
+    if PACKAGED_BASELINES.is_dir():
+        return PACKAGED_BASELINES
+    raise ConfigError(
+        f"no committed baselines beside this keras_rl ({Path(__file__).resolve().parents[1]}) and none in "
+        "the package; pass --against FOLDER, a checkout's results/checks"
+    )
 
 
 MARKER = "check.json"

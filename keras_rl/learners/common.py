@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -37,16 +36,10 @@ def soft_update(target: Sequence[Any], source: Sequence[Any], tau: float, seeds:
 
 
 def save_weights(model, path: Path) -> None:
-    """``model.save_weights`` to a temporary ``.weights.h5`` name, then rename."""
-    path = Path(path)
-    tmp = path.with_name(f".tmp-{os.getpid()}-{path.name}")
-    try:
-        model.save_weights(str(tmp))
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise OSError(f"could not write {path}: {exc}") from exc
-    finally:
-        tmp.unlink(missing_ok=True)
+    """``model.save_weights``, atomically (``runs/files.atomic_replace``)."""
+    from keras_rl.runs.files import atomic_replace
+
+    atomic_replace(path, lambda tmp: model.save_weights(str(tmp)))
 
 
 def load_weights(model, path: Path) -> None:

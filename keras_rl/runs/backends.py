@@ -1,4 +1,4 @@
-"""Which backend runs a command's seeds: in-process, or Ray (local or a cluster)."""
+"""Which backend runs a command's seeds: in-process, a pool of processes, or a Ray cluster."""
 
 from __future__ import annotations
 
@@ -12,12 +12,18 @@ if TYPE_CHECKING:
 
 
 def backend_for(workers: int, jobs: int, address: str | None = None) -> Backend:
-    """In-process for one worker and no cluster (no start-up cost); Ray otherwise: a local
-    instance of ``workers`` CPUs, or the cluster at ``address``."""
-    if address is None and (workers <= 1 or jobs <= 1):
-        return InProcess()
-    from keras_rl.runs.ray_backend import RayBackend
+    """In-process for one worker (no start-up cost); the standard library's process pool for
+    ``--workers N`` on this machine (``runs/pool_backend.py``); Ray for a cluster at ``address``
+    (the ``ray`` extra)."""
+    if address is None:
+        if workers <= 1 or jobs <= 1:
+            return InProcess()
+        from keras_rl.runs.pool_backend import ProcessPool
 
+        return ProcessPool(workers=workers)
+    from keras_rl.runs.ray_backend import RayBackend, require_ray
+
+    require_ray()
     return RayBackend(workers=workers, address=address)
 
 

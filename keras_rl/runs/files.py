@@ -16,7 +16,7 @@ import math
 import os
 import re
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -62,17 +62,22 @@ def _umask() -> int:
 _FILE_MODE = 0o666 & ~_umask()
 
 
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write to a temporary file beside ``path``, fsync, then rename over it. The file gets
-    the usual permissions (``0666`` less the umask), like any other file the user writes."""
+def atomic_replace(path: Path, write: Callable[[Path], object]) -> None:
+    """The one atomic writer: ``write`` fills a temporary file beside ``path`` (its name ends
+    with ``path``'s, as Keras's ``save_weights`` wants), which is fsynced and renamed over
+    ``path``. The file gets the usual permissions (``0666`` less the umask), like any other
+    file the user writes. A failure leaves ``path`` as it was, and names it."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=f"-{path.name}")
+    os.close(fd)
     try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
+        write(Path(tmp))
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
         os.chmod(tmp, _FILE_MODE)
         os.replace(tmp, path)
     except OSError as exc:  # a full disk: the message names the file it could not write
@@ -83,6 +88,11 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """``data`` into ``path``, atomically (``atomic_replace``)."""
+    atomic_replace(path, lambda tmp: tmp.write_bytes(data))
 
 
 def atomic_write_text(path: Path, text: str) -> None:
@@ -182,26 +192,43 @@ class RunRecorder:
     def __post_init__(self) -> None:
         self.out_dir = Path(self.out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        self._text: tuple[list, int, str] | None = None  # (the rows list, its length, their CSV text)
+        self._written: tuple[list, int] | None = None  # (the rows list, its length) as episodes.csv holds them
 
     def write_config(self, config_dict: dict[str, Any]) -> None:
         atomic_write_json(self.out_dir / "config.json", config_dict)
 
     def add_episode(self, row: dict[str, Any]) -> None:
-        """The whole file, rewritten atomically with the new row; the rows already written
-        are formatted once, not again at every episode (``rows`` replaced or cut, as a
-        resume does, is formatted afresh)."""
+        """The new row appended to ``episodes.csv`` in one ``write`` (a kill leaves it whole or
+        absent), where the file holds exactly ``rows``; otherwise (a first episode, ``rows``
+        replaced or cut, as a resume does) the whole file written atomically."""
         columns = episode_columns(self.loss_names)
-        cached = self._text
-        if cached is not None and cached[0] is self.rows and cached[1] == len(self.rows):
-            text = cached[2] + episodes_csv_text([row], columns, header=False)
-        else:
-            text = episodes_csv_text([*self.rows, row], columns)
+        path = self.out_dir / "episodes.csv"
         # The file and the in-memory rows change together: Ctrl-C waits for both.
         with stop_signals_deferred():
-            atomic_write_text(self.out_dir / "episodes.csv", text)
+            written = self._written
+            if written is not None and written[0] is self.rows and written[1] == len(self.rows) and path.is_file():
+                _append(path, episodes_csv_text([row], columns, header=False).encode("utf-8"))
+            else:
+                atomic_write_text(path, episodes_csv_text([*self.rows, row], columns))
             self.rows.append(row)
-            self._text = (self.rows, len(self.rows), text)
+            self._written = (self.rows, len(self.rows))
+
+
+def _append(path: Path, data: bytes) -> None:
+    """``data`` at the end of ``path`` in one ``write`` call; a short write is undone."""
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+    try:
+        size = os.fstat(fd).st_size
+        try:
+            written = os.write(fd, data)
+        except OSError as exc:  # a full disk: the message names the file
+            os.ftruncate(fd, size)
+            raise OSError(exc.errno, f"could not write {path}: {exc.strerror or exc}") from exc
+        if written != len(data):
+            os.ftruncate(fd, size)
+            raise OSError(f"could not write {path}: {written} of {len(data)} bytes written")
+    finally:
+        os.close(fd)
 
 
 @contextlib.contextmanager

@@ -89,8 +89,9 @@ class RunOptions:
         """A ConfigError unless the cluster at ``address`` (if any) answers; call it once the
         rest of the input is known to be good."""
         if self.address:
-            from keras_rl.runs.ray_backend import check_reachable
+            from keras_rl.runs.ray_backend import check_reachable, require_ray
 
+            require_ray()
             check_reachable(self.address, source=self.address_source)
 
     def config_changes(self) -> dict[str, int]:

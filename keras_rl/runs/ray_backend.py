@@ -116,6 +116,17 @@ class _StopFlag:
         return self.value
 
 
+def require_ray() -> None:
+    """A ConfigError (exit 2) saying how to get Ray, where it is not installed."""
+    import importlib.util
+
+    if importlib.util.find_spec("ray") is None:
+        raise ConfigError(
+            "--address (or $RAY_ADDRESS) runs seeds on a Ray cluster, and Ray is not installed: "
+            "pip install 'keras-rl-repro[ray]' (--workers N alone needs no Ray)"
+        )
+
+
 def check_reachable(address: str, timeout: float = 5.0, source: str = "--address") -> None:
     """A ConfigError within ``timeout`` seconds if nothing listens at ``HOST:PORT``, instead of
     Ray's own long retries. ``source`` names where the address came from (``--address`` or

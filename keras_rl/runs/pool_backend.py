@@ -1,0 +1,161 @@
+"""``--workers N`` on this machine: seeds in a pool of the standard library's processes, no Ray.
+
+Each job (a seed, or a seed batch) runs in a fresh process (``spawn``: TensorFlow does not
+survive ``fork``) of a ``concurrent.futures.ProcessPoolExecutor``, writing its folder in place,
+as ``InProcess`` would. On Ctrl-C or SIGTERM the driver starts no queued job, sets a stop flag
+that running seeds poll at their next episode end, and waits for them: their summaries say
+``interrupted``. The workers ignore SIGINT themselves (a terminal's Ctrl-C reaches the whole
+process group), so the flag is the one way they stop. A job that raises is named on the console
+and the others go on. A worker that dies (``kill -9``, out of memory) breaks the pool: its jobs,
+and the others that were running, start again in a new pool from the beginning (or from their
+checkpoint, for a resumed job), at most ``MAX_RETRIES`` times each; the seeds are functions of
+their seed, so they write the same ``episodes.csv``. Ray (``pip install 'keras-rl-repro[ray]'``)
+is for ``--address``, a cluster.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from keras_rl.runs.jobs import AfterJob, SeedBatchJob, execute, members
+from keras_rl.runs.signals import sigterm_as_interrupt
+
+_stop: Any = None
+"""The driver's stop flag, in each worker (set by ``_start_worker``)."""
+
+STOP_WAIT_SECONDS = 300
+"""How long the driver waits for running seeds to stop after Ctrl-C."""
+MAX_RETRIES = 3
+"""How often a job starts again after its worker died."""
+
+
+def _start_worker(stop) -> None:
+    import signal
+
+    global _stop
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _stop = stop
+
+
+def _run_job(job) -> None:
+    execute(job, progress=False, should_stop=_stop.is_set)
+
+
+@dataclass
+class ProcessPool:
+    """Up to ``workers`` jobs at once, each in a process of its own."""
+
+    workers: int
+
+    def run(self, jobs: list, progress: bool, after_job: AfterJob | None = None) -> bool:
+        import multiprocessing
+
+        context = multiprocessing.get_context("spawn")
+        stop = context.Event()
+        size = max(1, min(self.workers, len(jobs)))
+
+        def new_pool() -> ProcessPoolExecutor:
+            return ProcessPoolExecutor(
+                max_workers=size, mp_context=context, initializer=_start_worker, initargs=(stop,)
+            )
+
+        bar = _bar(len(jobs)) if progress else None
+        running: dict[Future, Any] = {}
+        pending = list(jobs)
+        retries: dict[int, int] = {}
+        interrupted = False
+        pool = new_pool()
+
+        def collect(done) -> bool:
+            """Each finished job reported; True where a dead worker broke the pool."""
+            broken = False
+            for future in done:
+                job = running.pop(future)
+                error = future.exception()
+                if isinstance(error, BrokenProcessPool) and not stop.is_set():
+                    broken = True
+                    key = id(job)
+                    retries[key] = retries.get(key, 0) + 1
+                    if retries[key] <= MAX_RETRIES:
+                        print(
+                            f"warning: a worker died running {_seeds(job)}; it starts again "
+                            f"({retries[key]} of {MAX_RETRIES})",
+                            file=sys.stderr,
+                        )
+                        pending.insert(0, _again(job))
+                        retries[id(pending[0])] = retries.pop(key)
+                        continue
+                if error is not None:
+                    unsaid = [m for m in members(job) if not (Path(m.out_dir) / "summary.json").is_file()]
+                    if unsaid:  # a seed whose summary records the error is reported from it by the command
+                        who = ", ".join(f"seed {m.config['seed']}" for m in unsaid)
+                        print(
+                            f"error: {who} in {Path(unsaid[0].out_dir).parent}: {type(error).__name__}: {error}",
+                            file=sys.stderr,
+                        )
+                if after_job is not None:
+                    after_job(job)
+                if bar is not None:
+                    bar.update(1)
+            return broken
+
+        try:
+            with sigterm_as_interrupt():
+                try:
+                    while pending or running:
+                        while pending and len(running) < size:
+                            job = pending.pop(0)
+                            running[pool.submit(_run_job, job)] = job
+                        if collect(wait(list(running), timeout=0.5, return_when=FIRST_COMPLETED).done):
+                            collect(wait(list(running)).done)  # the pool is gone: every job it ran with it
+                            pool.shutdown(wait=False, cancel_futures=True)
+                            pool = new_pool()
+                except KeyboardInterrupt:
+                    interrupted = True
+                    stop.set()  # running seeds stop at their next episode end; queued ones never start
+                    deadline = time.monotonic() + STOP_WAIT_SECONDS
+                    while running and time.monotonic() < deadline:
+                        try:
+                            collect(wait(list(running), timeout=1.0, return_when=FIRST_COMPLETED).done)
+                        except KeyboardInterrupt:  # a second Ctrl-C while the seeds flush: keep waiting
+                            continue
+                    if running:
+                        print(
+                            f"warning: {len(running)} jobs did not stop within {STOP_WAIT_SECONDS} s",
+                            file=sys.stderr,
+                        )
+        finally:
+            pool.shutdown(wait=not running, cancel_futures=True)
+            if bar is not None:
+                bar.close()
+        return interrupted
+
+
+def _seeds(job) -> str:
+    seeds = [str(m.config["seed"]) for m in members(job)]
+    return f"seed {seeds[0]}" if len(seeds) == 1 else f"seeds {', '.join(seeds)}"
+
+
+def _again(job):
+    """A job to start again after its worker died: from its checkpoint if it was resumed, else
+    afresh (its folder, partly written, is cleared)."""
+
+    def change(j):
+        return dataclasses.replace(j, start="resume" if j.start == "resume" else "overwrite")
+
+    if isinstance(job, SeedBatchJob):
+        return SeedBatchJob(tuple(change(j) for j in job.jobs))
+    return change(job)
+
+
+def _bar(total: int):
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, unit="seed", desc="seeds", dynamic_ncols=True)
