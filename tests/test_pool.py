@@ -281,3 +281,14 @@ def test_a_killed_pool_worker_is_retried_and_its_seed_reruns_to_the_same_csv(tmp
         assert rows(tmp_path / "killed" / f"seed_{seed}" / "episodes.csv") == rows(
             tmp_path / "straight" / f"seed_{seed}" / "episodes.csv"
         )
+
+
+def test_ray_is_an_extra_not_a_dependency():
+    """``pip install .`` installs no Ray; ``.[ray]`` does (setup.cfg)."""
+    import configparser
+
+    setup = configparser.ConfigParser()
+    setup.read(Path(__file__).resolve().parents[1] / "setup.cfg")
+    required = [line.strip() for line in setup["options"]["install_requires"].splitlines() if line.strip()]
+    assert not [r for r in required if r.lower().startswith("ray")], required
+    assert setup["options.extras_require"]["ray"].strip().startswith("ray==")
