@@ -14,7 +14,7 @@ from committed import committed_seed
 from keras_rl.cli import build_parser, main, parse_args
 from keras_rl.errors import ConfigError
 from keras_rl.posts.pendulum import PendulumDDPGConfig as PendulumConfig
-from keras_rl.runs.options import COMMAND_DEFAULTS, FLAGS, RUN_FLAGS, RunOptions, shared_flags
+from keras_rl.runs.options import COMMAND_DEFAULTS, FLAGS, RUN_FLAGS, RunOptions, help_for, shared_flags
 from keras_rl.runs.sweep import parse_grid
 
 REPO = Path(__file__).resolve().parent.parent
@@ -43,18 +43,28 @@ def _flags() -> dict[str, dict[str, argparse.Action]]:
     return out
 
 
-def test_each_shared_flag_has_one_default_and_one_help_text_everywhere():
+def test_each_shared_flag_has_one_default_everywhere_and_each_commands_help_speaks_of_it_alone():
     """Issue 33: a flag two commands take is one flag (``--alpha`` defaulted to None in one and
-    0.01 in the other, ``--workers`` to 1 and 2, ``--seeds`` had three defaults)."""
+    0.01 in the other, ``--workers`` to 1 and 2, ``--seeds`` had three defaults). Its help text is
+    the command's own: ``reproduce --help`` says nothing of what ``--out`` means to ``check``."""
+    import re
+
     shared = {spelling: uses for spelling, uses in _flags().items() if len(uses) > 1}
     assert {"--seeds", "--out", "--workers", "--alpha", "--tier", "--against", "--episodes", "--write"} <= set(shared)
     assert {"calibrate rules", "tables findings", "manifest"} <= set(_subparsers())
+    commands = ("reproduce", "compare", "sweep", "check", "bisect", "evaluate", "aggregate")
     for spelling, uses in shared.items():
         assert spelling in FLAGS, f"{spelling} ({', '.join(uses)}) is not declared in runs/options.FLAGS"
-        for what in ("default", "help", "type", "dest", "choices"):
+        for what in ("default", "type", "dest", "choices"):
             values = {name: getattr(action, what) for name, action in uses.items()}
             assert len({repr(v) for v in values.values()}) == 1, f"{spelling}'s {what} differs: {values}"
-        assert next(iter(uses.values())).help == FLAGS[spelling]["help"]
+        for name, action in uses.items():
+            command = name.split()[0]
+            assert action.help == help_for(
+                name.split()[-1] if command in ("calibrate", "tables") else command, spelling
+            )
+            others = [c for c in commands if c != command and re.search(rf"\b{c}\b", action.help)]
+            assert not others, f"{name} {spelling}'s help speaks of {others}: {action.help}"
 
 
 def test_a_command_reads_a_shared_none_as_its_own_default_and_the_help_says_so():
@@ -68,7 +78,7 @@ def test_a_command_reads_a_shared_none_as_its_own_default_and_the_help_says_so()
         )
         for dest, value in defaults.items():
             assert getattr(args, dest) == value
-            assert str(value) in FLAGS["--" + dest.replace("_", "-")]["help"], (command, dest)
+            assert str(value) in help_for(command, "--" + dest.replace("_", "-")), (command, dest)
     given = parse_args(["compare", "x", "--seeds", "3", "--out", "o"])
     assert (given.seeds, given.out, given.variant) == ("3", Path("o"), "faithful")  # what the user gave stays
 
@@ -79,7 +89,7 @@ def test_sweep_without_out_exits_2_naming_it(capsys):
 
 
 def test_run_options_are_checked_with_the_flag_named(capsys):
-    parent = shared_flags(*RUN_FLAGS)
+    parent = shared_flags("reproduce", *RUN_FLAGS)
     with pytest.raises(ConfigError, match="--episodes must be positive"):
         RunOptions.from_args(parent.parse_args(["--episodes", "0"]))
     with pytest.raises(ConfigError, match="--seed-batch must be at least 1 or auto"):
@@ -94,7 +104,7 @@ def test_run_options_are_checked_with_the_flag_named(capsys):
     assert options.workers == os.cpu_count() and "more than this machine's" in capsys.readouterr().err
     assert options.overrides == ("tau=0.1",) and options.progress is False and options.config_changes() == {}
     with pytest.raises(ValueError, match="unknown shared flags"):
-        shared_flags("--wrokers")
+        shared_flags("reproduce", "--wrokers")
     with pytest.raises(ConfigError, match="--engine compiled runs one seed per program"):
         RunOptions.from_args(parent.parse_args(["--engine", "compiled", "--seed-batch", "2"]))
     assert RunOptions.from_args(parent.parse_args(["--engine", "compiled"])).engine == "compiled"
@@ -105,10 +115,10 @@ def test_run_options_are_checked_with_the_flag_named(capsys):
 
 def test_the_address_falls_back_to_ray_address(monkeypatch):
     monkeypatch.setenv("RAY_ADDRESS", "127.0.0.1:1")
-    options = RunOptions.from_args(shared_flags(*RUN_FLAGS).parse_args([]))
+    options = RunOptions.from_args(shared_flags("reproduce", *RUN_FLAGS).parse_args([]))
     assert options.address == "127.0.0.1:1"
     monkeypatch.delenv("RAY_ADDRESS")
-    assert RunOptions.from_args(shared_flags(*RUN_FLAGS).parse_args([])).address is None
+    assert RunOptions.from_args(shared_flags("reproduce", *RUN_FLAGS).parse_args([])).address is None
 
 
 def test_one_parser_reads_set_and_grid_by_the_fields_type():

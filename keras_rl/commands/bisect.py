@@ -21,7 +21,7 @@ def add_parser(sub) -> None:
     """``bisect``'s arguments."""
     bi = sub.add_parser(
         "bisect",
-        parents=[shared_flags("--tier", "--alpha", "--against", "--out", "--workers")],
+        parents=[shared_flags("bisect", "--tier", "--alpha", "--against", "--out", "--workers")],
         help="find the first commit between GOOD and BAD whose learner `check` calls changed "
         "(git bisect in a temporary worktree; exit 0 found, 1 BAD consistent, 3 no verdict)",
     )

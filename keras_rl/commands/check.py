@@ -25,6 +25,7 @@ def add_parser(sub) -> None:
         "baseline, by each post's pre-registered rule (exit 0 consistent, 1 changed)",
         parents=[
             shared_flags(
+                "check",
                 "--workers",
                 "--address",
                 "--set",

@@ -23,6 +23,7 @@ def add_parser(sub) -> None:
         help="run or reuse the same seeds in Keras and PyTorch and report the difference",
         parents=[
             shared_flags(
+                "compare",
                 "--workers",
                 "--address",
                 "--seed-batch",

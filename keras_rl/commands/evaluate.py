@@ -20,7 +20,7 @@ def add_parser(sub) -> None:
     ev = sub.add_parser(
         "evaluate",
         help="reload a run's saved policy and play greedy episodes",
-        parents=[shared_flags("--episodes", "--overwrite")],
+        parents=[shared_flags("evaluate", "--episodes", "--overwrite")],
     )
     ev.add_argument(
         "run_dir",

@@ -22,7 +22,7 @@ from keras_rl.runs.options import shared_flags
 
 
 def _what(inner, name: str, module: str, help: str, *flags: str) -> argparse.ArgumentParser:
-    p = inner.add_parser(name, help=help, description=help, parents=[shared_flags(*flags)])
+    p = inner.add_parser(name, help=help, description=help, parents=[shared_flags(name, *flags)])
     p.set_defaults(module=module)
     return p
 
@@ -128,7 +128,7 @@ def add_parser(sub) -> None:
     p = sub.add_parser(
         "manifest",
         help="results/MANIFEST: every committed run set with its command; --regenerate reruns sets and compares",
-        parents=[shared_flags("--out", "--workers", "--write")],
+        parents=[shared_flags("manifest", "--out", "--workers", "--write")],
     )
     p.set_defaults(module="keras_rl.runs.manifest")
     p.add_argument(

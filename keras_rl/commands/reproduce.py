@@ -30,7 +30,15 @@ def add_parser(sub) -> None:
         help="train one experiment over one or more seeds",
         parents=[
             shared_flags(
-                *RUN_FLAGS, "--seeds", "--variant", "--framework", "--matched-init", "--out", "--overwrite", "--dry-run"
+                "reproduce",
+                *RUN_FLAGS,
+                "--seeds",
+                "--variant",
+                "--framework",
+                "--matched-init",
+                "--out",
+                "--overwrite",
+                "--dry-run",
             )
         ],
     )

@@ -28,6 +28,7 @@ def add_parser(sub) -> None:
         "it): it does not fail the command; a run that stops with an error does (exit 1).",
         parents=[
             shared_flags(
+                "sweep",
                 "--workers",
                 "--address",
                 "--seed-batch",

@@ -120,7 +120,7 @@ FLAGS: dict[str, dict[str, Any]] = {
     "--workers": dict(
         type=int,
         default=1,
-        help="seeds (or seed batches) at once on a local Ray instance (default 1: in this process, no Ray)",
+        help="seeds (or seed batches) at once, each in a process of its own (default 1: in this process)",
     ),
     "--address": dict(default=None, help="run on the Ray cluster at HOST:PORT instead (default: $RAY_ADDRESS if set)"),
     "--seed-batch": dict(
@@ -134,7 +134,7 @@ FLAGS: dict[str, dict[str, Any]] = {
     "--episodes": dict(
         type=int,
         default=None,
-        help="the training budget in episodes (default: the post's); evaluate: greedy episodes to play (default 5)",
+        help="the training budget in episodes (default: the post's)",
     ),
     "--set": dict(
         dest="overrides",
@@ -152,53 +152,44 @@ FLAGS: dict[str, dict[str, Any]] = {
     ),
     "--seeds": dict(
         default=None,
-        help="seed list or range: 13, 0-9, 0,3,5 (default: reproduce 0, or --config's; compare and sweep "
-        "0-9; check the rule's own fresh seeds, never the baseline's, and its error rates are for those)",
+        help="seed list or range: 13, 0-9, 0,3,5",
     ),
     "--out": dict(
         type=path_arg,
         default=None,
-        help="where the command writes (default: reproduce results/<experiment>/<variant>, one seed_<n>/ "
-        "per seed; compare results/compare; check check-runs, where an earlier check's output is "
-        "replaced and anything else refused; bisect bisect-runs; sweep has none: name it)",
+        help="where the command writes",
     ),
     "--variant": dict(
         default=None,
         help="the variant: faithful (the default); pendulum and mountaincar have fixed, mountaincar "
-        "faithful-intended, cartpole issue-3080 (all: `keras-rl list`)",
+        "faithful-intended, cartpole issue-3080 and pr-3384 (each post's: `keras-rl list`)",
     ),
     "--framework": dict(default=None, help="keras (ours; the default) or torch (where the experiment has one)"),
     "--matched-init": dict(
         action="store_true",
-        help="PyTorch runs start from the Keras networks' initial weights for the same seed "
-        "(compare reports them under <out>/<experiment>/matched-init)",
+        help="PyTorch runs start from the Keras networks' initial weights for the same seed",
     ),
     "--overwrite": dict(
         action="store_true",
-        help="replace what is there: reproduce clears each seed folder that already holds a run, whole; "
-        "evaluate replaces an evaluation.json of more episodes than it plays",
+        help="replace what is there",
     ),
     "--dry-run": dict(
         action="store_true",
-        help="print what would run and train nothing: reproduce the resolved config and how each seed "
-        "folder would start; check each post's plan (rule, fresh seeds, baseline, calibrated error rates)",
+        help="print what would run and train nothing",
     ),
     "--tier": dict(
         default="smoke",
-        help="the check's tier: smoke (minutes, in `make test`), full, or sensitive (check only: a 10%% move "
-        "of post 000's median, about 15 minutes on two workers) (default smoke)",
+        help="the rule tier: smoke (minutes, in `make test`), full, or sensitive (default smoke)",
     ),
     "--against": dict(
         type=Path,
         default=None,
-        help="the folder holding <experiment>/baseline/seed_<n> (default: results/checks of this checkout; "
-        "copy it outside the tree for `git bisect run`; bisect copies it into --out)",
+        help="the folder holding <experiment>/baseline, as seed_<n>/ folders or a runs.parquet",
     ),
     "--alpha": dict(
         type=float,
         default=None,
-        help="the command's false-alarm bound, split by a union bound over its posts and their looks "
-        "(check, with --sequential) or over its steps (bisect) (default 0.01, the committed designs')",
+        help="the command's false-alarm bound (default 0.01, the committed designs')",
     ),
     "--write": dict(action="store_true", help="write what it made into the checkout (default: print it)"),
     "--changes": dict(
@@ -207,9 +198,54 @@ FLAGS: dict[str, dict[str, Any]] = {
         "(what growing the sets changed)",
     ),
 }
-"""Every flag that more than one command takes, declared once: one default and one help text
-wherever it appears (``tests/test_options.py`` reads every command's parser). Where a command reads a None default as
-a value of its own, ``COMMAND_DEFAULTS`` says which, and the help text says it too."""
+"""Every flag that more than one command takes, declared once: one type and one default wherever
+it appears (``tests/test_options.py`` reads every command's parser). Its help text here is what
+it means everywhere; where a command means more, ``COMMAND_HELP`` says it for that command alone.
+Where a command reads a None default as a value of its own, ``COMMAND_DEFAULTS`` says which,
+and that command's help text says it too."""
+
+COMMAND_HELP: dict[str, dict[str, str]] = {
+    "reproduce": {
+        "--seeds": "seed list or range: 13, 0-9, 0,3,5 (default 0, or --config's seed)",
+        "--out": "the folder of the run folders, one seed_<n>/ per seed (default results/<experiment>/<variant>)",
+        "--overwrite": "clear each seed folder that already holds a run, whole, and run it again",
+        "--dry-run": "print the resolved config and how each seed folder would start; train nothing",
+    },
+    "compare": {
+        "--matched-init": "the PyTorch arm starts from the Keras networks' initial weights for the same seed "
+        "(the report goes under <out>/<experiment>/matched-init)",
+        "--seeds": "seed list or range: 13, 0-9, 0,3,5 (default 0-9)",
+        "--out": "where the report goes, under <out>/<experiment> (default results/compare)",
+    },
+    "sweep": {
+        "--seeds": "seed list or range for every grid point: 13, 0-9, 0,3,5 (default 0-9)",
+        "--out": "the sweep's folder, one folder per grid point (no default: name it)",
+    },
+    "check": {
+        "--seeds": "fresh seeds instead of the rule's own (never the baseline's; the calibrated error "
+        "rates are for the rule's own)",
+        "--out": "where the fresh seeds and the report go (default check-runs; an earlier check's output "
+        "there is replaced, anything else refused)",
+        "--dry-run": "print each post's plan (rule, fresh seeds, baseline, calibrated error rates); train nothing",
+        "--tier": "smoke (minutes, in `make test`), full, or sensitive (a 10%% move of post 000's median, "
+        "about 15 minutes on two workers) (default smoke)",
+        "--against": "the folder holding <experiment>/baseline, as seed_<n>/ folders or a runs.parquet "
+        "(default: this checkout's results/checks, or the installed package's own)",
+        "--alpha": "the false-alarm bound of the whole command, split over its posts and, with "
+        "--sequential, their looks (default 0.01, the committed designs')",
+    },
+    "bisect": {
+        "--out": "where each commit's worktree, fresh seeds and reading go (default bisect-runs)",
+        "--against": "the folder holding <experiment>/baseline (default: the checkout's results/checks, "
+        "copied into --out so that every commit checks against the same runs)",
+        "--alpha": "the false-alarm bound of the whole search, split over its steps (default 0.01)",
+    },
+    "evaluate": {
+        "--episodes": "greedy episodes to play (default 5)",
+        "--overwrite": "replace an evaluation.json of more episodes than this plays",
+    },
+}
+"""What a shared flag means in one command, where that is more than ``FLAGS`` says."""
 
 COMMAND_DEFAULTS: dict[str, dict[str, Any]] = {
     "compare": {"seeds": "0-9", "variant": "faithful", "out": Path("results/compare")},
@@ -229,15 +265,21 @@ def resolve_defaults(args: argparse.Namespace) -> argparse.Namespace:
     return args
 
 
-def shared_flags(*spellings: str) -> argparse.ArgumentParser:
-    """An argparse parent holding the named flags of ``FLAGS``, as declared there."""
+def shared_flags(command: str, *spellings: str) -> argparse.ArgumentParser:
+    """An argparse parent holding the named flags of ``FLAGS``, as declared there, each with
+    ``command``'s own help text where it has one (``COMMAND_HELP``)."""
     unknown = set(spellings) - set(FLAGS)
     if unknown:
         raise ValueError(f"unknown shared flags {sorted(unknown)}")
     parent = argparse.ArgumentParser(add_help=False)
     for spelling in spellings:
-        parent.add_argument(spelling, **FLAGS[spelling])
+        parent.add_argument(spelling, **{**FLAGS[spelling], "help": help_for(command, spelling)})
     return parent
+
+
+def help_for(command: str, spelling: str) -> str:
+    """The help text of a shared flag in ``command``."""
+    return COMMAND_HELP.get(command, {}).get(spelling, FLAGS[spelling]["help"])
 
 
 RUN_FLAGS = ("--workers", "--address", "--seed-batch", "--episodes", "--set", "--no-progress", "--engine")
