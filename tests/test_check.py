@@ -723,6 +723,7 @@ def test_the_packaged_baselines_are_the_committed_ones():
 def installed(tmp_path_factory):
     """The wheel built from this checkout, installed into a folder of its own (its dependencies are
     this environment's), and a directory outside the checkout to run it from."""
+    import shutil
     import subprocess
     import sys
 
@@ -730,8 +731,14 @@ def installed(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("installed")
     dist, target = tmp / "dist", tmp / "site"
     pip = [sys.executable, "-m", "pip", "-q"]
+    source = tmp / "source"  # a copy, so the build leaves nothing (build/, *.egg-info) in the checkout
+    shutil.copytree(
+        root,
+        source,
+        ignore=shutil.ignore_patterns(".git", ".venv", "build", "results", "*.egg-info", "__pycache__", "site", ".nox"),
+    )
     subprocess.run(
-        [*pip, "wheel", "--no-deps", "--no-build-isolation", "-w", str(dist), str(root)],
+        [*pip, "wheel", "--no-deps", "--no-build-isolation", "-w", str(dist), str(source)],
         check=True,
         capture_output=True,
         cwd=tmp,
