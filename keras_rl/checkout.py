@@ -1,6 +1,6 @@
 """The checkout this keras_rl sits in, and its committed ``results/``.
 
-The maintainers' commands (``keras-rl calibrate``, ``keras-rl tables``, ``keras-rl manifest``)
+The maintainers' commands (``python -m maintainers calibrate|tables|manifest``, from a checkout)
 read and regenerate what the checkout commits; a package installed outside a checkout has no
 ``results/``, and those commands say so (``results_dir``). Training, ``check`` and the reports
 never need it.
@@ -21,6 +21,6 @@ def results_dir() -> Path:
     if not RESULTS.is_dir():
         raise ConfigError(
             f"no results/ beside this keras_rl ({ROOT}): this command regenerates a checkout's committed "
-            "results; run it from an editable install of the repository (pip install -e .)"
+            "results; run it from a checkout of the repository (python -m maintainers ...)"
         )
     return RESULTS

@@ -8,7 +8,7 @@ keras-rl aggregate results/pendulum/faithful
 keras-rl pack runs/pendulum/faithful       # a finished set's seed folders into one runs.parquet
 keras-rl check pendulum cartpole mountaincar --tier smoke
 keras-rl list
-keras-rl tables findings --write       # the maintainers' commands: calibrate, tables, manifest
+(the maintainers' tools, from a checkout: python -m maintainers calibrate|tables|manifest)
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import sys
 from collections.abc import Sequence
 
 from keras_rl import __version__
-from keras_rl.commands import aggregate, bisect, check, compare, evaluate, maintain, pack, reproduce, sweep
+from keras_rl.commands import aggregate, bisect, check, compare, evaluate, pack, reproduce, sweep
 from keras_rl.commands.check import check_results
 from keras_rl.commands.common import EXIT_CRITERION, EXIT_NO_VERDICT, EXIT_OK, EXIT_USAGE, MAX_SEEDS, parse_seeds
 from keras_rl.commands.compare import compare_result
@@ -50,9 +50,6 @@ COMMANDS = {
     "aggregate": aggregate.aggregate,
     "pack": pack.pack,
     "list": aggregate.list_experiments,
-    "calibrate": maintain.run,
-    "tables": maintain.run,
-    "manifest": maintain.run,
 }
 """Each command's function; its arguments come from its module's ``add_parser``."""
 
@@ -66,7 +63,6 @@ def build_parser() -> argparse.ArgumentParser:
     for module in (reproduce, evaluate, compare, sweep, aggregate, pack, check, bisect):
         module.add_parser(sub)
     aggregate.add_list_parser(sub)
-    maintain.add_parser(sub)
     return parser
 
 

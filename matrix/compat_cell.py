@@ -25,7 +25,7 @@ step without its file; ``--redo STEP`` reruns one):
   (the reference cell's interpreter), alternated five times in this one session; the cell's ms
   over the reference's ms per post, median of the runs.
 
-``cell.json`` gathers them; ``keras_rl/report/tables/compat.py --write`` makes the table.
+``cell.json`` gathers them; ``maintainers/tables/compat.py --write`` makes the table.
 """
 
 from __future__ import annotations

@@ -124,4 +124,4 @@ for _name, _spec in CELLS.items():
 def table(session: nox.Session) -> None:
     """results/compat/README.md and the README's short table, from the committed cell folders."""
     session.chdir(ROOT)
-    session.run(sys.executable, "-m", "keras_rl", "tables", "compat", "--write", external=True)
+    session.run(sys.executable, "-m", "maintainers", "tables", "compat", "--write", external=True)

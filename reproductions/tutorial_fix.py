@@ -48,8 +48,8 @@ from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.posts.cartpole import tutorial_num_episodes
 from keras_rl.report.certified import arm_where
 from keras_rl.report.equivalence import episodes_with_censoring, median_ratio_equivalence, success_rate_equivalence
+from keras_rl.report.markdown import seed_span
 from keras_rl.report.stats import wilson_interval
-from keras_rl.report.tables.runs import seed_span
 from keras_rl.runs.files import atomic_write_text
 from keras_rl.runs.run_set import RunSet
 

@@ -152,9 +152,9 @@ def test_holm_within_a_step_and_the_step_budget():
 
 
 def test_the_bisect_levels_page_says_when_a_rate_is_over_its_share():
-    """``keras_rl/check/calibrate/bisect_levels.py`` flags a level only when its measured rate's
+    """``maintainers/calibrate/bisect_levels.py`` flags a level only when its measured rate's
     whole interval lies above the share (here the second row), and says the bound holds otherwise."""
-    import keras_rl.check.calibrate.bisect_levels as module
+    import maintainers.calibrate.bisect_levels as module
 
     row = {"post": "pendulum", "statistic": "s", "commits": 8, "posts": 1, "share": 0.0025, "efficacy": 0.0004}
     fine = {**row, "changed": 3, "draws": 1000, "rate": 0.003, "ci": [0.0006, 0.0088]}

@@ -158,7 +158,7 @@ def _fake_baseline_seed(seed_dir, seed=0):
 
 
 def test_each_calibrated_rule_is_the_one_the_pre_registered_criterion_picks():
-    """``keras_rl/check/calibrate/rules.py --write`` measured every candidate; the rule in
+    """``maintainers/calibrate/rules.py --write`` measured every candidate; the rule in
     ``rules.py`` must be the one its criterion picks, with false alarms at most 1%."""
     from keras_rl.check.command import CALIBRATION
 
@@ -227,11 +227,11 @@ def test_results_readme_states_the_calibrated_error_rates():
     from keras_rl.check.command import CALIBRATION
 
     root = Path(__file__).resolve().parents[1]
-    module = import_module("keras_rl.check.calibrate.rules")
+    module = import_module("maintainers.calibrate.rules")
     readme = (root / "results" / "README.md").read_text()
     stated = readme.split(module.RULES_BEGIN, 1)[1].split(module.RULES_END, 1)[0].strip()
     assert stated == module.rules_table(json.loads(CALIBRATION.read_text())), (
-        "results/README.md is stale: run keras-rl calibrate rules ... --write"
+        "results/README.md is stale: run python -m maintainers calibrate rules ... --write"
     )
 
 
@@ -241,21 +241,21 @@ def test_calibration_md_is_rendered_from_calibration_json():
     from keras_rl.check.command import CALIBRATION
 
     root = Path(__file__).resolve().parents[1]
-    module = import_module("keras_rl.check.calibrate.rules")
+    module = import_module("maintainers.calibrate.rules")
     measured = json.loads(CALIBRATION.read_text())
     assert (root / "results" / "checks" / "calibration.md").read_text() == module.markdown(
         {k: measured[k] for k in sorted(measured)}
-    ), "calibration.md is stale: keras-rl calibrate rules --write"
+    ), "calibration.md is stale: python -m maintainers calibrate rules --write"
 
 
 def test_sequential_md_is_rendered_from_sequential_json():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    module = import_module("keras_rl.check.calibrate.designs")
+    module = import_module("maintainers.calibrate.designs")
     committed = json.loads((root / "keras_rl" / "check" / "sequential.json").read_text())
     assert (root / "results" / "checks" / "sequential.md").read_text() == module.render(committed["results"]) + "\n", (
-        "sequential.md is stale: keras-rl calibrate designs --write"
+        "sequential.md is stale: python -m maintainers calibrate designs --write"
     )
 
 
@@ -381,11 +381,11 @@ def test_calibration_md_states_the_committed_family_wise_rates():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    family = import_module("keras_rl.check.calibrate.family")
+    family = import_module("maintainers.calibrate.family")
     text = (root / "results" / "checks" / "calibration.md").read_text()
     stated = text.split(family.BEGIN, 1)[1].split(family.END, 1)[0].strip()
     committed = json.loads((root / "results" / "checks" / "family.json").read_text())
-    assert stated == family.render(committed), "calibration.md is stale: keras-rl calibrate family --write"
+    assert stated == family.render(committed), "calibration.md is stale: python -m maintainers calibrate family --write"
     for tier in committed["tiers"].values():
         assert tier["command_holm"] < 0.01 < tier["command_unadjusted"]
 
@@ -398,7 +398,7 @@ def test_calibration_md_shows_the_spread_figure_and_the_figure_marks_the_bound(t
     from keras_rl.report.plots import plot_false_alarm_spread
 
     root = Path(__file__).resolve().parents[1]
-    family = import_module("keras_rl.check.calibrate.family")
+    family = import_module("maintainers.calibrate.family")
     text = (root / "results" / "checks" / "calibration.md").read_text()
     assert f"]({family.SPREAD_FIGURE.name})" in text and family.SPREAD_FIGURE.is_file()
     out = tmp_path / "spread.png"
@@ -415,12 +415,12 @@ def test_the_committed_family_wise_rates_are_what_the_baselines_give():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    family = import_module("keras_rl.check.calibrate.family")
+    family = import_module("maintainers.calibrate.family")
     committed = json.loads((root / "results" / "checks" / "family.json").read_text())
     # to the last few bits: numpy's percentiles of the same rates differ in the last bit between
     # CPUs (measured 2026-11-26: 0.0017970801494322588 committed, ...259 on an AVX-512 EPYC host)
     assert same_to_rounding(family.compute(), committed), (
-        "results/checks/family.json is stale: keras-rl calibrate family --write"
+        "results/checks/family.json is stale: python -m maintainers calibrate family --write"
     )
 
 
@@ -613,11 +613,11 @@ def test_calibration_md_states_the_committed_held_out_power():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    held = import_module("keras_rl.check.calibrate.held_out")
+    held = import_module("maintainers.calibrate.held_out")
     text = (root / "results" / "checks" / "calibration.md").read_text()
     stated = text.split(held.BEGIN, 1)[1].split(held.END, 1)[0].strip()
     committed = json.loads((root / "results" / "checks" / "held_out.json").read_text())
-    assert stated == held.render(committed), "calibration.md is stale: keras-rl calibrate held-out --write"
+    assert stated == held.render(committed), "calibration.md is stale: python -m maintainers calibrate held-out --write"
     for post, entry in committed.items():
         for name, mutant in entry["mutants"].items():
             assert all(t["seeds"] >= 30 for t in mutant["tiers"].values()), (post, name)
@@ -626,7 +626,7 @@ def test_calibration_md_states_the_committed_held_out_power():
 
 def test_clopper_pearson_by_hand():
 
-    runs = import_module("keras_rl.check.calibrate.runs")
+    runs = import_module("maintainers.calibrate.runs")
     assert runs.clopper_pearson(0, 1) == pytest.approx((0.0, 0.975))  # 1 - 0.025 ** (1/1)
     low, high = runs.clopper_pearson(3, 3)
     assert low == pytest.approx(0.025 ** (1 / 3)) and high == 1.0
@@ -638,7 +638,7 @@ def test_calibration_reads_the_halves_it_names_and_refuses_a_missing_seed(tmp_pa
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    runs = import_module("keras_rl.check.calibrate.runs")
+    runs = import_module("maintainers.calibrate.runs")
     assert not set(runs.TUNE) & set(runs.REPORT) and len(runs.TUNE) == len(runs.REPORT) == 15
     baseline = root / "results" / "checks" / "pendulum" / "baseline"
     assert len(runs.load(baseline, range(3, 5))) == 2
@@ -651,7 +651,7 @@ def test_calibration_reads_the_halves_it_names_and_refuses_a_missing_seed(tmp_pa
 
 def test_the_smoke_tests_docstring_states_the_committed_family_wise_rate():
     """The smoke test's docstring quotes the command's rate; it must be the one ``family.json``
-    holds now (``keras_rl/check/calibrate/family.py --write``), not an older baseline's."""
+    holds now (``maintainers/calibrate/family.py --write``), not an older baseline's."""
     doc = test_the_smoke_tier_finds_every_post_consistent_with_its_committed_baseline.__doc__
     stated = re.search(r"as a whole is\s+([0-9.]+)%", doc)
     assert stated, doc
@@ -686,7 +686,7 @@ def test_the_smallest_delay_is_searched_only_where_the_delayed_metric_is_defined
     60 of 100 episodes; the rule flags a delay of at least ``shift`` (and any NaN)."""
     from types import SimpleNamespace
 
-    module = import_module("keras_rl.check.calibrate.rules")
+    module = import_module("maintainers.calibrate.rules")
     runs = [object()] * 8
 
     def fake_values(name, statistic, episodes, baseline_runs, delay=0):

@@ -1,5 +1,6 @@
-"""The maintainers' commands (``keras-rl calibrate``, ``tables``, ``manifest``): what moved out of
-``reproductions/`` into the package (issue 33), reachable from the CLI, with bad input refused."""
+"""The maintainers' commands (``python -m maintainers calibrate``, ``tables``, ``manifest``), apart
+from the package users install: run from a checkout, with bad input refused; ``keras-rl --help``
+lists only users' commands."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from keras_rl.cli import main
+from maintainers.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -55,3 +56,31 @@ def test_a_subcommand_is_required(capsys):
     with pytest.raises(SystemExit) as exit_:
         main(["calibrate"])
     assert exit_.value.code == 2 and "WHAT" in capsys.readouterr().err
+
+
+def test_keras_rl_lists_users_commands_only_and_never_imports_the_maintainers_tools():
+    import subprocess
+    import sys
+
+    from keras_rl.cli import build_parser
+
+    commands = set(build_parser()._subparsers._group_actions[0].choices)  # type: ignore[union-attr]
+    assert commands == {"reproduce", "evaluate", "compare", "sweep", "aggregate", "pack", "check", "bisect", "list"}
+    imported = [p for p in (ROOT / "keras_rl").rglob("*.py") if "maintainers" in _imports(p)]
+    assert imported == []
+    shown = subprocess.run(
+        [sys.executable, "-m", "maintainers", "--help"], cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
+    assert shown.returncode == 0 and all(w in shown.stdout for w in ("calibrate", "tables", "manifest"))
+
+
+def _imports(path: Path) -> set[str]:
+    import ast
+
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(alias.name.split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            found.add(node.module.split(".")[0])
+    return found

@@ -33,9 +33,11 @@ def _subparsers(parser: argparse.ArgumentParser | None = None, prefix: str = "")
 
 
 def _flags() -> dict[str, dict[str, argparse.Action]]:
-    """Every ``--flag`` of every command: flag -> command -> its action."""
+    """Every ``--flag`` of every command, the maintainers' too: flag -> command -> its action."""
+    from maintainers.cli import build_parser as maintainers_parser
+
     out: dict[str, dict[str, argparse.Action]] = {}
-    for name, parser in _subparsers().items():
+    for name, parser in {**_subparsers(), **_subparsers(maintainers_parser())}.items():
         for action in parser._actions:
             for spelling in action.option_strings:
                 if spelling.startswith("--") and spelling != "--help":
@@ -51,7 +53,7 @@ def test_each_shared_flag_has_one_default_everywhere_and_each_commands_help_spea
 
     shared = {spelling: uses for spelling, uses in _flags().items() if len(uses) > 1}
     assert {"--seeds", "--out", "--workers", "--alpha", "--tier", "--against", "--episodes", "--write"} <= set(shared)
-    assert {"calibrate rules", "tables findings", "manifest"} <= set(_subparsers())
+    assert {"calibrate rules", "tables findings", "manifest"}.isdisjoint(_subparsers())  # the maintainers' own
     commands = ("reproduce", "compare", "sweep", "check", "bisect", "evaluate", "aggregate")
     for spelling, uses in shared.items():
         assert spelling in FLAGS, f"{spelling} ({', '.join(uses)}) is not declared in runs/options.FLAGS"

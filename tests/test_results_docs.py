@@ -13,11 +13,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 GENERATORS = {
-    "findings_table": "keras_rl.report.tables.findings",
-    "ablation_table": "keras_rl.report.tables.ablations",
-    "compat_table": "keras_rl.report.tables.compat",
-    "forest": "keras_rl.report.tables.forest",
-    "manifest": "keras_rl.runs.manifest",
+    "findings_table": "maintainers.tables.findings",
+    "ablation_table": "maintainers.tables.ablations",
+    "compat_table": "maintainers.tables.compat",
+    "forest": "maintainers.tables.forest",
+    "manifest": "maintainers.manifest",
 }
 
 
@@ -35,13 +35,13 @@ def test_the_findings_and_compare_tables_are_up_to_date():
     gen = load_generator()
     readme = (ROOT / "results" / "README.md").read_text()
     assert block(readme, gen.BEGIN, gen.END) == gen.table(), (
-        "results/README.md is stale: run keras-rl tables findings --write"
+        "results/README.md is stale: run python -m maintainers tables findings --write"
     )
     assert block(readme, gen.COMPARE_BEGIN, gen.COMPARE_END) == gen.compare_table(), (
-        "results/README.md is stale: run keras-rl tables findings --write"
+        "results/README.md is stale: run python -m maintainers tables findings --write"
     )
     assert block((ROOT / "README.md").read_text(), gen.SHORT_BEGIN, gen.SHORT_END) == gen.short_table(), (
-        "README.md's findings are stale: run keras-rl tables findings --write"
+        "README.md's findings are stale: run python -m maintainers tables findings --write"
     )
     assert "not run" not in gen.table()  # every row of the single table has its runs committed
     for experiment in ("pendulum", "cartpole", "mountaincar"):
@@ -54,7 +54,7 @@ def test_the_per_post_sections_are_up_to_date_and_name_the_seeds_that_failed():
     readme = (ROOT / "results" / "README.md").read_text()
     for post in gen.POSTS:
         assert block(readme, *gen.post_markers(post)) == gen.post_block(post), (
-            f"results/README.md's {post} section is stale: run keras-rl tables findings --write"
+            f"results/README.md's {post} section is stale: run python -m maintainers tables findings --write"
         )
     failed = [
         s["seed"] for s in RunSet(ROOT / "results" / "cartpole" / "faithful").summary_records() if not s["success"]
@@ -69,10 +69,10 @@ def test_fidelitys_measured_effect_tables_are_up_to_date():
     ledger = (ROOT / "reproductions" / "FIDELITY.md").read_text()
     for experiment in gen.SOURCES:
         assert block(ledger, *gen.markers(experiment)) == gen.table(experiment), (
-            f"FIDELITY.md's {experiment} table is stale: run keras-rl tables ablations --write"
+            f"FIDELITY.md's {experiment} table is stale: run python -m maintainers tables ablations --write"
         )
     assert block(ledger, *gen.READINGS_MARKERS) == gen.readings_table(), (
-        "FIDELITY.md's post 001 readings table is stale: run keras-rl tables ablations --write"
+        "FIDELITY.md's post 001 readings table is stale: run python -m maintainers tables ablations --write"
     )
     # every quirk switch of every post has its row, with numbers on 30 seeds or more (issue #20)
     from keras_rl.registry import get_experiment
@@ -99,9 +99,9 @@ def test_every_committed_run_records_the_commit_and_clean_tree_that_made_it():
 def test_the_version_matrix_table_is_generated_from_the_committed_cells():
     gen = load_generator("compat_table")
     page = (ROOT / "results" / "compat" / "README.md").read_text()
-    assert page == gen.page(), "results/compat/README.md is stale: run keras-rl tables compat --write"
+    assert page == gen.page(), "results/compat/README.md is stale: run python -m maintainers tables compat --write"
     assert block((ROOT / "README.md").read_text(), gen.SHORT_BEGIN, gen.SHORT_END) == gen.short_table(), (
-        "README.md's version table is stale: run keras-rl tables compat --write"
+        "README.md's version table is stale: run python -m maintainers tables compat --write"
     )
 
 
@@ -165,9 +165,9 @@ def test_the_manifest_lists_every_committed_run_set_as_it_is():
     gen = load_generator("manifest")
     entries = gen.manifest()
     committed = json.loads((ROOT / "results" / "MANIFEST.json").read_text())
-    assert entries == committed, "results/MANIFEST.json is stale: run keras-rl manifest --write"
+    assert entries == committed, "results/MANIFEST.json is stale: run python -m maintainers manifest --write"
     assert (ROOT / "results" / "MANIFEST.md").read_text() == gen.markdown(entries), (
-        "results/MANIFEST.md is stale: run keras-rl manifest --write"
+        "results/MANIFEST.md is stale: run python -m maintainers manifest --write"
     )
     sets = {e["set"]: e for e in entries}
     for post in ("pendulum", "cartpole", "mountaincar"):
@@ -216,7 +216,7 @@ def test_the_forest_plot_and_its_tables_match_the_committed_runs():
     rows = gen.rows()
     committed = json.loads((ROOT / "results" / "forest.json").read_text())
     assert committed == {"command": gen.COMMAND, "rows": rows}, (
-        "results/forest.json is stale: keras-rl tables forest --write"
+        "results/forest.json is stale: python -m maintainers tables forest --write"
     )
     figure = (ROOT / "results" / "forest.png").read_bytes()
     assert figure == (ROOT / "docs" / "forest.png").read_bytes()  # the docs site's copy

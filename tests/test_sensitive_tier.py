@@ -1,7 +1,7 @@
 """The sensitive check tier (issue 35): its sizing (``reproductions/sensitive_plan.py``) and
 held-out report (``reproductions/sensitive_held_out.py``) on committed runs whose answer is
 known, its statistic, its refusals, how its fresh seeds run, and its committed rates
-(``keras-rl calibrate sensitive``)."""
+(``python -m maintainers calibrate sensitive``)."""
 
 from __future__ import annotations
 
@@ -90,21 +90,23 @@ def test_a_sensitive_check_runs_its_fresh_seeds_alone_on_the_compiled_engine(tmp
 
 
 def test_the_sensitive_tiers_committed_rates_are_its_rules_on_the_committed_baselines():
-    """``keras-rl calibrate sensitive --write``: calibration.md's block is rendered from
+    """``python -m maintainers calibrate sensitive --write``: calibration.md's block is rendered from
     keras_rl/check/sensitive.json; each rule's rates are found for it (so the check report states
     them); post 001's rule is the statistic its criterion chose; every rate was computed on the
     baseline committed now."""
     import json
 
-    from keras_rl.check.calibrate import sensitive
     from keras_rl.check.command import SENSITIVE_RATES, error_rates
     from keras_rl.check.rules import RULES
     from keras_rl.runs.run_set import RunSet
+    from maintainers.calibrate import sensitive
 
     committed = json.loads(SENSITIVE_RATES.read_text())
     text = (ROOT / "results" / "checks" / "calibration.md").read_text()
     stated = text.split(sensitive.BEGIN, 1)[1].split(sensitive.END, 1)[0].strip()
-    assert stated == sensitive.render(committed), "calibration.md is stale: keras-rl calibrate sensitive --write"
+    assert stated == sensitive.render(committed), (
+        "calibration.md is stale: python -m maintainers calibrate sensitive --write"
+    )
     for post, entry in committed["posts"].items():
         rule = RULES[(post, "sensitive")]
         assert error_rates(rule) == entry["rates"], post
@@ -121,14 +123,14 @@ def test_the_sensitive_tiers_committed_rates_are_its_rules_on_the_committed_base
 def test_docs_table_of_what_each_tier_sees_is_generated_from_the_committed_rates():
     import json
 
-    from keras_rl.check.calibrate import sensitive
     from keras_rl.check.command import SENSITIVE_RATES
+    from maintainers.calibrate import sensitive
 
     text = (ROOT / "docs" / "check.md").read_text()
     stated = text.split(sensitive.SEES_BEGIN, 1)[1].split(sensitive.SEES_END, 1)[0].strip()
     held = json.loads((ROOT / "results" / "checks" / "held_out.json").read_text())
     expected = sensitive.sees_table(json.loads(SENSITIVE_RATES.read_text()), held)
-    assert stated == expected, "docs/check.md is stale: keras-rl calibrate sensitive --write"
+    assert stated == expected, "docs/check.md is stale: python -m maintainers calibrate sensitive --write"
 
 
 @pytest.mark.slow

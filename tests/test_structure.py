@@ -245,7 +245,7 @@ def test_every_command_trains_its_seeds_one_way():
 
 def test_reproductions_holds_the_ledger_settlements_and_analyses_only():
     """Issue 33: the calibration and the table generators are package commands
-    (``keras-rl calibrate``, ``keras-rl tables``, ``keras-rl manifest``), the matrix scripts sit
+    (``python -m maintainers calibrate|tables|manifest``), the matrix scripts sit
     beside ``matrix/noxfile.py``, and no analysis patches ``sys.path`` to reach the package or
     another folder (20 of 21 scripts did)."""
     root = Path(__file__).resolve().parents[1]

@@ -3,7 +3,7 @@
 For each experiment: its rule for the tier (``rules.py``), the fresh seeds run (in batches
 where the post has a seed-batched learner), each seed's statistic for them and for the
 baseline's runs (cut to the rule's episodes), the test, and the rule's measured error
-rates (``keras_rl/check/calibration.json``, written by ``keras_rl/check/calibrate/rules.py``).
+rates (``keras_rl/check/calibration.json``, written by ``maintainers/calibrate/rules.py``).
 Writes ``check.md``, ``check.json`` and per experiment ``<experiment>/check.png`` under
 ``--out``; the fresh runs go in ``<out>/<experiment>/seed_<n>``.
 
@@ -16,7 +16,7 @@ rate at Holm's first level alpha / k against its whole baseline, combined over t
 ``--sequential`` runs the group-sequential design instead (``sequential.py``): fresh seeds in
 looks of 5 up to 30 per post, each post stopping as changed or consistent at its own look,
 with the efficacy level calibrated per post on its baseline to 1% / 3
-(``keras_rl/check/sequential.json``, written by ``keras_rl/check/calibrate/designs.py``), so the
+(``keras_rl/check/sequential.json``, written by ``maintainers/calibrate/designs.py``), so the
 family-wise rate of a command of up to three posts is at most 1% without Holm.
 """
 
@@ -219,7 +219,7 @@ def power_text(rates: dict[str, Any], short: bool = False, source: str = "calibr
 
 def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, Any] | None:
     """The calibrated error rates of exactly this rule, or None if it was never measured
-    (the sensitive tier's are in ``SENSITIVE_RATES``, by ``keras-rl calibrate sensitive``)."""
+    (the sensitive tier's are in ``SENSITIVE_RATES``, by ``python -m maintainers calibrate sensitive``)."""
     if rule.tier == "sensitive":
         return sensitive_rates(rule)
     if not calibration.is_file():
@@ -261,7 +261,7 @@ def sensitive_rates(rule: CheckRule, path: Path = SENSITIVE_RATES) -> dict[str, 
 
 def sequential_design(rule: CheckRule, path: Path = SEQUENTIAL) -> tuple[SequentialDesign, float]:
     """The post's calibrated design for this tier and its false-alarm rate under no change,
-    as ``keras_rl/check/calibrate/designs.py --write`` committed them; a ConfigError if absent."""
+    as ``maintainers/calibrate/designs.py --write`` committed them; a ConfigError if absent."""
     entries = json.loads(path.read_text())["results"] if path.is_file() else []
     entry = next(
         (e for e in entries if (e["post"], e["tier"], e["statistic"]) == (rule.experiment, rule.tier, rule.statistic)),
@@ -270,7 +270,7 @@ def sequential_design(rule: CheckRule, path: Path = SEQUENTIAL) -> tuple[Sequent
     if entry is None:
         raise ConfigError(
             f"{rule.experiment} has no calibrated sequential design for the {rule.tier} tier in {path}; "
-            "run keras-rl calibrate designs --write, or check without --sequential"
+            "run python -m maintainers calibrate designs --write, or check without --sequential"
         )
     design = entry["design"]
     null = next(row for row in entry["rows"] if row["scenario"] == "no change")
@@ -575,7 +575,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         "",
         "The fresh seeds are never the baseline's; `changed` means p < alpha in either direction "
         "(learning faster is a change in fidelity too). Error rates: "
-        "`keras-rl calibrate rules` (results/checks/calibration.md).",
+        "`python -m maintainers calibrate rules` (results/checks/calibration.md).",
         "",
     ]
     atomic_write_text(out / "check.md", "\n".join(lines))

@@ -6,7 +6,7 @@ each plays, and how the seeds run. The candidates are every statistic of
 ``statistics.STATISTICS`` the post defines, at alpha 0.01 and 0.005; the selection criterion,
 fixed with them, is: the most power against the mutants (the mean over the gross ones first,
 then over all) among the candidates whose false-alarm rate on the baseline is at most 1%.
-``keras_rl/check/calibrate/rules.py`` measures every candidate and says which one the
+``maintainers/calibrate/rules.py`` measures every candidate and says which one the
 criterion picks; ``tests/test_check.py`` fails if the rule below is not that one.
 
 The mutants are planted regressions, as ``--set`` overrides of the faithful config, from
@@ -21,9 +21,9 @@ from typing import Literal
 Tier = Literal["smoke", "full", "sensitive"]
 TIERS: tuple[str, ...] = ("smoke", "full", "sensitive")
 CALIBRATED_TIERS: tuple[str, ...] = ("smoke", "full")
-"""The tiers whose rules ``keras-rl calibrate rules|family|held-out|designs`` choose and measure
+"""The tiers whose rules ``python -m maintainers calibrate rules|family|held-out|designs`` choose and measure
 on the mutants of the rules' engine. The sensitive tier was sized by a power computation before its
-runs (``reproductions/sensitive_plan.py``) and is measured by ``keras-rl calibrate sensitive``."""
+runs (``reproductions/sensitive_plan.py``) and is measured by ``python -m maintainers calibrate sensitive``."""
 ALPHAS = (0.01, 0.005)
 """The alphas a rule may use."""
 BASELINE_SEEDS = range(0, 30)
@@ -194,7 +194,7 @@ RULES.update(
     {
         # results/checks/sensitive_plan.md sized 40 fresh compiled seeds against 200 from the
         # compiled engine's first 100 seeds (power 0.87 / 0.85 against x0.90 / x1.10 at 0.01 / 3).
-        # Measured on the committed 200-seed baseline (keras-rl calibrate sensitive: fresh seeds
+        # Measured on the committed 200-seed baseline (python -m maintainers calibrate sensitive: fresh seeds
         # drawn from it, shifted), 40 gave 0.80 / 0.72: its seeds spread a little wider than the
         # first 100's. The rule takes the plan's next size, 50 (0.89 / 0.86 by the same measure,
         # 0.35 minutes more); no mutant, tuning or held-out, entered the choice.
@@ -202,11 +202,11 @@ RULES.update(
         # results/checks/sensitive_plan_cartpole.md: censored at 600 episodes, no affordable cell
         # sees a 10% slow-down; 40 fresh compiled seeds (about 8 minutes on two workers) against
         # 200. (Its 0.99 against x0.90 scaled the never-reaching seeds too; scaling only those
-        # that got there, keras-rl calibrate sensitive measures 0.07 either way: docs/check.md.)
+        # that got there, python -m maintainers calibrate sensitive measures 0.07 either way: docs/check.md.)
         ("cartpole", "sensitive"): _compiled_sensitive("cartpole", seeds=40, episodes=600, baseline="baseline"),
         # Post 001 has no compiled engine: its Gymnasium-loop seeds, batched, against the committed
         # 100-seed baseline. Its statistic is chosen among the candidates by the rules' own
-        # criterion on MUTANTS' seeds 0-14 at 40 fresh seeds (``keras-rl calibrate sensitive``):
+        # criterion on MUTANTS' seeds 0-14 at 40 fresh seeds (``python -m maintainers calibrate sensitive``):
         # final_metric (100% gross, 60% all) over median_score (100%, 53%), auc and success.
         # The held-out mutants are reported, never used to choose.
         ("mountaincar", "sensitive"): CheckRule(

@@ -1,6 +1,6 @@
 """Tabulate multi-seed run folders against a baseline: the ledger's "measured effect" column.
 
-    keras-rl tables runs results/pendulum/faithful \
+    python -m maintainers tables runs results/pendulum/faithful \
         results/pendulum/fixed results/pendulum/ablations/*
 
 Each argument is a folder of ``seed_<n>/summary.json`` written by ``keras-rl reproduce``.
@@ -24,6 +24,7 @@ from scipy.stats import fisher_exact, mannwhitneyu
 
 from keras_rl.checkout import ROOT
 from keras_rl.report.equivalence import episodes_with_censoring
+from keras_rl.report.markdown import seed_span
 from keras_rl.report.stats import censored_mann_whitney, episodes_to_threshold_stats
 from keras_rl.runs.run_set import RunSet
 
@@ -33,13 +34,6 @@ def load(folder: Path) -> list[dict]:
     if not summaries:
         raise SystemExit(f"error: {folder} holds no seed_*/summary.json")
     return sorted(summaries, key=lambda s: s["seed"])
-
-
-def seed_span(seeds: list[int]) -> str:
-    """``0-29`` for a run of consecutive seeds, else the list."""
-    if seeds == list(range(seeds[0], seeds[-1] + 1)):
-        return f"{seeds[0]}-{seeds[-1]}"
-    return ",".join(str(s) for s in seeds)
 
 
 def p_text(p: float) -> str:

@@ -1,7 +1,7 @@
 """The false-alarm rate of a bisect step's sequential check (issue #21, item 5), measured.
 
-    keras-rl calibrate bisect-levels            # print the table
-    keras-rl calibrate bisect-levels --write    # results/checks/bisect_levels.md
+    python -m maintainers calibrate bisect-levels            # print the table
+    python -m maintainers calibrate bisect-levels --write    # results/checks/bisect_levels.md
 
 ``keras-rl bisect`` gives each step alpha / (1 + ceil(log2 n)) of its alpha and runs
 ``check --sequential --alpha SHARE`` there: each post stops as changed below SHARE / posts /
@@ -28,7 +28,7 @@ ALPHA = 0.01
 COMMITS = (8, 100)  # a short and a long bisect
 DRAWS = 50_000
 OUT = BASELINES / "bisect_levels.md"
-COMMAND = "keras-rl calibrate bisect-levels --write"
+COMMAND = "python -m maintainers calibrate bisect-levels --write"
 
 
 def measure(draws: int = DRAWS) -> list[dict]:

@@ -1,9 +1,9 @@
 """Measure the error rates of ``keras-rl check``'s decision rules, and which rule the
 pre-registered criterion picks (``keras_rl/check/rules.py``).
 
-    keras-rl calibrate rules pendulum mountaincar --write
-    keras-rl calibrate rules cartpole --make --workers 2 --write
-    keras-rl calibrate rules --write     # rerender calibration.md from calibration.json
+    python -m maintainers calibrate rules pendulum mountaincar --write
+    python -m maintainers calibrate rules cartpole --make --workers 2 --write
+    python -m maintainers calibrate rules --write     # rerender calibration.md from calibration.json
 
 Inputs, all committed: the faithful baseline ``results/checks/<exp>/baseline`` (every seed it holds) and
 each mutant's 10 seeds ``results/checks/<exp>/mutants/<name>`` (``--make`` runs the missing
@@ -34,7 +34,17 @@ from typing import Any
 
 import numpy as np
 
-from keras_rl.check.calibrate.runs import (
+from keras_rl.check.command import CALIBRATION
+from keras_rl.check.rules import ALPHAS, CALIBRATED_TIERS, MUTANTS, RULES
+from keras_rl.check.statistics import false_alarm_rate, power
+from keras_rl.checkout import ROOT
+from keras_rl.errors import ConfigError
+from keras_rl.learners.table import batch_refusal
+from keras_rl.registry import get_experiment
+from keras_rl.report.markdown import replace_block
+from keras_rl.runs.files import atomic_write_text
+from keras_rl.runs.run_set import RunSet
+from maintainers.calibrate.runs import (
     CHECKS,
     REPORT,
     TUNE,
@@ -49,16 +59,6 @@ from keras_rl.check.calibrate.runs import (
     seed_dirs,
     values,
 )
-from keras_rl.check.command import CALIBRATION
-from keras_rl.check.rules import ALPHAS, CALIBRATED_TIERS, MUTANTS, RULES
-from keras_rl.check.statistics import false_alarm_rate, power
-from keras_rl.checkout import ROOT
-from keras_rl.errors import ConfigError
-from keras_rl.learners.table import batch_refusal
-from keras_rl.registry import get_experiment
-from keras_rl.report.markdown import replace_block
-from keras_rl.runs.files import atomic_write_text
-from keras_rl.runs.run_set import RunSet
 
 MUTANT_SEEDS = "0-9"
 MUTANT_BATCH = 10
@@ -318,21 +318,21 @@ def criterion_by_seeds(name: str) -> dict:
 
 
 def family_block() -> str:
-    """The family-wise section (``keras_rl/check/calibrate/family.py --write``), kept across rewrites."""
-    from keras_rl.check.calibrate.family import BEGIN, END, render
+    """The family-wise section (``maintainers/calibrate/family.py --write``), kept across rewrites."""
+    from maintainers.calibrate.family import BEGIN, END, render
 
     path = CHECKS / "family.json"
     text = (
         render(json.loads(path.read_text()))
         if path.is_file()
-        else "Not computed yet: run keras-rl calibrate family --write"
+        else "Not computed yet: run python -m maintainers calibrate family --write"
     )
     return f"{BEGIN}\n{text}\n{END}"
 
 
 def held_out_block() -> str:
-    """The held-out section (``keras_rl/check/calibrate/held_out.py --write``), kept across rewrites."""
-    from keras_rl.check.calibrate.held_out import BEGIN, END, render
+    """The held-out section (``maintainers/calibrate/held_out.py --write``), kept across rewrites."""
+    from maintainers.calibrate.held_out import BEGIN, END, render
 
     path = CHECKS / "held_out.json"
     text = render(json.loads(path.read_text()) if path.is_file() else {})
@@ -340,14 +340,14 @@ def held_out_block() -> str:
 
 
 def sensitive_block() -> str:
-    """The sensitive tier's section (``keras_rl/check/calibrate/sensitive.py --write``), kept across rewrites."""
-    from keras_rl.check.calibrate.sensitive import BEGIN, END, HEADING, render
+    """The sensitive tier's section (``maintainers/calibrate/sensitive.py --write``), kept across rewrites."""
     from keras_rl.check.command import SENSITIVE_RATES
+    from maintainers.calibrate.sensitive import BEGIN, END, HEADING, render
 
     text = (
         render(json.loads(SENSITIVE_RATES.read_text()))
         if SENSITIVE_RATES.is_file()
-        else "Not computed yet: run keras-rl calibrate sensitive --write"
+        else "Not computed yet: run python -m maintainers calibrate sensitive --write"
     )
     return f"{HEADING}\n\n{BEGIN}\n{text}\n{END}"
 
@@ -533,7 +533,9 @@ def run(args: argparse.Namespace) -> int:
                     move_seeds(made, CHECKS / name / "mutants" / made.name)
         if not (CHECKS / name / "baseline").is_dir():
             return 2
-    command = " ".join(["keras-rl calibrate rules", *args.experiments, *(["--make"] if args.make else []), "--write"])
+    command = " ".join(
+        ["python -m maintainers calibrate rules", *args.experiments, *(["--make"] if args.make else []), "--write"]
+    )
     results = {
         name: {"command": command, "criterion_by_seeds": criterion_by_seeds(name), "tiers": calibrate(name)}
         for name in args.experiments

@@ -1,7 +1,7 @@
 """What the check's calibration scripts share: committed runs read back, each run's statistic,
 and the power report of a rule against a set of changed runs.
 
-``rules.py``, ``held_out.py``, ``designs.py`` and ``sensitive.py`` (``keras-rl calibrate``)
+``rules.py``, ``held_out.py``, ``designs.py`` and ``sensitive.py`` (``python -m maintainers calibrate``)
 import from here (and from nothing of each other's but the blocks they render), so there is one
 reader of the runs, one power report and one candidate choice (``choose``).
 """

@@ -1,9 +1,9 @@
 """Each quirk switch's measured effect, for ``reproductions/FIDELITY.md``, from the committed
 ablation runs.
 
-    keras-rl tables ablations            # print the three tables
-    keras-rl tables ablations --changes  # each switch's reading on seeds 0-9 and on all
-    keras-rl tables ablations --write    # replace them in reproductions/FIDELITY.md,
+    python -m maintainers tables ablations            # print the three tables
+    python -m maintainers tables ablations --changes  # each switch's reading on seeds 0-9 and on all
+    python -m maintainers tables ablations --write    # replace them in reproductions/FIDELITY.md,
                                                       # and rewrite each sweep folder's sweep.md
 
 Per post: the faithful runs, and for every quirk switch of its config (``QUIRKS``) the runs
@@ -34,8 +34,8 @@ from typing import Any
 from keras_rl.checkout import ROOT
 from keras_rl.errors import ConfigError
 from keras_rl.report.markdown import replace_block
-from keras_rl.report.tables.runs import runs_table
 from keras_rl.runs.run_set import RunSet
+from maintainers.tables.runs import runs_table
 
 FIDELITY = ROOT / "reproductions" / "FIDELITY.md"
 SWEEP = "keras-rl sweep {exp} --ablate --seeds 0-9 --workers 2{batch} --no-progress --out results/{exp}/ablations"
@@ -168,7 +168,8 @@ def table(experiment: str, only: set[int] | None = None) -> str:
     rows += [("-", name, ROOT / folder) for name, folder in source["also"].items()]
 
     lines = [
-        f"Regenerate the runs with {source['command']} and this table with `keras-rl tables ablations --write`.",
+        f"Regenerate the runs with {source['command']} and this table with "
+        "`python -m maintainers tables ablations --write`.",
         "",
         "| id | runs (seeds 0-9) | success | minus faithful [95% CI] | Fisher p | episodes to threshold: "
         "median (IQR) | minus faithful [95% CI] | Mann-Whitney p | reading |",
@@ -229,7 +230,7 @@ READINGS_MARKERS = ("<!-- p001-readings:begin -->", "<!-- p001-readings:end -->"
 
 def readings_table() -> str:
     """Post 001's two readings of the actor step on every committed seed (``report/tables/runs.py``)."""
-    command = "keras-rl tables runs " + " ".join(READINGS)
+    command = "python -m maintainers tables runs " + " ".join(READINGS)
     return f"{runs_table([ROOT / f for f in READINGS])}\n\n(`{command}`)"
 
 

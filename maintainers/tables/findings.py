@@ -1,8 +1,8 @@
 """The findings table of results/README.md, computed from the committed run folders.
 
-    keras-rl tables findings            # print the table
-    keras-rl tables findings --write    # replace it in results/README.md and README.md
-    keras-rl tables findings --changes  # what seeds 0-9 said against what all the seeds say
+    python -m maintainers tables findings            # print the table
+    python -m maintainers tables findings --write    # replace it in results/README.md and README.md
+    python -m maintainers tables findings --changes  # what seeds 0-9 said against what all the seeds say
 
 and the Keras-vs-PyTorch summary, one row per ``results/compare/**/result.json``, and the
 generated part of each per-post section (``post_block``: ``tables/runs.py``'s table of the
@@ -23,11 +23,11 @@ from pathlib import Path
 import numpy as np
 
 from keras_rl.checkout import ROOT
-from keras_rl.report.markdown import replace_block
+from keras_rl.report.markdown import replace_block, seed_span
 from keras_rl.report.stats import wilson_interval
-from keras_rl.report.tables.runs import load, runs_table, seed_span
 from keras_rl.report.tutorial_fix import FRAMEWORKS, TUTORIAL_FIXES
 from keras_rl.runs.run_set import RunSet
+from maintainers.tables.runs import load, runs_table
 
 BEGIN, END = "<!-- findings-table:begin -->", "<!-- findings-table:end -->"
 COMPARE_BEGIN, COMPARE_END = "<!-- compare-table:begin -->", "<!-- compare-table:end -->"
@@ -185,7 +185,7 @@ def post_block(post: str) -> str:
         )
     else:
         raise ValueError(post)
-    command = "keras-rl tables runs " + " ".join(str(f.relative_to(ROOT)) for f in folders)
+    command = "python -m maintainers tables runs " + " ".join(str(f.relative_to(ROOT)) for f in folders)
     return f"{runs_table(folders)}\n\n(`{command}`)\n\n{said}"
 
 

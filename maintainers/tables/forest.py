@@ -1,7 +1,7 @@
 """Every verdict drawn: one forest plot of every two-arm comparison the project commits.
 
-    keras-rl tables forest            # print the table
-    keras-rl tables forest --write    # results/forest.png (and docs/forest.png), results/forest.json,
+    python -m maintainers tables forest            # print the table
+    python -m maintainers tables forest --write    # results/forest.png (and docs/forest.png), results/forest.json,
                                       # and the blocks of results/README.md and docs/findings.md
 
 Each row is a comparison of two arms on the seeds both hold, judged on the two margins set on
@@ -38,7 +38,7 @@ FIGURE = RESULTS / "forest.png"
 DOCS_FIGURE = ROOT / "docs" / "forest.png"
 """The same figure beside ``docs/findings.md`` (the docs site takes no link out of ``docs/``)."""
 DATA = RESULTS / "forest.json"
-COMMAND = "keras-rl tables forest --write"
+COMMAND = "python -m maintainers tables forest --write"
 PAGES = (RESULTS / "README.md", ROOT / "docs" / "findings.md")
 BEGIN, END = "<!-- forest:begin -->", "<!-- forest:end -->"
 
@@ -110,7 +110,7 @@ def _comparisons() -> list[Comparison]:
         ("mountaincar, batch of 10", "mountaincar/seed-batch/batch10", "mountaincar/faithful"),
     ):
         out.append(Comparison("seed-batched vs solo", label, batched, solo))
-    from keras_rl.report.tables.ablations import SOURCES
+    from maintainers.tables.ablations import SOURCES
 
     for post, source in SOURCES.items():
         points, base = source["points"].removeprefix("results/"), source["base"].removeprefix("results/")

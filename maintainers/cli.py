@@ -1,20 +1,22 @@
-"""The maintainers' commands: what regenerates the checkout's committed figures.
+"""The maintainers' commands: what regenerates the checkout's committed figures, run from a
+checkout as ``python -m maintainers ...`` (this folder is not part of the installed package).
 
-- ``keras-rl calibrate rules|family|held-out|designs|sensitive|bisect-levels``: the check's calibration
-  (``keras_rl/check/calibrate/``), whose JSON ships as package data;
-- ``keras-rl tables findings|ablations|compat|forest|runs``: the generated Markdown tables
-  (``keras_rl/report/tables/``), each spliced between its markers (``report/markdown.py``);
-- ``keras-rl manifest``: ``results/MANIFEST``, and ``--regenerate`` to rerun sets and compare.
+- ``python -m maintainers calibrate rules|family|held-out|designs|sensitive|bisect-levels``: the check's calibration
+  (``maintainers/calibrate/``), whose JSON ships as package data;
+- ``python -m maintainers tables findings|ablations|compat|forest|runs``: the generated Markdown tables
+  (``maintainers/tables/``), each spliced between its markers (``report/markdown.py``);
+- ``python -m maintainers manifest``: ``results/MANIFEST``, and ``--regenerate`` to rerun sets and compare.
 
-Each reads the checkout's ``results/`` (``keras_rl/checkout.py``); a package installed outside
-a checkout says so (exit 2). The arguments are declared here and each module's ``run(args)``
-is imported only when its command runs (they import SciPy: ``keras-rl list`` should not).
+Each reads the checkout's ``results/`` (``keras_rl/checkout.py``). The arguments are declared
+here and each module's ``run(args)`` is imported only when its command runs.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from keras_rl.checkout import results_dir
@@ -27,14 +29,22 @@ def _what(inner, name: str, module: str, help: str, *flags: str) -> argparse.Arg
     return p
 
 
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m maintainers", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    add_parser(parser.add_subparsers(dest="command", required=True))
+    return parser
+
+
 def add_parser(sub) -> None:
     """``calibrate``, ``tables`` and ``manifest``."""
-    group = sub.add_parser("calibrate", help="measure the check's error rates and designs (keras_rl/check/calibrate/)")
+    group = sub.add_parser("calibrate", help="measure the check's error rates and designs (maintainers/calibrate/)")
     inner = group.add_subparsers(dest="what", required=True, metavar="WHAT", help="what to measure")
     p = _what(
         inner,
         "rules",
-        "keras_rl.check.calibrate.rules",
+        "maintainers.calibrate.rules",
         "each candidate rule's false-alarm rate and power on the committed baseline and mutant runs, "
         "and the rule the pre-registered criterion picks (keras_rl/check/calibration.json, "
         "results/checks/calibration.md)",
@@ -45,7 +55,7 @@ def add_parser(sub) -> None:
     p = _what(
         inner,
         "family",
-        "keras_rl.check.calibrate.family",
+        "maintainers.calibrate.family",
         "the three-post command's family-wise false-alarm rate, and its spread over simulated baselines "
         "(results/checks/family.json, calibration.md's block)",
         "--write",
@@ -53,7 +63,7 @@ def add_parser(sub) -> None:
     p = _what(
         inner,
         "held-out",
-        "keras_rl.check.calibrate.held_out",
+        "maintainers.calibrate.held_out",
         "the chosen rules' power against the held-out mutants (results/checks/held_out.json)",
         "--write",
     )
@@ -61,7 +71,7 @@ def add_parser(sub) -> None:
     p = _what(
         inner,
         "designs",
-        "keras_rl.check.calibrate.designs",
+        "maintainers.calibrate.designs",
         "the sequential check's designs: looks, bounds, error rates and expected seeds "
         "(keras_rl/check/sequential.json, results/checks/sequential.md)",
         "--write",
@@ -69,7 +79,7 @@ def add_parser(sub) -> None:
     p = _what(
         inner,
         "sensitive",
-        "keras_rl.check.calibrate.sensitive",
+        "maintainers.calibrate.sensitive",
         "the sensitive tier's false alarms, power against a 10%% move and against the held-out mutants, "
         "and post 001's statistic (keras_rl/check/sensitive.json, calibration.md's block)",
         "--write",
@@ -77,7 +87,7 @@ def add_parser(sub) -> None:
     p = _what(
         inner,
         "bisect-levels",
-        "keras_rl.check.calibrate.bisect_levels",
+        "maintainers.calibrate.bisect_levels",
         "the bisect's per-step levels against simulated unchanged checks (results/checks/bisect_levels.md)",
         "--write",
     )
@@ -88,7 +98,7 @@ def add_parser(sub) -> None:
     p = _what(
         inner,
         "findings",
-        "keras_rl.report.tables.findings",
+        "maintainers.tables.findings",
         "the findings tables of results/README.md and the README's short table",
         "--write",
         "--changes",
@@ -96,7 +106,7 @@ def add_parser(sub) -> None:
     p = _what(
         inner,
         "ablations",
-        "keras_rl.report.tables.ablations",
+        "maintainers.tables.ablations",
         "FIDELITY.md's measured-effect tables, one per post, and post 001's readings",
         "--write",
         "--changes",
@@ -105,14 +115,14 @@ def add_parser(sub) -> None:
     p = _what(
         inner,
         "compat",
-        "keras_rl.report.tables.compat",
+        "maintainers.tables.compat",
         "the version matrix's tables (results/compat/README.md, the README's short table) from the cell folders",
         "--write",
     )
     _what(
         inner,
         "forest",
-        "keras_rl.report.tables.forest",
+        "maintainers.tables.forest",
         "every two-arm comparison's estimate, 90% interval, margin and reading, drawn (results/forest.png) "
         "and tabled (results/README.md, docs/findings.md)",
         "--write",
@@ -120,7 +130,7 @@ def add_parser(sub) -> None:
     p = _what(
         inner,
         "runs",
-        "keras_rl.report.tables.runs",
+        "maintainers.tables.runs",
         "run-set folders tabulated against the first: the ledger's measured-effect column",
     )
     p.add_argument("folders", nargs="+", type=Path, help="run-set folders of seed_<n>/; the first is the baseline")
@@ -130,7 +140,7 @@ def add_parser(sub) -> None:
         help="results/MANIFEST: every committed run set with its command; --regenerate reruns sets and compares",
         parents=[shared_flags("manifest", "--out", "--workers", "--write")],
     )
-    p.set_defaults(module="keras_rl.runs.manifest")
+    p.set_defaults(module="maintainers.manifest")
     p.add_argument(
         "--regenerate",
         nargs="+",
@@ -142,3 +152,20 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     results_dir()  # exit 2 outside a checkout, before anything is read
     return int(importlib.import_module(args.module).run(args))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Parse, run, and turn the package's errors into exit codes as ``keras-rl`` does."""
+    from keras_rl.cli import EXIT_CRITERION, EXIT_USAGE
+    from keras_rl.errors import KerasRLError
+    from keras_rl.runs.options import resolve_defaults
+
+    args = resolve_defaults(build_parser().parse_args(argv))
+    try:
+        return run(args)
+    except KerasRLError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_CRITERION

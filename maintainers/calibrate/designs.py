@@ -1,7 +1,7 @@
 """The sequential check against the fixed-n rule, on the same simulated checks.
 
-    keras-rl calibrate designs            # print the table
-    keras-rl calibrate designs --write  # results/checks/sequential.md, keras_rl/check/sequential.json
+    python -m maintainers calibrate designs            # print the table
+    python -m maintainers calibrate designs --write  # results/checks/sequential.md, keras_rl/check/sequential.json
 
 For each post and tier: the design of ``keras_rl/check/sequential.py`` (looks at 5, 10, ...,
 30 fresh seeds; futility above a bound from the second look), its efficacy level calibrated
@@ -30,7 +30,6 @@ import json
 
 import numpy as np
 
-from keras_rl.check.calibrate.runs import REPORT, TUNE, halved, load, values
 from keras_rl.check.command import SEQUENTIAL, baseline_values
 from keras_rl.check.rules import CALIBRATED_TIERS, MUTANTS, RULES
 from keras_rl.check.sequential import (
@@ -45,12 +44,13 @@ from keras_rl.check.sequential import (
 from keras_rl.checkout import ROOT
 from keras_rl.registry import get_experiment
 from keras_rl.runs.files import atomic_write_text
+from maintainers.calibrate.runs import REPORT, TUNE, halved, load, values
 
 CHECKS = ROOT / "results" / "checks"
 POSTS = ("pendulum", "cartpole", "mountaincar")
 FAMILY_ALPHA = 0.01
 NULL_REPEATS, MUTANT_REPEATS = 4000, 1000
-COMMAND = "keras-rl calibrate designs --write"
+COMMAND = "python -m maintainers calibrate designs --write"
 
 
 def study(post: str, tier: str) -> dict:

@@ -1,2 +1,0 @@
-"""The generated Markdown tables (``keras-rl tables``): each regenerates from the committed runs
-and goes between its markers (``report/markdown.replace_block``); a test fails when one is stale."""

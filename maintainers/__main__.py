@@ -1,0 +1,5 @@
+import sys
+
+from maintainers.cli import main
+
+sys.exit(main())
