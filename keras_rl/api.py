@@ -1,85 +1,131 @@
 """The Python API, for notebooks: train seeds, load a run set, compare frameworks, check.
 
-Each function takes the same inputs as its command (``keras-rl reproduce``, ``compare``,
-``check``), checks them the same way (a ``ConfigError`` names bad input, before anything is
-written) and returns a typed result instead of an exit code. ``docs/api.md`` shows them.
+Each function takes typed inputs (a post's config object, seeds as whole numbers, paths) and
+calls the library the command calls (``keras_rl/study.py``, ``check/command.run_check``): no
+command line is built or parsed. Bad input raises a ``ConfigError`` that names it, before
+anything is written; each returns a typed result. ``docs/api.md`` shows them.
 
     from keras_rl import api
+    from keras_rl.posts.pendulum import PendulumDDPGConfig
     runs = api.load("results/pendulum/faithful")
     runs.episodes()                      # every episode of every seed, a DataFrame with pandas
+    made = api.reproduce(PendulumDDPGConfig(tau=0.005), seeds=range(2), out="runs/tau")
     report = api.compare("pendulum", seeds=range(30), reuse_only=True, out="runs/compare")
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import os
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from keras_rl.config import ExperimentConfig
+from keras_rl.errors import ConfigError
+from keras_rl.runs.options import RunOptions
 from keras_rl.runs.run_set import RunSet
+from keras_rl.study import checked_seeds
 
 __all__ = ["Reproduced", "RunSet", "check", "compare", "load", "reproduce"]
 
 
 @dataclass(frozen=True)
 class Reproduced:
-    """What ``reproduce`` made: the run set, and the command's exit code (0: the criterion held)."""
+    """What ``reproduce`` made: the run set, each seed's summary, and the command's exit code
+    (0: at least ``min_success_rate`` of the seeds succeeded, none stopped on an error)."""
 
     runs: RunSet
+    summaries: list
     exit_code: int
-
-    @property
-    def summaries(self) -> list:
-        return self.runs.summaries()
-
-
-def _seeds(seeds: int | str | Iterable[int]) -> str:
-    if isinstance(seeds, str):
-        return seeds
-    if isinstance(seeds, int):
-        return str(seeds)
-    return ",".join(str(int(s)) for s in seeds)
-
-
-def _args(argv: list[str]):
-    from keras_rl.cli import parse_args
-
-    return parse_args(argv)
 
 
 def load(folder: str | Path) -> RunSet:
-    """A folder of ``seed_<n>/`` run folders."""
-    return RunSet(Path(folder))
+    """A run set: a folder of ``seed_<n>/`` run folders, or a packed ``runs.parquet``; a
+    RunFolderError names a path that is neither."""
+    from keras_rl.errors import RunFolderError
+
+    if not isinstance(folder, (str, os.PathLike)):
+        raise ConfigError(f"load takes a folder's path, got {folder!r}")
+    runs = RunSet(Path(folder))
+    if not Path(folder).is_dir():
+        raise RunFolderError(f"{folder} is not a folder of runs (no such folder)")
+    if not runs.runs():
+        raise RunFolderError(f"{folder} holds no run set: no seed_<n>/summary.json and no runs.parquet")
+    return runs
 
 
 def reproduce(
-    experiment: str,
-    seeds: int | str | Iterable[int] = 0,
+    config: str | ExperimentConfig,
+    seeds: int | Iterable[int] = 0,
     *,
     out: str | Path,
     variant: str = "faithful",
     framework: str = "keras",
+    overrides: Mapping[str, object] | None = None,
     episodes: int | None = None,
-    overrides: dict[str, object] | None = None,
+    engine: str = "gymnasium",
     workers: int = 1,
     resume: bool = False,
+    overwrite: bool = False,
     progress: bool = False,
-    min_success_rate: float = 0.0,
+    min_success_rate: float = 1.0,
 ) -> Reproduced:
-    """``keras-rl reproduce``: train ``seeds`` into ``out``/seed_<n>/ and return the run set."""
-    argv = ["reproduce", experiment, "--seeds", _seeds(seeds), "--out", str(out), "--variant", variant]
-    argv += ["--framework", framework, "--workers", str(workers), "--min-success-rate", str(min_success_rate)]
-    argv += [] if episodes is None else ["--episodes", str(episodes)]
-    argv += [a for k, v in (overrides or {}).items() for a in ("--set", f"{k}={v}")]
-    argv += (["--resume"] if resume else []) + ([] if progress else ["--no-progress"])
-    from keras_rl.commands.reproduce import reproduce as run_reproduce
+    """Train ``seeds`` of a config into ``out``/seed_<n>/ (``keras_rl.study``, as ``keras-rl
+    reproduce`` does). ``config`` is a post's typed config (``PendulumDDPGConfig(tau=0.005)``),
+    or an experiment's name, made from ``variant``, ``framework`` and ``overrides`` (typed
+    values: ``{"actor_hidden_units": (32, 32)}``). Bad input raises a ConfigError naming it
+    before anything is written."""
+    from keras_rl.study import Study, plan, run
 
-    return Reproduced(RunSet(Path(out)), run_reproduce(_args(argv)))
+    if isinstance(config, str):
+        from keras_rl.registry import get_experiment
+
+        config = get_experiment(config).config_cls.for_variant(variant, framework=framework)
+    elif not isinstance(config, ExperimentConfig):
+        raise ConfigError(f"config must be a post's config or an experiment's name, got {config!r}")
+    changes = dict(overrides or {})
+    if episodes is not None:
+        changes["episodes"] = episodes
+    config = config.replace(**changes) if changes else config
+    if isinstance(min_success_rate, bool) or not isinstance(min_success_rate, (int, float)):
+        raise ConfigError(f"min_success_rate must be a number in [0, 1], got {min_success_rate!r}")
+    if not 0 <= min_success_rate <= 1:
+        raise ConfigError(f"min_success_rate must be in [0, 1], got {min_success_rate}")
+    if config.framework == "torch":  # type: ignore[attr-defined]
+        from keras_rl.torch import require_torch
+
+        require_torch()
+    study = Study(
+        config,
+        checked_seeds(seeds),
+        _path(out, "out"),
+        RunOptions.checked(workers=workers, engine=engine, progress=progress),
+        resume=resume,
+        overwrite=overwrite,
+    )
+    result = run(study, plan(study))
+    return Reproduced(result.runs, result.summaries, _exit_code(result, len(study.seeds), min_success_rate))
+
+
+def _exit_code(result, seeds: int, min_success_rate: float) -> int:
+    if result.interrupted:
+        from keras_rl.runs.signals import stop_exit_code
+
+        return stop_exit_code()
+    if result.failures or result.unsaid or result.successes / seeds < min_success_rate:
+        return 1
+    return 0
+
+
+def _path(value: object, name: str) -> Path:
+    if not isinstance(value, (str, os.PathLike)) or not str(value).strip():
+        raise ConfigError(f"{name} must be a folder's path, got {value!r}")
+    return Path(value)
 
 
 def compare(
     experiment: str,
-    seeds: int | str | Iterable[int],
+    seeds: int | Iterable[int],
     *,
     runs: str | Path = "results",
     out: str | Path,
@@ -90,18 +136,42 @@ def compare(
     """``keras-rl compare``: the Keras and PyTorch runs of ``seeds`` under ``runs`` (made where
     missing unless ``reuse_only``), reported under ``out``; returns the ``CompareResult``
     (``.verdict``, ``.result`` with every number, ``.out_dir``)."""
-    from keras_rl.commands.compare import compare_result
+    from keras_rl.study import compare_frameworks
 
-    argv = ["compare", experiment, "--seeds", _seeds(seeds), "--runs", str(runs), "--out", str(out), "--no-progress"]
-    argv += ["--workers", str(workers)] + (["--matched-init"] if matched_init else [])
-    argv += ["--reuse-only"] if reuse_only else []
-    return compare_result(_args(argv))
+    return compare_frameworks(
+        _name(experiment),
+        checked_seeds(seeds),
+        RunOptions.checked(workers=workers, progress=False),
+        runs=_path(runs, "runs"),
+        out=_path(out, "out"),
+        matched_init=matched_init,
+        reuse_only=reuse_only,
+    )
 
 
-def check(experiments: Iterable[str], *, out: str | Path, tier: str = "smoke", workers: int = 1) -> list:
-    """``keras-rl check``: fresh seeds against the committed baselines; each post's
-    ``CheckResult`` (``.verdict``, ``.decision.p``, ``.config_changes``)."""
-    from keras_rl.commands.check import check_results
+def check(
+    experiments: str | Iterable[str] = ("pendulum", "cartpole", "mountaincar"),
+    *,
+    out: str | Path,
+    tier: str = "smoke",
+    workers: int = 1,
+    against: str | Path | None = None,
+) -> list:
+    """``keras-rl check``: fresh seeds against the committed baselines (or ``against``); each
+    post's ``CheckResult`` (``.verdict``, ``.decision.p``, ``.config_changes``)."""
+    from keras_rl.check.command import check_request, default_baselines, run_check
 
-    argv = ["check", *experiments, "--tier", tier, "--out", str(out), "--workers", str(workers), "--no-progress"]
-    return check_results(_args(argv))
+    names = [experiments] if isinstance(experiments, str) else [_name(e) for e in experiments]
+    check_request(names, tier)
+    out_path = _path(out, "out")
+    from keras_rl.study import check_writable_dir
+
+    check_writable_dir(out_path, "out")
+    baselines = default_baselines() if against is None else _path(against, "against")
+    return run_check(names, tier, baselines, out_path, None, RunOptions.checked(workers=workers, progress=False))
+
+
+def _name(experiment: object) -> str:
+    if not isinstance(experiment, str):
+        raise ConfigError(f"an experiment is named by a string (see keras-rl list), got {experiment!r}")
+    return experiment

@@ -253,6 +253,54 @@ class ExperimentConfig:
             )
 
 
+RANGES = {"positive": "> 0", "non_negative": ">= 0", "unit": "(0, 1]", "fraction": "[0, 1)", "widths": "widths >= 1"}
+"""Each range check in words, as ``ExperimentConfig.validate`` applies it."""
+
+
+def describe_fields(cls) -> list[dict[str, str]]:
+    """Every field of a config class, in order: its name, type, default, range (or choices) and
+    its docstring, which cites the post's line (read from the class's source)."""
+    import ast
+    import inspect
+    import textwrap
+
+    docs: dict[str, str] = {}
+    for klass in reversed(cls.__mro__):
+        if not (isinstance(klass, type) and issubclass(klass, ExperimentConfig)):
+            continue
+        body = ast.parse(textwrap.dedent(inspect.getsource(klass))).body[0].body  # type: ignore[attr-defined]
+        for node, after in zip(body, body[1:]):
+            if (
+                isinstance(node, ast.AnnAssign)
+                and isinstance(node.target, ast.Name)
+                and isinstance(after, ast.Expr)
+                and isinstance(after.value, ast.Constant)
+                and isinstance(after.value.value, str)
+            ):
+                docs[node.target.id] = " ".join(after.value.value.split())
+    hints = typing.get_type_hints(cls)
+    out = []
+    for f in dataclasses.fields(cls):
+        hint = hints[f.name]
+        kind = f.metadata.get("check")
+        if typing.get_origin(hint) is Literal:
+            allowed = "one of " + ", ".join(map(str, typing.get_args(hint)))
+        else:
+            allowed = RANGES.get(str(kind), "")
+        name = hint.__name__ if isinstance(hint, type) else str(hint).replace("typing.", "")
+        default = getattr(cls(), f.name)
+        out.append(
+            {
+                "field": f.name,
+                "type": name,
+                "default": value_text(default),
+                "range": allowed,
+                "post": docs.get(f.name, ""),
+            }
+        )
+    return out
+
+
 def positive(default: Any) -> Any:
     return field(default=default, metadata={"check": "positive"})
 

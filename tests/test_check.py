@@ -143,13 +143,13 @@ def _fake_baseline_seed(seed_dir, seed=0):
     """A finished faithful pendulum run folder of three episodes (written with the project's own writers)."""
     from keras_rl.registry import get_experiment
     from keras_rl.runs.files import RunRecorder
-    from keras_rl.train.loop import SeedRun
+    from keras_rl.train.life import SeedRecords
 
     exp = get_experiment("pendulum")
     config = exp.config_cls.for_variant("faithful", seed=seed)
     recorder = RunRecorder(seed_dir, ("critic_loss", "actor_loss"))
     recorder.write_config(config.to_dict())
-    run = SeedRun(exp, config, recorder, exp.make_metric(config), "test")
+    run = SeedRecords(exp, config, recorder, exp.make_metric(config), "test")
     from keras_rl.agents.skeleton import EpisodeStats
 
     for episode, score in enumerate([-1200.0, -800.0, -250.0], 1):

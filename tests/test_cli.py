@@ -224,3 +224,18 @@ def test_tensorflows_start_up_lines_are_quiet(tmp_path):
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert done.returncode == 0 and done.stdout.strip() == "2.0"
     assert "absl::InitializeLog" not in done.stderr and "cuda drivers" not in done.stderr, done.stderr
+
+
+def test_list_with_an_experiment_shows_every_config_field_with_its_type_default_range_and_the_post(capsys):
+    """What ``--set FIELD=VALUE`` takes, from ``keras-rl list pendulum``: no field is hidden."""
+    import dataclasses
+
+    from keras_rl.posts.pendulum import PendulumDDPGConfig
+
+    assert main(["list", "pendulum"]) == 0
+    out = capsys.readouterr().out
+    for f in dataclasses.fields(PendulumDDPGConfig):
+        assert f"\n  {f.name}: " in out, f.name
+    assert "  tau: float = 0.001, (0, 1]\n      §2.3.1: ``self.tau = 0.001``" in out
+    assert "  actor_hidden_units: tuple[int, ...] = 64,64, widths >= 1" in out
+    assert main(["list", "nosuch"]) == 2

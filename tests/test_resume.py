@@ -304,3 +304,36 @@ def test_resume_finishes_a_set_keeping_its_completed_seeds_and_refuses_ones_of_a
     assert (done.stat().st_mtime_ns, done.read_bytes()) == before  # kept, not rerun
     assert len(rows(out / "seed_1" / "episodes.csv")) == 3
     assert "2 seeds" in (out / "summary.md").read_text()  # the set's summary covers both
+
+
+def test_the_resume_extension_and_closing_rules_are_written_once_for_every_engine():
+    """``train/life.py`` holds the one definition of the extension rule (``SeedLife.extends``),
+    the resume rule (``SeedLife.resume``) and which checkpoint a job leaves (``checkpoint_at_close``);
+    neither engine restates them."""
+    from types import SimpleNamespace
+
+    from keras_rl.train import life
+
+    def seed(status, episode=10, budget=10, reached=None, stops=True):
+        s = life.SeedLife.__new__(life.SeedLife)
+        s.status, s.episode = status, episode
+        s.config = SimpleNamespace(episodes=budget, stop_at_threshold=stops)
+        s.records = SimpleNamespace(reached_at=reached)
+        return s
+
+    assert seed("completed", budget=20).extends(played=10, budget_then=10)  # a larger budget goes on
+    assert not seed("completed", budget=10).extends(played=10, budget_then=10)  # not larger
+    assert not seed("completed", budget=20, reached=7).extends(played=7, budget_then=10)  # stopped at its threshold
+    assert seed("completed", budget=20, reached=7, stops=False).extends(played=10, budget_then=10)
+    assert not seed("interrupted", budget=20).extends(played=10, budget_then=10)
+    assert life.checkpoint_at_close([seed("completed"), seed("interrupted")]) == "write"
+    assert life.checkpoint_at_close([seed("completed")]) == "keep"  # played its whole budget: kept to extend
+    assert life.checkpoint_at_close([seed("completed", reached=4)]) == "delete"
+    assert life.checkpoint_at_close([seed("completed"), seed("non_finite_loss", episode=3)]) == "delete"
+    assert life.checkpoint_at_close([seed("error")]) is None
+    assert "--resume continues" in life.interruption([]) and "dispatcher" in life.interruption([])
+    root = Path(__file__).resolve().parents[1] / "keras_rl" / "train"
+    for engine in ("loop.py", "compiled.py"):
+        text = (root / engine).read_text()
+        for restated in ("check_resume_config(self.out_dir", "< wanted[", 'episodes.csv",', "stopped by {by}"):
+            assert restated not in text, (engine, restated)

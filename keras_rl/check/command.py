@@ -61,6 +61,23 @@ PACKAGED_BASELINES = Path(__file__).with_name("baselines")
 checkout's, which a test holds equal), so an installed package checks without a checkout."""
 
 
+def check_request(names: list[str], tier: str) -> None:
+    """The posts and tier a check names, checked before TensorFlow loads: a typo is named in a
+    second, not after the imports (a ConfigError)."""
+    from keras_rl.check.rules import RULES, TIERS
+
+    known = sorted({e for e, _ in RULES}, key=["pendulum", "cartpole", "mountaincar"].index)
+    unknown = [n for n in names if n not in known]
+    if not names:
+        raise ConfigError(f"no experiment named; check knows {', '.join(known)}")
+    if unknown:
+        raise ConfigError(f"unknown experiment {unknown[0]!r}; check knows {', '.join(known)}")
+    if tier not in TIERS:
+        raise ConfigError(f"unknown tier {tier!r}; choose one of {', '.join(TIERS)}")
+    if len(set(names)) != len(names):
+        raise ConfigError(f"an experiment is named twice: {' '.join(names)}")
+
+
 def default_baselines() -> Path:
     """``--against``'s default: this checkout's committed baselines, else the package's own."""
     if BASELINES.is_dir():

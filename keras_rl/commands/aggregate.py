@@ -23,8 +23,18 @@ def add_parser(sub) -> None:
 
 
 def add_list_parser(sub) -> None:
-    """``list`` takes no arguments."""
-    sub.add_parser("list", help="list the experiments and their variants")
+    """``list [EXPERIMENT]``."""
+    p = sub.add_parser(
+        "list",
+        help="list the experiments and their variants; with an experiment, every config field it takes",
+    )
+    p.add_argument(
+        "experiment",
+        nargs="?",
+        default=None,
+        help="list this experiment's config fields: type, default, range and the post's line each cites "
+        "(what --set FIELD=VALUE takes)",
+    )
 
 
 def aggregate(args: argparse.Namespace) -> int:
@@ -37,7 +47,20 @@ def aggregate(args: argparse.Namespace) -> int:
 
 def list_experiments(args: argparse.Namespace) -> int:
     from keras_rl.learners.table import STACKED, frameworks
-    from keras_rl.registry import EXPERIMENTS
+    from keras_rl.registry import EXPERIMENTS, get_experiment
+
+    if getattr(args, "experiment", None) is not None:
+        from keras_rl.config import describe_fields
+
+        experiment = get_experiment(args.experiment)
+        variants = ", ".join(experiment.config_cls.VARIANTS)
+        print(f"{experiment.name}: every field of its config (--set FIELD=VALUE; variants: {variants})")
+        for row in describe_fields(experiment.config_cls):
+            allowed = f", {row['range']}" if row["range"] else ""
+            print(f"  {row['field']}: {row['type']} = {row['default']}{allowed}")
+            if row["post"]:
+                print(f"      {row['post']}")
+        return EXIT_OK
 
     for name, exp in sorted(EXPERIMENTS.items()):
         batching = [fw for fw in frameworks(name) if (name, fw) in STACKED]

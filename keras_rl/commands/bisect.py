@@ -10,11 +10,11 @@ from keras_rl.commands.common import (
     EXIT_CRITERION,
     EXIT_NO_VERDICT,
     EXIT_OK,
-    _check_writable_dir,
     _stopped,
 )
 from keras_rl.errors import ConfigError
 from keras_rl.runs.options import shared_flags
+from keras_rl.study import check_writable_dir
 
 
 def add_parser(sub) -> None:
@@ -57,7 +57,7 @@ def bisect(args: argparse.Namespace) -> int:
         raise ConfigError(f"--alpha must lie in (0, 1), got {args.alpha}")
     if args.workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {args.workers}")
-    _check_writable_dir(args.out, "--out")  # exit 2, not one of the verdicts' exit codes
+    check_writable_dir(args.out, "--out")  # exit 2, not one of the verdicts' exit codes
     from keras_rl.check.bisect import bisect as run_bisect
     from keras_rl.check.command import default_baselines
     from keras_rl.runs.signals import sigterm_as_interrupt

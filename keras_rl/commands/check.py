@@ -9,12 +9,12 @@ from keras_rl.commands.common import (
     EXIT_CRITERION,
     EXIT_NO_VERDICT,
     EXIT_OK,
-    _check_writable_dir,
     _stopped,
     parse_seeds,
 )
 from keras_rl.errors import ConfigError, KerasRLError, NoVerdictError
 from keras_rl.runs.options import RunOptions, shared_flags
+from keras_rl.study import check_writable_dir
 
 
 def add_parser(sub) -> None:
@@ -80,17 +80,11 @@ def check(args: argparse.Namespace) -> int:
 
 def check_results(args: argparse.Namespace) -> list:
     """``check``'s work (``api.check`` too): each post's ``CheckResult``, the report written."""
-    from keras_rl.check.rules import RULES, TIERS
+    from keras_rl.check.command import check_request
+    from keras_rl.check.rules import RULES
 
-    known = sorted({e for e, _ in RULES}, key=["pendulum", "cartpole", "mountaincar"].index)
-    names = args.experiments or known
-    unknown = [n for n in names if n not in known]
-    if unknown:  # before TensorFlow loads: a typo is named in a second, not after the imports
-        raise ConfigError(f"unknown experiment {unknown[0]!r}; check knows {', '.join(known)}")
-    if args.tier not in TIERS:
-        raise ConfigError(f"unknown tier {args.tier!r}; choose one of {', '.join(TIERS)}")
-    if len(set(names)) != len(names):
-        raise ConfigError(f"an experiment is named twice: {' '.join(names)}")
+    names = args.experiments or sorted({e for e, _ in RULES}, key=["pendulum", "cartpole", "mountaincar"].index)
+    check_request(names, args.tier)
     if args.sequential and args.tier == "sensitive":
         raise ConfigError(
             "the sensitive tier has no sequential design: its fresh seeds were sized by a power computation "
@@ -106,7 +100,7 @@ def check_results(args: argparse.Namespace) -> list:
         raise ConfigError(f"--alpha must lie in (0, 1), got {args.alpha}")
     seeds = parse_seeds(args.seeds) if args.seeds is not None else None
     options = RunOptions.from_args(args)
-    _check_writable_dir(args.out, "--out")  # bad input (exit 2), found before any training
+    check_writable_dir(args.out, "--out")  # bad input (exit 2), found before any training
     options.check_address()
     from keras_rl.check.command import default_baselines, run_check
 

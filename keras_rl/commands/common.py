@@ -4,14 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import tempfile
 from pathlib import Path
 
 from keras_rl.errors import ConfigError, KerasRLError
+from keras_rl.study import MAX_SEEDS, check_writable_dir
 
 EXIT_OK, EXIT_CRITERION, EXIT_USAGE, EXIT_NO_VERDICT = 0, 1, 2, 3
-MAX_SEEDS = 10_000
 """More seeds than this in one command is taken for a typo (``0-100000``) and refused."""
 
 
@@ -57,58 +55,10 @@ def parse_seeds(text: str) -> list[int]:
     return sorted(seeds)
 
 
-def _check_writable_dir(path: Path, flag: str) -> None:
-    """A folder that exists and is writable, or can be made: else a ConfigError naming it."""
-    if path.exists() and not path.is_dir():
-        raise ConfigError(f"{flag} {path} is a file, not a folder")
-    probe = path
-    while not probe.exists():
-        probe = probe.parent
-    try:  # really write (root passes os.access everywhere, /proc included)
-        if not probe.is_dir():
-            raise OSError("not a folder")
-        fd, name = tempfile.mkstemp(dir=probe, prefix=".keras-rl-probe-")
-        os.close(fd)
-        os.unlink(name)
-    except OSError:
-        raise ConfigError(f"{flag} {path}: {probe} is not a writable folder") from None
-
-
-def _check_not_inside_a_run(out: Path) -> None:
-    """``--out`` names the folder that holds ``seed_<n>/`` folders: one inside a run folder
-    would nest runs in a run."""
-    for folder in (out, *out.parents):
-        if folder.name.startswith("seed_") and (folder / "config.json").is_file():
-            raise ConfigError(
-                f"--out {out} is inside the run folder {folder}; name the folder that holds the "
-                "seed_<n>/ folders (its parent), or another one"
-            )
-
-
 def _check_writable_file(path: Path, flag: str) -> None:
     if path.is_dir():
         raise ConfigError(f"{flag} {path} is a folder; name a file")
-    _check_writable_dir(path.parent if str(path.parent) else Path("."), f"{flag}'s folder")
-
-
-def _check_engine(engine: str, experiment, config) -> None:
-    """``--engine``: a clear error before anything runs where it cannot run ``config``."""
-    if engine == "gymnasium":
-        return
-    from keras_rl.train.engine import get_engine
-
-    why = get_engine(engine).refusal(experiment, config)
-    if why is not None:
-        raise ConfigError(f"--engine {engine}: {why}")
-
-
-def _check_seed_batch(seed_batch: int | str, experiment: str, framework: str) -> None:
-    """``--seed-batch S`` (S > 1): a clear error before anything runs when it cannot apply
-    (``auto`` runs seeds alone where nothing batches)."""
-    if seed_batch != "auto" and int(seed_batch) > 1:
-        from keras_rl.learners.table import stacked_implementation
-
-        stacked_implementation(experiment, framework)  # a clear error if there is none
+    check_writable_dir(path.parent if str(path.parent) else Path("."), f"{flag}'s folder")
 
 
 def _config_text(path: Path) -> str:

@@ -8,11 +8,9 @@ from pathlib import Path
 
 from keras_rl.commands.common import (
     EXIT_OK,
-    _check_writable_dir,
     _stopped,
     parse_seeds,
 )
-from keras_rl.errors import ConfigError
 from keras_rl.runs.options import RunOptions, shared_flags
 
 
@@ -59,58 +57,17 @@ def compare(args: argparse.Namespace) -> int:
 def compare_result(args: argparse.Namespace):
     """``compare``'s work (``api.compare`` too): the runs made or reused, the report written;
     its ``CompareResult``. KeyboardInterrupt when a signal stopped the runs."""
-    if args.rerun and args.reuse_only:
-        raise ConfigError(
-            "--rerun and --reuse-only contradict each other (one reruns every seed, the other runs none); pick one"
-        )
-    seeds = parse_seeds(args.seeds)
+    from keras_rl.study import compare_frameworks
+
     options = RunOptions.from_args(args)
-    _check_writable_dir(args.out, "--out")  # before any training
-    if not args.reuse_only:
-        _check_writable_dir(args.runs, "--runs")
-    options.check_address()
-    from keras_rl.learners.table import RETIRED, compared_frameworks, no_stacked_learner
-    from keras_rl.registry import get_experiment
-
-    experiment = get_experiment(args.experiment)
-    compared = compared_frameworks(experiment.name)  # a clear error where there is nothing to compare
-    if options.seed_batch == "auto" or int(options.seed_batch) > 1:
-        alone = [framework for framework in compared if no_stacked_learner(experiment.name, framework)]
-        if alone:  # reproduce refuses --seed-batch there; compare batches what it can, and says so
-            why = "".join(
-                f" ({fw}: {RETIRED[(experiment.name, fw)]})" for fw in alone if (experiment.name, fw) in RETIRED
-            )
-            print(
-                f"warning: --seed-batch {options.seed_batch}: {experiment.name} in {', '.join(alone)} has no "
-                f"seed-batched version, so its seeds run alone{why}",
-                file=sys.stderr,
-            )
-    from keras_rl.report.compare import compare as write_compare
-    from keras_rl.report.plots import draw_job_curves
-    from keras_rl.runs.compare_runs import make_compare_runs
-    from keras_rl.runs.provenance import command_line
-    from keras_rl.torch import require_torch
-
-    require_torch()
-    make_compare_runs(
-        experiment,
-        args.variant,
-        seeds,
+    return compare_frameworks(
+        args.experiment,
+        parse_seeds(args.seeds),
         options,
-        runs_root=args.runs,
+        runs=args.runs,
+        out=args.out,
+        variant=args.variant,
+        matched_init=args.matched_init,
         rerun=args.rerun,
         reuse_only=args.reuse_only,
-        matched_init=args.matched_init,
-        after_job=draw_job_curves,
-    )
-    return write_compare(
-        experiment.name,
-        seeds,
-        variant=args.variant,
-        runs_root=args.runs,
-        out_root=args.out,
-        matched_init=args.matched_init,
-        episodes=options.episodes,
-        command=command_line(),
-        workers=options.workers,
     )

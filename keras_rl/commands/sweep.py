@@ -9,13 +9,12 @@ from pathlib import Path
 from keras_rl.commands.common import (
     EXIT_CRITERION,
     EXIT_OK,
-    _check_seed_batch,
-    _check_writable_dir,
     _stopped,
     parse_seeds,
 )
 from keras_rl.errors import ConfigError
 from keras_rl.runs.options import RunOptions, shared_flags
+from keras_rl.study import check_seed_batch, check_writable_dir
 
 
 def add_parser(sub) -> None:
@@ -92,9 +91,9 @@ def sweep(args: argparse.Namespace) -> int:
         raise ConfigError(
             f"--baseline {baseline!r} is not a grid point; the points are {', '.join(p.name for p in points)}"
         )
-    _check_writable_dir(args.out, "--out")
+    check_writable_dir(args.out, "--out")
     options.check_address()
-    _check_seed_batch(options.seed_batch, experiment.name, args.framework)
+    check_seed_batch(options.seed_batch, experiment.name, args.framework)
     every, todo, configs = sweep_jobs(base, points, seeds, args.out, args.yes)
     if args.framework == "torch":
         from keras_rl.torch import require_torch

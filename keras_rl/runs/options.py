@@ -51,16 +51,49 @@ class RunOptions:
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> RunOptions:
         """The options a command was given, checked; absent flags take their defaults."""
-        workers = getattr(args, "workers", 1)
-        episodes = getattr(args, "episodes", None)
-        seed_batch = getattr(args, "seed_batch", 1)
+        address, source = None, "--address"
+        if hasattr(args, "address"):
+            address = args.address or os.environ.get("RAY_ADDRESS") or None
+            source = "--address" if args.address else "$RAY_ADDRESS"
+        return cls.checked(
+            workers=getattr(args, "workers", 1),
+            episodes=getattr(args, "episodes", None),
+            seed_batch=getattr(args, "seed_batch", 1),
+            engine=getattr(args, "engine", "gymnasium"),
+            address=address,
+            address_source=source,
+            overrides=tuple(getattr(args, "overrides", ())),
+            progress=not getattr(args, "no_progress", False),
+        )
+
+    @classmethod
+    def checked(
+        cls,
+        *,
+        workers: int = 1,
+        episodes: int | None = None,
+        seed_batch: int | str = 1,
+        engine: str = "gymnasium",
+        address: str | None = None,
+        address_source: str = "--address",
+        overrides: tuple[str, ...] = (),
+        progress: bool = True,
+    ) -> RunOptions:
+        """Options made in code (``api``) or from a command line: each checked, a ConfigError naming
+        the first that is wrong (a whole number where one is wanted, not a float or a string)."""
+        for name, value in (("--workers", workers), ("--episodes", episodes)):
+            if value is not None and (isinstance(value, bool) or not isinstance(value, int)):
+                raise ConfigError(f"{name} must be a whole number, got {value!r}")
+        if seed_batch != "auto" and (isinstance(seed_batch, bool) or not isinstance(seed_batch, int)):
+            raise ConfigError(f"--seed-batch must be a whole number or auto, got {seed_batch!r}")
         if workers < 1:
             raise ConfigError(f"--workers must be at least 1, got {workers}")
         if episodes is not None and episodes <= 0:
             raise ConfigError(f"--episodes must be positive, got {episodes}")
-        if seed_batch != "auto" and seed_batch < 1:
+        if seed_batch != "auto" and int(seed_batch) < 1:
             raise ConfigError(f"--seed-batch must be at least 1 or auto, got {seed_batch}")
-        engine = getattr(args, "engine", "gymnasium")
+        if engine not in ENGINE_NAMES:
+            raise ConfigError(f"unknown engine {engine!r}; known: {', '.join(ENGINE_NAMES)}")
         if engine != "gymnasium" and seed_batch != 1:
             raise ConfigError(f"--engine {engine} runs one seed per program; --seed-batch is the gymnasium engine's")
         cores = os.cpu_count() or 1
@@ -70,18 +103,14 @@ class RunOptions:
                 file=sys.stderr,
             )
             workers = cores
-        address, source = None, "--address"
-        if hasattr(args, "address"):
-            address = args.address or os.environ.get("RAY_ADDRESS") or None
-            source = "--address" if args.address else "$RAY_ADDRESS"
         return cls(
             workers=workers,
             address=address,
             seed_batch=seed_batch,
             episodes=episodes,
-            overrides=tuple(getattr(args, "overrides", ())),
-            progress=not getattr(args, "no_progress", False),
-            address_source=source,
+            overrides=overrides,
+            progress=progress,
+            address_source=address_source,
             engine=engine,
         )
 

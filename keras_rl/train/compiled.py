@@ -12,7 +12,7 @@ rounding allows (``tests/test_compiled_engine.py`` measures how close):
 - the exploration noise of every step (post 000's OU noise never depends on the actions);
 - the sample indices of every update (post 000's buffer size at every step is known).
 
-The rest is the Gymnasium loop's own bookkeeping (``SeedRun``: ``episodes.csv``, the metric,
+The rest is every engine's one seed life (``train/life.py``: ``episodes.csv``, the metric,
 the threshold, ``summary.json``, whose provenance names the engine), checkpoints at episode
 boundaries for ``--resume`` (bit for bit), Ctrl-C and SIGTERM between episodes, TensorBoard,
 evaluation during training and the final weights.
@@ -32,7 +32,6 @@ loop's own.
 from __future__ import annotations
 
 import json
-import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -47,14 +46,12 @@ from keras_rl.learners.common import step_function
 from keras_rl.learners.table import implementation
 from keras_rl.rngs import global_rng_state, rng_state, set_global_rng_state, set_rng_state
 from keras_rl.runs.checkpoint import VERSION, delete_checkpoints, read_batch_checkpoints, write_checkpoint
-from keras_rl.runs.evaluate import TrainingEvaluator
-from keras_rl.runs.files import RunRecorder, atomic_write_text, episode_columns, episodes_csv_text
 from keras_rl.runs.lifecycle import check_resume_config
-from keras_rl.runs.signals import signal_name, stop_signals_as_flag, stop_signals_deferred
-from keras_rl.runs.summary import RunSummary, Status
+from keras_rl.runs.signals import stop_signals_as_flag, stop_signals_deferred
+from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import configure_tensorflow, seed_everything
 from keras_rl.tf_envs import MAX_STEPS, CartPole, MountainCarContinuous, Pendulum
-from keras_rl.train.loop import SeedRun, _progress_bar, _TensorBoard
+from keras_rl.train.life import SeedLife, checkpoint_at_close, interruption, progress_bar
 from keras_rl.train.settings import TrainSettings
 
 ENGINE = "compiled"
@@ -218,43 +215,33 @@ class CompiledRun:
         self.transitions = agent.transitions
         self.action_space = self.env.action_space
         self.learner, self.program = PROGRAMS.take(experiment.name, c, fresh, self.make_program)
-        self.recorder = RunRecorder(out_dir, self.learner.loss_names)
-        self.run_ = SeedRun(experiment, c, self.recorder, experiment.make_metric(c), settings.command)
-        self.run_.provenance["engine"] = ENGINE
+        self.life = SeedLife(experiment, c, out_dir, self.learner.loss_names, settings)
+        self.records = self.life.records
+        self.records.provenance["engine"] = ENGINE
         self.stored = 0
         """Transitions stored so far (the ring's write position is this modulo its size)."""
         self.played = 0
         """Steps the current episode has played in the chunks before this one (post 003)."""
         self.tally = LossTally(self.learner.loss_names)
         """Each episode's losses and the run's update count, as the loop keeps them."""
-        self.episode = 0
-        self.status: Status = "running"
-        self.message = ""
-        self.saved = False
-        self.evaluator = (
-            TrainingEvaluator(experiment, c, self.recorder.out_dir, settings.evaluation)
-            if settings.evaluation is not None
-            else None
-        )
-        self.writer: _TensorBoard | None = None
 
     def _reset_env(self) -> np.ndarray:
         """The next episode's start state, drawn by the Gymnasium env as the loop resets it."""
-        self.env.reset(seed=self.config.seed) if self.episode == 0 else self.env.reset()
+        self.env.reset(seed=self.config.seed) if self.life.episode == 0 else self.env.reset()
         return np.asarray(self.env.unwrapped.state, np.float64).copy()
 
     def _trains(self, t: int) -> bool:
         """Whether the chunk's step ``t`` trains: the schedule's rule (``EveryStep``) at the
         buffer size and step count after it."""
         size = min(self.stored + t + 1, self.config.buffer_size)
-        total = self.run_.total_steps + self.played + t + 1
+        total = self.records.total_steps + self.played + t + 1
         return size >= self.schedule.train_start and total % self.schedule.train_every == 0
 
     def _record_losses(self, losses: np.ndarray, trains: np.ndarray, steps: int) -> str | None:
         """The losses of a chunk's ``steps`` steps (those that trained) into the episode's tally,
         in order, as the loop adds them; the loop's message if one is not finite."""
         trained = np.flatnonzero(trains[:steps])
-        first = self.run_.total_steps + self.played + 1
+        first = self.records.total_steps + self.played + 1
         return self._tally(losses[trained], [f"env step {first + t}" for t in trained])
 
     def _tally(self, losses: np.ndarray, where: list[str]) -> str | None:
@@ -271,24 +258,20 @@ class CompiledRun:
 
     # -- the run -----------------------------------------------------------------------------
     def run(self, should_stop: Callable[[], bool] | None = None) -> RunSummary:
-        c, settings = self.config, self.settings
+        c, settings, life = self.config, self.settings, self.life
         if settings.resume:
             self._restore()
-        if self.status == "running":
-            self.recorder.write_config(c.to_dict())
-            self.run_.summary("running").write(self.recorder.out_dir)
-        else:
-            return RunSummary.read(self.recorder.out_dir)
-        if settings.tensorboard:
-            self.writer = _TensorBoard(settings.tensorboard, c)
-        bar = _progress_bar(self.experiment, [c], [self], settings.position) if settings.progress else None
+        if life.final is not None:  # it had finished before its checkpoint
+            return life.final
+        life.start()
+        bar = progress_bar(self.experiment, [c], [life], settings.position) if settings.progress else None
         final = None
         try:
             with stop_signals_as_flag() as interrupted:
                 self._loop(interrupted, bar, should_stop)
         except Exception as exc:
-            if self.status == "running":
-                self.status, self.message = "error", f"{type(exc).__name__}: {exc}"
+            if life.active:
+                life.finish("error", f"{type(exc).__name__}: {exc}")
             raise
         finally:
             with stop_signals_deferred(reraise=False):
@@ -298,35 +281,20 @@ class CompiledRun:
         return final
 
     def _loop(self, interrupted: list, bar, should_stop) -> None:
-        c = self.config
+        life = self.life
         since = 0
-        while self.status == "running":
+        while life.active:
             played = self._play_episode()
             if isinstance(played, str):
-                self.status, self.message = "non_finite_loss", played
+                life.finish("non_finite_loss", played)
                 return
             score, steps, stats = played
-            self.episode += 1
-            row = self.run_.record_episode(self.episode, score, steps, stats)
-            if self.writer is not None:
-                self.writer.episode(row)
-            if self.evaluator is not None and self.evaluator.due(self.episode):
-                self.evaluator.evaluate(
-                    self.episode,
-                    lambda obs: self.learner.act(self.transitions.observe(obs)),  # as the policy sees it (P001)
-                    self.learner.save,
-                    self.writer,
-                )
-            if bar is not None:
-                bar.update(1)
-                bar.set_postfix(score=f"{row['score']:.1f}", metric=f"{row['metric']:.1f}", refresh=False)
-            if (self.run_.reached_at is not None and c.stop_at_threshold) or self.episode >= c.episodes:
-                self.status = "completed"
+            life.episode += 1
+            greedy = lambda obs: self.learner.act(self.transitions.observe(obs))  # noqa: E731 as the policy sees it (P001)
+            if not life.end_episode(score, steps, stats, greedy, self.learner.save, bar):
                 return
             if interrupted or (should_stop is not None and should_stop()):
-                by = signal_name(interrupted) if interrupted else "the dispatcher's stop request (Ctrl-C or SIGTERM)"
-                self.status = "interrupted"
-                self.message = f"stopped by {by}; the episodes so far are kept (--resume continues)"
+                life.finish("interrupted", interruption(interrupted))
                 return
             since += 1
             if self.settings.checkpoint_every and since >= self.settings.checkpoint_every:
@@ -335,17 +303,17 @@ class CompiledRun:
 
     # -- checkpoints ---------------------------------------------------------------------------
     def _snapshot(self) -> dict[str, Any]:
-        run = self.run_
+        run = self.records
         return {
             "version": VERSION,
             "engine": ENGINE,
             "batch": [self.config.seed],
-            "vector_step": self.episode,
+            "vector_step": self.life.episode,
             "global_rng": global_rng_state(),
             "seed": {
-                **run.snapshot(self.status, self.message),
-                "episode": self.episode,
-                "saved": self.saved,
+                **run.snapshot(self.life.status, self.life.message),
+                "episode": self.life.episode,
+                "saved": self.life.saved,
             },
             "engine_state": {
                 "learner": self.learner.state_dict(),
@@ -368,23 +336,18 @@ class CompiledRun:
         set_rng_state(self.buffer.rng, own["buffer_rng"])
 
     def _write_checkpoint(self) -> None:
-        write_checkpoint(self.recorder.out_dir, self._snapshot())
+        write_checkpoint(self.life.out_dir, self._snapshot())
 
     def _restore(self) -> None:
-        (state,) = read_batch_checkpoints([self.recorder.out_dir], [self.config.seed])
+        out_dir = self.life.out_dir
+        (state,) = read_batch_checkpoints([out_dir], [self.config.seed])
         if state.get("engine") != ENGINE:
             raise RunFolderError(
-                f"{self.recorder.out_dir}'s checkpoint was written by the {state.get('engine', 'gymnasium')} engine; "
+                f"{out_dir}'s checkpoint was written by the {state.get('engine', 'gymnasium')} engine; "
                 "resume it with that engine (--engine), or pass --overwrite to start again"
             )
         seed, own = state["seed"], state["engine_state"]
-        wanted, theirs = self.config.to_dict(), seed["config"]
-        played = len(seed["rows"])
-        check_resume_config(self.recorder.out_dir, wanted, theirs, played)
-        run = self.run_
-        run.restore(seed)
-        self.status, self.message = seed["status"], seed["message"]
-        self.episode, self.saved = int(seed["episode"]), bool(seed["saved"])
+        check_resume_config(out_dir, self.config.to_dict(), seed["config"], len(seed["rows"]))
         self.learner.load_state_dict(own["learner"])
         self._load_replay_state(own)
         self.tally.total_updates = int(own["updates"])
@@ -392,51 +355,22 @@ class CompiledRun:
         set_rng_state(self.env.unwrapped.np_random, own["env_rng"])
         set_rng_state(self.action_space.np_random, own["action_space_rng"])
         set_global_rng_state(state["global_rng"])
-        stopped_early = run.reached_at is not None and self.config.stop_at_threshold
-        if self.status == "completed" and played == int(theirs["episodes"]) < wanted["episodes"] and not stopped_early:
-            self.status, self.saved = "running", False  # a larger budget continues it
-        if self.status == "running":
-            atomic_write_text(
-                self.recorder.out_dir / "episodes.csv",
-                episodes_csv_text(self.recorder.rows, episode_columns(self.recorder.loss_names)),
-            )
-            if self.evaluator is not None:
-                self.evaluator.resume(played)
-        print(
-            f"seed {self.config.seed}: resumed in {self.recorder.out_dir} after episode {played} "
-            f"(its checkpoint; {run.total_steps} steps)",
-            file=sys.stderr,
-        )
+        self.life.resume(seed)
 
     # -- the end ---------------------------------------------------------------------------------
     def _close(self) -> RunSummary:
-        c = self.config
-        if self.status == "running":
-            self.status, self.message = "error", "the run stopped on an error"
-        if self.status in ("completed", "interrupted") and not self.saved:
-            try:
-                self.learner.save(self.recorder.out_dir)
-                self.saved = True
-            except Exception as exc:
-                self.status = "error"
-                self.message = (
-                    f"could not write the run's files in {self.recorder.out_dir}: {type(exc).__name__}: {exc}"
-                )
-        stopped_early = self.run_.reached_at is not None and c.stop_at_threshold
-        if self.status == "interrupted":
+        life = self.life
+        if life.active:
+            life.finish("error", "the run stopped on an error")
+        action = checkpoint_at_close([life])
+        if action in ("write", "keep"):
             self._write_checkpoint()
-        elif self.status == "completed" and self.episode == c.episodes and not stopped_early:
-            self._write_checkpoint()  # kept, so --resume --episodes N extends it
-        elif self.status in ("completed", "non_finite_loss"):
-            delete_checkpoints(self.recorder.out_dir)
-        if self.writer is not None:
-            self.writer.close()
-        if self.evaluator is not None:
-            self.evaluator.close()
+        elif action == "delete":
+            delete_checkpoints(life.out_dir)
+        if life.evaluator is not None:
+            life.evaluator.close()
         self.env.close()
-        final = self.run_.summary(self.status, self.message)
-        final.write(self.recorder.out_dir)
-        return final
+        return life.flush(self.learner.save)
 
 
 class PendulumRun(CompiledRun):
@@ -723,7 +657,7 @@ class MountainCarRun(CompiledRun):
             )
             acted_on = rule.observe(observations[t])
             score += float(rewards[t])
-        total = self.run_.total_steps + steps
+        total = self.records.total_steps + steps
         batches = self.schedule.batches(self.buffer, total)  # at the episode's last step, as the loop
         if batches:
             stopped = self._train_burst(batches, total)

@@ -37,10 +37,6 @@ episodes exactly as a straight run of N would have played them.
 
 from __future__ import annotations
 
-import datetime
-import math
-import sys
-import time
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -55,13 +51,10 @@ from keras_rl.learners.axis import SeedAxisLearner
 from keras_rl.learners.table import implementation, stacked_implementation
 from keras_rl.rngs import global_rng_state, set_global_rng_state
 from keras_rl.runs.checkpoint import delete_checkpoints, read_batch_checkpoints, write_checkpoint
-from keras_rl.runs.evaluate import TrainingEvaluator
-from keras_rl.runs.files import RunRecorder, atomic_write_text, episode_columns, episodes_csv_text
-from keras_rl.runs.lifecycle import check_resume_config
-from keras_rl.runs.provenance import command_line, library_versions, provenance
-from keras_rl.runs.signals import signal_name, stop_signals_as_flag, stop_signals_deferred
-from keras_rl.runs.summary import RunSummary, Status
+from keras_rl.runs.signals import stop_signals_as_flag, stop_signals_deferred
+from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import configure_tensorflow, seed_everything
+from keras_rl.train.life import SeedLife, checkpoint_at_close, interruption, progress_bar
 from keras_rl.train.settings import DEFAULT_SETTINGS, TrainSettings
 
 
@@ -107,17 +100,13 @@ def run_seeds(
     axis, envs = build_seed_axis(experiment, configs, envs)
     axis.compile()
     seeds = [
-        _Seed(experiment, c, env, Path(d), axis.loss_names, settings.command)
-        for c, env, d in zip(configs, envs, out_dirs)
+        _Seed(experiment, c, env, Path(d), axis.loss_names, settings) for c, env, d in zip(configs, envs, out_dirs)
     ]
     batch = [c.seed for c in configs]
     for s in seeds:
         if len(seeds) > 1:  # which seeds shared its stacked updates: its bits depend on them
-            s.run.provenance["seed_batch"] = batch
+            s.records.provenance["seed_batch"] = batch
     state = _Batch(seeds, axis, settings.checkpoint_every, batch)
-    if settings.evaluation is not None:
-        for s in seeds:
-            s.evaluator = TrainingEvaluator(experiment, s.config, s.recorder.out_dir, settings.evaluation)
     if settings.resume:
         checkpoints = read_batch_checkpoints([s.recorder.out_dir for s in seeds], batch)
         engine = checkpoints[0].get("engine", "gymnasium")
@@ -127,20 +116,9 @@ def run_seeds(
                 f"with --engine {engine}, or pass --overwrite to start again"
             )
         state.restore(checkpoints)
-        for s in seeds:
-            if s.active:  # it goes on, perhaps to a larger budget (--resume --episodes N): config.json says which
-                s.recorder.write_config(s.config.to_dict())
-            if s.evaluator is not None:
-                s.evaluator.resume(len(s.recorder.rows))
-    else:
-        for s in seeds:
-            s.recorder.write_config(s.config.to_dict())
     for s in seeds:
-        if s.final is None:  # a summary from the start: no stale one from an earlier run survives
-            s.run.summary("running").write(s.recorder.out_dir)
-        if settings.tensorboard and s.final is None:
-            s.writer = _TensorBoard(settings.tensorboard, s.config)
-    bar = _progress_bar(experiment, configs, seeds, settings.position) if settings.progress else None
+        s.start()
+    bar = progress_bar(experiment, configs, seeds, settings.position) if settings.progress else None
     try:
         with stop_signals_as_flag() as interrupted:  # checked between vector steps
             state.loop(interrupted, bar, should_stop)
@@ -155,7 +133,7 @@ def run_seeds(
             if bar is not None:
                 bar.close()
             state.close()
-    missing = [s.run.config.seed for s in seeds if s.final is None]
+    missing = [s.config.seed for s in seeds if s.final is None]
     if missing:  # close() flushes every seed's summary; a gap here is a bug, not a user's error
         raise RuntimeError(f"seeds {missing} ended without a summary")
     return [s.final for s in seeds if s.final is not None]
@@ -376,132 +354,17 @@ class WholeAgentAxis:
         self.agent.tally.sums, self.agent.tally.updates = dict(state["tally"]["sums"]), int(state["tally"]["updates"])
 
 
-class SeedRun:
-    """One seed's bookkeeping: its rows, its metric, its counters and the summary they make."""
+class _Seed(SeedLife):
+    """One seed's own part of a batch: its life (``train/life.py``), its env and where its episode stands."""
 
-    def __init__(self, experiment: Experiment, config, recorder: RunRecorder, metric, command: str | None = None):
-        self.experiment, self.config, self.recorder, self.metric = experiment, config, recorder, metric
-        self.command = command or command_line()
-        self.start = time.perf_counter()
-        self.provenance = {
-            **provenance(),
-            "started_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        }
-        self.versions = library_versions(config.framework)
-        self.reached_at: int | None = None
-        self.total_steps = 0
-
-    def record_episode(self, episode: int, score: float, steps: int, stats) -> dict[str, Any]:
-        """An episode's row into ``episodes.csv``, the threshold check, and a current
-        ``summary.json``; returns the row."""
-        self.total_steps += steps
-        value = self.metric.update(score)
-        row = {
-            "episode": episode,
-            "steps": steps,
-            "total_steps": self.total_steps,
-            "score": score,
-            "metric": value,
-            **stats.mean_losses,
-            "wall_seconds": time.perf_counter() - self.start,
-        }
-        self.recorder.add_episode(row)
-        if self.reached_at is None and self.metric.passes(value, self.config.threshold):
-            self.reached_at = episode
-        self.summary("running").write(self.recorder.out_dir)
-        return row
-
-    def snapshot(self, status: Status, message: str) -> dict[str, Any]:
-        """The records' part of a checkpoint, any engine's: an interrupted run is running as
-        far as the checkpoint goes."""
-        return {
-            "config": self.config.to_dict(),
-            "rows": list(self.recorder.rows),
-            "reached_at": self.reached_at,
-            "total_steps": self.total_steps,
-            "elapsed": time.perf_counter() - self.start,
-            "metric": self.metric,
-            "status": "running" if status == "interrupted" else status,
-            "message": "" if status == "interrupted" else message,
-        }
-
-    def restore(self, state: dict[str, Any]) -> None:
-        """``snapshot``'s records back (the caller has checked the config: ``check_resume_config``)."""
-        self.metric.__dict__.update(state["metric"].__dict__)
-        self.recorder.rows = list(state["rows"])
-        self.reached_at, self.total_steps = state["reached_at"], int(state["total_steps"])
-        self.start = time.perf_counter() - float(state["elapsed"])
-
-    def summary(self, status: Status, message: str = "") -> RunSummary:
-        c, rows, metric = self.config, self.recorder.rows, self.metric
-        at_end = self.experiment.success_at_end
-        finite = [r["metric"] for r in rows if r["metric"] is not None and math.isfinite(r["metric"])]
-        best = (min if metric.comparison in ("<", "<=") else max)(finite, default=None)
-        return RunSummary(
-            experiment=self.experiment.name,
-            variant=c.variant,
-            seed=c.seed,
-            status=status,
-            message=message,
-            success=(
-                metric.passes(rows[-1]["metric"], c.threshold) and len(rows) == c.episodes
-                if at_end and rows
-                else self.reached_at is not None
-            ),
-            criterion=(
-                f"metric {metric.comparison} {c.threshold:g} "
-                + (f"after all {c.episodes} episodes" if at_end else f"within {c.episodes} episodes")
-            ),
-            reached_at_episode=self.reached_at,
-            episodes_run=len(rows),
-            budget_episodes=c.episodes,
-            total_steps=self.total_steps,
-            steps_to_threshold=rows[self.reached_at - 1]["total_steps"] if self.reached_at else None,
-            final_metric=rows[-1]["metric"] if rows else None,
-            best_metric=best,
-            wall_seconds=round(time.perf_counter() - self.start, 3),
-            framework=c.framework,
-            command=self.command,
-            versions=self.versions,
-            provenance=self.provenance,
-            extras=self.experiment.summary_extras(rows, c),
-        )
-
-
-class _Seed:
-    """One seed's own part of a batch: its env, its records and where its episode stands."""
-
-    def __init__(self, experiment: Experiment, config, env, out_dir: Path, loss_names, command: str | None):
-        self.config, self.env = config, env
-        self.recorder = RunRecorder(out_dir, loss_names)
-        self.run = SeedRun(experiment, config, self.recorder, experiment.make_metric(config), command)
-        self.status: Status = "running"
-        self.message = ""
-        self.score, self.steps, self.episode = 0.0, 0, 0
-        self.saved = False
-        self.writer: _TensorBoard | None = None
-        self.final: RunSummary | None = None
-        """The summary written when the seed stopped (its wall time ends there)."""
-        self.evaluator: TrainingEvaluator | None = None
-        self.extending = False
-        """Resumed past the budget it completed (``--resume --episodes N``): its next episode starts the loop."""
-
-    @property
-    def ended_on_budget(self) -> bool:
-        """Completed by playing its whole budget, not stopped at the threshold: a larger budget continues it."""
-        stopped_early = self.run.reached_at is not None and self.config.stop_at_threshold
-        return self.status == "completed" and self.episode == self.config.episodes and not stopped_early
-
-    @property
-    def active(self) -> bool:
-        return self.status == "running"
-
-    def finish(self, status: Status, message: str = "") -> None:
-        self.status, self.message = status, message
+    def __init__(self, experiment: Experiment, config, env, out_dir: Path, loss_names, settings: TrainSettings):
+        super().__init__(experiment, config, out_dir, loss_names, settings)
+        self.env = env
+        self.score, self.steps = 0.0, 0
 
     def snapshot(self) -> dict[str, Any]:
         return {
-            **self.run.snapshot(self.status, self.message),
+            **self.records.snapshot(self.status, self.message),
             "episode": self.episode,
             "score": self.score,
             "steps": self.steps,
@@ -510,39 +373,14 @@ class _Seed:
         }
 
     def restore(self, state: dict[str, Any]) -> None:
-        wanted, theirs = self.config.to_dict(), state["config"]
-        check_resume_config(self.recorder.out_dir, wanted, theirs, len(state["rows"]))
         if getattr(self.config, "learning_phase_training", False):
             raise ConfigError(
                 "--resume does not cover learning_phase_training=true (its noise layer draws from "
                 "TensorFlow's generator, which checkpoints do not hold)"
             )
-        run = self.run
-        run.restore(state)
-        self.status, self.message = state["status"], state["message"]
-        self.episode, self.score, self.steps, self.saved = (
-            state["episode"],
-            state["score"],
-            state["steps"],
-            state["saved"],
-        )
+        self.resume(state)
+        self.score, self.steps = state["score"], state["steps"]
         _load_env_state(self.env, state["env"])
-        print(
-            f"seed {self.config.seed}: resumed in {self.recorder.out_dir} after episode {len(self.recorder.rows)} "
-            f"(its checkpoint; {int(state['total_steps'])} steps)",
-            file=sys.stderr,
-        )
-        budget, stopped_early = int(theirs["episodes"]), run.reached_at is not None and self.config.stop_at_threshold
-        if self.status == "completed" and len(self.recorder.rows) == budget < wanted["episodes"] and not stopped_early:
-            # it played its whole budget; the larger one continues it from the state it ended in
-            self.status, self.message, self.saved, self.extending = "running", "", False, True
-        if self.active:  # episodes played after the checkpoint are played again, so they leave the CSV
-            atomic_write_text(
-                self.recorder.out_dir / "episodes.csv",
-                episodes_csv_text(self.recorder.rows, episode_columns(self.recorder.loss_names)),
-            )
-        else:  # it had finished before the checkpoint: its files stay as they are
-            self.final = RunSummary.read(self.recorder.out_dir)
 
 
 def _load_env_state(env, saved) -> None:
@@ -621,20 +459,15 @@ class _Batch:
                 s = seeds[k]
                 if not s.active:
                     continue
-                row = s.run.record_episode(s.episode, *records[k], axis.episode_stats(k))
-                if s.writer is not None:
-                    s.writer.episode(row)
-                if s.evaluator is not None and s.evaluator.due(s.episode):
-                    s.evaluator.evaluate(
-                        s.episode, lambda obs, k=k: axis.greedy(k, obs), lambda d, k=k: axis.save(k, d), s.writer
-                    )
-                if bar is not None:
-                    bar.update(1)
-                    bar.set_postfix(score=f"{row['score']:.1f}", metric=f"{row['metric']:.1f}", refresh=False)
+                goes_on = s.end_episode(
+                    *records[k],
+                    axis.episode_stats(k),
+                    lambda obs, k=k: axis.greedy(k, obs),
+                    lambda d, k=k: axis.save(k, d),
+                    bar,
+                )
                 self.since_checkpoint += 1
-                if (s.run.reached_at is not None and s.config.stop_at_threshold) or s.episode == s.config.episodes:
-                    s.finish("completed")
-                else:
+                if goes_on:
                     s.episode += 1
                     s.score, s.steps = 0.0, 0
                     restarted.add(k)
@@ -644,10 +477,9 @@ class _Batch:
                 self.flush(k)
             # the dispatcher's flag costs a round trip (a Ray actor call): asked when an episode ends
             if interrupted or (ended and should_stop is not None and should_stop()):
-                by = signal_name(interrupted) if interrupted else "the dispatcher's stop request (Ctrl-C or SIGTERM)"
                 for s in seeds:
                     if s.active:
-                        s.finish("interrupted", f"stopped by {by}; the episodes so far are kept (--resume continues)")
+                        s.finish("interrupted", interruption(interrupted))
                 return
             if (
                 self.checkpoint_every
@@ -691,23 +523,8 @@ class _Batch:
 
     # -- the end ------------------------------------------------------------------------------
     def flush(self, k: int) -> None:
-        """A seed's last word: its weights (when it finished or was stopped, before its masked
-        slice moves on) and its final summary; a failed write makes the run an error that
-        names the file, so no summary claims success for a run whose files are missing."""
-        s = self.seeds[k]
-        if s.status in ("completed", "interrupted") and not s.saved:
-            try:
-                self.axis.save(k, s.recorder.out_dir)
-                s.saved = True
-            except Exception as exc:  # disk full, permissions
-                s.finish(
-                    "error", f"could not write the run's files in {s.recorder.out_dir}: {type(exc).__name__}: {exc}"
-                )
-        if s.writer is not None:
-            s.writer.close()
-            s.writer = None
-        s.final = s.run.summary(s.status, s.message)
-        s.final.write(s.recorder.out_dir)
+        """A seed's last word (``SeedLife.flush``), before its masked slice moves on."""
+        self.seeds[k].flush(lambda d: self.axis.save(k, d))
 
     def close(self) -> None:
         """Every seed's final files. Checkpoints: an interrupted batch writes them (every
@@ -717,7 +534,8 @@ class _Batch:
         for s in seeds:
             if s.active:  # an error outside any one seed: every seed still running says so
                 s.finish("error", "the batch stopped on an error")
-        if any(s.status == "interrupted" for s in seeds):
+        action = checkpoint_at_close(seeds)
+        if action == "write":
             try:
                 self.write_checkpoints()
             except Exception as exc:  # disk full: say so in every interrupted seed's summary
@@ -728,9 +546,9 @@ class _Batch:
                             f"could not write the checkpoint in {s.recorder.out_dir}: {type(exc).__name__}: {exc}",
                         )
                         s.final = None
-        elif len(seeds) == 1 and seeds[0].ended_on_budget:
+        elif action == "keep":
             self.write_final_checkpoints()
-        elif all(s.status in ("completed", "non_finite_loss") for s in seeds):
+        elif action == "delete":
             for s in seeds:
                 delete_checkpoints(s.recorder.out_dir)
         for k, s in enumerate(seeds):
@@ -739,52 +557,3 @@ class _Batch:
             s.env.close()
             if s.evaluator is not None:
                 s.evaluator.close()
-
-
-def _progress_bar(experiment: Experiment, configs: list, seeds: Sequence[Any], position: int):
-    """A tqdm bar over the seeds' episodes (each seed has a ``recorder``)."""
-    from tqdm.auto import tqdm
-
-    c = configs[0]
-    who = (
-        f"seed {c.seed}"
-        if len(configs) == 1
-        else f"seeds {configs[0].seed}..{configs[-1].seed} (batch of {len(configs)})"
-    )
-    return tqdm(
-        total=len(seeds) * c.episodes,
-        initial=sum(len(s.recorder.rows) for s in seeds),
-        position=position,
-        leave=position == 0,
-        dynamic_ncols=True,
-        unit="ep",
-        desc=f"{experiment.name}/{c.variant}/{c.framework} {who}",
-    )
-
-
-class _TensorBoard:
-    """Per-episode score, metric and losses as TensorBoard scalars, one run folder per seed."""
-
-    def __init__(self, root: Path, config):
-        import tensorflow as tf
-
-        self.tf = tf
-        self.writer = tf.summary.create_file_writer(
-            str(Path(root) / f"{config.experiment}-{config.variant}-{config.framework}-seed{config.seed}")
-        )
-
-    def scalars(self, values: dict[str, float], step: int) -> None:
-        with self.writer.as_default():
-            for key, value in values.items():
-                self.tf.summary.scalar(key, value, step=step)
-        self.writer.flush()
-
-    def episode(self, row: dict[str, Any]) -> None:
-        with self.writer.as_default():
-            for key, value in row.items():
-                if key not in ("episode", "wall_seconds") and value is not None and math.isfinite(value):
-                    self.tf.summary.scalar(key, value, step=row["episode"])
-        self.writer.flush()
-
-    def close(self) -> None:
-        self.writer.close()

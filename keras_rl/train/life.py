@@ -1,0 +1,325 @@
+"""One seed's life, the same on every engine.
+
+An engine computes the steps (the Gymnasium loop steps envs over a seed axis, ``train/loop.py``;
+the compiled engine runs a program per episode or chunk, ``train/compiled.py``) and keeps its own
+state in a checkpoint. Everything else a run folder shows is written here, once:
+
+- ``SeedRecords``: the rows of ``episodes.csv``, the metric, the counters and the ``summary.json``
+  they make, and their part of a checkpoint;
+- ``SeedLife``: a seed's status, its start (``config.json``, a running summary, TensorBoard), its
+  resume and the extension rule (``SeedLife.resume``, ``SeedLife.extends``), what the end of
+  an episode does (``SeedLife.end_episode``: the row, TensorBoard, evaluation, progress, the
+  stop rule), why it stops on a signal (``interruption``), which checkpoint it leaves at the end
+  (``checkpoint_at_close``) and its last word (``SeedLife.flush``: weights, final summary);
+- ``progress_bar`` and ``TensorBoardWriter``.
+"""
+
+from __future__ import annotations
+
+import datetime
+import math
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, Literal
+
+from keras_rl.experiment import Experiment
+from keras_rl.runs.evaluate import TrainingEvaluator
+from keras_rl.runs.files import RunRecorder, atomic_write_text, episode_columns, episodes_csv_text
+from keras_rl.runs.lifecycle import check_resume_config
+from keras_rl.runs.provenance import command_line, library_versions, provenance
+from keras_rl.runs.signals import signal_name
+from keras_rl.runs.summary import RunSummary, Status
+from keras_rl.train.settings import TrainSettings
+
+
+class SeedRecords:
+    """One seed's bookkeeping: its rows, its metric, its counters and the summary they make."""
+
+    def __init__(self, experiment: Experiment, config, recorder: RunRecorder, metric, command: str | None = None):
+        self.experiment, self.config, self.recorder, self.metric = experiment, config, recorder, metric
+        self.command = command or command_line()
+        self.start = time.perf_counter()
+        self.provenance = {
+            **provenance(),
+            "started_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        }
+        self.versions = library_versions(config.framework)
+        self.reached_at: int | None = None
+        self.total_steps = 0
+
+    def record_episode(self, episode: int, score: float, steps: int, stats) -> dict[str, Any]:
+        """An episode's row into ``episodes.csv``, the threshold check, and a current
+        ``summary.json``; returns the row."""
+        self.total_steps += steps
+        value = self.metric.update(score)
+        row = {
+            "episode": episode,
+            "steps": steps,
+            "total_steps": self.total_steps,
+            "score": score,
+            "metric": value,
+            **stats.mean_losses,
+            "wall_seconds": time.perf_counter() - self.start,
+        }
+        self.recorder.add_episode(row)
+        if self.reached_at is None and self.metric.passes(value, self.config.threshold):
+            self.reached_at = episode
+        self.summary("running").write(self.recorder.out_dir)
+        return row
+
+    def snapshot(self, status: Status, message: str) -> dict[str, Any]:
+        """The records' part of a checkpoint, any engine's: an interrupted run is running as
+        far as the checkpoint goes."""
+        return {
+            "config": self.config.to_dict(),
+            "rows": list(self.recorder.rows),
+            "reached_at": self.reached_at,
+            "total_steps": self.total_steps,
+            "elapsed": time.perf_counter() - self.start,
+            "metric": self.metric,
+            "status": "running" if status == "interrupted" else status,
+            "message": "" if status == "interrupted" else message,
+        }
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """``snapshot``'s records back (the caller has checked the config: ``check_resume_config``)."""
+        self.metric.__dict__.update(state["metric"].__dict__)
+        self.recorder.rows = list(state["rows"])
+        self.reached_at, self.total_steps = state["reached_at"], int(state["total_steps"])
+        self.start = time.perf_counter() - float(state["elapsed"])
+
+    def summary(self, status: Status, message: str = "") -> RunSummary:
+        c, rows, metric = self.config, self.recorder.rows, self.metric
+        at_end = self.experiment.success_at_end
+        finite = [r["metric"] for r in rows if r["metric"] is not None and math.isfinite(r["metric"])]
+        best = (min if metric.comparison in ("<", "<=") else max)(finite, default=None)
+        return RunSummary(
+            experiment=self.experiment.name,
+            variant=c.variant,
+            seed=c.seed,
+            status=status,
+            message=message,
+            success=(
+                metric.passes(rows[-1]["metric"], c.threshold) and len(rows) == c.episodes
+                if at_end and rows
+                else self.reached_at is not None
+            ),
+            criterion=(
+                f"metric {metric.comparison} {c.threshold:g} "
+                + (f"after all {c.episodes} episodes" if at_end else f"within {c.episodes} episodes")
+            ),
+            reached_at_episode=self.reached_at,
+            episodes_run=len(rows),
+            budget_episodes=c.episodes,
+            total_steps=self.total_steps,
+            steps_to_threshold=rows[self.reached_at - 1]["total_steps"] if self.reached_at else None,
+            final_metric=rows[-1]["metric"] if rows else None,
+            best_metric=best,
+            wall_seconds=round(time.perf_counter() - self.start, 3),
+            framework=c.framework,
+            command=self.command,
+            versions=self.versions,
+            provenance=self.provenance,
+            extras=self.experiment.summary_extras(rows, c),
+        )
+
+
+class SeedLife:
+    """One seed's status and files from its start to its last word, whatever engine steps it."""
+
+    def __init__(self, experiment: Experiment, config, out_dir: Path, loss_names, settings: TrainSettings):
+        self.experiment, self.config, self.settings = experiment, config, settings
+        self.recorder = RunRecorder(out_dir, loss_names)
+        self.records = SeedRecords(experiment, config, self.recorder, experiment.make_metric(config), settings.command)
+        self.status: Status = "running"
+        self.message = ""
+        self.episode = 0
+        """The episode being played (the loop) or last played (the compiled engine)."""
+        self.saved = False
+        self.extending = False
+        """Resumed past the budget it completed (``--resume --episodes N``)."""
+        self.final: RunSummary | None = None
+        """The summary written when the seed stopped (its wall time ends there)."""
+        self.writer: TensorBoardWriter | None = None
+        self.evaluator: TrainingEvaluator | None = (
+            TrainingEvaluator(experiment, config, self.recorder.out_dir, settings.evaluation)
+            if settings.evaluation is not None
+            else None
+        )
+
+    @property
+    def out_dir(self) -> Path:
+        return self.recorder.out_dir
+
+    @property
+    def active(self) -> bool:
+        return self.status == "running"
+
+    def finish(self, status: Status, message: str = "") -> None:
+        self.status, self.message = status, message
+
+    @property
+    def stopped_early(self) -> bool:
+        """It met its threshold in a run that stops there: a straight run of any budget stops there too."""
+        return self.records.reached_at is not None and self.config.stop_at_threshold
+
+    @property
+    def ended_on_budget(self) -> bool:
+        """Completed by playing its whole budget, not stopped at the threshold: a larger budget continues it."""
+        return self.status == "completed" and self.episode == self.config.episodes and not self.stopped_early
+
+    def extends(self, played: int, budget_then: int) -> bool:
+        """The extension rule: a run that completed by playing its whole budget (``budget_then``
+        episodes, ``played`` of them) goes on when resumed with a larger one, from the state it
+        ended in; one stopped at its threshold stays as it is."""
+        return self.status == "completed" and played == budget_then < self.config.episodes and not self.stopped_early
+
+    # -- start ----------------------------------------------------------------------------------
+    def resume(self, state: dict[str, Any]) -> None:
+        """The resume rule: a checkpoint's records back (``SeedRecords.snapshot`` with the seed's
+        ``episode`` and ``saved``), its config checked against this one (only the budget may
+        grow), the extension rule applied, and the episodes played after it removed from
+        ``episodes.csv`` (they are played again); a seed that had finished keeps its files."""
+        wanted, theirs = self.config.to_dict(), state["config"]
+        played = len(state["rows"])
+        check_resume_config(self.out_dir, wanted, theirs, played)
+        self.records.restore(state)
+        self.status, self.message = state["status"], state["message"]
+        self.episode, self.saved = int(state["episode"]), bool(state["saved"])
+        print(
+            f"seed {self.config.seed}: resumed in {self.out_dir} after episode {played} "
+            f"(its checkpoint; {int(state['total_steps'])} steps)",
+            file=sys.stderr,
+        )
+        if self.extends(played, int(theirs["episodes"])):
+            self.status, self.message, self.saved, self.extending = "running", "", False, True
+        if self.active:
+            atomic_write_text(
+                self.out_dir / "episodes.csv",
+                episodes_csv_text(self.recorder.rows, episode_columns(self.recorder.loss_names)),
+            )
+            if self.evaluator is not None:
+                self.evaluator.resume(played)
+        else:  # it had finished before the checkpoint: its files stay as they are
+            self.final = RunSummary.read(self.out_dir)
+
+    def start(self) -> None:
+        """A running seed's ``config.json`` (its budget may have grown), a summary from the start
+        (no stale one from an earlier run survives) and its TensorBoard writer."""
+        if not self.active:
+            return
+        self.recorder.write_config(self.config.to_dict())
+        self.records.summary("running").write(self.out_dir)
+        if self.settings.tensorboard:
+            self.writer = TensorBoardWriter(self.settings.tensorboard, self.config)
+
+    # -- each episode -----------------------------------------------------------------------------
+    def end_episode(self, score: float, steps: int, stats, greedy, save_policy, bar) -> bool:
+        """Episode ``self.episode`` ended: its row, TensorBoard, evaluation, progress, and the
+        stop rule (the threshold where the run stops there, or the budget). False where the
+        seed has completed."""
+        row = self.records.record_episode(self.episode, score, steps, stats)
+        if self.writer is not None:
+            self.writer.episode(row)
+        if self.evaluator is not None and self.evaluator.due(self.episode):
+            self.evaluator.evaluate(self.episode, greedy, save_policy, self.writer)
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(score=f"{row['score']:.1f}", metric=f"{row['metric']:.1f}", refresh=False)
+        if self.stopped_early or self.episode >= self.config.episodes:
+            self.finish("completed")
+            return False
+        return True
+
+    # -- the end ------------------------------------------------------------------------------------
+    def flush(self, save: Callable[[Path], None]) -> RunSummary:
+        """The seed's last word: its weights (when it finished or was stopped), its TensorBoard
+        closed and its final summary; a failed write makes the run an error that names the
+        folder, so no summary claims success for a run whose files are missing."""
+        if self.status in ("completed", "interrupted") and not self.saved:
+            try:
+                save(self.out_dir)
+                self.saved = True
+            except Exception as exc:  # disk full, permissions
+                self.finish("error", f"could not write the run's files in {self.out_dir}: {type(exc).__name__}: {exc}")
+        if self.writer is not None:
+            self.writer.close()
+            self.writer = None
+        self.final = self.records.summary(self.status, self.message)
+        self.final.write(self.out_dir)
+        return self.final
+
+
+def interruption(interrupted: list) -> str:
+    """Why a run stops on a signal (``runs/signals.stop_signals_as_flag``'s flag) or on its
+    dispatcher's stop request: the message its summary keeps."""
+    by = signal_name(interrupted) if interrupted else "the dispatcher's stop request (Ctrl-C or SIGTERM)"
+    return f"stopped by {by}; the episodes so far are kept (--resume continues)"
+
+
+CloseCheckpoint = Literal["write", "keep", "delete"]
+
+
+def checkpoint_at_close(lives: Sequence[SeedLife]) -> CloseCheckpoint | None:
+    """Which checkpoint a job's seeds leave when it ends: ``write`` where one was interrupted
+    (every seed's, so that the job resumes whole); ``keep`` the final one of a solo run that
+    played its whole budget (``--resume --episodes N`` extends it as a straight run of N);
+    ``delete`` once every seed finished; None after an error (what is there stays)."""
+    if any(s.status == "interrupted" for s in lives):
+        return "write"
+    if len(lives) == 1 and lives[0].ended_on_budget:
+        return "keep"
+    if all(s.status in ("completed", "non_finite_loss") for s in lives):
+        return "delete"
+    return None
+
+
+def progress_bar(experiment: Experiment, configs: list, lives: Sequence[SeedLife], position: int):
+    """A tqdm bar over the seeds' episodes."""
+    from tqdm.auto import tqdm
+
+    c = configs[0]
+    who = (
+        f"seed {c.seed}"
+        if len(configs) == 1
+        else f"seeds {configs[0].seed}..{configs[-1].seed} (batch of {len(configs)})"
+    )
+    return tqdm(
+        total=len(lives) * c.episodes,
+        initial=sum(len(s.recorder.rows) for s in lives),
+        position=position,
+        leave=position == 0,
+        dynamic_ncols=True,
+        unit="ep",
+        desc=f"{experiment.name}/{c.variant}/{c.framework} {who}",
+    )
+
+
+class TensorBoardWriter:
+    """Per-episode score, metric and losses as TensorBoard scalars, one run folder per seed."""
+
+    def __init__(self, root: Path, config):
+        import tensorflow as tf
+
+        self.tf = tf
+        self.writer = tf.summary.create_file_writer(
+            str(Path(root) / f"{config.experiment}-{config.variant}-{config.framework}-seed{config.seed}")
+        )
+
+    def scalars(self, values: dict[str, float], step: int) -> None:
+        with self.writer.as_default():
+            for key, value in values.items():
+                self.tf.summary.scalar(key, value, step=step)
+        self.writer.flush()
+
+    def episode(self, row: dict[str, Any]) -> None:
+        with self.writer.as_default():
+            for key, value in row.items():
+                if key not in ("episode", "wall_seconds") and value is not None and math.isfinite(value):
+                    self.tf.summary.scalar(key, value, step=row["episode"])
+        self.writer.flush()
+
+    def close(self) -> None:
+        self.writer.close()
