@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from clitools import default_signals, start_cli, wait_for_rows
+from clitools import default_signals, descendants, start_cli, wait_for_rows
 
 from keras_rl.runs.files import read_episodes
 
@@ -81,28 +81,13 @@ def test_address_without_ray_says_how_to_get_it(monkeypatch):
 def _pool_workers(pid: int) -> list[int]:
     """The pool's worker processes under ``pid`` (spawned, so their command line says so)."""
     found = []
-    for child in _descendants(pid):
+    for child in descendants(pid):
         try:
             cmdline = Path(f"/proc/{child}/cmdline").read_bytes()
         except OSError:
             continue
         if b"spawn_main" in cmdline:
             found.append(child)
-    return found
-
-
-def _descendants(pid: int) -> set[int]:
-    parents = {}
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-            parents[int(stat.parent.name)] = int(fields[1])
-        except (OSError, IndexError, ValueError):
-            continue
-    found, frontier = set(), {pid}
-    while frontier:
-        frontier = {child for child, parent in parents.items() if parent in frontier} - found
-        found |= frontier
     return found
 
 

@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import csv
 import os
 import re
 import subprocess
-import sys
-from pathlib import Path
 
 import pytest
+from clitools import descendants
 
 ray = pytest.importorskip("ray")
 
@@ -17,30 +15,6 @@ from keras_rl.cli import main  # noqa: E402
 from keras_rl.runs.files import read_episodes  # noqa: E402
 
 pytestmark = [pytest.mark.ray, pytest.mark.slow]  # local Ray instances and clusters: one xdist process
-
-CLI = [sys.executable, "-m", "keras_rl"]
-# Pendulum for 3 episodes trains nothing (train_start is 1000 steps), so a job costs seconds;
-# with the EMA threshold at -1300 some seeds pass and some do not, so the statistics have work.
-SWEEP = [
-    "sweep",
-    "pendulum",
-    "--grid",
-    "noise_sigma=0.2,0.6",
-    "--seeds",
-    "0-1",
-    "--episodes",
-    "3",
-    "--set",
-    "threshold=-1300",
-    "--set",
-    "stop_at_threshold=false",
-    "--no-progress",
-]
-
-
-def rows(path: Path) -> list[dict[str, str]]:
-    with open(path, newline="") as fh:
-        return [{k: v for k, v in r.items() if k != "wall_seconds"} for r in csv.DictReader(fh)]
 
 
 def test_ray_servers_listen_on_loopback_only():
@@ -50,7 +24,7 @@ def test_ray_servers_listen_on_loopback_only():
     ray_module, _ = backend._init()
     try:
         ray_module.get(ray_module.remote(lambda: 1).remote())  # a worker is up too
-        mine = _descendants(os.getpid()) | {os.getpid()}
+        mine = descendants(os.getpid()) | {os.getpid()}
         listening = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True).stdout.splitlines()
         ours = [line for line in listening if any(int(p) in mine for p in re.findall(r"pid=(\d+)", line))]
         assert ours, listening  # the check saw Ray's sockets
@@ -59,21 +33,6 @@ def test_ray_servers_listen_on_loopback_only():
             assert local.rsplit(":", 1)[0] in ("127.0.0.1", "[::ffff:127.0.0.1]", "[::1]"), line
     finally:
         ray_module.shutdown()
-
-
-def _descendants(pid: int) -> set[int]:
-    parents = {}
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-            parents[int(stat.parent.name)] = int(fields[1])
-        except (OSError, IndexError, ValueError):
-            continue
-    found, frontier = set(), {pid}
-    while frontier:
-        frontier = {child for child, parent in parents.items() if parent in frontier} - found
-        found |= frontier
-    return found
 
 
 def test_two_node_cluster_runs_jobs_on_both_nodes_and_files_land_in_the_drivers_out(tmp_path):

@@ -182,6 +182,27 @@ def run_job(job, progress: bool = True, position: int = 0, should_stop=None) -> 
         return engine.train(experiment, configs, [j.out_dir for j in group], settings, should_stop=should_stop)
 
 
+def seeds_bar(total: int):
+    """A backend's progress over its jobs (each seed's episodes have their own bar in process)."""
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, unit="seed", desc="seeds", dynamic_ncols=True)
+
+
+def say_job_failed(job, error: BaseException, text: str | None = None) -> None:
+    """A job whose worker raised: name its seeds that left no summary (a seed whose summary
+    records the error is reported from it by the command), on one line."""
+    unsaid = [m for m in members(job) if not (Path(m.out_dir) / "summary.json").is_file()]
+    if unsaid:
+        import sys
+
+        who = ", ".join(f"seed {m.config['seed']}" for m in unsaid)
+        print(
+            f"error: {who} in {Path(unsaid[0].out_dir).parent}: {type(error).__name__}: {text or error}",
+            file=sys.stderr,
+        )
+
+
 def job_summary(summaries: list[RunSummary]) -> RunSummary:
     """What a job reports: its first interrupted seed's summary, else its last seed's."""
     return next((s for s in summaries if s.status == "interrupted"), summaries[-1])

@@ -21,10 +21,9 @@ import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
-from keras_rl.runs.jobs import AfterJob, SeedBatchJob, execute, members
+from keras_rl.runs.jobs import AfterJob, SeedBatchJob, execute, members, say_job_failed, seeds_bar
 from keras_rl.runs.signals import sigterm_as_interrupt
 
 _stop: Any = None
@@ -66,7 +65,7 @@ class ProcessPool:
                 max_workers=size, mp_context=context, initializer=_start_worker, initargs=(stop,)
             )
 
-        bar = _bar(len(jobs)) if progress else None
+        bar = seeds_bar(len(jobs)) if progress else None
         running: dict[Future, Any] = {}
         pending = list(jobs)
         retries: dict[int, int] = {}
@@ -93,13 +92,7 @@ class ProcessPool:
                         retries[id(pending[0])] = retries.pop(key)
                         continue
                 if error is not None:
-                    unsaid = [m for m in members(job) if not (Path(m.out_dir) / "summary.json").is_file()]
-                    if unsaid:  # a seed whose summary records the error is reported from it by the command
-                        who = ", ".join(f"seed {m.config['seed']}" for m in unsaid)
-                        print(
-                            f"error: {who} in {Path(unsaid[0].out_dir).parent}: {type(error).__name__}: {error}",
-                            file=sys.stderr,
-                        )
+                    say_job_failed(job, error)
                 if after_job is not None:
                     after_job(job)
                 if bar is not None:
@@ -153,9 +146,3 @@ def _again(job):
     if isinstance(job, SeedBatchJob):
         return SeedBatchJob(tuple(change(j) for j in job.jobs))
     return change(job)
-
-
-def _bar(total: int):
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, unit="seed", desc="seeds", dynamic_ncols=True)

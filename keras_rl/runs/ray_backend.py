@@ -34,7 +34,7 @@ from typing import Any
 from keras_rl.errors import ConfigError
 from keras_rl.runs.checkpoint import delete_checkpoints
 from keras_rl.runs.files import atomic_write_bytes
-from keras_rl.runs.jobs import SeedBatchJob, execute, members
+from keras_rl.runs.jobs import SeedBatchJob, execute, members, say_job_failed, seeds_bar
 from keras_rl.runs.signals import sigterm_as_interrupt
 
 MAX_RETRIES = 3
@@ -207,7 +207,7 @@ class RayBackend:
         ship = self.address is not None  # a cluster's nodes may not share this disk
         pending = list(jobs)
         running: dict[Any, Any] = {}
-        bar = _bar(len(jobs)) if progress else None
+        bar = seeds_bar(len(jobs)) if progress else None
         interrupted = False
 
         def collect(refs) -> None:
@@ -217,14 +217,7 @@ class RayBackend:
                     files = ray.get(ref)
                 except ray.exceptions.RayTaskError as exc:  # one line, not the worker's coloured traceback
                     cause = exc.cause if getattr(exc, "cause", None) is not None else exc
-                    unsaid = [m for m in members(job) if not (Path(m.out_dir) / "summary.json").is_file()]
-                    if unsaid:  # a seed whose summary records the error is reported from it by the command
-                        who = ", ".join(f"seed {m.config['seed']}" for m in unsaid)
-                        print(
-                            f"error: {who} in {Path(unsaid[0].out_dir).parent}: {type(cause).__name__}: "
-                            f"{_plain(str(cause))}",
-                            file=sys.stderr,
-                        )
+                    say_job_failed(job, cause, _plain(str(cause)))
                     if after_job is not None:
                         after_job(job)
                     if bar is not None:
@@ -283,9 +276,3 @@ def _land(job, files: dict[str, bytes]) -> None:
         atomic_write_bytes(out / name, data)
     if "checkpoint.pkl" not in files:
         delete_checkpoints(out)
-
-
-def _bar(total: int):
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, unit="seed", desc="seeds", dynamic_ncols=True)
