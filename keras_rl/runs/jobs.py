@@ -182,6 +182,13 @@ def run_job(job, progress: bool = True, position: int = 0, should_stop=None) -> 
         return engine.train(experiment, configs, [j.out_dir for j in group], settings, should_stop=should_stop)
 
 
+def with_each(job, change):
+    """``job`` with ``change`` applied to each of its seeds (a seed, or every seed of a batch)."""
+    if isinstance(job, SeedBatchJob):
+        return SeedBatchJob(tuple(change(j) for j in job.jobs))
+    return change(job)
+
+
 def seeds_bar(total: int):
     """A backend's progress over its jobs (each seed's episodes have their own bar in process)."""
     from tqdm.auto import tqdm

@@ -23,7 +23,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any
 
-from keras_rl.runs.jobs import AfterJob, SeedBatchJob, execute, members, say_job_failed, seeds_bar
+from keras_rl.runs.jobs import AfterJob, execute, members, say_job_failed, seeds_bar, with_each
 from keras_rl.runs.signals import sigterm_as_interrupt
 
 _stop: Any = None
@@ -140,9 +140,4 @@ def _again(job):
     """A job to start again after its worker died: from its checkpoint if it was resumed, else
     afresh (its folder, partly written, is cleared)."""
 
-    def change(j):
-        return dataclasses.replace(j, start="resume" if j.start == "resume" else "overwrite")
-
-    if isinstance(job, SeedBatchJob):
-        return SeedBatchJob(tuple(change(j) for j in job.jobs))
-    return change(job)
+    return with_each(job, lambda j: dataclasses.replace(j, start="resume" if j.start == "resume" else "overwrite"))

@@ -34,7 +34,7 @@ from typing import Any
 from keras_rl.errors import ConfigError
 from keras_rl.runs.checkpoint import delete_checkpoints
 from keras_rl.runs.files import atomic_write_bytes
-from keras_rl.runs.jobs import SeedBatchJob, execute, members, say_job_failed, seeds_bar
+from keras_rl.runs.jobs import execute, members, say_job_failed, seeds_bar, with_each
 from keras_rl.runs.signals import sigterm_as_interrupt
 
 MAX_RETRIES = 3
@@ -61,7 +61,7 @@ def _seed_task(job, files_in: list[dict[str, bytes]] | None, stop_flag) -> list[
     node = ray.get_runtime_context().get_node_id()
     if files_in is None:
         execute(
-            _with(job, lambda j: dataclasses.replace(j, start="resume" if resume else "overwrite")),
+            with_each(job, lambda j: dataclasses.replace(j, start="resume" if resume else "overwrite")),
             progress=False,
             should_stop=should_stop,
         )
@@ -76,20 +76,13 @@ def _seed_task(job, files_in: list[dict[str, bytes]] | None, stop_flag) -> list[
                 (run_dir / name).write_bytes(data)
         moved = iter(dirs)
         execute(
-            _with(job, lambda j: dataclasses.replace(j, out_dir=next(moved), start="resume" if resume else "new")),
+            with_each(job, lambda j: dataclasses.replace(j, out_dir=next(moved), start="resume" if resume else "new")),
             progress=False,
             should_stop=should_stop,
         )
         for run_dir in dirs:
             _record_node(run_dir, node)
         return [_pack(run_dir) for run_dir in dirs]
-
-
-def _with(job, change):
-    """``job`` with ``change`` applied to each of its seeds."""
-    if isinstance(job, SeedBatchJob):
-        return SeedBatchJob(tuple(change(j) for j in job.jobs))
-    return change(job)
 
 
 def _record_node(run_dir: Path, node_id: str) -> None:
