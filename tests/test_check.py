@@ -150,6 +150,7 @@ def _fake_baseline_seed(seed_dir, seed=0):
     recorder = RunRecorder(seed_dir, ("critic_loss", "actor_loss"))
     recorder.write_config(config.to_dict())
     run = SeedRecords(exp, config, recorder, exp.make_metric(config), "test")
+    run.provenance["engine"] = "compiled"  # as pendulum's rules train their fresh seeds
     from keras_rl.agents.skeleton import EpisodeStats
 
     for episode, score in enumerate([-1200.0, -800.0, -250.0], 1):
@@ -800,3 +801,20 @@ def test_an_installed_package_checks_a_post_to_a_verdict_from_another_directory(
     report = json.loads((where / "check-runs" / "check.json").read_text())
     assert [e["verdict"] for e in report["experiments"]] == ["consistent"], done.stdout
     assert not (target / "results").exists()  # no checkout beside the package: its own baselines
+
+
+@pytest.mark.parametrize(
+    "source, field", [("pendulum/faithful-torch", "framework 'torch'"), ("pendulum/faithful", "engine 'gymnasium'")]
+)
+def test_a_baseline_made_another_way_than_the_tier_trains_is_refused_naming_the_field(source, field, tmp_path, capsys):
+    """A PyTorch set (median 149.5 against Keras' 128) or a Gymnasium-loop set for a tier that trains
+    on the compiled engine would read "changed" on every real run: refused (exit 2) before training."""
+    from keras_rl.cli import main
+
+    baseline = tmp_path / "against" / "pendulum" / "baseline"
+    baseline.mkdir(parents=True)
+    (baseline / "runs.parquet").symlink_to(Path(__file__).resolve().parents[1] / "results" / source / "runs.parquet")
+    argv = ["check", "pendulum", "--tier", "sensitive", "--against", str(tmp_path / "against"), "--dry-run"]
+    assert main([*argv, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert f"was made with {field}" in err and "a baseline must be made the same way" in err

@@ -146,6 +146,17 @@ def baseline_values(
             raise RunFolderError(
                 f"{run.where} is a run of the {made.variant!r} variant; a baseline must be the faithful variant"
             )
+        engine = summary.provenance.get("engine", "gymnasium")
+        for field_name, theirs, ours in (
+            ("framework", made.framework, "keras"),
+            ("matched_init", made.matched_init, False),
+            ("engine", engine, rule.engine),
+        ):
+            if theirs != ours:
+                raise RunFolderError(
+                    f"{run.where} was made with {field_name} {theirs!r}; the {rule.tier} tier of {experiment.name} "
+                    f"trains its fresh seeds with {field_name} {ours!r}, and a baseline must be made the same way"
+                )
         first = made if first is None else first
         differing = made.differs_from(first)
         if differing:
