@@ -47,11 +47,10 @@ from keras_rl.learners.table import implementation
 from keras_rl.rngs import global_rng_state, rng_state, set_global_rng_state, set_rng_state
 from keras_rl.runs.checkpoint import VERSION, delete_checkpoints, read_batch_checkpoints, write_checkpoint
 from keras_rl.runs.lifecycle import check_resume_config
-from keras_rl.runs.signals import stop_signals_as_flag, stop_signals_deferred
 from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import configure_tensorflow, seed_everything
 from keras_rl.tf_envs import MAX_STEPS, CartPole, MountainCarContinuous, Pendulum
-from keras_rl.train.life import SeedLife, checkpoint_at_close, interruption, progress_bar
+from keras_rl.train.life import SeedLife, checkpoint_at_close, interruption, live
 from keras_rl.train.settings import TrainSettings
 
 ENGINE = "compiled"
@@ -263,21 +262,9 @@ class CompiledRun:
             self._restore()
         if life.final is not None:  # it had finished before its checkpoint
             return life.final
-        life.start()
-        bar = progress_bar(self.experiment, [c], [life], settings.position) if settings.progress else None
-        final = None
-        try:
-            with stop_signals_as_flag() as interrupted:
-                self._loop(interrupted, bar, should_stop)
-        except Exception as exc:
-            if life.active:
-                life.finish("error", f"{type(exc).__name__}: {exc}")
-            raise
-        finally:
-            with stop_signals_deferred(reraise=False):
-                if bar is not None:
-                    bar.close()
-                final = self._close()
+        (final,) = live(
+            self.experiment, [c], [life], settings, lambda flag, bar: self._loop(flag, bar, should_stop), self._close
+        )
         return final
 
     def _loop(self, interrupted: list, bar, should_stop) -> None:

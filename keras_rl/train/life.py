@@ -252,6 +252,42 @@ class SeedLife:
         return self.final
 
 
+def live(
+    experiment: Experiment,
+    configs: list,
+    lives: Sequence[SeedLife],
+    settings: TrainSettings,
+    loop: Callable[[list, Any], None],
+    close: Callable[[], object],
+) -> list[RunSummary]:
+    """Every engine's run of a job: each seed started, the engine's ``loop(interrupted, bar)``
+    under Ctrl-C and SIGTERM taken as a flag (checked between steps), an error recorded in each
+    running seed's summary and raised, and ``close()`` run however it ends (a second signal
+    cannot cut it short). Each seed's final summary, in order."""
+    from keras_rl.runs.signals import stop_signals_as_flag, stop_signals_deferred
+
+    for s in lives:
+        s.start()
+    bar = progress_bar(experiment, configs, lives, settings.position) if settings.progress else None
+    try:
+        with stop_signals_as_flag() as interrupted:
+            loop(interrupted, bar)
+    except Exception as exc:  # keep what was written, record why, re-raise
+        for s in lives:
+            if s.active:
+                s.finish("error", f"{type(exc).__name__}: {exc}")
+        raise
+    finally:
+        with stop_signals_deferred(reraise=False):
+            if bar is not None:
+                bar.close()
+            close()
+    missing = [s.config.seed for s in lives if s.final is None]
+    if missing:  # close() flushes every seed's summary; a gap here is a bug, not a user's error
+        raise RuntimeError(f"seeds {missing} ended without a summary")
+    return [s.final for s in lives if s.final is not None]
+
+
 def interruption(interrupted: list) -> str:
     """Why a run stops on a signal (``runs/signals.stop_signals_as_flag``'s flag) or on its
     dispatcher's stop request: the message its summary keeps."""

@@ -51,10 +51,9 @@ from keras_rl.learners.axis import SeedAxisLearner
 from keras_rl.learners.table import implementation, stacked_implementation
 from keras_rl.rngs import global_rng_state, set_global_rng_state
 from keras_rl.runs.checkpoint import delete_checkpoints, read_batch_checkpoints, write_checkpoint
-from keras_rl.runs.signals import stop_signals_as_flag, stop_signals_deferred
 from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import configure_tensorflow, seed_everything
-from keras_rl.train.life import SeedLife, checkpoint_at_close, interruption, progress_bar
+from keras_rl.train.life import SeedLife, checkpoint_at_close, interruption, live
 from keras_rl.train.settings import DEFAULT_SETTINGS, TrainSettings
 
 
@@ -116,27 +115,7 @@ def run_seeds(
                 f"with --engine {engine}, or pass --overwrite to start again"
             )
         state.restore(checkpoints)
-    for s in seeds:
-        s.start()
-    bar = progress_bar(experiment, configs, seeds, settings.position) if settings.progress else None
-    try:
-        with stop_signals_as_flag() as interrupted:  # checked between vector steps
-            state.loop(interrupted, bar, should_stop)
-    except Exception as exc:  # keep what was written, record why, re-raise
-        for s in seeds:
-            if s.active:
-                s.finish("error", f"{type(exc).__name__}: {exc}")
-        raise
-    finally:
-        # A second signal (or the one a parent forwards) must not cut the flush short.
-        with stop_signals_deferred(reraise=False):
-            if bar is not None:
-                bar.close()
-            state.close()
-    missing = [s.config.seed for s in seeds if s.final is None]
-    if missing:  # close() flushes every seed's summary; a gap here is a bug, not a user's error
-        raise RuntimeError(f"seeds {missing} ended without a summary")
-    return [s.final for s in seeds if s.final is not None]
+    return live(experiment, configs, seeds, settings, lambda flag, bar: state.loop(flag, bar, should_stop), state.close)
 
 
 def build_seed_axis(experiment: Experiment, configs: list, envs: Sequence | None):
