@@ -239,3 +239,16 @@ def test_list_with_an_experiment_shows_every_config_field_with_its_type_default_
     assert "  tau: float = 0.001, (0, 1]\n      §2.3.1: ``self.tau = 0.001``" in out
     assert "  actor_hidden_units: tuple[int, ...] = 64,64, widths >= 1" in out
     assert main(["list", "nosuch"]) == 2
+
+
+def test_a_seed_judged_at_the_end_says_so_beside_where_it_first_met_the_threshold():
+    """Post 001's success is its last episode's metric: "FAIL (... reached at episode 10)" read as a
+    contradiction; the line says what decided it and where the threshold was first met."""
+    from types import SimpleNamespace
+
+    from keras_rl.commands.reproduce import _reached_text
+
+    failed = SimpleNamespace(reached_at_episode=10, final_metric=3.2)
+    assert _reached_text(failed, True) == "judged on the last episode's metric, 3.2; first met at episode 10"
+    assert _reached_text(SimpleNamespace(reached_at_episode=None, final_metric=None), True).endswith("never met")
+    assert _reached_text(failed, False) == "reached at episode 10"

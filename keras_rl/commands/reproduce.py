@@ -167,6 +167,16 @@ def study_from_args(args: argparse.Namespace):
     )
 
 
+def _reached_text(s, judged_at_end: bool) -> str:
+    """Where a seed met its threshold, in words: for a post judged at the end (post 001), the first
+    episode that met it is not the verdict, the last episode's metric is."""
+    if not judged_at_end:
+        return f"reached at episode {s.reached_at_episode}" if s.reached_at_episode else "not reached"
+    final = "none" if s.final_metric is None else f"{s.final_metric:.3g}"
+    first = f"first met at episode {s.reached_at_episode}" if s.reached_at_episode else "never met"
+    return f"judged on the last episode's metric, {final}; {first}"
+
+
 def report(study, result, min_success_rate: float) -> int:
     """Each seed's line, where the files are, and the exit code: 0 where at least
     ``min_success_rate`` of the seeds succeeded and none stopped on an error."""
@@ -175,7 +185,7 @@ def report(study, result, min_success_rate: float) -> int:
         print(f"error: seed {s.seed}: {s.message}", file=sys.stderr)
     for s in result.summaries:
         verdict = "PASS" if s.success else "FAIL" if s.status == "completed" else "no verdict"
-        where = f"reached at episode {s.reached_at_episode}" if s.reached_at_episode else "not reached"
+        where = _reached_text(s, experiment.success_at_end)
         seed_dir = out / f"seed_{s.seed}"
         files = ", ".join(sorted(p.name for p in seed_dir.iterdir() if not p.name.startswith(".")))
         print(
