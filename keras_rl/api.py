@@ -92,9 +92,9 @@ def reproduce(
     if not 0 <= min_success_rate <= 1:
         raise ConfigError(f"min_success_rate must be in [0, 1], got {min_success_rate}")
     if config.framework == "torch":  # type: ignore[attr-defined]
-        from keras_rl.torch import require_torch
+        from keras_rl.torch import check_torch
 
-        require_torch()
+        check_torch()
     study = Study(
         config,
         checked_seeds(seeds),

@@ -306,9 +306,11 @@ def check_engine(engine: str, experiment, config) -> None:
     """A clear error before anything runs where ``engine`` cannot run ``config``."""
     if engine == "gymnasium":
         return
-    from keras_rl.train.engine import get_engine
+    from keras_rl.train.compiled_scope import ENGINE, refusal  # no TensorFlow: refused before it loads
 
-    why = get_engine(engine).refusal(experiment, config)
+    if engine != ENGINE:
+        raise ConfigError(f"unknown engine {engine!r}")
+    why = refusal(experiment.name, config)
     if why is not None:
         raise ConfigError(f"--engine {engine}: {why}")
 

@@ -120,7 +120,11 @@ def test_what_the_compiled_engine_cannot_run_is_refused_before_training(tmp_path
     assert engine.refusal(mountaincar, mountaincar.config_cls.for_variant("faithful")) is None
     assert engine.refusal(mountaincar, mountaincar.config_cls.for_variant("faithful-intended")) is None
     fixed = engine.refusal(mountaincar, mountaincar.config_cls.for_variant("fixed"))
-    assert "popping_buffer=True (P001-POP)" in fixed and "--engine gymnasium" in fixed
+    off = [f for f, v in (("popping_buffer", False), ("episode_returns_as_rewards", False), ("exploration", "ou"),
+                          ("learning_phase_training", True))
+           if getattr(mountaincar.config_cls.for_variant("fixed"), f) == v]  # fmt: skip
+    assert len(off) >= 2 and all(f"{f}=" in fixed for f in off)  # every switch the variant turns, named at once
+    assert "(P001-POP wants True" in fixed and "--engine gymnasium" in fixed
     for field, value, quirk in (
         ("episode_returns_as_rewards", False, "P001-RETURNS"),
         ("exploration", "ou", "P001-NOEXPLORE"),
@@ -133,6 +137,25 @@ def test_what_the_compiled_engine_cannot_run_is_refused_before_training(tmp_path
     with pytest.raises(ConfigError, match="one seed per program"):
         engine.train(get_experiment("pendulum"), [config(), config(seed=1)], [tmp_path / "a", tmp_path / "b"], QUIET)
     assert not (tmp_path / "a").exists()
+
+
+def test_the_compiled_engines_refusals_need_no_tensorflow():
+    """``--engine compiled --framework torch --dry-run`` is refused before TensorFlow (or torch) loads."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from keras_rl.cli import main; "
+        "code = main(['reproduce', 'pendulum', '--engine', 'compiled', '--framework', 'torch', '--dry-run', "
+        "'--out', sys.argv[1]]); "
+        "print(code, 'tensorflow' in sys.modules, 'torch' in sys.modules)"
+    )
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as out:
+        proc = subprocess.run([sys.executable, "-c", code, out], capture_output=True, text=True, timeout=120)
+    assert proc.stdout.split() == ["2", "False", "False"], proc.stdout + proc.stderr
+    assert "Keras learner" in proc.stderr
 
 
 @pytest.mark.slow

@@ -146,9 +146,9 @@ def study_from_args(args: argparse.Namespace):
             variant, framework=framework, matched_init=matched_init, **options.config_changes()
         ).with_text_overrides(options.overrides)
     if framework == "torch":
-        from keras_rl.torch import require_torch
+        from keras_rl.torch import check_torch
 
-        require_torch()
+        check_torch()
     out = args.out
     if out is None:
         out = run_folder(Path("results"), experiment.name, variant, framework, matched_init)

@@ -8,16 +8,26 @@ from pathlib import Path
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.runs.files import atomic_write_bytes
 
+NO_TORCH = (
+    "the torch framework needs PyTorch: pip install 'keras-rl-repro[torch]' (in a checkout: "
+    "pip install -e '.[torch]'; pinned torch==2.13.0, the CPU wheel on these machines)"
+)
+
+
+def check_torch() -> None:
+    """A ConfigError that says how to install PyTorch where it is missing, without importing it."""
+    import importlib.util
+
+    if importlib.util.find_spec("torch") is None:
+        raise ConfigError(NO_TORCH)
+
 
 def require_torch():
     """Import torch, or raise an error that says how to install it."""
     try:
         import torch
     except ImportError:
-        raise ConfigError(
-            "the torch framework needs PyTorch: pip install -e '.[torch]' "
-            "(pinned torch==2.13.0, the CPU wheel on these machines)"
-        ) from None
+        raise ConfigError(NO_TORCH) from None
     return torch
 
 

@@ -50,25 +50,16 @@ from keras_rl.runs.lifecycle import check_resume_config
 from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import configure_tensorflow, seed_everything
 from keras_rl.tf_envs import MAX_STEPS, CartPole, MountainCarContinuous, Pendulum
+from keras_rl.train.compiled_scope import ENGINE, refusal
 from keras_rl.train.life import SeedLife, checkpoint_at_close, interruption, live
 from keras_rl.train.settings import TrainSettings
-
-ENGINE = "compiled"
 
 
 class CompiledEngine:
     name = ENGINE
 
     def refusal(self, experiment: Experiment, config) -> str | None:
-        if experiment.name not in RUNS:
-            return (
-                f"the compiled engine runs {' and '.join(RUNS)} so far; run {experiment.name} with --engine gymnasium"
-            )
-        if config.framework != "keras":
-            return "the compiled engine runs the Keras learner; the PyTorch side runs with --engine gymnasium"
-        if config.env_id != ENV_IDS[experiment.name]:
-            return f"the compiled engine has {ENV_IDS[experiment.name]} in TensorFlow, not env_id {config.env_id!r}"
-        return RUNS[experiment.name].refusal(config)
+        return refusal(experiment.name, config)
 
     def train(
         self,
@@ -190,11 +181,6 @@ class CompiledRun:
 
     def make_program(self, config, learner):
         raise NotImplementedError
-
-    @classmethod
-    def refusal(cls, config) -> str | None:
-        """Why this post's config cannot run here (a quirk switch the program does not honour), or None."""
-        return None
 
     def _play_episode(self) -> tuple[float, int, EpisodeStats] | str:
         """One episode: its score, its steps and its learner statistics, or why the run stopped."""
@@ -599,25 +585,6 @@ class MountainCarRun(CompiledRun):
     batches from its own generator (no update touches it), so both engines train on the same
     batches."""
 
-    SWITCHES = {
-        "popping_buffer": (True, "P001-POP", "the ring buffer trains every env step"),
-        "episode_returns_as_rewards": (True, "P001-RETURNS", "transitions stored every step can train mid-episode"),
-        "exploration": ("none", "P001-NOEXPLORE", "OU noise is drawn per step of an episode of unknown length"),
-        "learning_phase_training": (False, "P001-PHASE", "networks in training mode draw noise inside the act"),
-    }
-    """The switches the programs need at their faithful setting: an episode acts with fixed
-    weights only when nothing trains before its end."""
-
-    @classmethod
-    def refusal(cls, config) -> str | None:
-        for field, (wanted, quirk, why) in cls.SWITCHES.items():
-            if getattr(config, field) != wanted:
-                return (
-                    f"the compiled engine runs post 001 with {field}={wanted!r} ({quirk}) only, not "
-                    f"{getattr(config, field)!r} ({why}); run it with --engine gymnasium"
-                )
-        return None
-
     def make_program(self, config, learner):
         return MountainCarProgram(config, learner)
 
@@ -662,4 +629,3 @@ class MountainCarRun(CompiledRun):
 
 RUNS: dict[str, type[CompiledRun]] = {"pendulum": PendulumRun, "cartpole": CartPoleRun, "mountaincar": MountainCarRun}
 """The posts the compiled engine runs, each with its host side."""
-ENV_IDS = {"pendulum": "Pendulum-v1", "cartpole": "CartPole-v1", "mountaincar": "MountainCarContinuous-v0"}
