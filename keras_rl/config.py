@@ -192,6 +192,8 @@ class ExperimentConfig:
                     raise ConfigError(f"{f.name} must be a number, got {value!r}")
                 if hints[f.name] is int and not isinstance(value, int):
                     raise ConfigError(f"{f.name} must be a whole number, got {value!r}")
+                if hints[f.name] is int and abs(value) > MAX_INT:
+                    raise ConfigError(f"{f.name} must be at most {MAX_INT:,} (a 32-bit count), got {value!r}")
                 if not math.isfinite(value):
                     raise ConfigError(f"{f.name} must be finite, got {value!r}")
             if hints[f.name] is bool and not isinstance(value, bool):
@@ -252,6 +254,9 @@ class ExperimentConfig:
                 "first update samples without replacement from train_start transitions"
             )
 
+
+MAX_INT = 2**31 - 1
+"""The largest whole number a field takes: counts and sizes index 32-bit arrays and tensors."""
 
 RANGES = {"positive": "> 0", "non_negative": ">= 0", "unit": "(0, 1]", "fraction": "[0, 1)", "widths": "widths >= 1"}
 """Each range check in words, as ``ExperimentConfig.validate`` applies it."""

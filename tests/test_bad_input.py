@@ -300,3 +300,15 @@ def test_compare_says_which_framework_runs_its_seeds_alone_under_seed_batch(tmp_
     err = capsys.readouterr().err
     assert "warning: --seed-batch 2: cartpole in keras, torch has no seed-batched version" in err
     assert "(keras: a compiled solo run costs" in err  # why: its stacked learner was retired (issue 34)
+
+
+@pytest.mark.parametrize(
+    "command", [["reproduce", "pendulum", "--episodes", "2"], ["reproduce", "pendulum", "--dry-run"]]
+)
+def test_a_count_too_large_for_any_array_is_refused_naming_the_field_and_leaves_nothing(command, capsys, tmp_path):
+    """``--set buffer_size=99999999999999999999999`` was a ValueError traceback (exit 1) and an
+    empty output folder; the dry run accepted it."""
+    out = tmp_path / "o"
+    assert main([*command, "--set", "buffer_size=99999999999999999999999", "--out", str(out)]) == 2
+    assert "buffer_size must be at most 2,147,483,647" in capsys.readouterr().err
+    assert not out.exists()
