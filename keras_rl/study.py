@@ -275,7 +275,21 @@ def compare_frameworks(
 
 
 def check_writable_dir(path: Path, flag: str) -> None:
-    """A folder that exists and is writable, or can be made: else a ConfigError naming it."""
+    """A folder that exists and is writable, or can be made: else a ConfigError naming it (a
+    name longer than the file system takes, a symlink loop, a file, no write permission)."""
+    path = Path(path)
+    for part in path.parts:
+        if len(os.fsencode(part)) > 255:
+            raise ConfigError(
+                f"{flag}: the folder name {part[:40]}... is {len(os.fsencode(part))} bytes, more than the 255 a "
+                "file system takes; pass --out with a shorter name"
+            )
+    try:
+        path.resolve(strict=False)
+    except (RuntimeError, OSError) as exc:  # Python 3.11 raises RuntimeError on a loop
+        raise ConfigError(f"{flag} {path} is a symlink loop ({exc}); name another folder") from None
+    if path.is_symlink() and not path.exists():
+        raise ConfigError(f"{flag} {path} is a symlink to nothing ({os.readlink(path)}); name another folder")
     if path.exists() and not path.is_dir():
         raise ConfigError(f"{flag} {path} is a file, not a folder")
     probe = path

@@ -312,3 +312,26 @@ def test_a_count_too_large_for_any_array_is_refused_naming_the_field_and_leaves_
     assert main([*command, "--set", "buffer_size=99999999999999999999999", "--out", str(out)]) == 2
     assert "buffer_size must be at most 2,147,483,647" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_name_too_long_for_the_file_system_or_a_symlink_loop_is_named_before_anything_runs(capsys, tmp_path):
+    """A 300-character --out, or a 500-layer override that names the default folder, was
+    ``[Errno 36] File name too long`` (exit 1); a symlink loop was ``[Errno 17] File exists``."""
+    assert main(["reproduce", "pendulum", "--dry-run", "--out", str(tmp_path / ("x" * 300))]) == 2
+    assert "is 300 bytes, more than the 255 a file system takes; pass --out" in capsys.readouterr().err
+    wide = ",".join(["64"] * 500)
+    monkey_out = tmp_path / "cwd"
+    monkey_out.mkdir()
+    import os
+
+    here = os.getcwd()
+    os.chdir(monkey_out)
+    try:
+        assert main(["reproduce", "pendulum", "--dry-run", "--set", f"actor_hidden_units={wide}"]) == 2
+    finally:
+        os.chdir(here)
+    assert "pass --out with a shorter name" in capsys.readouterr().err
+    (tmp_path / "a").symlink_to(tmp_path / "b")
+    (tmp_path / "b").symlink_to(tmp_path / "a")
+    assert main(["reproduce", "pendulum", "--dry-run", "--out", str(tmp_path / "a")]) == 2
+    assert "is a symlink loop" in capsys.readouterr().err
