@@ -280,11 +280,10 @@ def _distribution_p(committed: RunSet, target: Path, seeds: list[int]) -> float 
 def rerun(patterns: list[str], out: Path, workers: int) -> list[dict]:
     from keras_rl.runs.files import atomic_write_json, atomic_write_text
 
-    entries = [e for e in manifest() if any(fnmatch.fnmatch(e["set"], p) for p in patterns)]
-    if not entries:
-        raise SystemExit(
-            f"error: no committed set matches {' '.join(patterns)} (python -m maintainers manifest lists them)"
-        )
+    names = [n for n in find_sets() if any(fnmatch.fnmatch(n, p) for p in patterns)]
+    if not names:  # named at once, before the manifest reads every set
+        raise ConfigError(f"no committed set matches {' '.join(patterns)} (python -m maintainers manifest lists them)")
+    entries = [e for e in manifest() if e["set"] in names]
     out.mkdir(parents=True, exist_ok=True)
     results = []
     for entry in entries:

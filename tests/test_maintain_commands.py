@@ -37,6 +37,11 @@ def test_tables_print_without_writing(capsys, monkeypatch):
         (["calibrate", "bisect-levels", "--draws", "5"], "--draws must be at least 100, got 5"),
         (["manifest", "--regenerate", "pendulum/faithful"], "--regenerate needs --out"),
         (["manifest", "--regenerate", "pendulum/faithful", "--out", "results/x"], "--out must not be inside results/"),
+        (["tables", "runs", "/nonexistent"], "/nonexistent holds no run set"),
+        (
+            ["manifest", "--regenerate", "no/such/set", "--out", "/tmp/keras-rl-no-such-rerun"],
+            "no committed set matches",
+        ),
     ],
 )
 def test_bad_input_exits_2_naming_it(argv, message, capsys):

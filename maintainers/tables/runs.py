@@ -23,6 +23,7 @@ import numpy as np
 from scipy.stats import fisher_exact, mannwhitneyu
 
 from keras_rl.checkout import ROOT
+from keras_rl.errors import ConfigError
 from keras_rl.report.equivalence import episodes_with_censoring
 from keras_rl.report.markdown import seed_span
 from keras_rl.report.stats import censored_mann_whitney, episodes_to_threshold_stats
@@ -32,7 +33,7 @@ from keras_rl.runs.run_set import RunSet
 def load(folder: Path) -> list[dict]:
     summaries = RunSet(folder).summary_records()
     if not summaries:
-        raise SystemExit(f"error: {folder} holds no seed_*/summary.json")
+        raise ConfigError(f"{folder} holds no run set (no seed_<n>/summary.json and no runs.parquet)")
     return sorted(summaries, key=lambda s: s["seed"])
 
 
