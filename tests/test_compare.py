@@ -4,6 +4,7 @@ import json
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -291,3 +292,15 @@ def test_a_sweep_point_that_left_no_run_has_no_row_and_an_empty_baseline_is_name
     assert [row["point"] for row in result["points"]] == ["base", "tau=0.1"]
     with pytest.raises(RunFolderError, match="baseline grid point 'base' has no run"):
         analyse_sweep({"base": [], "tau=0.1": base}, "base")
+
+
+def test_compare_says_what_it_reused_and_where_and_prints_no_markdown(capsys, tmp_path):
+    """Round three: compare said nothing of what it reused or trained, nor where its runs are, and
+    printed the report's ``**`` on the terminal."""
+    root = Path(__file__).resolve().parents[1] / "results"
+    argv = ["compare", "pendulum", "--seeds", "0-2", "--reuse-only", "--runs", str(root), "--out", str(tmp_path)]
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    assert f"keras: {root / 'pendulum' / 'faithful'}: 3 of 3 seeds reused, none to train" in captured.err
+    assert f"torch: {root / 'pendulum' / 'faithful-torch'}: 3 of 3 seeds reused" in captured.err
+    assert "**" not in captured.out and f"report: {tmp_path / 'pendulum' / 'report.md'}" in captured.out

@@ -49,8 +49,8 @@ def compare(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return _stopped()
-    print(f"report: {result.out_dir / 'report.md'}")
-    print(result.verdict)
+    print(f"report: {result.out_dir / 'report.md'} (and result.json, curves.png, episodes_to_threshold.png)")
+    print(result.verdict.replace("**", ""))  # the report's Markdown emphasis, not the terminal's
     return EXIT_OK
 
 

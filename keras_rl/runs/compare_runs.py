@@ -76,5 +76,14 @@ def make_compare_runs(
     """Run (S seeds at a time, on ``options``' backend) what ``gather`` finds missing.
     Raises KeyboardInterrupt when Ctrl-C stopped the runs (what finished is on disk)."""
     jobs = gather(experiment, variant, seeds, runs_root, rerun, reuse_only, options.config_changes(), matched_init)
+    import sys
+
+    for framework in compared_frameworks(experiment.name):
+        folder = run_folder(runs_root, experiment.name, variant, framework, matched_init)
+        made = sorted(j.config["seed"] for j in jobs if j.config["framework"] == framework)
+        reused = len(seeds) - len(made)
+        to_run = f"training {len(made)} ({', '.join(map(str, made[:10]))}{', ...' if len(made) > 10 else ''})"
+        print(f"{framework}: {folder}: {reused} of {len(seeds)} seeds reused, {to_run if made else 'none to train'}",
+              file=sys.stderr)  # fmt: skip
     if train_seeds(jobs, options, after_job=after_job).interrupted:
         raise KeyboardInterrupt
