@@ -277,3 +277,21 @@ def test_ray_is_an_extra_not_a_dependency():
     required = [line.strip() for line in setup["options"]["install_requires"].splitlines() if line.strip()]
     assert not [r for r in required if r.lower().startswith("ray")], required
     assert setup["options.extras_require"]["ray"].strip().startswith("ray==")
+
+
+def test_the_pools_progress_counts_episodes_from_the_seeds_files(tmp_path):
+    """Under --workers the bar said "0/2" seeds for over a minute: it counts the episodes each
+    seed's episodes.csv holds, out of every seed's budget."""
+    from keras_rl.posts.pendulum import PendulumDDPGConfig
+    from keras_rl.runs.jobs import SeedJob
+    from keras_rl.runs.pool_backend import EpisodesBar
+
+    jobs = [SeedJob.of(PendulumDDPGConfig(seed=s, episodes=10), tmp_path / f"seed_{s}") for s in (0, 1)]
+    (tmp_path / "seed_0").mkdir()
+    (tmp_path / "seed_0" / "episodes.csv").write_text("episode,score\n1,-1\n2,-1\n3,-1\n")
+    bar = EpisodesBar(jobs)
+    bar.poll()
+    assert (bar.bar.n, bar.bar.total) == (3, 20)
+    bar.job_done(jobs[0])
+    assert bar.done == 1 and "1/2" in str(bar.bar.postfix)
+    bar.close()

@@ -21,9 +21,10 @@ import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
-from keras_rl.runs.jobs import AfterJob, execute, members, say_job_failed, seeds_bar, with_each
+from keras_rl.runs.jobs import AfterJob, execute, members, say_job_failed, with_each
 from keras_rl.runs.signals import sigterm_as_interrupt
 
 _stop: Any = None
@@ -65,7 +66,7 @@ class ProcessPool:
                 max_workers=size, mp_context=context, initializer=_start_worker, initargs=(stop,)
             )
 
-        bar = seeds_bar(len(jobs)) if progress else None
+        bar = EpisodesBar(jobs) if progress else None
         running: dict[Future, Any] = {}
         pending = list(jobs)
         retries: dict[int, int] = {}
@@ -96,7 +97,7 @@ class ProcessPool:
                 if after_job is not None:
                     after_job(job)
                 if bar is not None:
-                    bar.update(1)
+                    bar.job_done(job)
             return broken
 
         try:
@@ -106,6 +107,8 @@ class ProcessPool:
                         while pending and len(running) < size:
                             job = pending.pop(0)
                             running[pool.submit(_run_job, job)] = job
+                        if bar is not None:
+                            bar.poll()
                         if collect(wait(list(running), timeout=0.5, return_when=FIRST_COMPLETED).done):
                             collect(wait(list(running)).done)  # the pool is gone: every job it ran with it
                             pool.shutdown(wait=False, cancel_futures=True)
@@ -141,3 +144,36 @@ def _again(job):
     afresh (its folder, partly written, is cleared)."""
 
     return with_each(job, lambda j: dataclasses.replace(j, start="resume" if j.start == "resume" else "overwrite"))
+
+
+class EpisodesBar:
+    """The pool's progress in episodes (each worker's own bar is off): every seed's budget, and the
+    rows its ``episodes.csv`` holds, read every half second; finished seeds in the postfix."""
+
+    def __init__(self, jobs: list):
+        from tqdm.auto import tqdm
+
+        self.seeds = [m for job in jobs for m in members(job)]
+        total = sum(int(m.config["episodes"]) for m in self.seeds)
+        self.done = 0
+        self.bar = tqdm(total=total, unit="ep", desc=f"{len(self.seeds)} seeds", dynamic_ncols=True)
+
+    def poll(self) -> None:
+        played = 0
+        for m in self.seeds:
+            try:
+                with open(Path(m.out_dir) / "episodes.csv", "rb") as fh:
+                    played += max(0, fh.read().count(b"\n") - 1)
+            except OSError:
+                continue
+        self.bar.n = min(played, self.bar.total)
+        self.bar.set_postfix(seeds_done=f"{self.done}/{len(self.seeds)}", refresh=False)
+        self.bar.refresh()
+
+    def job_done(self, job) -> None:
+        self.done += len(members(job))
+        self.poll()
+
+    def close(self) -> None:
+        self.poll()
+        self.bar.close()
