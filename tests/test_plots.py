@@ -115,3 +115,24 @@ def test_the_check_figure_draws_the_baseline_as_a_band_and_each_fresh_seed(monke
     drawn_lines = [line for line in curves.get_lines() if len(line.get_xdata())]
     assert len(drawn_lines) <= len(new) + 2  # the fresh seeds, the baseline's median, the threshold
     assert len(curves.collections) >= 2  # the baseline's bands
+
+
+def test_a_sets_curves_show_seeds_thin_a_median_band_and_where_each_met_the_threshold_without_a_seed_legend():
+    """Round three: a 30-entry legend covered a third of the plot and ten colours repeated. Seeds
+    are thin lines of one colour, the median and interquartile band stop where fewer than half the
+    seeds still play (the few slow ones left are not the set), and each seed's first meeting of
+    the threshold is marked."""
+    from keras_rl.report.aggregate import draw_set_curves
+
+    def rows(n, start):
+        return [{"episode": e, "metric": float(start + e)} for e in range(1, n + 1)]
+
+    curves = {0: rows(10, 0), 1: rows(10, 1), 2: rows(10, 2), 3: rows(50, 3)}
+    fig = draw_set_curves(curves, {0: 5, 1: None, 2: 7, 3: None}, 8.0, "metric", "t")
+    ax = fig.axes[0]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert len(labels) == 5 and labels[0] == "each of 4 seeds" and not any(t.startswith("seed ") for t in labels)
+    median = next(line for line in ax.get_lines() if line.get_label().startswith("median"))
+    assert list(median.get_xdata()) == list(range(1, 11))  # after episode 10 one seed of four plays
+    marks = ax.collections[-1].get_offsets()
+    assert [tuple(m) for m in marks] == [(5.0, 5.0), (7.0, 9.0)]

@@ -69,18 +69,45 @@ def write_aggregate(
         lines += ["", f"Command: `{summaries[0].command}`", ""]
     atomic_write_text(out_dir / "summary.md", "\n".join(lines))
 
-    fig, ax = plt.subplots(figsize=(8, 4.5))
-    for seed, rows in curves.items():
-        metric = [r["metric"] if r["metric"] is not None and np.isfinite(r["metric"]) else np.nan for r in rows]
-        ax.plot([r["episode"] for r in rows], metric, lw=1.2, label=f"seed {seed}")
-    ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
-    ax.set_xlabel("episode")
-    ax.set_ylabel(metric_label)
-    ax.set_title(title)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, ncol=2, loc="lower right")
+    fig = draw_set_curves(curves, {s.seed: s.reached_at_episode for s in summaries}, threshold, metric_label, title)
     save_figure(fig, out_dir / "curves.png")
     return stats
+
+
+def draw_set_curves(
+    curves: dict[int, list[dict[str, Any]]], reached: dict[int, int | None], threshold: float, label: str, title: str
+):
+    """Every seed's metric as a thin line, the median and interquartile band over the seeds still
+    playing (drawn while at least half of them are: later, the few slow seeds left are not the
+    set), a mark where each seed first met the threshold, and no per-seed legend."""
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    longest = max((len(rows) for rows in curves.values()), default=0)
+    grid = np.full((len(curves), longest), np.nan)
+    for i, rows in enumerate(curves.values()):
+        metric = [r["metric"] if r["metric"] is not None and np.isfinite(r["metric"]) else np.nan for r in rows]
+        grid[i, : len(metric)] = metric
+        ax.plot(np.arange(1, len(metric) + 1), metric, color="tab:blue", lw=0.5, alpha=0.3)
+    if curves:
+        ax.plot([], [], color="tab:blue", lw=0.5, alpha=0.6, label=f"each of {len(curves)} seeds")
+        playing = np.sum(~np.isnan(grid), axis=0)
+        shown = np.flatnonzero(playing >= max(1, len(curves) / 2))
+        if shown.size:
+            cut = shown[-1] + 1
+            with np.errstate(all="ignore"):
+                q25, median, q75 = np.nanpercentile(grid[:, :cut], [25, 50, 75], axis=0)
+            x = np.arange(1, cut + 1)
+            ax.fill_between(x, q25, q75, color="tab:blue", alpha=0.25, lw=0, label="interquartile range")
+            ax.plot(x, median, color="black", lw=1.6, label="median (while at least half the seeds play)")
+        met = [(e, grid[i, e - 1]) for i, (seed, e) in enumerate((s, reached.get(s)) for s in curves) if e]
+        if met:
+            ax.scatter(*zip(*met), s=14, color="tab:orange", zorder=3, label="a seed first meets the threshold")
+    ax.axhline(threshold, color="tab:red", ls="--", lw=1, label=f"threshold {threshold:g}")
+    ax.set_xlabel("episode")
+    ax.set_ylabel(label)
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="best", framealpha=0.85)
+    return fig
 
 
 def rebuild(parent: Path, x_axis: str = "episode") -> dict[str, Any]:
