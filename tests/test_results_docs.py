@@ -324,3 +324,12 @@ def test_the_performance_page_quotes_the_manifests_regeneration_cost():
         f"{compiled} compiled-engine runs",
     ):
         assert quoted in row, f"docs/performance.md's regeneration row lacks {quoted!r}: quote results/MANIFEST.md"
+
+
+def test_the_forest_groups_its_rows_under_headings_that_say_which_arm_is_first():
+    gen = load_generator("forest")
+    assert gen._heading("Keras vs PyTorch") == "Keras vs PyTorch: first = Keras, second = PyTorch"
+    assert gen._heading("Keras vs PyTorch, matched init") == (
+        "Keras vs PyTorch (matched init): first = Keras, second = PyTorch"
+    )
+    assert gen._heading("seed-batched vs solo") == "seed-batched vs solo: first = seed-batched, second = solo"

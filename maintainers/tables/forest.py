@@ -238,34 +238,57 @@ RATIO_AXIS = (0.5, 2.0)
 COLOURS = {"equivalent within the margin": "tab:green", "different": "tab:red", "inconclusive": "tab:gray"}
 
 
+def _heading(group: str) -> str:
+    """A group's heading, saying which arm is first: ``Keras vs PyTorch`` -> first Keras, second PyTorch."""
+    first, vs, rest = group.partition(" vs ")
+    if not vs:
+        return group
+    second, comma, detail = rest.partition(", ")
+    return (
+        f"{group}: first = {first}, second = {second}"
+        if not comma
+        else (f"{first} vs {second} ({detail}): first = {first}, second = {second}")
+    )
+
+
 def draw(data: list[dict[str, Any]], path: Path) -> None:
-    """Two panels (success difference, median ratio), a row per comparison: the estimate and its
-    90% interval coloured by reading, the margin band shaded."""
+    """Two panels (success difference, median ratio), the comparisons grouped under headings that
+    say which arm is first: each estimate and its 90% interval coloured by reading, the margin band
+    shaded, an interval cut at the axis marked with an arrow, a row without an estimate saying so."""
     from keras_rl.report.plots import plt, save_figure
 
     shown = [r for r in data if not r["pending"]]
-    fig, axes = plt.subplots(1, 2, figsize=(13, 0.32 * len(shown) + 1.6), sharey=True)
-    labels = [f"{r['group']}: {r['label']} ({r['seeds']} seeds)" for r in shown]
-    y = np.arange(len(shown))[::-1]
+    entries: list[tuple[str, dict[str, Any] | None]] = []  # (label, row), a heading's row None
+    for group in dict.fromkeys(r["group"] for r in shown):  # each group once, in the order of its first row
+        entries.append((_heading(group), None))
+        entries += [(f"{r['label']} ({r['seeds']} seeds)", r) for r in shown if r["group"] == group]
+    height = 0.22 * len(entries) + 1.3
+    fig, axes = plt.subplots(1, 2, figsize=(16, height), sharey=True)
+    y = np.arange(len(entries))[::-1]
     for ax, key, title in (
-        (axes[0], "success", "success rate, first minus second"),
-        (axes[1], "speed", "median episodes to threshold, first over second"),
+        (axes[0], "success", "success rate: first minus second"),
+        (axes[1], "speed", "median episodes to threshold: first over second"),
     ):
         margin = shown[0][key]["margin"] if shown else [0, 1]
         ax.axvspan(margin[0], margin[1], color="tab:green", alpha=0.08, lw=0)
         ax.axvline(0.0 if key == "success" else 1.0, color="k", lw=0.7)
-        for yi, r in zip(y, shown):
-            v = r[key]
+        centre = 0.0 if key == "success" else 1.0
+        for yi, (_, row) in zip(y, entries):
+            if row is None:
+                ax.axhline(yi, color="0.85", lw=0.6)
+                continue
+            v = row[key]
             if v["estimate"] is None:
+                ax.text(centre, yi, "no estimate", ha="center", va="center", fontsize=6.5, color="0.35")
                 continue
             colour = COLOURS[v["reading"]]
             low, high = v["low"], v["high"]
-            if key == "speed":
-                if low < RATIO_AXIS[0]:
-                    ax.plot([RATIO_AXIS[0]], [yi], "<", color=colour, ms=5, clip_on=False)
-                if high > RATIO_AXIS[1]:
-                    ax.plot([RATIO_AXIS[1]], [yi], ">", color=colour, ms=5, clip_on=False)
-                low, high = max(low, RATIO_AXIS[0]), min(high, RATIO_AXIS[1])
+            lo_axis, hi_axis = RATIO_AXIS if key == "speed" else (-1.0, 1.0)
+            if low < lo_axis:
+                ax.plot([lo_axis], [yi], "<", color=colour, ms=5, clip_on=False)
+            if high > hi_axis:
+                ax.plot([hi_axis], [yi], ">", color=colour, ms=5, clip_on=False)
+            low, high = max(low, lo_axis), min(high, hi_axis)
             ax.plot([low, high], [yi, yi], color=colour, lw=2)
             ax.plot([v["estimate"]], [yi], "o", color=colour, ms=4)
         ax.set_title(title, fontsize=10)
@@ -276,11 +299,26 @@ def draw(data: list[dict[str, Any]], path: Path) -> None:
             ax.set_xticks([0.5, 0.67, 0.8, 0.9, 1.0, 1.1, 1.25, 1.5, 2.0])
             ax.set_xticklabels(["0.5", "0.67", "0.8", "0.9", "1", "1.1", "1.25", "1.5", "2"], fontsize=8)
             ax.minorticks_off()
+        else:
+            ax.set_xlim(-1.0, 1.0)
+    axes[0].set_ylim(-0.8, len(entries) - 0.2)
     axes[0].set_yticks(y)
-    axes[0].set_yticklabels(labels, fontsize=7)
+    axes[0].set_yticklabels([label for label, _ in entries], fontsize=7)
+    for tick, (_, row) in zip(axes[0].get_yticklabels(), entries):
+        if row is None:
+            tick.set_fontweight("bold")
     handles = [plt.Line2D([], [], color=c, marker="o", lw=2, label=k) for k, c in COLOURS.items()]
-    fig.legend(handles=handles, fontsize=8, loc="upper left", ncol=3)
-    fig.suptitle(f"Every verdict, 90% intervals against the margins set before the runs (`{COMMAND}`)", fontsize=10)
+    handles.append(plt.Line2D([], [], color="0.3", marker=">", lw=0, label="interval continues past the axis"))
+    handles.append(plt.Rectangle((0, 0), 1, 1, color="tab:green", alpha=0.15, label="margin set before the runs"))
+    top = 1 - 0.95 / height  # about an inch above the panels: the title, then the legend
+    fig.subplots_adjust(left=0.36, right=0.99, bottom=0.5 / height, top=top, wspace=0.06)
+    fig.legend(handles=handles, fontsize=8, loc="lower center", ncol=5, bbox_to_anchor=(0.675, top + 0.25 / height))
+    fig.suptitle(
+        f"Every verdict, 90% intervals against the margins set before the runs (`{COMMAND}`)",
+        fontsize=10,
+        x=0.675,
+        y=1 - 0.12 / height,
+    )
     save_figure(fig, path)
 
 
