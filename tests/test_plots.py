@@ -136,3 +136,15 @@ def test_a_sets_curves_show_seeds_thin_a_median_band_and_where_each_met_the_thre
     assert list(median.get_xdata()) == list(range(1, 11))  # after episode 10 one seed of four plays
     marks = ax.collections[-1].get_offsets()
     assert [tuple(m) for m in marks] == [(5.0, 5.0), (7.0, 9.0)]
+
+
+def test_the_checks_baseline_band_ends_where_fewer_than_half_its_seeds_still_play():
+    """check.png's baseline median fell to -750 after episode 150, drawn from the few slow seeds
+    still running: with ``min_share=0.5`` those episodes are left out."""
+    from keras_rl.report.plots import metric_quantiles
+
+    runs = [[{"metric": float(e)} for e in range(n)] for n in (10, 10, 12, 40)]
+    x, _ = metric_quantiles(runs, (50,))
+    assert x[-1] == 40
+    x, (median,) = metric_quantiles(runs, (50,), min_share=0.5)
+    assert list(x) == list(range(1, 13)) and median[-1] == 11.0

@@ -657,10 +657,15 @@ def _plot(path: Path, experiment, result: CheckResult, baseline_rows: dict, new_
     from keras_rl.report.plots import metric_quantiles
 
     # the baseline as a band (its 100 curves would hide the fresh seeds), the fresh seeds one by one
-    x, (q05, q25, q50, q75, q95) = metric_quantiles(list(baseline_rows.values()), (5, 25, 50, 75, 95), episodes)
+    # while at least half the baseline still plays: later, its few slow seeds are not the baseline
+    x, (q05, q25, q50, q75, q95) = metric_quantiles(
+        list(baseline_rows.values()), (5, 25, 50, 75, 95), episodes, min_share=0.5
+    )
     curves.fill_between(x, q05, q95, color="tab:blue", alpha=0.12, lw=0, label="baseline 5-95%")
     curves.fill_between(x, q25, q75, color="tab:blue", alpha=0.3, lw=0, label="baseline IQR")
-    curves.plot(x, q50, color="tab:blue", lw=1.4, label=f"baseline median ({len(baseline_rows)} seeds)")
+    curves.plot(
+        x, q50, color="tab:blue", lw=1.4, label=f"baseline median ({len(baseline_rows)} seeds, while half play)"
+    )
     for rows in new_rows.values():
         metric = [r["metric"] for r in rows[:episodes]]
         curves.plot(range(1, len(metric) + 1), metric, color="tab:orange", alpha=0.7, lw=0.9)
@@ -669,7 +674,13 @@ def _plot(path: Path, experiment, result: CheckResult, baseline_rows: dict, new_
     curves.axhline(config.threshold, color="k", ls="--", lw=0.8, label="threshold")
     curves.set_xlabel("episode")
     curves.set_ylabel(experiment.metric_label(config))
-    curves.set_title(f"{result.experiment}: learning curves (first {episodes} episodes)", fontsize=10)
+    played = max([len(rows[:episodes]) for rows in (*baseline_rows.values(), *new_rows.values())], default=0)
+    curves.set_title(
+        f"{result.experiment}: learning curves (the rule reads up to episode {episodes}; "
+        f"the longest seed played {played})",
+        fontsize=9,
+    )
+    curves.set_xlim(0, max(played, 1) + 1)
     curves.legend(fontsize=8)
     curves.grid(alpha=0.3)
     rng = np.random.default_rng(0)
@@ -677,9 +688,11 @@ def _plot(path: Path, experiment, result: CheckResult, baseline_rows: dict, new_
         v = np.asarray([x for x in values.values() if math.isfinite(x)])
         dist.scatter(i + rng.uniform(-0.08, 0.08, len(v)), v, alpha=0.7)
         if len(v):
-            dist.hlines(np.median(v), i - 0.2, i + 0.2, color="k")
+            dist.hlines(np.median(v), i - 0.2, i + 0.2, color="k", label="median" if i == 0 else None)
     dist.set_xticks([0, 1], ["baseline", "new"])
     dist.set_ylabel(result.rule.statistic)
     dist.set_title(f"p = {result.decision.p:.3g}: {result.verdict}", fontsize=10)
     dist.grid(alpha=0.3, axis="y")
+    if dist.get_legend_handles_labels()[0]:
+        dist.legend(fontsize=8)
     save_figure(fig, path)

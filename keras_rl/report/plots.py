@@ -134,10 +134,14 @@ def plot_seed_curve(run_dir: Path, experiment, config, x_axis: str = "episode") 
         )
 
 
-def metric_quantiles(runs: list[list[dict[str, Any]]], qs: tuple[float, ...], episodes: int | None = None):
+def metric_quantiles(
+    runs: list[list[dict[str, Any]]], qs: tuple[float, ...], episodes: int | None = None, min_share: float = 0.0
+):
     """Per episode, the given percentiles of the runs' finite metrics: (episode numbers, one
     array per percentile). Episodes no run played (after every seed stopped) are left out, and
-    a run that stopped early leaves the later episodes' quantiles to the others."""
+    a run that stopped early leaves the later episodes' quantiles to the others; with
+    ``min_share``, so are episodes fewer than that share of the runs reached (the few slow seeds
+    left are not the set)."""
     import numpy as np
 
     length = max((len(rows) for rows in runs), default=0)
@@ -149,7 +153,8 @@ def metric_quantiles(runs: list[list[dict[str, Any]]], qs: tuple[float, ...], ep
         for j, r in enumerate(rows[:length]):
             if r["metric"] is not None and math.isfinite(r["metric"]):
                 grid[i, j] = r["metric"]
-    played = ~np.all(np.isnan(grid), axis=0)
+    counts = np.sum(~np.isnan(grid), axis=0)
+    played = (counts > 0) & (counts >= min_share * len(runs))
     return np.arange(1, length + 1)[played], [np.nanpercentile(grid[:, played], q, axis=0) for q in qs]
 
 
