@@ -818,3 +818,15 @@ def test_a_baseline_made_another_way_than_the_tier_trains_is_refused_naming_the_
     assert main([*argv, "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert f"was made with {field}" in err and "a baseline must be made the same way" in err
+
+
+def test_a_consistent_verdict_says_what_its_tier_can_see_and_which_tier_sees_smaller_changes():
+    """``check pendulum --tier smoke --set actor_lr=8e-4`` (a 20% change) read "consistent, p =
+    0.154" with nothing saying the smoke tier is too coarse for it."""
+    from keras_rl.check.command import error_rates, what_it_sees
+
+    smoke = what_it_sees(rule_for("pendulum", "smoke"))
+    power = error_rates(rule_for("pendulum", "smoke"))["power_all"]
+    assert smoke.startswith(f"the smoke tier sees gross breakage (power {power:.0%} over the mutants")
+    assert "is the sensitive tier's (--tier sensitive; power 89% / 86% against a median 10% lower / higher" in smoke
+    assert "--tier sensitive" not in what_it_sees(rule_for("pendulum", "sensitive"))

@@ -229,6 +229,26 @@ def describe_plan(rule: CheckRule, fresh: list[int], baseline: int, design) -> s
     )
 
 
+def what_it_sees(rule: CheckRule) -> str:
+    """What a tier can see, for the line beside a "consistent" verdict: its measured power, and,
+    where a finer tier exists for the post, that a smaller change needs it (a 20% change of one
+    learning rate read "consistent, p = 0.154" at the smoke tier, with nothing saying why)."""
+    from keras_rl.check.rules import RULES
+
+    rates = error_rates(rule)
+    source = (SENSITIVE_RATES if rule.tier == "sensitive" else CALIBRATION).name
+    seen = f"power {power_text(rates, source=source)}" if rates else "power not calibrated"
+    text = f"the {rule.tier} tier sees gross breakage ({seen})" if rule.tier != "sensitive" else f"{seen}"
+    finer = RULES.get((rule.experiment, "sensitive"))
+    if finer is not None and rule.tier != "sensitive":
+        fine = error_rates(finer)
+        how = f"; power {power_text(fine, source=SENSITIVE_RATES.name)}" if fine else ""
+        text += (
+            f"; a smaller change, such as 10-20% of one hyperparameter, is the sensitive tier's (--tier sensitive{how})"
+        )
+    return text
+
+
 def power_text(rates: dict[str, Any], short: bool = False, source: str = "calibration.json") -> str:
     """A rule's measured power in words: against the tuning mutants (gross / all), or for the
     sensitive tier against a 10% move of the median and the held-out mutants; ``source``: the

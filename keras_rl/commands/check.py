@@ -72,6 +72,10 @@ def check(args: argparse.Namespace) -> int:
             f"{r.experiment}: {r.verdict} ({r.rule.statistic}, {r.decision.test}, p = {r.decision.p:.3g}, "
             f"{level}; baseline {len(r.baseline)} seeds, new {len(r.new)})"
         )
+        if not r.decision.changed:
+            from keras_rl.check.command import what_it_sees
+
+            print(f"  what it can see: {what_it_sees(r.rule)}")
         if r.config_changes:
             print(f"  {r.experiment}: the faithful config differs from the baseline's: {'; '.join(r.config_changes)}")
     print(f"report: {args.out / 'check.md'}")
