@@ -75,7 +75,7 @@ def reproduce(
     or an experiment's name, made from ``variant``, ``framework`` and ``overrides`` (typed
     values: ``{"actor_hidden_units": (32, 32)}``). Bad input raises a ConfigError naming it
     before anything is written."""
-    from keras_rl.study import Study, plan, run
+    from keras_rl.study import Study, check_success_rate, plan, run
 
     if isinstance(config, str):
         from keras_rl.registry import get_experiment
@@ -87,10 +87,7 @@ def reproduce(
     if episodes is not None:
         changes["episodes"] = episodes
     config = config.replace(**changes) if changes else config
-    if isinstance(min_success_rate, bool) or not isinstance(min_success_rate, (int, float)):
-        raise ConfigError(f"min_success_rate must be a number in [0, 1], got {min_success_rate!r}")
-    if not 0 <= min_success_rate <= 1:
-        raise ConfigError(f"min_success_rate must be in [0, 1], got {min_success_rate}")
+    rate = check_success_rate(min_success_rate, "min_success_rate")
     if config.framework == "torch":  # type: ignore[attr-defined]
         from keras_rl.torch import check_torch
 
@@ -104,17 +101,7 @@ def reproduce(
         overwrite=overwrite,
     )
     result = run(study, plan(study))
-    return Reproduced(result.runs, result.summaries, _exit_code(result, len(study.seeds), min_success_rate))
-
-
-def _exit_code(result, seeds: int, min_success_rate: float) -> int:
-    if result.interrupted:
-        from keras_rl.runs.signals import stop_exit_code
-
-        return stop_exit_code()
-    if result.failures or result.unsaid or result.successes / seeds < min_success_rate:
-        return 1
-    return 0
+    return Reproduced(result.runs, result.summaries, result.exit_code(len(study.seeds), rate))
 
 
 def _path(value: object, name: str) -> Path:

@@ -152,6 +152,24 @@ class StudyResult:
     def successes(self) -> int:
         return sum(s.success for s in self.summaries)
 
+    def exit_code(self, seeds: int, min_success_rate: float) -> int:
+        """The study's verdict as ``reproduce`` exits: a signal's code where one stopped it, 1 where a
+        seed stopped on an error or fewer than ``min_success_rate`` of the ``seeds`` succeeded, else 0."""
+        if self.interrupted:
+            from keras_rl.runs.signals import stop_exit_code
+
+            return stop_exit_code()
+        return 1 if self.failures or self.unsaid or self.successes / seeds < min_success_rate else 0
+
+
+def check_success_rate(rate: object, name: str = "--min-success-rate") -> float:
+    """A share of seeds in [0, 1], or a ConfigError naming ``name``."""
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)):
+        raise ConfigError(f"{name} must be a number in [0, 1], got {rate!r}")
+    if not 0 <= rate <= 1:
+        raise ConfigError(f"{name} must be in [0, 1], got {rate}")
+    return float(rate)
+
 
 def run(study: Study, modes: list[str], after_job=None) -> StudyResult:
     """Train what ``plan`` found to do (its ``modes``), keep what it found done, and write the

@@ -64,10 +64,11 @@ def _check_writable_file(path: Path, flag: str) -> None:
 def _config_text(path: Path) -> str:
     """A recorded ``config.json``: the file, or where ``<set>/seed_<n>`` is packed, its copy in the
     set's ``runs.parquet`` (``results/cartpole/faithful/seed_0/config.json`` names either)."""
+    from keras_rl.runs.packed import PACKED
     from keras_rl.runs.run_set import SEED_FOLDER, RunSet
 
     seed_dir = path.parent if path.name == "config.json" else path
-    if not path.is_file() and SEED_FOLDER.fullmatch(seed_dir.name) and (seed_dir.parent / "runs.parquet").is_file():
+    if not path.is_file() and SEED_FOLDER.fullmatch(seed_dir.name) and (seed_dir.parent / PACKED).is_file():
         try:
             run = RunSet.seed_at(seed_dir)
         except KerasRLError:

@@ -7,10 +7,8 @@ import sys
 from pathlib import Path
 
 from keras_rl.commands.common import (
-    EXIT_CRITERION,
     EXIT_OK,
     _recorded_config,
-    _stopped,
     parse_seeds,
 )
 from keras_rl.errors import ConfigError
@@ -122,7 +120,7 @@ def study_from_args(args: argparse.Namespace):
     from keras_rl.registry import get_experiment
     from keras_rl.runs.evaluate import EvalSchedule
     from keras_rl.runs.files import run_folder
-    from keras_rl.study import Study
+    from keras_rl.study import Study, check_success_rate
 
     experiment = get_experiment(args.experiment)
     recorded = _recorded_config(experiment, args) if args.config is not None else None
@@ -137,8 +135,7 @@ def study_from_args(args: argparse.Namespace):
         raise ConfigError("--eval-episodes sets the size of each --eval-every evaluation; give --eval-every N too")
     eval_episodes = 10 if args.eval_episodes is None else args.eval_episodes
     evaluation = EvalSchedule(args.eval_every, eval_episodes) if args.eval_every else None
-    if not 0 <= args.min_success_rate <= 1:
-        raise ConfigError(f"--min-success-rate must be in [0, 1], got {args.min_success_rate}")
+    check_success_rate(args.min_success_rate)
     if recorded is not None:
         base = recorded.replace(**options.config_changes()).with_text_overrides(options.overrides)
     else:
@@ -201,19 +198,16 @@ def report(study, result, min_success_rate: float) -> int:
         print(experiment.post_reference)
     if result.interrupted:
         print("interrupted: partial results are on disk, marked unfinished; --resume continues them", file=sys.stderr)
-        return _stopped()
-    if result.failures or result.unsaid:
+    elif result.failures or result.unsaid:
         print(
             f"exit 1: {len(result.failures) + len(result.unsaid)} of {len(seeds)} seeds stopped with an error"
             + (f" (seeds {', '.join(map(str, result.unsaid))} left no summary.json)" if result.unsaid else ""),
             file=sys.stderr,
         )
-        return EXIT_CRITERION
-    if result.successes / len(seeds) >= min_success_rate:
-        return EXIT_OK
-    print(
-        f"exit 1: criterion not met: {result.successes}/{len(seeds)} seeds succeeded, need "
-        f"{min_success_rate:.0%} (--min-success-rate {min_success_rate:g})",
-        file=sys.stderr,
-    )
-    return EXIT_CRITERION
+    elif result.successes / len(seeds) < min_success_rate:
+        print(
+            f"exit 1: criterion not met: {result.successes}/{len(seeds)} seeds succeeded, need "
+            f"{min_success_rate:.0%} (--min-success-rate {min_success_rate:g})",
+            file=sys.stderr,
+        )
+    return result.exit_code(len(seeds), min_success_rate)

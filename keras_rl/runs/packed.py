@@ -161,12 +161,7 @@ class PackedSet:
         if seed not in self._records:
             raise RunFolderError(f"{self.path} holds no seed {seed} (it holds {_ranges(self.seeds)})")
         r = self._records[seed]
-        if "config_text" in r:
-            config_text = r["config_text"]
-        else:
-            config = dict(self._configs[r["config"]])
-            config["seed"] = seed
-            config_text = _json_text(config)
+        config_text = r.get("config_text") or _json_text(self.config(seed))
         summary_text = r.get("summary_text") or _json_text(r["summary"])
         return SeedRecord(
             seed, config_text, summary_text, self.columns, self._seed_rows(seed), dict(r.get("files", {}))
@@ -177,10 +172,12 @@ class PackedSet:
         return json.loads(r["summary_text"]) if "summary_text" in r else r["summary"]
 
     def config(self, seed: int) -> dict[str, Any]:
-        return json.loads(self.record(seed).config_text) if "config_text" in self._records[seed] else self._config(seed)
-
-    def _config(self, seed: int) -> dict[str, Any]:
-        config = dict(self._configs[self._records[seed]["config"]])
+        """The seed's ``config.json`` as written: its set's shared config with its seed, or its own
+        text where it was written another way."""
+        r = self._records[seed]
+        if "config_text" in r:
+            return json.loads(r["config_text"])
+        config = dict(self._configs[r["config"]])
         config["seed"] = seed
         return config
 

@@ -51,9 +51,10 @@ def check_reusable(seed_dir: Path, expected, code_version: str | None) -> str | 
 
 def packed_run(seed_dir: Path):
     """The seed ``seed_dir`` is named for, where its set's ``runs.parquet`` holds it (else None)."""
+    from keras_rl.runs.packed import PACKED
     from keras_rl.runs.run_set import SEED_FOLDER, RunSet
 
-    if SEED_FOLDER.fullmatch(seed_dir.name) is None or not (seed_dir.parent / "runs.parquet").is_file():
+    if SEED_FOLDER.fullmatch(seed_dir.name) is None or not (seed_dir.parent / PACKED).is_file():
         return None
     try:
         return RunSet.seed_at(seed_dir)

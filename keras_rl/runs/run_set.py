@@ -39,7 +39,9 @@ class SeedRun:
         """How a message names it."""
         if self.folder is not None:
             return str(self.folder)
-        return f"{self.run_set.folder / 'runs.parquet'} (seed {self.seed})"
+        from keras_rl.runs.packed import PACKED
+
+        return f"{self.run_set.folder / PACKED} (seed {self.seed})"
 
     def summary_record(self) -> dict[str, Any]:
         """``summary.json`` as written."""

@@ -46,7 +46,6 @@ from keras_rl.learners.common import step_function
 from keras_rl.learners.table import implementation
 from keras_rl.rngs import global_rng_state, rng_state, set_global_rng_state, set_rng_state
 from keras_rl.runs.checkpoint import VERSION, delete_checkpoints, read_batch_checkpoints, write_checkpoint
-from keras_rl.runs.lifecycle import check_resume_config
 from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import configure_tensorflow, seed_everything
 from keras_rl.tf_envs import MAX_STEPS, CartPole, MountainCarContinuous, Pendulum
@@ -320,7 +319,7 @@ class CompiledRun:
                 "resume it with that engine (--engine), or pass --overwrite to start again"
             )
         seed, own = state["seed"], state["engine_state"]
-        check_resume_config(out_dir, self.config.to_dict(), seed["config"], len(seed["rows"]))
+        self.life.resume(seed)  # first: a config the learner's state would not fit is refused, naming the field
         self.learner.load_state_dict(own["learner"])
         self._load_replay_state(own)
         self.tally.total_updates = int(own["updates"])
@@ -328,7 +327,6 @@ class CompiledRun:
         set_rng_state(self.env.unwrapped.np_random, own["env_rng"])
         set_rng_state(self.action_space.np_random, own["action_space_rng"])
         set_global_rng_state(state["global_rng"])
-        self.life.resume(seed)
 
     # -- the end ---------------------------------------------------------------------------------
     def _close(self) -> RunSummary:
