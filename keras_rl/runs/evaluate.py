@@ -13,7 +13,7 @@ import numpy as np
 
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.runs.files import atomic_write_bytes, atomic_write_json, run_folder_locks
-from keras_rl.runs.signals import sigterm_as_interrupt
+from keras_rl.runs.signals import stop_signals_as_flag
 
 
 def load_run_config(run_dir: Path):
@@ -106,23 +106,29 @@ def _evaluate_held(
             raise
         raise RunFolderError(why) from None
 
-    scores, frames, interrupted = [], [], False
-    try:
-        with sigterm_as_interrupt():
+    scores, frames, raised = [], [], False
+    # Ctrl-C or SIGTERM is taken between env steps, as training takes it (one raised inside
+    # TensorFlow's C++ code would surface as a SystemError): the episodes played so far are kept.
+    # A KeyboardInterrupt raised all the same (outside the main thread, signals are not ours) too.
+    with stop_signals_as_flag() as stopped:
+        try:
             for episode in range(episodes):
                 obs, _ = env.reset(seed=seed if episode == 0 else None)
                 score, done = 0.0, False
-                while not done:
+                while not done and not stopped:
                     if gif and episode == 0:
                         frames.append(env.render())
                     obs, reward, terminated, truncated, _ = env.step(agent.greedy_action(obs))
                     score += float(reward)
                     done = terminated or truncated
+                if stopped:  # the episode cut short is not one of the played ones
+                    break
                 scores.append(score)
                 if progress:  # numbered from 1, as episodes.csv numbers them
                     print(f"episode: {episode + 1:3d} | score: {score:.3f}")
-    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: keep the episodes played so far
-        interrupted = True
+        except KeyboardInterrupt:
+            raised = True
+    interrupted = bool(stopped) or raised
     env.close()
     result = {
         "run_dir": str(run_dir),
