@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Long runs, one set after another, from a clean worktree at a committed version with a venv of
+# its own (the shared .venv imports main's keras_rl, not the worktree's):
+#
+#   git worktree add ../wt-runs -b runs/NAME main && cd ../wt-runs && make install
+#   nohup maintainers/run_queue.sh maintainers/queues/NAME.tsv > ../wt-runs.log 2>&1 &
+#
+# A queue file has one set per line: its folder, a tab, then `keras-rl` arguments without --out.
+# Each set runs with --resume, is packed (keras-rl pack) and committed on the worktree's branch
+# as it lands; merge the branch into main. Resumable: a set whose runs.parquet exists is skipped,
+# an unfinished one resumes where it stopped. Refuses a dirty worktree (its seeds would record it).
+set -euo pipefail
+queue=${1:?usage: maintainers/run_queue.sh QUEUE_FILE}
+if [[ ! -f "$queue" ]]; then echo "run_queue: no queue file $queue" >&2; exit 2; fi
+if [[ -n "$(git status --porcelain --untracked-files=no)" ]]; then
+  echo "run_queue: the worktree has uncommitted changes; long runs start from a committed version" >&2
+  exit 2
+fi
+while IFS=$'\t' read -r out args; do
+  [[ -z "$out" || "$out" == \#* ]] && continue
+  if [[ -f "$out/runs.parquet" ]]; then echo "run_queue: $out is packed already"; continue; fi
+  echo "run_queue: $(date -u +%FT%TZ) starting $out"
+  # shellcheck disable=SC2086  # the arguments are one line of plain words by design
+  .venv/bin/keras-rl $args --resume --out "$out"
+  .venv/bin/keras-rl pack "$out"
+  git add "$out"
+  git commit -q -m "long run landed: $out (keras-rl $args --resume --out $out)"
+  echo "run_queue: $(date -u +%FT%TZ) committed $out"
+done < "$queue"
