@@ -1,6 +1,7 @@
-"""``--resume``: a run killed with SIGKILL and resumed gives the same ``episodes.csv`` as an
-uninterrupted run, bit for bit, for each post in both frameworks; a corrupt checkpoint is
-refused and nothing in the folder is touched."""
+"""A seed's life across processes: killed with SIGKILL, ``--resume``d and extended, it gives
+the same ``episodes.csv`` as one uninterrupted run in another process, bit for bit, for each
+post in both frameworks (which is also the determinism check); a corrupt checkpoint is refused
+and nothing in the folder is touched."""
 
 from __future__ import annotations
 
@@ -20,14 +21,6 @@ pytestmark = pytest.mark.slow  # every test here trains whole runs
 
 
 CLI = [sys.executable, "-m", "keras_rl", "reproduce"]
-CASES = [  # experiment, framework, episodes, kill after this many episodes are on disk
-    ("pendulum", "keras", 12, 7),  # training from episode 2 on (train_start=200, set below)
-    ("pendulum", "torch", 12, 7),
-    ("cartpole", "keras", 60, 35),
-    ("cartpole", "torch", 60, 35),
-    ("mountaincar", "keras", 8, 5),
-    ("mountaincar", "torch", 8, 5),
-]
 
 
 def rows(path: Path) -> list[dict[str, str]]:
@@ -78,72 +71,73 @@ def env_for_child():
     return {**os.environ, "PYTHONUNBUFFERED": "1"}
 
 
-@pytest.mark.parametrize("experiment, framework, episodes, kill_after", CASES, ids=[f"{c[0]}-{c[1]}" for c in CASES])
-def test_killed_and_resumed_run_equals_an_uninterrupted_one(tmp_path, experiment, framework, episodes, kill_after):
-    if framework == "torch":
-        pytest.importorskip("torch", reason="needs the torch extra")
-    straight = subprocess.run(
-        args(experiment, framework, episodes, tmp_path / "straight"), capture_output=True, text=True, timeout=600
-    )
-    assert straight.returncode in (0, 1), straight.stderr
-    csv_path = tmp_path / "killed" / "seed_2" / "episodes.csv"
-    kept = kill_when_on_disk(args(experiment, framework, episodes, tmp_path / "killed"), csv_path, kill_after)
-    assert kept < episodes, "the run finished before it could be killed"
-    assert (tmp_path / "killed" / "seed_2" / "checkpoint.pkl").is_file()
-    resumed = subprocess.run(
-        [*args(experiment, framework, episodes, tmp_path / "killed"), "--resume"],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert resumed.returncode in (0, 1), resumed.stderr
-    expected = rows(tmp_path / "straight" / "seed_2" / "episodes.csv")
-    assert len(expected) == episodes
-    assert rows(csv_path) == expected, f"resumed after {kept} episodes on disk"
-    # a solo run that played its whole budget keeps its final checkpoint, to be extended (#23.12)
-    summary = json.loads((tmp_path / "killed" / "seed_2" / "summary.json").read_text())
-    assert summary["status"] == "completed" and summary["episodes_run"] == episodes
-    assert (tmp_path / "killed" / "seed_2" / "checkpoint.pkl").is_file()
-
-
-EXTEND_CASES = [  # experiment, framework, the first budget, the larger one
-    ("pendulum", "keras", 3, 6),
-    ("pendulum", "torch", 3, 5),
-    ("cartpole", "keras", 18, 30),  # training from about episode 6 on
-    ("cartpole", "torch", 18, 30),  # the tutorial's own agent (a whole-agent seed axis)
-    ("mountaincar", "keras", 2, 4),
+LIFE_CASES = [  # experiment, framework, first budget, kill after this many episodes on disk, larger budget
+    ("pendulum", "keras", 8, 5, 12),  # training from episode 2 on (train_start=200, set in args)
+    ("pendulum", "torch", 8, 5, 12),
+    ("cartpole", "keras", 40, 25, 60),  # training from about episode 6 on
+    ("cartpole", "torch", 40, 25, 60),  # the tutorial's own agent
+    ("mountaincar", "keras", 6, 4, 8),  # bursts of training after episodes 2 and up; killed past the checkpoint at 3
+    ("mountaincar", "torch", 6, 4, 8),
 ]
 
 
 @pytest.mark.parametrize(
-    "experiment, framework, first, budget", EXTEND_CASES, ids=[f"{c[0]}-{c[1]}" for c in EXTEND_CASES]
+    "experiment, framework, first, kill_after, budget", LIFE_CASES, ids=[f"{c[0]}-{c[1]}" for c in LIFE_CASES]
 )
-def test_resume_with_a_larger_budget_extends_a_finished_run_as_a_straight_run(
-    tmp_path, experiment, framework, first, budget
+def test_a_seed_killed_resumed_and_extended_in_three_processes_equals_one_straight_run(
+    tmp_path, experiment, framework, first, kill_after, budget
 ):
-    """Issue #23, item 12: ``--resume --episodes N`` continues a run that completed a smaller
-    budget; its episodes stay as they were and the rest equal a straight run of N, bit for bit."""
+    """A seed's whole life against a straight run of the same seed in another process, bit for
+    bit: SIGKILLed after ``kill_after`` episodes of a budget of ``first``, ``--resume``d to
+    finish it (a solo run that played its whole budget keeps its final checkpoint, #23.12), then
+    ``--resume --episodes budget`` extends it (#23.12): its episodes stay as they were and the
+    rest equal the straight run. The same seed in two processes giving the same rows is the
+    determinism check; another seed parts from it at once."""
     if framework == "torch":
         pytest.importorskip("torch", reason="needs the torch extra")
     straight = subprocess.run(
         args(experiment, framework, budget, tmp_path / "straight"), capture_output=True, text=True, timeout=600
     )
     assert straight.returncode in (0, 1), straight.stderr
-    out = tmp_path / "extended"
-    short = subprocess.run(args(experiment, framework, first, out), capture_output=True, text=True, timeout=600)
-    assert short.returncode in (0, 1), short.stderr
-    played = rows(out / "seed_2" / "episodes.csv")
-    assert len(played) == first
+    expected = rows(tmp_path / "straight" / "seed_2" / "episodes.csv")
+    assert len(expected) == budget
+    loss = "loss" if experiment == "cartpole" else "critic_loss"
+    assert sum(1 for row in expected if row[loss]) >= budget // 2  # it trained, so the update is covered
+
+    out = tmp_path / "life"
+    csv_path = out / "seed_2" / "episodes.csv"
+    kept = kill_when_on_disk(args(experiment, framework, first, out), csv_path, kill_after)
+    assert kept < first, "the run finished before it could be killed"
+    assert (out / "seed_2" / "checkpoint.pkl").is_file()
+    resumed = subprocess.run(
+        [*args(experiment, framework, first, out), "--resume"], capture_output=True, text=True, timeout=600
+    )
+    assert resumed.returncode in (0, 1), resumed.stderr
+    played = rows(csv_path)
+    assert played == expected[:first], f"resumed after {kept} episodes on disk"
+    summary = json.loads((out / "seed_2" / "summary.json").read_text())
+    assert (summary["status"], summary["episodes_run"]) == ("completed", first)
+    assert (out / "seed_2" / "checkpoint.pkl").is_file()  # kept, to be extended
+
     longer = subprocess.run(
         [*args(experiment, framework, budget, out), "--resume"], capture_output=True, text=True, timeout=600
     )
     assert longer.returncode in (0, 1), longer.stderr
-    got = rows(out / "seed_2" / "episodes.csv")
+    got = rows(csv_path)
     assert got[:first] == played  # what it had played stays as it was
-    assert got == rows(tmp_path / "straight" / "seed_2" / "episodes.csv")
+    assert got == expected
     assert json.loads((out / "seed_2" / "config.json").read_text())["episodes"] == budget
     summary = json.loads((out / "seed_2" / "summary.json").read_text())
     assert (summary["episodes_run"], summary["budget_episodes"], summary["status"]) == (budget, budget, "completed")
+
+    shown = max(1, budget // 4)  # another seed parts from this one at once
+    other = subprocess.run(
+        args(experiment, framework, shown, tmp_path / "other", seed=3), capture_output=True, text=True, timeout=600
+    )
+    assert other.returncode in (0, 1), other.stderr
+    assert [r["score"] for r in rows(tmp_path / "other" / "seed_3" / "episodes.csv")] != [
+        r["score"] for r in expected[:shown]
+    ]
 
 
 def test_a_budget_below_what_was_played_or_a_batch_without_a_final_checkpoint_is_refused(tmp_path):
