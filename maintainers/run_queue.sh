@@ -9,8 +9,11 @@
 # Each set runs with --resume, is packed (keras-rl pack) and committed on the worktree's branch
 # as it lands; merge the branch into main. Resumable: a set whose runs.parquet exists is skipped,
 # an unfinished one resumes where it stopped. Refuses a dirty worktree (its seeds would record it).
+# The seeds' weights and pictures, which git ignores, are moved to $RUN_QUEUE_EXTRAS
+# (../run-queue-extras by default) before packing.
 set -euo pipefail
 queue=${1:?usage: maintainers/run_queue.sh QUEUE_FILE}
+extras=${RUN_QUEUE_EXTRAS:-../run-queue-extras}
 if [[ ! -f "$queue" ]]; then echo "run_queue: no queue file $queue" >&2; exit 2; fi
 if [[ -n "$(git status --porcelain --untracked-files=no)" ]]; then
   echo "run_queue: the worktree has uncommitted changes; long runs start from a committed version" >&2
@@ -22,6 +25,11 @@ while IFS=$'\t' read -r out args; do
   echo "run_queue: $(date -u +%FT%TZ) starting $out"
   # shellcheck disable=SC2086  # the arguments are one line of plain words by design
   .venv/bin/keras-rl $args --resume --out "$out"
+  # what git ignores in the seed folders (weights, checkpoints, pictures) is never committed and a
+  # packed set does not keep it: moved, not deleted, under $extras
+  git ls-files --others --ignored --exclude-standard -z "$out" | while IFS= read -r -d '' f; do
+    mkdir -p "$extras/$(dirname "$f")" && mv "$f" "$extras/$f"
+  done
   .venv/bin/keras-rl pack "$out"
   git add "$out"
   git commit -q -m "long run landed: $out (keras-rl $args --resume --out $out)"
