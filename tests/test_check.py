@@ -830,3 +830,24 @@ def test_a_consistent_verdict_says_what_its_tier_can_see_and_which_tier_sees_sma
     assert smoke.startswith(f"the smoke tier sees gross breakage (power {power:.0%} over the mutants")
     assert "is the sensitive tier's (--tier sensitive; power 89% / 86% against a median 10% lower / higher" in smoke
     assert "--tier sensitive" not in what_it_sees(rule_for("pendulum", "sensitive"))
+
+
+def test_changed_many_decides_every_row_as_decide_does():
+    """The calibrations' vectorised rule against the one-at-a-time rule: every row alike,
+    continuous and tied values, small samples (SciPy's exact p) and large, NaN and all-equal rows."""
+    from keras_rl.check.statistics import changed_many
+
+    rng = np.random.default_rng(5)
+    for n, m, tied in [(5, 30, False), (5, 30, True), (20, 200, True), (10, 7, False), (50, 200, True)]:
+        for alpha in (0.01, 0.5):
+            if tied:
+                base, new = rng.integers(0, 6, (60, m)).astype(float), rng.integers(0, 7, (60, n)).astype(float)
+            else:
+                base, new = rng.normal(size=(60, m)), rng.normal(0.5, 1, size=(60, n))
+            base[0, 0] = np.nan
+            base[1], new[1] = 3.0, 3.0
+            want = [decide(b, f, "auc", alpha).changed for b, f in zip(base, new)]
+            assert changed_many(base, new, "auc", alpha).tolist() == want, (n, m, tied, alpha)
+            assert any(want) and not all(want)
+    with pytest.raises(ValueError, match="2 baselines for 3 new samples"):
+        changed_many(np.zeros((2, 5)), np.zeros((3, 5)), "auc", 0.01)

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy import stats
 
 from keras_rl.report.stats import fisher_exact, mann_whitney
 
@@ -91,6 +92,33 @@ def decide(
     return Decision(p, p < alpha, "Mann-Whitney U (two-sided)", u)
 
 
+def changed_many(
+    baselines: Sequence[Sequence[float]] | np.ndarray,
+    news: Sequence[Sequence[float]] | np.ndarray,
+    statistic: str,
+    alpha: float,
+) -> np.ndarray:
+    """``decide(baselines[i], news[i], statistic, alpha).changed`` for every row at once: the
+    calibrations' thousands of resampled checks in one SciPy call per p-value method instead
+    of one call each. Each row takes the method ``decide`` would (SciPy's ``auto``: exact for
+    a sample of at most 8 without ties, the normal approximation otherwise)."""
+    base, fresh = np.atleast_2d(np.asarray(baselines, float)), np.atleast_2d(np.asarray(news, float))
+    if base.shape[0] != fresh.shape[0]:
+        raise ValueError(f"{base.shape[0]} baselines for {fresh.shape[0]} new samples")
+    if statistic == "success":  # Fisher's test has no vectorised form in SciPy
+        return np.array([decide(b, f, statistic, alpha).changed for b, f in zip(base, fresh)], bool)
+    both = np.concatenate([fresh, base], axis=1)
+    changed = np.isnan(both).any(axis=1)  # a run that blew up is a change in itself
+    live = ~changed & (np.ptp(np.where(changed[:, None], 0.0, both), axis=1) != 0)  # all equal: no change
+    tied = (np.diff(np.sort(both, axis=1), axis=1) == 0).any(axis=1)
+    small = min(fresh.shape[1], base.shape[1]) <= 8
+    for method, rows in (("exact", live & ~tied & small), ("asymptotic", live & (tied | (not small)))):
+        if rows.any():
+            p = stats.mannwhitneyu(fresh[rows], base[rows], alternative="two-sided", method=method, axis=1).pvalue
+            changed[rows] = p < alpha
+    return changed
+
+
 def smallest_p(statistic: str, n_baseline: int, n_new: int) -> float:
     """The smallest p ``decide`` can give for these sample sizes: the most extreme outcome
     (every fresh seed beyond every baseline seed, or the success rates 0 against 1)."""
@@ -113,11 +141,8 @@ def false_alarm_rate(
     values = np.asarray(baseline, float)
     if not 0 < n < len(values):
         raise ValueError(f"need 0 < n < {len(values)} baseline seeds, got n={n}")
-    alarms = 0
-    for _ in range(repeats):
-        pick = rng.permutation(len(values))
-        alarms += decide(values[pick[n:]], values[pick[:n]], statistic, alpha).changed
-    return alarms / repeats
+    picks = np.stack([rng.permutation(len(values)) for _ in range(repeats)])
+    return int(changed_many(values[picks[:, n:]], values[picks[:, :n]], statistic, alpha).sum()) / repeats
 
 
 def power(
@@ -133,10 +158,8 @@ def power(
     the changed runs, tested against the whole baseline, ``repeats`` times."""
     rng = rng if rng is not None else np.random.default_rng(1)
     values, other = np.asarray(baseline, float), np.asarray(changed, float)
-    hits = 0
-    for _ in range(repeats):
-        hits += decide(values, other[rng.integers(0, len(other), n)], statistic, alpha).changed
-    return hits / repeats
+    fresh = np.stack([other[rng.integers(0, len(other), n)] for _ in range(repeats)])
+    return int(changed_many(np.broadcast_to(values, (repeats, len(values))), fresh, statistic, alpha).sum()) / repeats
 
 
 def detectable_shift(
@@ -241,11 +264,9 @@ def check_false_alarm_rate(
     if statistic != "success" and len(np.unique(values)) == len(values):
         return FalseAlarm(exact_false_alarm_rate(n, len(values), alpha), "exact (ranks)", 0.0)
     rng = rng if rng is not None else np.random.default_rng(2)
-    m, alarms = len(values), 0
-    for _ in range(repeats):
-        pooled = values[rng.integers(0, m, m + n)]
-        alarms += decide(pooled[:m], pooled[m:], statistic, alpha).changed
-    rate = alarms / repeats
+    m = len(values)
+    pooled = np.stack([values[rng.integers(0, m, m + n)] for _ in range(repeats)])
+    rate = int(changed_many(pooled[:, :m], pooled[:, m:], statistic, alpha).sum()) / repeats
     return FalseAlarm(rate, f"resampled ({repeats} pooled draws)", float(np.sqrt(rate * (1 - rate) / repeats)))
 
 
@@ -260,13 +281,10 @@ def rejection_region(n_new: int, n_baseline: int, alpha: float) -> np.ndarray:
     baseline values below each new one) ``decide`` calls changed, as a boolean mask."""
     total = n_new + n_baseline
     low = n_new * (n_new + 1) // 2
-    region = np.zeros(n_new * n_baseline + 1, bool)
-    for u in range(n_new * n_baseline + 1):
-        new = _ranks_with_sum(total, n_new, low + u)
-        chosen = set(new)
-        base = [r for r in range(1, total + 1) if r not in chosen]
-        region[u] = decide(base, new, "final_metric", alpha).changed
-    return region
+    news = np.array([_ranks_with_sum(total, n_new, low + u) for u in range(n_new * n_baseline + 1)], float)
+    everyone = np.arange(1, total + 1, dtype=float)
+    bases = np.stack([np.setdiff1d(everyone, new, assume_unique=True) for new in news])
+    return changed_many(bases, news, "final_metric", alpha)
 
 
 def false_alarm_rate_given_baseline(baseline_quantiles: np.ndarray, n_new: int, region: np.ndarray) -> float:

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from keras_rl.check.rules import HELD_OUT, MUTANTS, RULES
-from keras_rl.check.statistics import check_false_alarm_rate, decide, family_false_alarm_rate, power
+from keras_rl.check.statistics import changed_many, check_false_alarm_rate, family_false_alarm_rate, power
 from keras_rl.checkout import ROOT
 from maintainers.calibrate.runs import CHECKS, HOLM_LEVEL, TUNE, choose, halved, load, measure, power_cells, values
 
@@ -52,12 +52,10 @@ SEES_BEGIN, SEES_END = "<!-- check-sees:begin -->", "<!-- check-sees:end -->"
 def shift_power(baseline: np.ndarray, n: int, budget: int, shift: float, alpha: float, rng) -> float:
     """How often n fresh seeds whose episodes to threshold are the baseline's times ``shift``
     are flagged against the whole baseline (``budget + 1``: never got there)."""
-    hits = 0
-    for _ in range(SHIFT_DRAWS):
-        fresh = rng.choice(baseline, n)
-        moved = np.where(fresh > budget, budget + 1, np.minimum(np.round(fresh * shift), budget + 1))
-        hits += decide(baseline, moved, "episodes_to_threshold", alpha).changed
-    return hits / SHIFT_DRAWS
+    fresh = np.stack([rng.choice(baseline, n) for _ in range(SHIFT_DRAWS)])
+    moved = np.where(fresh > budget, budget + 1, np.minimum(np.round(fresh * shift), budget + 1))
+    bases = np.broadcast_to(np.asarray(baseline, float), (SHIFT_DRAWS, len(baseline)))
+    return int(changed_many(bases, moved, "episodes_to_threshold", alpha).sum()) / SHIFT_DRAWS
 
 
 def post_entry(post: str) -> dict:
