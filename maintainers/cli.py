@@ -1,7 +1,7 @@
 """The maintainers' commands: what regenerates the checkout's committed figures, run from a
 checkout as ``python -m maintainers ...`` (this folder is not part of the installed package).
 
-- ``python -m maintainers calibrate rules|family|held-out|designs|sensitive|bisect-levels``: the check's calibration
+- ``python -m maintainers calibrate rules|family|held-out|designs|sensitive|real|bisect-levels``: the check's calibration
   (``maintainers/calibrate/``), whose JSON ships as package data;
 - ``python -m maintainers tables findings|ablations|compat|forest|runs``: the generated Markdown tables
   (``maintainers/tables/``), each spliced between its markers (``report/markdown.py``);
@@ -82,6 +82,15 @@ def add_parser(sub) -> None:
         "maintainers.calibrate.sensitive",
         "the sensitive tier's false alarms, power against a 10%% move and against the held-out mutants, "
         "and post 001's statistic (keras_rl/check/sensitive.json, calibration.md's block)",
+        "--write",
+    )
+    p = _what(
+        inner,
+        "real",
+        "maintainers.calibrate.real",
+        "the sensitive tier on real runs no baseline holds: false alarms and power over disjoint real checks, "
+        "and post 000's fresh-seed count re-derived on held-back seeds (results/checks/real_checks.json, "
+        "calibration.md's block)",
         "--write",
     )
     p = _what(

@@ -39,3 +39,18 @@ def copy_seeds(run_set: Path, dest: Path, keep=lambda seed: True) -> Path:
         if keep(run.seed):
             run.extract(Path(dest) / f"seed_{run.seed}")
     return Path(dest)
+
+
+def same_to_rounding(got, want, rel: float = 1e-12) -> bool:
+    """Equal JSON values, floats within ``rel`` of each other (a few bits), all else exactly."""
+    import math
+
+    if isinstance(want, dict):
+        return (
+            isinstance(got, dict) and got.keys() == want.keys() and all(same_to_rounding(got[k], want[k]) for k in want)
+        )
+    if isinstance(want, list):
+        return isinstance(got, list) and len(got) == len(want) and all(map(same_to_rounding, got, want))
+    if isinstance(want, float) and isinstance(got, float):
+        return math.isclose(got, want, rel_tol=rel, abs_tol=0.0)
+    return type(got) is type(want) and got == want

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from committed import committed_seed
+from committed import committed_seed, same_to_rounding
 
 from keras_rl.check import command
 from keras_rl.check.rules import MUTANTS, RULES, rule_for
@@ -423,21 +423,6 @@ def test_the_committed_family_wise_rates_are_what_the_baselines_give():
     assert same_to_rounding(family.compute(), committed), (
         "results/checks/family.json is stale: python -m maintainers calibrate family --write"
     )
-
-
-def same_to_rounding(got, want, rel: float = 1e-12) -> bool:
-    """Equal JSON values, floats within ``rel`` of each other (a few bits), all else exactly."""
-    import math
-
-    if isinstance(want, dict):
-        return (
-            isinstance(got, dict) and got.keys() == want.keys() and all(same_to_rounding(got[k], want[k]) for k in want)
-        )
-    if isinstance(want, list):
-        return isinstance(got, list) and len(got) == len(want) and all(map(same_to_rounding, got, want))
-    if isinstance(want, float) and isinstance(got, float):
-        return math.isclose(got, want, rel_tol=rel, abs_tol=0.0)
-    return type(got) is type(want) and got == want
 
 
 def test_same_to_rounding_forgives_the_last_bits_and_nothing_else():

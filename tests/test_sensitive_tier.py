@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from committed import copy_seeds
+from committed import copy_seeds, same_to_rounding
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -159,3 +159,38 @@ def test_a_real_sensitive_check_trains_on_the_compiled_engine_and_reports_its_me
         assert summary["provenance"]["engine"] == "compiled" and summary["status"] == "completed"
     text = (out / "check.md").read_text()
     assert "against a median 10% lower / higher" in text and "tier sensitive" in text
+
+
+def test_a_real_check_cuts_runs_into_disjoint_sets_in_seed_order_and_bounds_the_rate():
+    from maintainers.calibrate.real import disjoint_checks
+
+    baseline = np.arange(1.0, 201.0)
+    spread = baseline.reshape(50, 4).T.ravel()  # each set of 50 spans the baseline evenly
+    same = disjoint_checks(baseline, spread, 50, "episodes_to_threshold", 0.01)
+    assert (same["checks"], same["flagged"]) == (4, 0)
+    assert same["ci95"][0] == 0.0 and 0.60 < same["ci95"][1] < 0.61  # 0 of 4: exact upper bound 1 - 0.025**(1/4)
+    slower = np.concatenate([np.full(50, 400.0), spread[:60]])  # one slow set, then unchanged seeds
+    got = disjoint_checks(baseline, slower, 50, "episodes_to_threshold", 0.01)
+    assert (got["checks"], got["flagged"]) == (2, 1)  # the last 10 seeds make no check
+    assert disjoint_checks(baseline, baseline[:49], 50, "auc", 0.01) == {"checks": 0, "flagged": 0, "ci95": None}
+
+
+def test_the_real_checks_are_recomputed_from_the_committed_runs_and_rendered_as_committed():
+    """``python -m maintainers calibrate real --write``: real_checks.json is what the committed
+    no-change pools and held-out mutants give now, calibration.md's block is its rendering, and
+    post 000's rule takes the smallest fresh-seed count the held-back seeds say meets the target."""
+    import json
+
+    from keras_rl.check.command import SENSITIVE_RATES
+    from keras_rl.check.rules import RULES
+    from maintainers.calibrate import real
+
+    committed = json.loads(real.OUT.read_text())
+    assert same_to_rounding(json.loads(json.dumps(real.compute())), committed), (
+        "results/checks/real_checks.json is stale: python -m maintainers calibrate real --write"
+    )
+    text = (ROOT / "results" / "checks" / "calibration.md").read_text()
+    stated = text.split(real.BEGIN, 1)[1].split(real.END, 1)[0].strip()
+    assert stated == real.render(committed, json.loads(SENSITIVE_RATES.read_text())["posts"])
+    best = committed["posts"]["pendulum"]["smallest_meeting_target"]
+    assert best is None or RULES[("pendulum", "sensitive")].seeds == best

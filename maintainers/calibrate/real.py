@@ -1,0 +1,280 @@
+"""The sensitive tier measured on real runs outside any baseline (issue 52, item 4).
+
+    python -m maintainers calibrate real            # print the block
+    python -m maintainers calibrate real --write    # results/checks/real_checks.json and its calibration.md block
+
+The plan was committed before the runs (``results/checks/real_checks_plan.md``; the runs are the
+lines of ``maintainers/queues/issue52*.tsv``). What the resampled rates of
+``calibrate sensitive`` cannot say, these say from runs that no baseline holds:
+
+- **False alarms**: a pool of unchanged seeds cut, in seed order, into disjoint fresh sets of
+  the rule's size; each set is one real check against the committed baseline. Flagged sets out
+  of all, at alpha and at alpha / 3, with the exact (Clopper-Pearson) 95% interval.
+- **Power**: each held-out mutant's runs (grown where the plan grew them) cut the same way; its
+  true shift is the median of its seeds over the pool's median, with a seed bootstrap.
+- **The fresh-seed count** (post 000): n seeds drawn without replacement from the pool (never the
+  baseline), their episodes to threshold scaled by 0.90 and 1.10, against the baseline; the
+  smallest n with power at least 0.80 against both at alpha / 3 in at most 15 minutes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from keras_rl.check.rules import HELD_OUT, RULES
+from keras_rl.check.statistics import changed_many
+from keras_rl.runs.run_set import RunSet
+from maintainers.calibrate.runs import CHECKS, HOLM_LEVEL, clopper_pearson, load, values
+
+TIER = "sensitive"
+OUT = CHECKS / "real_checks.json"
+BEGIN, END = "<!-- real:begin -->", "<!-- real:end -->"
+HEADING = "## The sensitive tier on real runs"
+SIZES = (30, 40, 50, 60, 80, 100)
+SHIFTS = (0.90, 1.10)
+DRAWS = 2000
+TARGET_POWER, BUDGET_MINUTES, WORKERS = 0.80, 15.0, 2
+GROWN = {"pendulum": "held-out-seeds-3200-3499", "mountaincar": "held-out-seeds-30-109"}
+"""Where the plan grew a post's held-out mutants (their first seeds are in ``held-out``)."""
+REAL_POSTS = ("pendulum", "mountaincar")
+"""Posts with real no-change checks; post 003's cost is stated instead (the plan says why)."""
+
+
+def folders_under(folder: Path) -> list[Path]:
+    """The run sets directly under ``folder``, in order of their first seed."""
+    sets = [f for f in folder.iterdir() if f.is_dir() and RunSet(f).runs()] if folder.is_dir() else []
+    return sorted(sets, key=lambda f: min(r.seed for r in RunSet(f).runs()))
+
+
+def runs_of(folders: list[Path]) -> tuple[list, list[int], list[float]]:
+    """Every run of ``folders`` in seed order: rows (None for one that blew up), seeds, wall seconds."""
+    rows, seeds, walls = [], [], []
+    for folder in folders:
+        rows += load(folder)
+        for run in RunSet(folder).runs():
+            seeds.append(run.seed)
+            walls.append(run.summary().wall_seconds)
+    order = np.argsort(seeds, kind="stable")
+    return [rows[i] for i in order], [seeds[i] for i in order], [walls[i] for i in order]
+
+
+def disjoint_checks(baseline: np.ndarray, runs: np.ndarray, n: int, statistic: str, alpha: float) -> dict:
+    """``runs`` cut in order into disjoint sets of ``n``, each one check against the whole baseline."""
+    sets = len(runs) // n
+    if sets == 0:
+        return {"checks": 0, "flagged": 0, "ci95": None}
+    fresh = runs[: sets * n].reshape(sets, n)
+    flagged = int(changed_many(np.broadcast_to(baseline, (sets, len(baseline))), fresh, statistic, alpha).sum())
+    return {"checks": sets, "flagged": flagged, "ci95": clopper_pearson(flagged, sets)}
+
+
+def both_levels(baseline: np.ndarray, runs: np.ndarray, rule) -> dict:
+    return {
+        "alpha": disjoint_checks(baseline, runs, rule.seeds, rule.statistic, rule.alpha),
+        "holm_first": disjoint_checks(baseline, runs, rule.seeds, rule.statistic, rule.alpha / HOLM_LEVEL),
+    }
+
+
+def median_ratio(runs: np.ndarray, pool: np.ndarray, rng: np.random.Generator) -> dict:
+    """The mutant's median over the pool's, with a 95% seed bootstrap (2,000 resamples of each)."""
+    boot = [
+        np.median(runs[rng.integers(0, len(runs), len(runs))]) / np.median(pool[rng.integers(0, len(pool), len(pool))])
+        for _ in range(2000)
+    ]
+    return {
+        "ratio": float(np.median(runs) / np.median(pool)),
+        "ci95": (float(np.percentile(boot, 2.5)), float(np.percentile(boot, 97.5))),
+    }
+
+
+def sizes(baseline: np.ndarray, pool: np.ndarray, budget: int, alpha: float, seed_minutes: float) -> list[dict]:
+    """For each fresh-seed count: power against x0.90 and x1.10 and the false-alarm rate, n seeds
+    drawn from the pool without replacement, ``DRAWS`` times each, at ``alpha``."""
+    rng = np.random.default_rng(52)
+    rows = []
+    for n in SIZES:
+        if n >= len(pool):
+            continue
+        fresh = np.stack([rng.choice(pool, n, replace=False) for _ in range(DRAWS)])
+        bases = np.broadcast_to(baseline, (DRAWS, len(baseline)))
+        row = {"n": n, "minutes": n * seed_minutes / WORKERS}
+        row["false_alarms"] = float(changed_many(bases, fresh, "episodes_to_threshold", alpha).mean())
+        for shift in SHIFTS:
+            moved = np.where(fresh > budget, budget + 1, np.minimum(np.round(fresh * shift), budget + 1))
+            row[f"x{shift:.2f}"] = float(changed_many(bases, moved, "episodes_to_threshold", alpha).mean())
+        rows.append(row)
+    return rows
+
+
+def post_entry(post: str) -> dict:
+    rule = RULES[(post, TIER)]
+    base = values(post, rule.statistic, rule.episodes, load(CHECKS / post / rule.baseline))
+    pool_rows, pool_seeds, pool_walls = runs_of(folders_under(CHECKS / post / "no-change"))
+    entry: dict = {
+        "rule": {"statistic": rule.statistic, "alpha": rule.alpha, "seeds": rule.seeds, "episodes": rule.episodes},
+        "baseline": f"results/checks/{post}/{rule.baseline}",
+        "baseline_seeds": len(base),
+        "pool_seeds": [min(pool_seeds), max(pool_seeds)] if pool_seeds else None,
+        "pool_size": len(pool_seeds),
+    }
+    if not pool_seeds:
+        return entry
+    pool = values(post, rule.statistic, rule.episodes, pool_rows)
+    entry["no_change"] = both_levels(base, pool, rule)
+    seed_minutes = float(np.median(pool_walls)) / 60
+    entry["seed_minutes"] = seed_minutes
+    rng = np.random.default_rng(53)
+    mutants = {}
+    for m in HELD_OUT[post]:
+        folders = [CHECKS / post / "held-out" / m.name, CHECKS / post / GROWN.get(post, "-") / m.name]
+        rows, seeds, _ = runs_of([f for f in folders if f.is_dir()])
+        runs = values(post, rule.statistic, rule.episodes, rows)
+        mutants[m.name] = {
+            "what": m.what,
+            "seeds": len(seeds),
+            "shift": median_ratio(runs, pool, rng),
+            **both_levels(base, runs, rule),
+        }
+    entry["mutants"] = mutants
+    if rule.statistic == "episodes_to_threshold":
+        table = sizes(base, pool, rule.episodes, rule.alpha / HOLM_LEVEL, seed_minutes)
+        meets = [
+            r for r in table if min(r[f"x{s:.2f}"] for s in SHIFTS) >= TARGET_POWER and r["minutes"] <= BUDGET_MINUTES
+        ]
+        entry["sizes"] = table
+        entry["smallest_meeting_target"] = meets[0]["n"] if meets else None
+    return entry
+
+
+def cost_entry(post: str) -> dict:
+    """A post without real checks: what one real check of its tier, and a pool of 20, would cost."""
+    rule = RULES[(post, TIER)]
+    walls = [r.summary().wall_seconds for r in RunSet(CHECKS / post / rule.baseline).runs()]
+    minutes = float(np.median(walls)) / 60
+    return {
+        "rule": {"statistic": rule.statistic, "alpha": rule.alpha, "seeds": rule.seeds, "episodes": rule.episodes},
+        "seed_minutes": minutes,
+        "check_process_minutes": rule.seeds * minutes,
+        "pool_of_20_process_hours": 20 * rule.seeds * minutes / 60,
+    }
+
+
+def compute() -> dict:
+    posts = {post: post_entry(post) for post in REAL_POSTS}
+    costs = {post: cost_entry(post) for post in ("cartpole",)}
+    return {"tier": TIER, "holm_level": HOLM_LEVEL, "posts": posts, "not_measured": costs}
+
+
+def _checks(d: dict) -> str:
+    if not d["checks"]:
+        return "no check (fewer seeds than one check needs)"
+    low, high = d["ci95"]
+    return f"{d['flagged']}/{d['checks']} [{low:.0%}, {high:.0%}]"
+
+
+def render(data: dict, resampled: dict) -> str:
+    lines = [
+        "Generated by `python -m maintainers calibrate real --write` from runs that no baseline holds,",
+        "planned before they ran (`results/checks/real_checks_plan.md`). Each real check is n fresh seeds",
+        "in seed order against the committed baseline, as `keras-rl check --tier sensitive` runs it;",
+        "brackets are exact (Clopper-Pearson) 95% intervals. The resampled rates (previous section)",
+        "stand beside them.",
+        "",
+        "| post | n fresh | real runs | false alarms at alpha 0.01 | at alpha / 3 | resampled (alpha / 3) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for post, p in data["posts"].items():
+        if "no_change" not in p:
+            lines.append(f"| {post} | {p['rule']['seeds']} | none yet | - | - | - |")
+            continue
+        nc = p["no_change"]
+        was = resampled.get(post, {}).get("rates", {}).get("false_alarm_holm_first")
+        lines.append(
+            f"| {post} | {p['rule']['seeds']} | {p['pool_size']} unchanged seeds ({p['pool_seeds'][0]}-"
+            f"{p['pool_seeds'][1]}) | {_checks(nc['alpha'])} | {_checks(nc['holm_first'])} | "
+            f"{'-' if was is None else f'{was:.2%}'} |"
+        )
+    lines += [
+        "",
+        "Power against real changes: each held-out mutant's seeds cut into disjoint checks. Its shift is",
+        "the median of its seeds over the no-change pool's (95% seed bootstrap).",
+        "",
+        "| post | mutant | seeds | median, mutant / unchanged | flagged at alpha 0.01 | at alpha / 3 |",
+        "|---|---|---|---|---|---|",
+    ]
+    for post, p in data["posts"].items():
+        for name, m in p.get("mutants", {}).items():
+            s = m["shift"]
+            lines.append(
+                f"| {post} | {name} ({m['what']}) | {m['seeds']} | x{s['ratio']:.3f} [{s['ci95'][0]:.3f}, "
+                f"{s['ci95'][1]:.3f}] | {_checks(m['alpha'])} | {_checks(m['holm_first'])} |"
+            )
+    for post, p in data["posts"].items():
+        if "sizes" not in p:
+            continue
+        lines += [
+            "",
+            f"{post}'s fresh-seed count re-derived on held-back seeds: n drawn from the {p['pool_size']} unchanged",
+            f"seeds (never the baseline's), episodes to threshold x0.90 / x1.10, {DRAWS} draws per row, at alpha / 3;",
+            f"minutes of fresh seeds on {WORKERS} workers at the pool's median {p['seed_minutes'] * 60:.1f} s a seed.",
+            "",
+            "| n fresh | power x0.90 | power x1.10 | false alarms | minutes |",
+            "|---|---|---|---|---|",
+        ]
+        for r in p["sizes"]:
+            mark = " **(rule)**" if r["n"] == p["rule"]["seeds"] else ""
+            cells = [f"{r['n']}{mark}", f"{r['x0.90']:.2f}", f"{r['x1.10']:.2f}", f"{r['false_alarms']:.2%}"]
+            lines.append("| " + " | ".join([*cells, f"{r['minutes']:.1f}"]) + " |")
+        best = p["smallest_meeting_target"]
+        rule_row = next((r for r in p["sizes"] if r["n"] == p["rule"]["seeds"]), None)
+        if best is None:
+            lines += [
+                "",
+                f"No n up to {SIZES[-1]} meets {TARGET_POWER:.0%} against both shifts in {BUDGET_MINUTES:g} minutes.",
+            ]
+        else:
+            lines += [
+                "",
+                f"The smallest n with power at least {TARGET_POWER:.0%} against both shifts at alpha / 3 in at most "
+                f"{BUDGET_MINUTES:g} minutes: **{best}**"
+                + (
+                    f"; the rule's {p['rule']['seeds']} gives {rule_row['x0.90']:.2f} / {rule_row['x1.10']:.2f}."
+                    if rule_row
+                    else "."
+                ),
+            ]
+    for post, c in data["not_measured"].items():
+        r = c["rule"]
+        lines += [
+            "",
+            f"**{post}: not measured on real runs.** A seed of its rule costs {c['seed_minutes'] * 60:.0f} s (the "
+            f"baseline's median), so one real check of {r['seeds']} seeds costs {c['check_process_minutes']:.0f} "
+            f"process-minutes and a pool of 20 checks {c['pool_of_20_process_hours']:.1f} process-hours. Its rates "
+            "above are resampled from its baseline; its held-out mutants (30 seeds each) make no disjoint check "
+            f"of {r['seeds']}.",
+        ]
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    from keras_rl.check.command import SENSITIVE_RATES
+    from keras_rl.report.markdown import replace_block
+    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+
+    data = compute()
+    text = render(data, json.loads(SENSITIVE_RATES.read_text())["posts"])
+    if not args.write:
+        print(text)
+        return 0
+    atomic_write_json(OUT, data)
+    page = CHECKS / "calibration.md"
+    current = page.read_text()
+    if BEGIN not in current:
+        current = current.rstrip("\n") + f"\n\n{HEADING}\n\n{BEGIN}\n{END}\n"
+    atomic_write_text(page, replace_block(current, BEGIN, END, text))
+    print(f"updated {OUT} and {page}")
+    return 0

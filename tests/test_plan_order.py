@@ -1,0 +1,102 @@
+"""Plans precede their runs (issue 52, item 2): every seed a committed plan governs started after
+the commit that added the plan, or a disclosed deviation (``keras_rl/report/plans.py``) names it."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from datetime import datetime
+from pathlib import Path
+
+import pytest
+
+from keras_rl.report.plans import DEVIATIONS, PLANS, Plan, deviations_of
+from keras_rl.runs.run_set import RunSet
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def committed_at(path: str) -> datetime | None:
+    """When the commit that added ``path`` was made; None where this clone lacks it (shallow)."""
+    out = subprocess.run(
+        ["git", "log", "--diff-filter=A", "--format=%cI", "--", path], cwd=ROOT, capture_output=True, text=True
+    ).stdout.split()
+    return datetime.fromisoformat(out[-1]) if out else None
+
+
+def early_seeds(plan: Plan, when: datetime) -> dict[str, list[int]]:
+    """Each governed set's seeds (in what the plan governs) that started before ``when``."""
+    early: dict[str, list[int]] = {}
+    for folder, governed in plan.governs.items():
+        where = ROOT / "results" / folder
+        if not where.is_dir():  # a set still to be run holds nothing yet
+            continue
+        for record in RunSet(where).summary_records():
+            seed, started = int(record["seed"]), record.get("provenance", {}).get("started_at")
+            if (governed is None or seed in governed) and started and datetime.fromisoformat(started) < when:
+                early.setdefault(folder, []).append(seed)
+    return early
+
+
+def shallow() -> bool:
+    out = subprocess.run(["git", "rev-parse", "--is-shallow-repository"], cwd=ROOT, capture_output=True, text=True)
+    return out.stdout.strip() == "true"
+
+
+@pytest.mark.parametrize("plan", PLANS, ids=[p.path for p in PLANS])
+def test_every_seed_a_plan_governs_started_after_it_or_is_disclosed(plan):
+    if shallow():
+        pytest.skip("a shallow clone lacks the commits that added the plans: clone with history")
+    when = committed_at(plan.path)
+    assert when is not None, f"{plan.path} is not committed"
+    disclosed = {
+        (folder, seed) for d in DEVIATIONS if d.plan == plan.path for folder, seeds in d.early.items() for seed in seeds
+    }
+    undisclosed = {
+        folder: [s for s in seeds if (folder, s) not in disclosed] for folder, seeds in early_seeds(plan, when).items()
+    }
+    undisclosed = {f: s for f, s in undisclosed.items() if s}
+    assert not undisclosed, (
+        f"seeds started before {plan.path} was committed ({when}) and no deviation in keras_rl/report/plans.py "
+        f"discloses them: { {f: f'{min(s)}-{max(s)} ({len(s)})' for f, s in undisclosed.items()} }"
+    )
+
+
+def test_each_disclosed_deviation_is_real_and_names_rows_that_exist():
+    """A deviation's early seeds did start before its plan (no stale disclosure), and every verdict
+    it touches is a forest row."""
+    import json
+
+    rows = {f"{r['group']}: {r['label']}" for r in json.loads((ROOT / "results" / "forest.json").read_text())["rows"]}
+    for d in DEVIATIONS:
+        assert {plan.path for plan in PLANS} >= {d.plan}
+        for verdict in d.verdicts:
+            assert verdict in rows, verdict
+            assert d in deviations_of(verdict)
+        if d.early and not shallow():
+            plan = next(p for p in PLANS if p.path == d.plan)
+            found = early_seeds(plan, committed_at(plan.path))
+            for folder, seeds in d.early.items():
+                assert sorted(found.get(folder, [])) == list(seeds), (d.plan, folder)
+
+
+def test_the_check_spots_a_seed_run_before_its_plan(monkeypatch):
+    """The rule itself: a seed that started before the plan's commit is found, one after is not."""
+    from keras_rl.report import plans
+
+    record = {"seed": 5, "provenance": {"started_at": "2026-11-20T10:00:00+00:00"}}
+    later = {"seed": 6, "provenance": {"started_at": "2026-11-26T10:00:00+00:00"}}
+
+    class FakeSet:
+        def __init__(self, where):
+            pass
+
+        def summary_records(self):
+            return [record, later]
+
+    monkeypatch.setattr(sys.modules[__name__], "RunSet", FakeSet)
+    when = datetime.fromisoformat("2026-11-25T00:00:00+00:00")
+    assert early_seeds(plans.Plan("x.md", {"engines/pendulum/compiled": None}), when) == {
+        "engines/pendulum/compiled": [5]
+    }
+    assert early_seeds(plans.Plan("x.md", {"engines/pendulum/compiled": range(6, 7)}), when) == {}
