@@ -836,3 +836,26 @@ def test_changed_many_decides_every_row_as_decide_does():
             assert any(want) and not all(want)
     with pytest.raises(ValueError, match="2 baselines for 3 new samples"):
         changed_many(np.zeros((2, 5)), np.zeros((3, 5)), "auc", 0.01)
+
+
+def test_a_one_post_check_states_one_false_alarm_figure_the_committed_family_rate(tmp_path):
+    """Issue 54 item 2: the report's table and its sentence give one figure, computed one way
+    (the pooled draws of ``statistics.command_false_alarm_rate``), which for the committed
+    baseline is ``family.json``'s rate at alpha, at most alpha."""
+    from keras_rl.check.command import CheckResult, baseline_values, write_report
+    from keras_rl.check.statistics import Decision
+    from keras_rl.registry import get_experiment
+
+    rule = rule_for("pendulum", "smoke")
+    baseline, _ = baseline_values(get_experiment("pendulum"), rule, CHECKS / "pendulum" / "baseline")
+    new = {4000 + s: float(120 + s) for s in range(rule.seeds)}
+    result = CheckResult("pendulum", rule, baseline, new, Decision(0.3, False, "MW", 1.0), [], None)
+    write_report(tmp_path, [result], "smoke", command="keras-rl check pendulum")
+    report = json.loads((tmp_path / "check.json").read_text())
+    family = json.loads((CHECKS / "family.json").read_text())["tiers"]["smoke"]["posts"]["pendulum"]
+    assert report["false_alarm"]["per_post"]["pendulum"]["rate"] == family["at_alpha"] <= rule.alpha
+    assert report["false_alarm"]["family_wise"] == pytest.approx(family["at_alpha"], abs=1e-15)
+    text = (tmp_path / "check.md").read_text()
+    figure = f"{family['at_alpha']:.2%}"
+    assert f"| {figure} at 0.01 |" in text and f"as a whole: **{figure}**" in text
+    assert len(set(re.findall(r"\d+\.\d\d%", text.split("The power column")[0]))) == 1  # no second figure

@@ -270,9 +270,24 @@ def check_false_alarm_rate(
     return FalseAlarm(rate, f"resampled ({repeats} pooled draws)", float(np.sqrt(rate * (1 - rate) / repeats)))
 
 
+POOLED_DRAWS = 20_000
+"""Pooled resamples behind every false-alarm rate a check states (the report, the command's
+figure, ``results/checks/family.json``), from one seed: one figure, computed one way."""
+
+
+def command_false_alarm_rate(
+    baseline: Sequence[float] | np.ndarray, n: int, statistic: str, level: float
+) -> FalseAlarm:
+    """One post's false-alarm rate as a check states it: ``n`` fresh seeds against this whole
+    baseline at ``level`` (``check_false_alarm_rate``, ``POOLED_DRAWS`` draws from seed 0)."""
+    return check_false_alarm_rate(baseline, n, statistic, level, POOLED_DRAWS, np.random.default_rng(0))
+
+
 def family_false_alarm_rate(rates: Sequence[float]) -> float:
     """The chance that at least one of independent tests with these false-alarm rates fires:
     the whole command's false-alarm rate (each post's seeds are its own runs)."""
+    if len(rates) == 1:  # exactly the one post's rate, not 1 - (1 - r) rounded
+        return float(rates[0])
     return float(1.0 - np.prod([1.0 - r for r in rates]))
 
 

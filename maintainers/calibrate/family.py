@@ -22,8 +22,9 @@ from pathlib import Path
 from keras_rl.check.command import baseline_values
 from keras_rl.check.rules import CALIBRATED_TIERS, RULES
 from keras_rl.check.statistics import (
+    POOLED_DRAWS,
     baseline_spread,
-    check_false_alarm_rate,
+    command_false_alarm_rate,
     false_alarm_rate_given_baseline,
     family_false_alarm_rate,
     rejection_region,
@@ -33,14 +34,13 @@ from keras_rl.registry import get_experiment
 
 CHECKS = ROOT / "results" / "checks"
 POSTS = ("pendulum", "cartpole", "mountaincar")
-REPEATS = 20_000
+REPEATS = POOLED_DRAWS
 BEGIN, END = "<!-- family-wise:begin -->", "<!-- family-wise:end -->"
 SPREAD_FIGURE = CHECKS / "spread.png"
 
 
 def compute(with_spread: bool = True) -> dict:
     """Per tier: each post's rate at alpha and at alpha / 3, and the command's rate both ways."""
-    import numpy as np
 
     tiers = {}
     for tier in CALIBRATED_TIERS:
@@ -50,10 +50,8 @@ def compute(with_spread: bool = True) -> dict:
         for rule in rules:
             values, _ = baseline_values(get_experiment(rule.experiment), rule, CHECKS / rule.experiment / "baseline")
             baseline = list(values.values())
-            one = check_false_alarm_rate(baseline, rule.seeds, rule.statistic, alpha, REPEATS, np.random.default_rng(0))
-            third = check_false_alarm_rate(
-                baseline, rule.seeds, rule.statistic, alpha / len(rules), REPEATS, np.random.default_rng(0)
-            )
+            one = command_false_alarm_rate(baseline, rule.seeds, rule.statistic, alpha)
+            third = command_false_alarm_rate(baseline, rule.seeds, rule.statistic, alpha / len(rules))
             posts[rule.experiment] = {
                 "statistic": rule.statistic,
                 "seeds": rule.seeds,
