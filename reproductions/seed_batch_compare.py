@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from keras_rl.report.equivalence import episodes_with_censoring, framework_verdict
+from keras_rl.report.equivalence import CONVERGED_AT_END, Arm, framework_verdict
 from keras_rl.report.stats import censored_mann_whitney, fisher_exact, median_difference_ci
 from keras_rl.runs.files import atomic_write_text
 from keras_rl.runs.run_set import RunSet
@@ -113,20 +113,29 @@ def main() -> None:
             f"| {seed} | {first or 'none (identical)'} | {first_score or 'none'} | {a.reached_at_episode} "
             f"| {b.reached_at_episode} |"
         )
-    hits_a = [s.reached_at_episode for s in solo_s if s.success]
-    hits_b = [s.reached_at_episode for s in batch_s if s.success]
+    a_arm, b_arm = Arm.of(solo_s), Arm.of(batch_s)
+    hits_a, hits_b = a_arm.hits(CONVERGED_AT_END), b_arm.hits(CONVERGED_AT_END)
     n = len(seeds)
     diff = median_difference_ci(hits_b, hits_a, np.random.default_rng(0)) if hits_a and hits_b else None
     budget = RunSet.seed_at(reference[seeds[0]] / f"seed_{seeds[0]}").config()["episodes"]
-    _, p = censored_mann_whitney(episodes_with_censoring(hits_b, n), episodes_with_censoring(hits_a, n), budget)
-    fisher = fisher_exact(len(hits_b), n, len(hits_a), n)
-    headline, judged = framework_verdict((len(hits_b), len(hits_a)), (n, n), (hits_b, hits_a), budget)
+    _, p = censored_mann_whitney(b_arm.episodes(), a_arm.episodes(), budget)
+    fisher = fisher_exact(b_arm.successes, n, a_arm.successes, n)
+    headline, judged = framework_verdict(b_arm, a_arm, budget)
+    same = sum(x == y for x, y in zip(a_arm.reached, b_arm.reached, strict=True))
+    same_outcome = sum(
+        (x, u) == (y, v) for x, u, y, v in zip(a_arm.reached, a_arm.success, b_arm.reached, b_arm.success, strict=True)
+    )
+    median = lambda arm: np.median([budget + 1 if e is None else e for e in arm.episodes()])  # noqa: E731
     lines += [
         "",
-        f"- Success: {judged_arm} {len(hits_b)}/{n}, {ref} {len(hits_a)}/{n} (Fisher p = {fisher:.3g}).",
-        f"- Median episodes to threshold: {judged_arm} {np.median(hits_b) if hits_b else 'n/a'}, {ref} "
-        f"{np.median(hits_a) if hits_a else 'n/a'}; {judged_arm} minus {ref} {diff} (95% percentile bootstrap, "
-        f"10000 resamples).",
+        f"- Success: {judged_arm} {b_arm.successes}/{n}, {ref} {a_arm.successes}/{n} (Fisher p = {fisher:.3g}).",
+        f"- Same first passing episode (the table's last two columns): {same} of {n} seeds; the same first "
+        f"passing episode and the same success: {same_outcome} of {n}.",
+        f"- Median episodes to threshold over every seed (the first passing episode, {budget + 1} for a seed "
+        f"that never passed): {judged_arm} {median(b_arm):g}, {ref} {median(a_arm):g}.",
+        f"- Median episodes to threshold over the successful seeds only ({len(hits_b)} and {len(hits_a)}): "
+        f"{judged_arm} {np.median(hits_b) if hits_b else 'n/a'}, {ref} {np.median(hits_a) if hits_a else 'n/a'}; "
+        f"{judged_arm} minus {ref} {diff} (95% percentile bootstrap, 10000 resamples).",
         f"- Mann-Whitney U (two-sided, over every seed; one that never reached the threshold counts as "
         f"{budget + 1}) p = {p:.3g}.",
         f"- Equivalence under the margins set before the 30-seed runs (docs/findings.md): {headline}: "

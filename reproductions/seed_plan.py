@@ -42,7 +42,7 @@ import numpy as np
 from scipy import stats
 
 from keras_rl.checkout import ROOT
-from keras_rl.report.equivalence import MEDIAN_RATIO_MARGIN, SUCCESS_RATE_MARGIN
+from keras_rl.report.equivalence import MEDIAN_RATIO_MARGIN, SUCCESS_RATE_MARGIN, Arm
 from keras_rl.report.stats import success_difference_ci
 
 CANDIDATES = (30, 60, 100, 150, 200, 300, 400, 600)
@@ -165,8 +165,9 @@ def run_set_arm(folders: str) -> tuple[int, int, list[float], int]:
     if len(budgets) != 1:
         raise SystemExit(f"error: {folders}'s seeds ran different budgets ({sorted(budgets)})")
     budget = budgets.pop()
-    episodes = [float(r["reached_at_episode"]) if r["success"] else budget + 1.0 for r in records]
-    return sum(bool(r["success"]) for r in records), len(episodes), episodes, budget
+    seeds = Arm.of(records)
+    episodes = [budget + 1.0 if e is None else float(e) for e in seeds.episodes()]
+    return seeds.successes, len(episodes), episodes, budget
 
 
 def arms_table(first: str, second: str, candidates: list[int], command: str) -> str:

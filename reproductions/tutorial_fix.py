@@ -47,7 +47,7 @@ from keras_rl.commands.common import parse_seeds
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.posts.cartpole import tutorial_num_episodes
 from keras_rl.report.certified import arm_where
-from keras_rl.report.equivalence import episodes_with_censoring, median_ratio_equivalence, success_rate_equivalence
+from keras_rl.report.equivalence import Arm, median_ratio_equivalence, success_rate_equivalence
 from keras_rl.report.markdown import seed_span
 from keras_rl.report.stats import wilson_interval
 from keras_rl.runs.files import atomic_write_text
@@ -87,13 +87,13 @@ def arm(folders: list[Path], seeds: list[int] | None = None) -> dict:
         folder, _ = held[seed]
         steps = [int(r["steps"]) for r in RunSet.seed_at(Path(folder) / f"seed_{seed}").rows()[:CPU_EPISODES]]
         first.append((float(np.mean(steps)), max(steps)))
-    hits = [s["reached_at_episode"] for s in finished if s["success"]]
+    seeds = Arm.of(finished)
     return {
         "folder": name,
         "seeds": sorted(held),
         "n": len(finished),
-        "successes": len(hits),
-        "hits": hits,
+        "successes": seeds.successes,
+        "episodes": seeds.episodes(),
         "budget": budgets.pop(),
         "cpu_mean": np.array([m for m, _ in first]),
         "cpu_longest": np.array([x for _, x in first]),
@@ -114,9 +114,7 @@ def readings(a: dict, b: dict) -> list[str]:
     if a["budget"] != b["budget"]:
         fail(f"the arms ran different budgets ({a['budget']} and {b['budget']} episodes)")
     success = success_rate_equivalence(b["successes"], b["n"], a["successes"], a["n"])
-    speed = median_ratio_equivalence(
-        episodes_with_censoring(b["hits"], b["n"]), episodes_with_censoring(a["hits"], a["n"]), a["budget"]
-    )
+    speed = median_ratio_equivalence(b["episodes"], a["episodes"], a["budget"])
     return [success.sentence(), speed.sentence()]
 
 
@@ -135,7 +133,7 @@ def report(a: dict, b: dict, labels: tuple[str, str], command: str, first_look: 
     ]
     for label, x in zip(labels, (a, b)):
         low, high = wilson_interval(x["successes"], x["n"], confidence=0.90)
-        episodes = np.median([budget + 1 if v is None else v for v in episodes_with_censoring(x["hits"], x["n"])])
+        episodes = np.median([budget + 1 if v is None else v for v in x["episodes"]])
         lines.append(
             f"| {label} | `{x['folder']}` | {seed_text(x['seeds'])} ({x['n']}) | {x['successes']}/{x['n']} "
             f"({low:.2f}-{high:.2f}) | {episodes:g} | {quartiles(x['cpu_mean'])} | {quartiles(x['cpu_longest'])} |"

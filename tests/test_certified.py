@@ -65,7 +65,7 @@ def test_no_reading_until_both_arms_hold_every_planned_seed_and_none_past_them(a
     _seed(arms, "t", 4, None)  # a seed past the plan changes nothing
     _seed(arms, "k-first", 5, None)
     again = reading(c, arms)
-    assert again["successes"] == read["successes"] and again["hits"] == read["hits"]
+    assert again["successes"] == read["successes"] and again["arms"] == read["arms"]
     assert [e.reading for e in again["judged"]] == [e.reading for e in read["judged"]]
 
 

@@ -126,7 +126,7 @@ def arm_where(folders: tuple[str, ...], root: Path = RESULTS) -> dict[int, tuple
 def reading(c: Certification, root: Path = RESULTS) -> dict[str, Any]:
     """Both arms on seeds 0 to planned - 1: how many each holds so far and, once both hold all
     of them, the two readings (``report.equivalence.framework_verdict``)."""
-    from keras_rl.report.equivalence import framework_verdict
+    from keras_rl.report.equivalence import Arm, framework_verdict
 
     wanted = range(c.planned)
     keras, torch = arm(c.keras, root), arm(c.torch, root)
@@ -135,13 +135,10 @@ def reading(c: Certification, root: Path = RESULTS) -> dict[str, Any]:
     if out["pending"]:
         return out
     records = [[keras[s] for s in wanted], [torch[s] for s in wanted]]
-    successes = [sum(bool(r["success"]) for r in rs) for rs in records]
-    hits = [[int(r["reached_at_episode"]) for r in rs if r["success"]] for rs in records]
+    arms = [Arm.of(rs) for rs in records]
     budgets = {int(r["budget_episodes"]) for rs in records for r in rs}
     if len(budgets) != 1:
         raise RunFolderError(f"{c.label}: the arms' seeds ran different budgets ({sorted(budgets)})")
-    headline, judged = framework_verdict(
-        (successes[0], successes[1]), (c.planned, c.planned), (hits[0], hits[1]), budgets.pop()
-    )
-    out.update(headline=headline, successes=successes, hits=hits, judged=judged)
+    headline, judged = framework_verdict(arms[0], arms[1], budgets.pop())
+    out.update(headline=headline, successes=[a.successes for a in arms], arms=arms, judged=judged)
     return out

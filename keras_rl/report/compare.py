@@ -15,7 +15,7 @@ from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import compared_frameworks, frameworks
 from keras_rl.registry import get_experiment
-from keras_rl.report.equivalence import episodes_with_censoring, framework_verdict
+from keras_rl.report.equivalence import Arm, framework_verdict
 from keras_rl.report.plots import plt, save_figure
 from keras_rl.report.stats import (
     censored_mann_whitney,
@@ -63,6 +63,9 @@ def analyse(runs: dict[str, list[dict[str, Any]]], budget: int) -> dict[str, Any
             "seeds": [r["seed"] for r in rs],
             "successes": stats["successes"],
             "episodes_to_threshold": stats["episodes_to_threshold"],
+            # each seed's first passing episode (null: never) and success, what the verdict reads
+            "reached_at_episode": [s.reached_at_episode for s in summaries],
+            "success": [s.success for s in summaries],
             **{k: (np.nan if stats[k] is None else stats[k]) for k in ("median", "q25", "q75")},
             "final": final,
             "final_iqm": iqm_ci(final, np.random.default_rng(0)),
@@ -71,26 +74,24 @@ def analyse(runs: dict[str, list[dict[str, Any]]], budget: int) -> dict[str, Any
         }
     a, b = (out["frameworks"][fw]["episodes_to_threshold"] for fw in FRAMEWORKS)
     out["median_difference"] = median_difference_ci(a, b, np.random.default_rng(0)) if a and b else None
-    seeds = [len(out["frameworks"][fw]["seeds"]) for fw in FRAMEWORKS]
-    out["mann_whitney"] = censored_mann_whitney(
-        episodes_with_censoring(a, seeds[0]), episodes_with_censoring(b, seeds[1]), budget
-    )
+    keras, torch = (arm(out["frameworks"][fw]) for fw in FRAMEWORKS)
+    out["mann_whitney"] = censored_mann_whitney(keras.episodes(), torch.episodes(), budget)
     k, t = out["frameworks"]["keras"], out["frameworks"]["torch"]
     out["fisher_p"] = fisher_exact(k["successes"], len(k["seeds"]), t["successes"], len(t["seeds"]))
     out["budget"] = budget
     return out
 
 
+def arm(framework: dict[str, Any]) -> Arm:
+    """One framework's seeds in ``analyse``'s numbers (or a committed result.json's)."""
+    return Arm(framework["reached_at_episode"], framework["success"])
+
+
 def verdict(result: dict[str, Any], n: int) -> str:
     """The equivalence verdict (``report/equivalence.py``: TOST against the margins set before
     the runs), with the tests of a difference beside it."""
     k, t = result["frameworks"]["keras"], result["frameworks"]["torch"]
-    headline, judged = framework_verdict(
-        (k["successes"], t["successes"]),
-        (len(k["seeds"]), len(t["seeds"])),
-        (k["episodes_to_threshold"], t["episodes_to_threshold"]),
-        result["budget"],
-    )
+    headline, judged = framework_verdict(arm(k), arm(t), result["budget"])
     p = result["mann_whitney"][1]
     tests = f"Fisher p = {result['fisher_p']:.2f}" + (f", Mann-Whitney p = {p:.2f}" if np.isfinite(p) else "")
     rates = f"success {k['successes']}/{len(k['seeds'])} (Keras) vs {t['successes']}/{len(t['seeds'])} (PyTorch)"

@@ -17,11 +17,20 @@ would void the verdicts; a change goes in with its reason and reruns nothing but
 - median episodes to threshold: the ratio of the arms' medians within 0.90-1.10 (±10%),
   percentile bootstrap; seeds that never reached the threshold count as budget + 1 (they rank
   last), and an arm where half or more never reached it has no median to compare.
+
+A seed's episodes to threshold is read as the plans and the margins above word it (issue 52):
+the first episode whose metric met the threshold, a seed that never met it counting as budget
++ 1 (``FIRST_PASSING``). Until issue 52 the code counted a seed's first passing episode only
+when the seed also succeeded (``CONVERGED_AT_END``). The two differ only where success is not
+"reached the threshold" (post 001, judged at the end of the run: a seed can pass the threshold
+and lose it); there the plans' reading governs the verdict and the code's is reported beside
+it, labelled (``Equivalence.beside``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -29,6 +38,13 @@ import numpy as np
 from keras_rl.report.stats import Interval, bootstrap_interval, success_difference_ci
 
 Reading = Literal["equivalent within the margin", "different", "inconclusive"]
+
+FIRST_PASSING = "first passing episode"
+"""The plans' reading of a seed's episodes to threshold: its first episode whose metric met the
+threshold, whatever happened after (None: never). It governs every verdict."""
+CONVERGED_AT_END = "counted only if converged at the end"
+"""The code's reading before issue 52: the first passing episode of a seed that also succeeded,
+None for any other. Reported beside the plans' reading where the two differ (post 001)."""
 
 SUCCESS_RATE_MARGIN = 0.15
 """Pre-registered (2026-11-23): |rate(a) - rate(b)| < 0.15 is "no difference" in success."""
@@ -49,18 +65,29 @@ class Equivalence:
     n: tuple[int, int]
     reading: Reading
     note: str = ""
+    beside: Equivalence | None = None
+    """The same quantity by the code's reading before issue 52 (``CONVERGED_AT_END``), where it
+    differs from the plans' (which this one is, and which governs)."""
 
     def sentence(self) -> str:
-        """The reading with its numbers, as a report states it."""
+        """The reading with its numbers, as a report states it (the code's reading beside it,
+        labelled, where there is one)."""
         n = f"{self.n[0]} and {self.n[1]} seeds" if self.n[0] != self.n[1] else f"{self.n[0]} seeds each"
         said = "inconclusive at " + n if self.reading == "inconclusive" else self.reading
         if not np.isfinite(self.estimate):  # nothing to estimate: say why, not "nan; nan to nan"
-            return f"{self.quantity}: **{said}** (no estimate; {n})" + (f". {self.note}" if self.note else "")
+            text = f"{self.quantity}: **{said}** (no estimate; {n})" + (f". {self.note}" if self.note else "")
+        else:
+            text = (
+                f"{self.quantity}: **{said}** ({self.estimate:.3g}; 90% interval {self.tost.low:.3g} to "
+                f"{self.tost.high:.3g}, 95% {self.test.low:.3g} to {self.test.high:.3g}; margin "
+                f"{self.margin[0]:.3g} to {self.margin[1]:.3g}, set before the runs; {n})"
+                + (f". {self.note}" if self.note else "")
+            )
+        if self.beside is None:
+            return text
         return (
-            f"{self.quantity}: **{said}** ({self.estimate:.3g}; 90% interval {self.tost.low:.3g} to "
-            f"{self.tost.high:.3g}, 95% {self.test.low:.3g} to {self.test.high:.3g}; margin "
-            f"{self.margin[0]:.3g} to {self.margin[1]:.3g}, set before the runs; {n})"
-            + (f". {self.note}" if self.note else "")
+            f"{text}, by the plan's reading (a seed's {FIRST_PASSING}); beside it, not governing, the code's "
+            f"reading before issue 52 ({CONVERGED_AT_END}): {self.beside.sentence()}"
         )
 
 
@@ -126,21 +153,64 @@ def median_ratio_equivalence(
     )
 
 
-def episodes_with_censoring(hits: list[int], seeds: int) -> list[int | None]:
-    """An arm's episodes to threshold over all its seeds: its successes' episodes, and None for
-    each seed that did not succeed (what ``median_ratio_equivalence`` counts as budget + 1)."""
-    return [*hits, *([None] * (seeds - len(hits)))]
+@dataclass(frozen=True)
+class Arm:
+    """One arm's seeds: each one's first passing episode (None: never) and whether it succeeded."""
+
+    reached: Sequence[int | None]
+    success: Sequence[bool]
+
+    @classmethod
+    def of(cls, records) -> Arm:
+        """From ``summary.json`` records (dicts) or ``RunSummary`` objects."""
+        records = list(records)
+        pick = (lambda r, k: r[k]) if all(isinstance(r, dict) for r in records) else getattr
+        return cls(
+            [None if pick(r, "reached_at_episode") is None else int(pick(r, "reached_at_episode")) for r in records],
+            [bool(pick(r, "success")) for r in records],
+        )
+
+    @property
+    def seeds(self) -> int:
+        return len(self.reached)
+
+    @property
+    def successes(self) -> int:
+        return sum(self.success)
+
+    def hits(self, reading: str = FIRST_PASSING) -> list[int]:
+        """The episodes of the seeds that reached the threshold by ``reading``, in seed order."""
+        if reading == FIRST_PASSING:
+            return [r for r in self.reached if r is not None]
+        if reading == CONVERGED_AT_END:
+            return [r for r, ok in zip(self.reached, self.success, strict=True) if ok and r is not None]
+        raise ValueError(f"no reading {reading!r}; the readings are {FIRST_PASSING!r} and {CONVERGED_AT_END!r}")
+
+    def episodes(self, reading: str = FIRST_PASSING) -> list[int | None]:
+        """Every seed's episodes to threshold by ``reading``: the hits, then None (counted as budget
+        + 1) for each seed that never reached it. Not in seed order: the bootstrap's draws depend
+        on the order, and this is the order the committed verdicts were drawn in."""
+        hits = self.hits(reading)
+        return [*hits, *([None] * (self.seeds - len(hits)))]
 
 
-def framework_verdict(
-    successes: tuple[int, int], seeds: tuple[int, int], hits: tuple[list[int], list[int]], budget: int
-) -> tuple[str, list[Equivalence]]:
-    """Two arms (Keras, PyTorch) judged on both pre-set margins: the headline and the two verdicts."""
-    success = success_rate_equivalence(successes[0], seeds[0], successes[1], seeds[1])
-    speed = median_ratio_equivalence(
-        episodes_with_censoring(hits[0], seeds[0]), episodes_with_censoring(hits[1], seeds[1]), budget
-    )
+def speed_equivalence(a: Arm, b: Arm, budget: int) -> Equivalence:
+    """The median ratio by the plans' reading, with the code's old reading beside it where the
+    two differ."""
+    speed = median_ratio_equivalence(a.episodes(), b.episodes(), budget)
+    if all(arm.episodes() == arm.episodes(CONVERGED_AT_END) for arm in (a, b)):
+        return speed
+    beside = median_ratio_equivalence(a.episodes(CONVERGED_AT_END), b.episodes(CONVERGED_AT_END), budget)
+    return replace(speed, beside=beside)
+
+
+def framework_verdict(a: Arm, b: Arm, budget: int) -> tuple[str, list[Equivalence]]:
+    """Two arms (Keras, PyTorch) judged on both pre-set margins: the headline and the two verdicts
+    (the median ratio by the plans' reading, which alone makes the headline)."""
+    success = success_rate_equivalence(a.successes, a.seeds, b.successes, b.seeds)
+    speed = speed_equivalence(a, b, budget)
     readings = {success.reading, speed.reading}
+    seeds = (a.seeds, b.seeds)
     n = f"{seeds[0]} seeds each" if seeds[0] == seeds[1] else f"{seeds[0]} and {seeds[1]} seeds"
     if "different" in readings:
         headline = "The frameworks differ"

@@ -17,7 +17,7 @@ import numpy as np
 
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.report.aggregate import write_aggregate
-from keras_rl.report.equivalence import episodes_with_censoring
+from keras_rl.report.equivalence import Arm
 from keras_rl.report.plots import plot_sweep
 from keras_rl.report.stats import (
     censored_mann_whitney,
@@ -70,7 +70,7 @@ def analyse_sweep(summaries: dict[str, list[RunSummary]], baseline: str) -> dict
                     success_difference_ci(st["successes"], st["seeds"], base["successes"], base["seeds"])
                 ),
                 mann_whitney_p=censored_mann_whitney(
-                    episodes_with_censoring(a, st["seeds"]), episodes_with_censoring(b, base["seeds"]), budget
+                    Arm.of(summaries[name]).episodes(), Arm.of(summaries[baseline]).episodes(), budget
                 )[1],
                 fisher_p=fisher_exact(st["successes"], st["seeds"], base["successes"], base["seeds"]),
             )

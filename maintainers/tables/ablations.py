@@ -114,9 +114,10 @@ def _summaries(folder: Path) -> list:
     return RunSet(folder).summaries()
 
 
-def _reading(row: dict, statuses: list[str], faithful: dict, budget: int) -> str:
+def _reading(row: dict, summaries: list, faithful: list, budget: int) -> str:
+    """A switch's reading against the faithful base, from both arms' seeds (``summaries``)."""
     if row["unfinished"] and len(row["unfinished"]) == row["seeds"]:
-        return "every seed stopped early: " + ", ".join(sorted(set(statuses)))
+        return "every seed stopped early: " + ", ".join(sorted({s.status for s in summaries}))
     rate, diff = row["success_difference"], row.get("median_difference")
     if rate["low"] > 0 or rate["high"] < 0:
         return "changes the success rate"
@@ -133,14 +134,9 @@ def _reading(row: dict, statuses: list[str], faithful: dict, budget: int) -> str
                 else f"{direction} by the median's interval, but Mann-Whitney p >= 0.05"
             )
         )
-    from keras_rl.report.equivalence import framework_verdict
+    from keras_rl.report.equivalence import Arm, framework_verdict
 
-    _, judged = framework_verdict(
-        (row["successes"], faithful["successes"]),
-        (row["seeds"], faithful["seeds"]),
-        (row["episodes_to_threshold"], faithful["episodes_to_threshold"]),
-        budget,
-    )
+    _, judged = framework_verdict(Arm.of(summaries), Arm.of(faithful), budget)
     if all(e.reading == "equivalent within the margin" for e in judged):
         return "no effect: equivalent within the margins (TOST)"
     return f"no effect shown; inconclusive at {row['seeds']} seeds (TOST)"
@@ -208,7 +204,7 @@ def table(experiment: str, only: set[int] | None = None) -> str:
             f"| {ledger_id} | {label} | {r['successes']}/{r['seeds']}{stopped} "
             f"| {rate['estimate']:+.2f} [{rate['low']:+.2f}, {rate['high']:+.2f}] | {p(r['fisher_p'])} "
             f"| {spread} | {diff_text} | {p(r.get('mann_whitney_p'))} "
-            f"| {_reading(r, [x.status for x in summaries[label]], result['faithful'], budget)} |"
+            f"| {_reading(r, summaries[label], summaries['faithful'], budget)} |"
         )
     return "\n".join(lines)
 

@@ -9,8 +9,9 @@ generated part of each per-post section (``post_block``: ``tables/runs.py``'s ta
 post's variants, and what the seeds say about the post's own claim).
 
 One row per post x variant x framework: success rate, episodes to threshold (median and
-IQR over the seeds that got there), the post's own number, ms per env step (median over
-seeds of wall seconds / env steps, as the runs ran: two seeds at a time, often beside
+IQR over the seeds that succeeded; post 001: still converged at the end), the post's own
+number, ms per env step (median over seeds of wall seconds / env steps, as the runs ran: two
+seeds at a time, often beside
 other work) and the command that regenerates the row's folder.
 """
 
@@ -245,6 +246,7 @@ def short_table() -> str:
 
 def compare_table() -> str:
     """One row per committed ``results/compare/**/result.json``."""
+    from keras_rl.report.compare import arm
     from keras_rl.report.equivalence import framework_verdict
 
     lines = [
@@ -264,13 +266,8 @@ def compare_table() -> str:
         d = r["median_difference"]
         diff = "-" if d is None else f"{d['estimate']:g} [{d['low']:g}, {d['high']:g}]"
         link = path.parent.relative_to(ROOT / "results") / "report.md"
-        _, judged = framework_verdict(
-            (k["successes"], t["successes"]),
-            (len(k["seeds"]), len(t["seeds"])),
-            (k["episodes_to_threshold"], t["episodes_to_threshold"]),
-            r["budget"],
-        )
-        readings = " / ".join(e.reading.replace(" within the margin", "") for e in judged)
+        _, judged = framework_verdict(arm(k), arm(t), r["budget"])
+        readings = _readings(judged)
         lines.append(
             f"| {r['experiment']} ({r['variant']}) | {'matched to Keras' if r['matched_init'] else 'torch default'} "
             f"| {k['successes']}/{len(k['seeds'])} / {t['successes']}/{len(t['seeds'])} ({g(r['fisher_p'])}) "
@@ -285,8 +282,19 @@ def _planned_cell(read: dict) -> str:
     if read["pending"]:
         keras, torch = read["held"]
         return f"pending: Keras {keras}, PyTorch {torch} of {read['planned']} seeds"
-    readings = " / ".join(e.reading.replace(" within the margin", "") for e in read["judged"])
-    return f"{readings} ({read['planned']} seeds each)"
+    return f"{_readings(read['judged'])} ({read['planned']} seeds each)"
+
+
+def _readings(judged: list) -> str:
+    """ "success / median ratio", and the median ratio by the code's reading before issue 52 where
+    it differs from the plans' (``report.equivalence.CONVERGED_AT_END``)."""
+    from keras_rl.report.equivalence import CONVERGED_AT_END
+
+    said = " / ".join(e.reading.replace(" within the margin", "") for e in judged)
+    beside = judged[1].beside
+    if beside is None:
+        return said
+    return f"{said} (the code's reading, {CONVERGED_AT_END}: {beside.reading.replace(' within the margin', '')})"
 
 
 FIRST_TEN = set(range(10))
@@ -342,10 +350,8 @@ def changes_table() -> str:
         readings = {}
         for label, seeds in (("ten", FIRST_TEN), ("all", set(r["frameworks"]["keras"]["seeds"]))):
             arms = [_arm(folders[fw], seeds) for fw in ("keras", "torch")]
-            _, judged = framework_verdict(
-                (arms[0][0], arms[1][0]), (arms[0][1], arms[1][1]), (arms[0][2], arms[1][2]), r["budget"]
-            )
-            readings[label] = (" / ".join(e.reading for e in judged), arms[0][1])
+            _, judged = framework_verdict(arms[0], arms[1], r["budget"])
+            readings[label] = (" / ".join(e.reading for e in judged), arms[0].seeds)
         name = f"{r['experiment']} ({r['variant']}), {'matched init' if r['matched_init'] else 'torch default init'}"
         changed = (
             "not yet on more seeds"
@@ -360,12 +366,11 @@ def changes_table() -> str:
     return "\n".join(lines)
 
 
-def _arm(folder: Path, seeds: set[int]) -> tuple[int, int, list[int]]:
-    """(successes, seeds, episodes to threshold of the successes) of a run folder's ``seeds``."""
-    summaries = RunSet(folder).summary_records()
-    summaries = [s for s in summaries if s["seed"] in seeds]
-    hits = [s["reached_at_episode"] for s in summaries if s["success"]]
-    return len(hits), len(summaries), hits
+def _arm(folder: Path, seeds: set[int]):
+    """A run folder's ``seeds`` as one arm of a verdict."""
+    from keras_rl.report.equivalence import Arm
+
+    return Arm.of(s for s in RunSet(folder).summary_records() if s["seed"] in seeds)
 
 
 def run(args: argparse.Namespace) -> int:

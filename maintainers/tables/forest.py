@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from keras_rl.checkout import ROOT
+from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING
 
 RESULTS = ROOT / "results"
 FIGURE = RESULTS / "forest.png"
@@ -126,14 +127,11 @@ def _arm(folders: str | tuple[str, ...]) -> dict[int, dict[str, Any]]:
     return arm((folders,) if isinstance(folders, str) else folders, RESULTS)
 
 
-def _hits(records: list[dict[str, Any]]) -> list[int]:
-    return [int(r["reached_at_episode"]) for r in records if r["success"] and r["reached_at_episode"]]
-
-
 def row(c: Comparison) -> dict[str, Any]:
     """One comparison's numbers and readings (or why it is pending)."""
     from keras_rl.report.certified import reading
-    from keras_rl.report.equivalence import framework_verdict
+    from keras_rl.report.compare import arm
+    from keras_rl.report.equivalence import Arm, framework_verdict
 
     if c.certified is not None:
         read = reading(c.certified)
@@ -149,11 +147,8 @@ def row(c: Comparison) -> dict[str, Any]:
         return _judged(c, ", ".join(c.certified.keras + c.certified.torch), read["planned"], read["judged"])
     if c.result is not None:
         result = json.loads((RESULTS / c.result).read_text())
-        arms = [result["frameworks"][fw] for fw in ("keras", "torch")]
-        seeds = [len(a["seeds"]) for a in arms]
-        hits = [list(a["episodes_to_threshold"]) for a in arms]
+        arms = [arm(result["frameworks"][fw]) for fw in ("keras", "torch")]
         budget = int(result["budget"])
-        successes = [int(a["successes"]) for a in arms]
         source = c.result
     else:
         first, second = _arm(c.first), _arm(c.second)
@@ -164,12 +159,10 @@ def row(c: Comparison) -> dict[str, Any]:
         source = " and ".join(x if isinstance(x, str) else " + ".join(x) for x in (c.first, c.second))
         if n < max(c.seeds_before_reading, 1):
             return {"group": c.group, "label": c.label, "source": source, "seeds": n, "pending": True}
-        arms_records = [[first[s] for s in common], [second[s] for s in common]]
-        seeds = [n, n]
-        hits = [_hits(r) for r in arms_records]
-        successes = [sum(bool(r["success"]) for r in rs) for rs in arms_records]
-        budget = int(arms_records[1][0]["budget_episodes"])
-    _, judged = framework_verdict((successes[0], successes[1]), (seeds[0], seeds[1]), (hits[0], hits[1]), budget)
+        arms = [Arm.of(first[s] for s in common), Arm.of(second[s] for s in common)]
+        budget = int(second[common[0]]["budget_episodes"])
+    _, judged = framework_verdict(arms[0], arms[1], budget)
+    seeds = [a.seeds for a in arms]
     return _judged(c, source, seeds[0] if seeds[0] == seeds[1] else seeds, judged)
 
 
@@ -181,16 +174,19 @@ def _judged(c: Comparison, source: str, seeds: Any, judged: list) -> dict[str, A
         "source": source,
         "seeds": seeds,
         "pending": False,
-        **{
-            name: {
-                "estimate": _num(e.estimate),
-                "low": _num(e.tost.low),
-                "high": _num(e.tost.high),
-                "margin": list(e.margin),
-                "reading": e.reading,
-            }
-            for name, e in (("success", success), ("speed", speed))
-        },
+        **{name: _point(e) for name, e in (("success", success), ("speed", speed))},
+        # the code's reading before issue 52 (report.equivalence.CONVERGED_AT_END), where it differs
+        **({"speed_converged_at_end": _point(speed.beside)} if speed.beside is not None else {}),
+    }
+
+
+def _point(e) -> dict[str, Any]:
+    return {
+        "estimate": _num(e.estimate),
+        "low": _num(e.tost.low),
+        "high": _num(e.tost.high),
+        "margin": list(e.margin),
+        "reading": e.reading,
     }
 
 
@@ -218,7 +214,10 @@ def table(data: list[dict[str, Any]]) -> str:
         "Every two-arm comparison the project commits, drawn above and tabled here "
         f"(`{COMMAND}`; margins set before the runs: success difference within ±0.15, median-episodes "
         "ratio within 0.9 to 1.1; each cell: estimate (90% interval): reading; a test fails when this "
-        "block is stale).",
+        f"block is stale). A seed's episodes to threshold is its {FIRST_PASSING}, as the plans define it, "
+        "a seed that never passed counting as the budget + 1; where the code's reading before issue 52 "
+        f"({CONVERGED_AT_END}) differs (post 001), it follows the ratio in parentheses, and does not "
+        "govern.",
         "",
         "| comparison | first against second | seeds | success difference | median-episodes ratio |",
         "|---|---|---|---|---|",
@@ -230,7 +229,10 @@ def table(data: list[dict[str, Any]]) -> str:
                 "its planned seeds | pending |"
             )
             continue
-        lines.append(f"| {r['group']} | {r['label']} | {r['seeds']} | {_cell(r['success'])} | {_cell(r['speed'])} |")
+        speed = _cell(r["speed"])
+        if "speed_converged_at_end" in r:
+            speed += f" (the code's reading, {CONVERGED_AT_END}: {_cell(r['speed_converged_at_end'])})"
+        lines.append(f"| {r['group']} | {r['label']} | {r['seeds']} | {_cell(r['success'])} | {speed} |")
     return "\n".join(lines)
 
 

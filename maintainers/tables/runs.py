@@ -24,7 +24,7 @@ from scipy.stats import fisher_exact, mannwhitneyu
 
 from keras_rl.checkout import ROOT
 from keras_rl.errors import ConfigError
-from keras_rl.report.equivalence import episodes_with_censoring
+from keras_rl.report.equivalence import Arm
 from keras_rl.report.markdown import seed_span
 from keras_rl.report.stats import censored_mann_whitney, episodes_to_threshold_stats
 from keras_rl.runs.run_set import RunSet
@@ -65,11 +65,7 @@ def runs_table(folders: list[Path]) -> str:
         p_hits = (
             "-"
             if first or not hits or not base_hits
-            else p_text(
-                censored_mann_whitney(
-                    episodes_with_censoring(hits, len(summaries)), episodes_with_censoring(base_hits, len(base)), budget
-                )[1]
-            )
+            else p_text(censored_mann_whitney(Arm.of(summaries).episodes(), Arm.of(base).episodes(), budget)[1])
         )
         table = [[st["successes"], st["seeds"] - st["successes"]], [base_ok, len(base) - base_ok]]
         p_ok = "-" if first else p_text(fisher_exact(table).pvalue)

@@ -1,0 +1,332 @@
+"""Numbers written by hand in the docs come from the data (issue 52 item 3).
+
+Each claim is a page, a sentence fragment with ``{}`` slots, and a function that computes the
+slots from the committed runs (``RunSet``, ``report.certified.arm``) or from a generated file
+(``results/forest.json``, a report's per-seed table). The test formats the fragment and asserts
+the page holds it, whitespace folded: a number edited by hand, or data that moved under it,
+fails here.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Callable
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from keras_rl.report.certified import arm, certifications, reading
+from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm
+from keras_rl.report.stats import fisher_exact
+from keras_rl.runs.run_set import RunSet
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "results"
+
+
+def page(name: str) -> str:
+    return re.sub(r"\s+", " ", (ROOT / name).read_text())
+
+
+@cache
+def forest(group: str, label: str) -> dict:
+    rows = json.loads((RESULTS / "forest.json").read_text())
+    return next(
+        r for r in (rows["rows"] if isinstance(rows, dict) else rows) if (r["group"], r["label"]) == (group, label)
+    )
+
+
+def interval(point: dict) -> tuple[str, str, str]:
+    return tuple(f"{point[k]:.3g}" for k in ("estimate", "low", "high"))  # type: ignore[return-value]
+
+
+def compiled_001() -> dict:
+    return forest("compiled engine vs Gymnasium loop", "mountaincar")
+
+
+def table_pairs(report: str) -> list[tuple[str, str]]:
+    """The per-seed table of a ``seed_batch_compare`` report: each seed's two "reached at" cells."""
+    rows = [
+        line.split("|")[1:-1] for line in (RESULTS / report).read_text().splitlines() if re.match(r"\| \d+ \|", line)
+    ]
+    return [(r[3].strip(), r[4].strip()) for r in rows]
+
+
+def same_in_table(report: str) -> tuple[int, int]:
+    pairs = table_pairs(report)
+    return sum(a == b for a, b in pairs), len(pairs)
+
+
+def paired(keras: dict, torch: dict, seeds) -> dict[str, int]:
+    """Seeds on which two arms' first passing episodes agree; and agree with success too; and
+    agree by the code's old reading (the episode kept only for a seed converged at the end)."""
+    old = lambda r: r["reached_at_episode"] if r["success"] else None  # noqa: E731
+    return {
+        "first": sum(keras[s]["reached_at_episode"] == torch[s]["reached_at_episode"] for s in seeds),
+        "and_success": sum(
+            (keras[s]["reached_at_episode"], keras[s]["success"])
+            == (torch[s]["reached_at_episode"], torch[s]["success"])
+            for s in seeds
+        ),
+        "old": sum(old(keras[s]) == old(torch[s]) for s in seeds),
+        "success": sum(keras[s]["success"] == torch[s]["success"] for s in seeds),
+    }
+
+
+@cache
+def planned_001(matched: bool) -> dict:
+    """Post 001's Keras-against-PyTorch reading at its planned seeds, with the medians by both readings."""
+    c = next(c for c in certifications() if c.post == "mountaincar" and c.matched_init == matched)
+    read = reading(c)
+    keras, torch = arm(c.keras), arm(c.torch)
+    budget = int(next(iter(keras.values()))["budget_episodes"])
+
+    def median(a: Arm, how: str) -> str:
+        return f"{np.median([budget + 1 if e is None else e for e in a.episodes(how)]):g}"
+
+    return {
+        "read": read,
+        "medians": {how: [median(a, how) for a in read["arms"]] for how in (FIRST_PASSING, CONVERGED_AT_END)},
+        "paired": paired(keras, torch, range(c.planned)),
+        "n": c.planned,
+    }
+
+
+def engines_001() -> dict:
+    gym = arm(("checks/mountaincar/baseline", "mountaincar/faithful-seeds-100-199"))
+    compiled = arm(("engines/mountaincar/compiled",))
+    return paired(gym, compiled, sorted(gym))
+
+
+def cartpole_first_ten() -> tuple:
+    from scipy.stats import mannwhitneyu
+
+    arms = [
+        [r for r in RunSet(RESULTS / "cartpole" / folder).summary_records() if r["seed"] < 10]
+        for folder in ("faithful", "faithful-torch")
+    ]
+    k, t = (sum(bool(r["success"]) for r in a) for a in arms)
+    hits = [[r["reached_at_episode"] for r in a if r["success"]] for a in arms]
+    return k, len(arms[0]), t, len(arms[1]), fisher_exact(k, 10, t, 10), mannwhitneyu(*hits).pvalue
+
+
+def cartpole_engines() -> tuple:
+    arms = [Arm.of(RunSet(RESULTS / "engines" / "cartpole" / e).summary_records()) for e in ("compiled", "gymnasium")]
+    budget = 600
+    over_hits = [np.median(a.hits(CONVERGED_AT_END)) for a in arms]
+    over_all = [np.median([budget + 1 if e is None else e for e in a.episodes()]) for a in arms]
+    return (*over_hits, budget + 1, *over_all, over_all[0] / over_all[1])
+
+
+def fits(table: str) -> dict[str, str]:
+    """``seed_plan.py``'s table: seeds per arm -> P(median-ratio interval fits), as printed."""
+    rows = [
+        line.split("|")[1:-1] for line in (RESULTS / table).read_text().splitlines() if re.match(r"\| \d+ \|", line)
+    ]
+    return {r[0].strip(): r[2].strip() for r in rows}
+
+
+def compare_001(matched: bool) -> dict:
+    return json.loads(
+        (RESULTS / "compare" / "mountaincar" / ("matched-init" if matched else "") / "result.json").read_text()
+    )
+
+
+Claim = tuple[str, str, Callable[[], tuple]]
+
+CLAIMS: list[Claim] = [
+    # item 3's five numbers, as rewritten
+    (
+        "docs/findings.md",
+        "179 of 200 seeds first meet the threshold at the same episode on both ({} of them also agree on "
+        "success), and {} agree on success",
+        lambda: (engines_001()["and_success"], engines_001()["success"]),
+    ),
+    (
+        "docs/findings.md",
+        "Seed by seed the engines mostly agree: {} of {} seeds",
+        lambda: (engines_001()["first"], len(table_pairs("engines/mountaincar/report.md"))),
+    ),
+    (
+        "docs/findings.md",
+        "{} of the 200 seeds first meet the threshold at the same episode in both frameworks "
+        "({} of them also agree on success",
+        lambda: (
+            same_in_table("compare/mountaincar/cause.md")[0],
+            paired(
+                arm(("mountaincar/faithful", "checks/mountaincar/baseline", "mountaincar/faithful-seeds-100-199")),
+                arm(
+                    (
+                        "mountaincar/faithful-torch-matched-init",
+                        "mountaincar/faithful-torch-matched-init-seeds-30-199",
+                        "mountaincar/faithful-torch-matched-init-seeds-115-199",
+                    )
+                ),
+                range(200),
+            )["and_success"],
+        ),
+    ),
+    (
+        "docs/findings.md",
+        "({} of the {} seeds first meet the threshold at the same episode in both frameworks)",
+        lambda: (planned_001(True)["paired"]["first"], planned_001(True)["n"]),
+    ),
+    (
+        "docs/findings.md",
+        "(the seeds still converged at the end: {} of the 600 agree)",
+        lambda: (planned_001(True)["paired"]["old"],),
+    ),
+    (
+        "docs/findings.md",
+        "seeds 0-9 had given {}/{} vs {}/{}, Fisher p = {:.2f}, and Mann-Whitney p = {:.2f} on the successes' "
+        "episodes alone",
+        cartpole_first_ten,
+    ),
+    (
+        "results/README.md",
+        "median episodes to threshold over the successful seeds {:.1f} (compiled) against {:.1f}, over every seed "
+        "({} for a seed that never got there) {:g} against {:g}, ratio {:.2f}",
+        cartpole_engines,
+    ),
+    # post 001's compiled engine (item 1)
+    (
+        "docs/findings.md",
+        "success {}/200 compiled against {}/200 (difference {}, 90% interval {} to {})",
+        lambda: (
+            sum(r["success"] for r in arm(("engines/mountaincar/compiled",)).values()),
+            sum(
+                r["success"]
+                for r in arm(("checks/mountaincar/baseline", "mountaincar/faithful-seeds-100-199")).values()
+            ),
+            *interval(compiled_001()["success"]),
+        ),
+    ),
+    (
+        "docs/findings.md",
+        "as the plan defines it, {} (90% interval {} to {}) at 200 seeds per engine",
+        lambda: interval(compiled_001()["speed"]),
+    ),
+    (
+        "docs/findings.md",
+        "the ratio is inconclusive, {} (90% interval {} to {})",
+        lambda: interval(compiled_001()["speed_converged_at_end"]),
+    ),
+    (
+        "README.md",
+        "(success difference {}, 90% interval {} to {}), median-episodes ratio {} ({}-{}), 200 seeds each",
+        lambda: (*interval(compiled_001()["success"]), *interval(compiled_001()["speed"])),
+    ),
+    (
+        "README.md",
+        "the ratio is inconclusive, {} ({}-{})",
+        lambda: interval(compiled_001()["speed_converged_at_end"]),
+    ),
+    (
+        "docs/findings.md",
+        "that median ({:g} compiled, {:g} on the loop) sits where",
+        lambda: tuple(
+            np.median([101 if e is None else e for e in Arm.of(a.values()).episodes(CONVERGED_AT_END)])
+            for a in (
+                arm(("engines/mountaincar/compiled",)),
+                arm(("checks/mountaincar/baseline", "mountaincar/faithful-seeds-100-199")),
+            )
+        ),
+    ),
+    (
+        "docs/findings.md",
+        "the interval fits ±10% with probability {} at 200 seeds per arm and {} at 400",
+        lambda: tuple(fits("engines/mountaincar/seeds_needed.md")[n] for n in ("200", "400")),
+    ),
+    # post 001 Keras against PyTorch at the planned seeds
+    (
+        "docs/findings.md",
+        "first meets the threshold later, median episode {} against {}, ratio {} ({} to {}): different on both "
+        "readings (by the code's reading, median episode {} against {}, ratio {}, {} to {})",
+        lambda: (
+            *planned_001(False)["medians"][FIRST_PASSING],
+            *(
+                f"{float(x):.3g}"
+                for x in interval(
+                    forest("Keras vs PyTorch, the planned seeds", "mountaincar, default init (200 planned)")["speed"]
+                )
+            ),
+            *planned_001(False)["medians"][CONVERGED_AT_END],
+            *interval(
+                forest("Keras vs PyTorch, the planned seeds", "mountaincar, default init (200 planned)")[
+                    "speed_converged_at_end"
+                ]
+            ),
+        ),
+    ),
+    (
+        "docs/findings.md",
+        "the median first passing episode is {} in both",
+        lambda: (
+            (planned_001(True)["medians"][FIRST_PASSING][0],)
+            if len(set(planned_001(True)["medians"][FIRST_PASSING])) == 1
+            else ("differs",)
+        ),
+    ),
+    (
+        "docs/findings.md",
+        "ratio 1.00 with a 90% interval of {:.2f} to {:.2f}: **equivalent on the median too**",
+        lambda: tuple(
+            forest("Keras vs PyTorch, the planned seeds", "mountaincar, matched init (600 planned)")["speed"][k]
+            for k in ("low", "high")
+        ),
+    ),
+    (
+        "docs/findings.md",
+        "By the code's old reading the median is {} in both",
+        lambda: (
+            (planned_001(True)["medians"][CONVERGED_AT_END][0],)
+            if len(set(planned_001(True)["medians"][CONVERGED_AT_END])) == 1
+            else ("differs",)
+        ),
+    ),
+    (
+        "docs/findings.md",
+        "interval, {:.2f} to {:.2f}, is wider than ±10%, inconclusive",
+        lambda: tuple(
+            forest("Keras vs PyTorch, the planned seeds", "mountaincar, matched init (600 planned)")[
+                "speed_converged_at_end"
+            ][k]
+            for k in ("low", "high")
+        ),
+    ),
+    # post 001 at 30 seeds
+    (
+        "docs/findings.md",
+        "(Mann-Whitney p = {:.2f} over every seed)",
+        lambda: (compare_001(False)["mann_whitney"][1],),
+    ),
+    (
+        "docs/findings.md",
+        "the median ratio's {} to {} (the code's reading: {} to {})",
+        lambda: (
+            *interval(forest("Keras vs PyTorch", "mountaincar")["speed"])[1:],
+            *interval(forest("Keras vs PyTorch", "mountaincar")["speed_converged_at_end"])[1:],
+        ),
+    ),
+    (
+        "docs/findings.md",
+        "inconclusive too (Mann-Whitney p = {:.2f})",
+        lambda: (compare_001(True)["mann_whitney"][1],),
+    ),
+]
+
+
+@pytest.mark.parametrize("where, fragment, values", CLAIMS, ids=[f"{p}:{f[:40]}" for p, f, _ in CLAIMS])
+def test_a_number_in_prose_is_the_number_its_data_gives(where, fragment, values):
+    said = fragment.format(*values())
+    assert said in page(where), f"{where} should say: {said}"
+
+
+def test_a_claim_fails_when_its_number_is_wrong():
+    """The check can fail: a fragment formatted with a number one off is not on the page."""
+    where, fragment, values = CLAIMS[0]
+    wrong = [v + 1 if isinstance(v, int) else v for v in values()]
+    assert fragment.format(*wrong) not in page(where)
