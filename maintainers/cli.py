@@ -1,11 +1,12 @@
 """The maintainers' commands: what regenerates the checkout's committed figures, run from a
 checkout as ``python -m maintainers ...`` (this folder is not part of the installed package).
 
-- ``python -m maintainers calibrate rules|family|held-out|designs|sensitive|real|bisect-levels``: the check's calibration
-  (``maintainers/calibrate/``), whose JSON ships as package data;
+- ``python -m maintainers calibrate rules|family|held-out|designs|sensitive|real|bisect-levels``: the check's
+  calibration (``maintainers/calibrate/``), whose JSON ships as package data;
 - ``python -m maintainers tables findings|ablations|compat|forest|runs``: the generated Markdown tables
   (``maintainers/tables/``), each spliced between its markers (``report/markdown.py``);
-- ``python -m maintainers manifest``: ``results/MANIFEST``, and ``--regenerate`` to rerun sets and compare.
+- ``python -m maintainers manifest``: ``results/MANIFEST``, and ``--regenerate`` to rerun sets and compare;
+- ``python -m maintainers audit``: rerun K drawn seeds of every set and compare (``results/AUDIT.md``).
 
 Each reads the checkout's ``results/`` (``keras_rl/checkout.py``). The arguments are declared
 here and each module's ``run(args)`` is imported only when its command runs.
@@ -147,7 +148,7 @@ def add_parser(sub) -> None:
     p = sub.add_parser(
         "manifest",
         help="results/MANIFEST: every committed run set with its command; --regenerate reruns sets and compares",
-        parents=[shared_flags("manifest", "--out", "--workers", "--write")],
+        parents=[shared_flags("manifest", "--out", "--workers", "--write", "--address")],
     )
     p.set_defaults(module="maintainers.manifest")
     p.add_argument(
@@ -156,6 +157,16 @@ def add_parser(sub) -> None:
         metavar="SET",
         help="rerun the sets matching these patterns (fnmatch) into --out and compare them with the committed ones",
     )
+
+    p = sub.add_parser(
+        "audit",
+        help="rerun K randomly drawn seeds of every committed set and compare them with the committed episodes",
+        parents=[shared_flags("audit", "--out", "--workers", "--write", "--address")],
+    )
+    p.set_defaults(module="maintainers.audit")
+    p.add_argument("--per-set", type=int, default=1, metavar="K", help="seeds (batches) drawn from each set")
+    p.add_argument("--draw-seed", type=int, default=52, help="the random seed that draws them (default 52)")
+    p.add_argument("--sets", nargs="+", metavar="SET", help="only the sets matching these patterns (fnmatch)")
 
 
 def run(args: argparse.Namespace) -> int:

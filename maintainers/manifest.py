@@ -10,7 +10,8 @@ A set is a folder of ``seed_<n>/`` run folders. Its cost is in process-minutes: 
 alone costs its wall time, a seed batch (``--seed-batch``) the wall time of the batch, once.
 
 ``--regenerate`` reruns each set with ``keras-rl reproduce --config <seed>/config.json`` (the exact
-config, whichever command made it), batch by batch as the set was made (the batch's seeds are
+config, whichever command made it, on the engine the set recorded; on a Ray cluster with
+``--address``), batch by batch as the set was made (the batch's seeds are
 in each summary, or else in its command's ``--seeds``/``--seed-batch``), with ``--resume``: a
 rerun stopped midway continues where it was. Then, per set: where the CPU model and the library
 versions match the committed runs, every seed must be bit for bit the same (``episodes.csv``
@@ -85,6 +86,7 @@ def describe(name: str, runs: list[SeedRun]) -> dict:
         "experiment": first["experiment"],
         "variant": first["variant"],
         "framework": first.get("framework", "keras"),
+        "engine": first.get("provenance", {}).get("engine", "gymnasium"),
         "seeds": [int(s["seed"]) for s in summaries],
         "batches": [list(b) for b in batches],
         "commands": sorted({s.get("command", "") for s in summaries}),
@@ -217,32 +219,50 @@ def _copies(entry: dict) -> str:
 # -- rerun --------------------------------------------------------------------------------------
 
 
-def rerun_set(entry: dict, out: Path, workers: int) -> dict:
-    """Rerun one set batch by batch with ``--resume``, then compare it with the committed one."""
+def reproduce_command(
+    entry: dict, batch: list[int], out: Path, workers: int, address: str | None = None, python: str | None = None
+) -> list[str]:
+    """The ``keras-rl reproduce`` that reruns one batch of a committed set into ``out / set``: the
+    exact config (``--config``, whichever command made it), the batch's seeds together, on the
+    engine the set recorded, with ``--resume``; on a Ray cluster with ``address``."""
+    committed = RunSet(RESULTS / entry["set"])
+    config = committed.run(batch[0]).config_path(out / ".configs" / entry["set"])
+    seeds = ",".join(str(s) for s in batch)
+    command = [
+        python or sys.executable, "-m", "keras_rl", "reproduce", entry["experiment"], "--config", str(config),
+        "--seeds", seeds, "--seed-batch", str(len(batch)), "--engine", entry["engine"], "--workers", str(workers),
+        "--no-progress", "--min-success-rate", "0", "--resume", "--out", str(out / entry["set"]),
+    ]  # fmt: skip
+    return command + (["--address", address] if address else [])
+
+
+def compare_seeds(committed: RunSet, target: Path, seeds: list[int]) -> dict[int, dict | None]:
+    """Each seed's first divergence from its committed run (every column but wall time); None
+    where the rerun left no ``episodes.csv``."""
     from keras_rl.runs.replay import first_divergence, seed_rows
 
+    by_seed: dict[int, dict | None] = {}
+    for seed in seeds:
+        ours = target / f"seed_{seed}" / "episodes.csv"
+        theirs = committed.run(seed).text_rows()
+        by_seed[seed] = first_divergence(theirs, seed_rows(ours)).as_dict() if ours.is_file() else None
+    return by_seed
+
+
+def rerun_set(entry: dict, out: Path, workers: int, address: str | None = None) -> dict:
+    """Rerun one set batch by batch with ``--resume``, then compare it with the committed one."""
     committed = RunSet(RESULTS / entry["set"])
     target = out / entry["set"]
-    codes = []
-    for batch in entry["batches"]:
-        seeds = ",".join(str(s) for s in batch)
-        config = committed.run(batch[0]).config_path(out / ".configs" / entry["set"])
-        command = [
-            sys.executable, "-m", "keras_rl", "reproduce", entry["experiment"], "--config", str(config),
-            "--seeds", seeds, "--seed-batch", str(len(batch)), "--workers", str(workers), "--no-progress",
-            "--min-success-rate", "0", "--resume", "--out", str(target),
-        ]  # fmt: skip
-        codes.append(subprocess.run(command, cwd=ROOT).returncode)
+    codes = [
+        subprocess.run(reproduce_command(entry, batch, out, workers, address), cwd=ROOT).returncode
+        for batch in entry["batches"]
+    ]
     from keras_rl.runs.provenance import cpu_model, library_versions
 
     same_machine = entry["cpu_models"] == [cpu_model()]
     mine = library_versions(entry["framework"])
     same_versions = all(mine.get(k) == v for k, v in entry["versions"].items() if k not in ("keras_rl", "torch"))
-    by_seed: dict[int, dict | None] = {}
-    for seed in entry["seeds"]:
-        ours = target / f"seed_{seed}" / "episodes.csv"
-        theirs = committed.run(seed).text_rows()
-        by_seed[seed] = first_divergence(theirs, seed_rows(ours)).as_dict() if ours.is_file() else None
+    by_seed = compare_seeds(committed, target, entry["seeds"])
     exact = sum(d is not None and d["first_episode"] is None for d in by_seed.values())
     result = {
         "set": entry["set"],
@@ -277,7 +297,7 @@ def _distribution_p(committed: RunSet, target: Path, seeds: list[int]) -> float 
     return mann_whitney(a, b)[1]
 
 
-def rerun(patterns: list[str], out: Path, workers: int) -> list[dict]:
+def rerun(patterns: list[str], out: Path, workers: int, address: str | None = None) -> list[dict]:
     from keras_rl.runs.files import atomic_write_json, atomic_write_text
 
     names = [n for n in find_sets() if any(fnmatch.fnmatch(n, p) for p in patterns)]
@@ -289,7 +309,7 @@ def rerun(patterns: list[str], out: Path, workers: int) -> list[dict]:
     for entry in entries:
         cost = f"{len(entry['seeds'])} seeds, committed cost {entry['process_minutes']} process-min"
         print(f"rerunning {entry['set']} ({cost})", flush=True)
-        results.append(rerun_set(entry, out, workers))
+        results.append(rerun_set(entry, out, workers, address))
         atomic_write_json(out / "rerun.json", results)
         lines = ["| set | seeds | compared | agrees | bit-exact seeds | final-metric p |", "|---|---|---|---|---|---|"]
         for r in results:
@@ -306,7 +326,7 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError("--regenerate needs --out: a fresh folder, or one to resume")
         if args.out.resolve().is_relative_to(RESULTS.resolve()):
             raise ConfigError("--out must not be inside results/: the rerun is compared with it, never written over it")
-        results = rerun(args.regenerate, args.out, args.workers)
+        results = rerun(args.regenerate, args.out, args.workers, args.address)
         return 0 if all(r["agrees"] for r in results) else 1
     entries = manifest()
     if not args.write:

@@ -42,6 +42,10 @@ def test_tables_print_without_writing(capsys, monkeypatch):
             ["manifest", "--regenerate", "no/such/set", "--out", "/tmp/keras-rl-no-such-rerun"],
             "no committed set matches",
         ),
+        (["audit", "--per-set", "0", "--out", "/tmp/keras-rl-audit"], "--per-set must be at least 1, got 0"),
+        (["audit"], "audit needs --out"),
+        (["audit", "--out", "results/audit"], "--out must not be inside results/"),
+        (["audit", "--sets", "no/such/set", "--out", "/tmp/keras-rl-audit"], "no committed set matches"),
     ],
 )
 def test_bad_input_exits_2_naming_it(argv, message, capsys):
@@ -89,3 +93,31 @@ def _imports(path: Path) -> set[str]:
         elif isinstance(node, ast.ImportFrom) and node.module:
             found.add(node.module.split(".")[0])
     return found
+
+
+def test_an_audit_draws_the_same_seeds_from_the_same_draw_seed_and_a_batch_whole():
+    from maintainers.audit import draw
+
+    entries = [
+        {"set": "a", "batches": [[0], [1], [2], [3]]},
+        {"set": "b", "batches": [[0, 1, 2], [3, 4, 5]]},
+        {"set": "c", "batches": [[7]]},
+    ]
+    first = draw(entries, 2, 52)
+    assert first == draw(entries, 2, 52)
+    assert len(first["a"]) == 2 and all(b in entries[0]["batches"] for b in first["a"])
+    assert first["b"] == [[0, 1, 2], [3, 4, 5]] and first["c"] == [[7]]  # K past a set's batches: all of them
+    assert any(draw(entries, 1, seed)["a"] != draw(entries, 1, 52)["a"] for seed in range(5))
+
+
+@pytest.mark.slow
+def test_an_audit_reruns_its_drawn_seeds_to_the_committed_bits_and_resumes_from_its_log(tmp_path, capsys):
+    argv = ["audit", "--sets", "mountaincar/done-when/*", "--out", str(tmp_path / "audit")]
+    assert main(argv) == 0
+    report = (tmp_path / "audit" / "audit.md").read_text()
+    assert "2 of 2 sets audited: 2 seed(s) the same bits" in report and "**0 mismatch(es)**" in report
+    assert "| `mountaincar/done-when/fixed` | 31 | HEAD | same bits |" in report
+    assert "random seed 52" in report and "--draw-seed 52" in report
+    capsys.readouterr()
+    assert main(argv) == 0  # resumed: each set's result is read back from audit.json, nothing reruns
+    assert "mountaincar/done-when/fixed: seeds" not in capsys.readouterr().out

@@ -68,6 +68,41 @@ def test_two_node_cluster_runs_jobs_on_both_nodes_and_files_land_in_the_drivers_
         cluster.shutdown()
 
 
+def test_committed_seeds_rerun_on_a_two_node_cluster_to_their_committed_bits(tmp_path):
+    """``python -m maintainers audit --address ADDR`` (the reruns of ``manifest --regenerate``, one
+    function): a drawn seed of a committed set reruns through the cluster (their summaries name a
+    Ray node) and agrees with the committed run bit for bit."""
+    import json
+    import sys
+
+    from ray.cluster_utils import Cluster
+
+    os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
+    cluster = Cluster(
+        initialize_head=True,
+        head_node_args={"num_cpus": 1, "include_dashboard": False, "object_store_memory": 80 * 1024 * 1024},
+    )
+    cluster.add_node(num_cpus=1, object_store_memory=80 * 1024 * 1024)
+    cluster.wait_for_nodes()
+    try:
+        out = tmp_path / "audit"
+        sets = ["checks/pendulum/mutants/tau_x10"]  # about 2 s a seed
+        command = [sys.executable, "-m", "maintainers", "audit", "--sets", *sets, "--out", str(out)]
+        command += ["--workers", "2", "--address", cluster.address]
+        done = subprocess.run(command, capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stdout + done.stderr
+        results = json.loads((out / "audit.json").read_text())["results"]
+        assert [r["set"] for r in results] == sorted(sets)
+        for r in results:
+            ((seed, verdict),) = r["by_seed"].items()
+            assert verdict["verdict"] == "same bits", r
+            summary = json.loads((out / r["set"] / f"seed_{seed}" / "summary.json").read_text())
+            assert summary["provenance"].get("ray_node_id")  # trained through the cluster
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
+
+
 @pytest.mark.parametrize(
     "argv, message",
     [

@@ -1,0 +1,170 @@
+"""Check the committed evidence by sampling (issue 52, item 6): rerun K randomly drawn seeds of
+every committed set with its recorded config and engine, and compare them with the committed
+episodes, every column but wall time.
+
+    python -m maintainers audit --per-set 1 --draw-seed 52 --out /tmp/audit [--workers 2] [--sets 'checks/*']
+    python -m maintainers audit ... --write       # and results/AUDIT.md, the committed report
+    python -m maintainers audit ... --address ADDR   # the reruns on a Ray cluster
+
+(``python -m maintainers manifest --regenerate SET ... --address ADDR`` reruns whole sets the same way.)
+
+The draw is fixed by ``--draw-seed``: the same seed draws the same seeds of the same sets. A
+seed-batched set is drawn by batch (its seeds' bits depend on their batch mates): the whole
+batch reruns and its drawn seed is compared. Each rerun goes through ``manifest.reproduce_command``
+(as ``manifest --regenerate``), at HEAD; a set that HEAD no longer makes the same bits for by
+design (``AT_RECORDED_COMMIT``: a retired path, a fixed bug) reruns at its seed's recorded commit,
+in a temporary ``git worktree`` with that commit's own ``keras_rl``, as ``keras-rl bisect`` does.
+Resumable: a rerun folder under ``--out`` resumes, and ``audit.json`` keeps each set's result as it
+lands. A seed that differs is explained where the host explains it (another CPU model or
+instruction set than the run recorded: ``replay.why_not_bit_exact``); any other is a mismatch,
+and the command exits 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import fnmatch
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from keras_rl.checkout import ROOT
+from keras_rl.errors import ConfigError
+from keras_rl.runs.run_set import RunSet
+from maintainers.manifest import RESULTS, compare_seeds, manifest, reproduce_command
+
+AT_RECORDED_COMMIT: dict[str, str] = {}
+"""Set -> why HEAD no longer makes its bits by design; such a set reruns at its recorded commit.
+Empty until an audit finds one (each entry needs the commit that changed the bits)."""
+REPORT = RESULTS / "AUDIT.md"
+
+
+def draw(entries: list[dict], per_set: int, draw_seed: int) -> dict[str, list[list[int]]]:
+    """Set -> the batches drawn from it (``per_set`` of them, or all it has), in manifest order."""
+    rng = np.random.default_rng(draw_seed)
+    drawn = {}
+    for entry in entries:
+        batches = entry["batches"]
+        picks = rng.choice(len(batches), size=min(per_set, len(batches)), replace=False)
+        drawn[entry["set"]] = [batches[i] for i in sorted(int(p) for p in picks)]
+    return drawn
+
+
+def _at_commit(commit: str, command: list[str], cwd: Path) -> int:
+    """Run ``command`` (a ``python -m keras_rl`` line) with ``commit``'s own keras_rl, in a
+    temporary worktree that is removed afterwards."""
+    worktree = Path(tempfile.mkdtemp(prefix="keras-rl-audit-"))
+    shutil.rmtree(worktree)
+    subprocess.run(["git", "worktree", "add", "--detach", str(worktree), commit], cwd=ROOT, check=True)
+    try:
+        env = {**os.environ, "PYTHONPATH": str(worktree)}
+        return subprocess.run(command, cwd=cwd, env=env).returncode
+    finally:
+        subprocess.run(["git", "worktree", "remove", "--force", str(worktree)], cwd=ROOT, check=False)
+
+
+def audit_set(entry: dict, batches: list[list[int]], out: Path, workers: int, address: str | None = None) -> dict:
+    """Rerun the drawn batches of one set and compare the drawn seeds."""
+    from keras_rl.runs.replay import why_not_bit_exact
+
+    committed = RunSet(RESULTS / entry["set"])
+    target = out / entry["set"]
+    where = "HEAD"
+    codes = []
+    for batch in batches:
+        command = reproduce_command(entry, batch, out, workers, address)
+        if entry["set"] in AT_RECORDED_COMMIT:
+            commit = committed.run(batch[0]).summary_record()["provenance"]["commit"]
+            where = f"recorded commit {commit[:8]} ({AT_RECORDED_COMMIT[entry['set']]})"
+            codes.append(_at_commit(commit, command, ROOT))
+        else:
+            codes.append(subprocess.run(command, cwd=ROOT).returncode)
+    seeds = [batch[0] for batch in batches]
+    diverged = compare_seeds(committed, target, seeds)
+    result: dict = {"set": entry["set"], "seeds": seeds, "batches": batches, "at": where, "exit_codes": codes}
+    result["by_seed"] = {}
+    for seed, divergence in diverged.items():
+        provenance = committed.run(seed).summary_record().get("provenance", {})
+        host = why_not_bit_exact(provenance)
+        if divergence is not None and divergence["first_episode"] is None:
+            verdict, why = "same bits", None
+        elif divergence is None:
+            verdict, why = "no rerun", "the rerun left no episodes.csv (see its exit code)"
+        elif host is not None:
+            verdict, why = "differs: host", f"the run was {host}"
+        else:
+            verdict, why = "MISMATCH", f"first differs at episode {divergence['first_episode']}"
+        result["by_seed"][str(seed)] = {"verdict": verdict, "why": why, "divergence": divergence}
+    result["mismatches"] = sum(v["verdict"] in ("MISMATCH", "no rerun") for v in result["by_seed"].values())
+    return result
+
+
+def markdown(results: list[dict], command: str, per_set: int, draw_seed: int, total: int) -> str:
+    same = sum(v["verdict"] == "same bits" for r in results for v in r["by_seed"].values())
+    host = sum(v["verdict"] == "differs: host" for r in results for v in r["by_seed"].values())
+    bad = sum(r["mismatches"] for r in results)
+    lines = [
+        "# The committed evidence, audited by sampling",
+        "",
+        f"Generated by `{command}` (`maintainers/audit.py`): {per_set} seed(s) of every committed set drawn "
+        f"with random seed {draw_seed}, each rerun with its set's recorded config and engine and compared "
+        "with the committed episodes, every column but wall time.",
+        "",
+        f"{len(results)} of {total} sets audited: {same} seed(s) the same bits, {host} differing where the host "
+        f"explains it (another CPU or instruction set than the run recorded), **{bad} mismatch(es)**.",
+        "",
+        "| set | seeds drawn (batch) | rerun at | verdict |",
+        "|---|---|---|---|",
+    ]
+    for r in results:
+        for (seed, v), batch in zip(r["by_seed"].items(), r["batches"]):
+            shown = seed if len(batch) == 1 else f"{seed} (batch {batch[0]}-{batch[-1]})"
+            verdict = v["verdict"] + (f": {v['why']}" if v["why"] else "")
+            lines.append(f"| `{r['set']}` | {shown} | {r['at']} | {verdict} |")
+    return "\n".join(lines) + "\n"
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+
+    if args.per_set < 1:
+        raise ConfigError(f"--per-set must be at least 1, got {args.per_set}")
+    if args.out is None:
+        raise ConfigError("audit needs --out: a fresh folder, or one to resume")
+    if args.out.resolve().is_relative_to(RESULTS.resolve()):
+        raise ConfigError("--out must not be inside results/: the reruns are compared with it, never written over it")
+    entries = manifest()
+    if args.sets:
+        entries = [e for e in entries if any(fnmatch.fnmatch(e["set"], p) for p in args.sets)]
+        if not entries:
+            raise ConfigError(f"no committed set matches {' '.join(args.sets)} (python -m maintainers manifest)")
+    drawn = draw(entries, args.per_set, args.draw_seed)
+    args.out.mkdir(parents=True, exist_ok=True)
+    log = args.out / "audit.json"
+    done = {r["set"]: r for r in json.loads(log.read_text())["results"]} if log.is_file() else {}
+    command = (
+        f"python -m maintainers audit --per-set {args.per_set} --draw-seed {args.draw_seed} --workers {args.workers}"
+        + (" --sets " + " ".join(f"'{p}'" for p in args.sets) if args.sets else "")
+        + " --out OUT"
+    )
+    results = []
+    for i, entry in enumerate(entries, 1):
+        batches = drawn[entry["set"]]
+        if entry["set"] in done and done[entry["set"]]["batches"] == batches:
+            results.append(done[entry["set"]])
+            continue
+        print(f"[{i}/{len(entries)}] {entry['set']}: seeds {[b[0] for b in batches]}", flush=True)
+        results.append(audit_set(entry, batches, args.out, args.workers, args.address))
+        atomic_write_json(log, {"draw_seed": args.draw_seed, "per_set": args.per_set, "results": results})
+    text = markdown(results, command, args.per_set, args.draw_seed, len(entries))
+    atomic_write_text(args.out / "audit.md", text)
+    if args.write:
+        atomic_write_text(REPORT, text)
+    print(text)
+    return 1 if any(r["mismatches"] for r in results) else 0
