@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from keras_rl.checkout import ROOT
+from keras_rl.report import plans
 from keras_rl.report.equivalence import CONVERGED_AT_END, Arm, framework_verdict
 from keras_rl.report.stats import censored_mann_whitney, fisher_exact, median_difference_ci
 from keras_rl.runs.files import atomic_write_text
@@ -150,7 +152,8 @@ def main() -> None:
         + ".",
         "",
     ]
-    text = "\n".join(lines)
+    disclosed = plans.disclosure(args.write.resolve().relative_to(ROOT).as_posix()) if args.write else ""
+    text = "\n".join(lines) + (f"\n{disclosed}" if disclosed else "")
     print(text)
     if args.write:
         atomic_write_text(args.write, text)

@@ -100,3 +100,19 @@ def test_the_check_spots_a_seed_run_before_its_plan(monkeypatch):
         "engines/pendulum/compiled": [5]
     }
     assert early_seeds(plans.Plan("x.md", {"engines/pendulum/compiled": range(6, 7)}), when) == {}
+
+
+def test_each_deviation_is_printed_in_its_reports_and_marks_its_forest_rows():
+    """Disclosed where its verdict is printed: each report it names carries its note, and the
+    forest's table marks each row it touches with its number and lists it."""
+    from keras_rl.report.plans import mark, notes
+
+    readme = (ROOT / "results" / "README.md").read_text()
+    for d in DEVIATIONS:
+        (note,) = notes([d])
+        for report in d.reports:
+            assert note in (ROOT / report).read_text(), (report, note)
+        assert note in readme  # the forest's block lists it
+        for verdict in d.verdicts:
+            group, label = verdict.split(": ", 1)
+            assert f"| {group} | {label}{mark(verdict)} |" in readme, verdict

@@ -32,6 +32,8 @@ class Deviation:
     """The disclosure, one or two sentences, as the reports print it."""
     verdicts: tuple[str, ...]
     """The verdicts it touches, as the forest names their rows ("group: label")."""
+    reports: tuple[str, ...] = ()
+    """The reports (under the repository root) that print it beside the verdict."""
     early: dict[str, range] = field(default_factory=dict)
     """Run set -> its seeds that started before the plan was committed."""
 
@@ -90,6 +92,7 @@ DEVIATIONS: tuple[Deviation, ...] = (
             "Keras vs PyTorch, the planned seeds: mountaincar, default init (200 planned)",
             "Keras vs PyTorch, the planned seeds: mountaincar, matched init (600 planned)",
         ),
+        ("results/README.md",),
         {"checks/mountaincar/baseline": range(30, 100)},
     ),
     Deviation(
@@ -98,6 +101,7 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "made for the Keras-against-PyTorch arm) started before this plan was committed (first at 18:47, "
         "the plan at 19:04 on 2026-11-25).",
         ("compiled engine vs Gymnasium loop: mountaincar",),
+        ("results/engines/mountaincar/report.md",),
         {"mountaincar/faithful-seeds-100-199": range(100, 145)},
     ),
     Deviation(
@@ -106,6 +110,7 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "the plan set: an interim look the plan does not provide for (`keras_rl/report/certified.py` takes none). "
         "The verdict stands at 600 seeds; the 200-seed reading is reported as the cause experiment only.",
         ("Keras vs PyTorch, the planned seeds: mountaincar, matched init (600 planned)",),
+        ("results/compare/mountaincar/cause.md", "results/README.md"),
     ),
 )
 
@@ -119,3 +124,27 @@ def deviations_reading(folders: list[str]) -> list[Deviation]:
     """The deviations whose early seeds lie in any of these run sets (what a report reads)."""
     wanted = set(folders)
     return [d for d in DEVIATIONS if wanted & set(d.early)]
+
+
+def number(deviation: Deviation) -> int:
+    """Its mark's number: its place in ``DEVIATIONS``, from 1."""
+    return DEVIATIONS.index(deviation) + 1
+
+
+def mark(verdict: str) -> str:
+    """The marks a verdict's row carries (" †1 †3"), or ""."""
+    return "".join(f" †{number(d)}" for d in deviations_of(verdict))
+
+
+def notes(deviations: list[Deviation]) -> list[str]:
+    """One line per deviation, as the reports and the forest print them."""
+    return [f"- †{number(d)} (`{d.plan}`): {d.text}" for d in deviations]
+
+
+def disclosure(report: str) -> str:
+    """The section a report prints about the deviations it touches ("" if none): ``report`` is its
+    path under the repository root."""
+    touching = [d for d in DEVIATIONS if report in d.reports]
+    if not touching:
+        return ""
+    return "\n".join(["## Deviations from the plan", "", *notes(touching), ""])

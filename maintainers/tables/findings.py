@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from keras_rl.checkout import ROOT
+from keras_rl.report import plans
 from keras_rl.report.markdown import replace_block, seed_span
 from keras_rl.report.stats import wilson_interval
 from keras_rl.report.tutorial_fix import FRAMEWORKS, TUTORIAL_FIXES
@@ -272,9 +273,11 @@ def compare_table() -> str:
             f"| {r['experiment']} ({r['variant']}) | {'matched to Keras' if r['matched_init'] else 'torch default'} "
             f"| {k['successes']}/{len(k['seeds'])} / {t['successes']}/{len(t['seeds'])} ({g(r['fisher_p'])}) "
             f"| {m(k['median'])} / {m(t['median'])} | {diff} | {g(r['mann_whitney'][1])} | {readings} "
-            f"| [{link}]({link}) | {_planned_cell(reading(planned[(r['experiment'], r['matched_init'])]))} |"
+            f"| [{link}]({link}) | {_planned_cell(reading(c := planned[(r['experiment'], r['matched_init'])]))}"
+            f"{plans.mark(f'Keras vs PyTorch, the planned seeds: {c.label} ({c.planned} planned)')} |"
         )
-    return "\n".join(lines)
+    disclosed = plans.disclosure("results/README.md")
+    return "\n".join(lines) + (f"\n\n{disclosed.rstrip()}" if disclosed else "")
 
 
 def _planned_cell(read: dict) -> str:

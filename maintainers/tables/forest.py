@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from keras_rl.checkout import ROOT
+from keras_rl.report import plans
 from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING
 
 RESULTS = ROOT / "results"
@@ -223,16 +224,21 @@ def table(data: list[dict[str, Any]]) -> str:
         "|---|---|---|---|---|",
     ]
     for r in data:
+        label = r["label"] + plans.mark(f"{r['group']}: {r['label']}")
         if r["pending"]:
             lines.append(
-                f"| {r['group']} | {r['label']} | {r['seeds']} so far | pending: no reading before "
+                f"| {r['group']} | {label} | {r['seeds']} so far | pending: no reading before "
                 "its planned seeds | pending |"
             )
             continue
         speed = _cell(r["speed"])
         if "speed_converged_at_end" in r:
             speed += f" (the code's reading, {CONVERGED_AT_END}: {_cell(r['speed_converged_at_end'])})"
-        lines.append(f"| {r['group']} | {r['label']} | {r['seeds']} | {_cell(r['success'])} | {speed} |")
+        lines.append(f"| {r['group']} | {label} | {r['seeds']} | {_cell(r['success'])} | {speed} |")
+    marked = [d for d in plans.DEVIATIONS if any(d in plans.deviations_of(f"{r['group']}: {r['label']}") for r in data)]
+    if marked:
+        lines += ["", "Deviations from the plans (`keras_rl/report/plans.py`), marked † on their rows:", ""]
+        lines += plans.notes(marked)
     return "\n".join(lines)
 
 
@@ -263,7 +269,11 @@ def draw(data: list[dict[str, Any]], path: Path) -> None:
     entries: list[tuple[str, dict[str, Any] | None]] = []  # (label, row), a heading's row None
     for group in dict.fromkeys(r["group"] for r in shown):  # each group once, in the order of its first row
         entries.append((_heading(group), None))
-        entries += [(f"{r['label']} ({r['seeds']} seeds)", r) for r in shown if r["group"] == group]
+        entries += [
+            (f"{r['label']} ({r['seeds']} seeds){plans.mark(group + ': ' + r['label'])}", r)
+            for r in shown
+            if r["group"] == group
+        ]
     height = 0.22 * len(entries) + 1.3
     fig, axes = plt.subplots(1, 2, figsize=(16, height), sharey=True)
     y = np.arange(len(entries))[::-1]
@@ -312,6 +322,7 @@ def draw(data: list[dict[str, Any]], path: Path) -> None:
     handles = [plt.Line2D([], [], color=c, marker="o", lw=2, label=k) for k, c in COLOURS.items()]
     handles.append(plt.Line2D([], [], color="0.3", marker=">", lw=0, label="interval continues past the axis"))
     handles.append(plt.Rectangle((0, 0), 1, 1, color="tab:green", alpha=0.15, label="margin set before the runs"))
+    handles.append(plt.Line2D([], [], lw=0, label="†N: a deviation from its plan (the table below)"))
     top = 1 - 0.95 / height  # about an inch above the panels: the title, then the legend
     fig.subplots_adjust(left=0.36, right=0.99, bottom=0.5 / height, top=top, wspace=0.06)
     fig.legend(handles=handles, fontsize=8, loc="lower center", ncol=5, bbox_to_anchor=(0.675, top + 0.25 / height))
