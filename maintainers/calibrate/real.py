@@ -91,29 +91,41 @@ def median_ratio(runs: np.ndarray, pool: np.ndarray, rng: np.random.Generator) -
     }
 
 
+def held_back_power(baseline: np.ndarray, pool: np.ndarray, budget: int, alpha: float, n: int) -> dict:
+    """n fresh seeds drawn from the pool without replacement, ``DRAWS`` times (from seed 52 + n):
+    how often they are flagged against the baseline at ``alpha`` unchanged (false alarms) and with
+    their episodes to threshold times 0.90 and 1.10 (a seed that never got there stays so)."""
+    rng = np.random.default_rng(52 + n)
+    fresh = np.stack([rng.choice(pool, n, replace=False) for _ in range(DRAWS)])
+    bases = np.broadcast_to(baseline, (DRAWS, len(baseline)))
+    row = {"n": n, "false_alarms": float(changed_many(bases, fresh, "episodes_to_threshold", alpha).mean())}
+    for shift in SHIFTS:
+        moved = np.where(fresh > budget, budget + 1, np.minimum(np.round(fresh * shift), budget + 1))
+        row[f"x{shift:.2f}"] = float(changed_many(bases, moved, "episodes_to_threshold", alpha).mean())
+    return row
+
+
 def sizes(baseline: np.ndarray, pool: np.ndarray, budget: int, alpha: float, seed_minutes: float) -> list[dict]:
-    """For each fresh-seed count: power against x0.90 and x1.10 and the false-alarm rate, n seeds
-    drawn from the pool without replacement, ``DRAWS`` times each, at ``alpha``."""
-    rng = np.random.default_rng(52)
-    rows = []
-    for n in SIZES:
-        if n >= len(pool):
-            continue
-        fresh = np.stack([rng.choice(pool, n, replace=False) for _ in range(DRAWS)])
-        bases = np.broadcast_to(baseline, (DRAWS, len(baseline)))
-        row = {"n": n, "minutes": n * seed_minutes / WORKERS}
-        row["false_alarms"] = float(changed_many(bases, fresh, "episodes_to_threshold", alpha).mean())
-        for shift in SHIFTS:
-            moved = np.where(fresh > budget, budget + 1, np.minimum(np.round(fresh * shift), budget + 1))
-            row[f"x{shift:.2f}"] = float(changed_many(bases, moved, "episodes_to_threshold", alpha).mean())
-        rows.append(row)
-    return rows
+    """``held_back_power`` for each fresh-seed count of ``SIZES`` the pool can give, with the
+    minutes its fresh seeds take on ``WORKERS`` workers."""
+    return [
+        {**held_back_power(baseline, pool, budget, alpha, n), "minutes": n * seed_minutes / WORKERS}
+        for n in SIZES
+        if n < len(pool)
+    ]
+
+
+def pool_values(post: str) -> np.ndarray | None:
+    """Each unchanged seed's statistic (the post's sensitive rule's) from its no-change pool, or None."""
+    rule = RULES[(post, TIER)]
+    folders = folders_under(CHECKS / post / "no-change")
+    return values(post, rule.statistic, rule.episodes, runs_of(folders)[0]) if folders else None
 
 
 def post_entry(post: str) -> dict:
     rule = RULES[(post, TIER)]
     base = values(post, rule.statistic, rule.episodes, load(CHECKS / post / rule.baseline))
-    pool_rows, pool_seeds, pool_walls = runs_of(folders_under(CHECKS / post / "no-change"))
+    _, pool_seeds, pool_walls = runs_of(folders_under(CHECKS / post / "no-change"))
     entry: dict = {
         "rule": {"statistic": rule.statistic, "alpha": rule.alpha, "seeds": rule.seeds, "episodes": rule.episodes},
         "baseline": f"results/checks/{post}/{rule.baseline}",
@@ -123,7 +135,8 @@ def post_entry(post: str) -> dict:
     }
     if not pool_seeds:
         return entry
-    pool = values(post, rule.statistic, rule.episodes, pool_rows)
+    pool = pool_values(post)
+    assert pool is not None
     entry["no_change"] = both_levels(base, pool, rule)
     seed_minutes = float(np.median(pool_walls)) / 60
     entry["seed_minutes"] = seed_minutes
@@ -273,7 +286,7 @@ def run(args: argparse.Namespace) -> int:
     atomic_write_json(OUT, data)
     page = CHECKS / "calibration.md"
     current = page.read_text()
-    if BEGIN not in current:
+    if BEGIN not in current:  # where ``calibrate/rules.markdown`` puts it: after the sensitive tier's block
         current = current.rstrip("\n") + f"\n\n{HEADING}\n\n{BEGIN}\n{END}\n"
     atomic_write_text(page, replace_block(current, BEGIN, END, text))
     print(f"updated {OUT} and {page}")

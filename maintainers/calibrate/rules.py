@@ -352,6 +352,19 @@ def sensitive_block() -> str:
     return f"{HEADING}\n\n{BEGIN}\n{text}\n{END}"
 
 
+def real_block() -> str:
+    """The sensitive tier on real runs (``maintainers/calibrate/real.py --write``), kept across rewrites."""
+    from keras_rl.check.command import SENSITIVE_RATES
+    from maintainers.calibrate.real import BEGIN, END, HEADING, OUT, render
+
+    text = (
+        render(json.loads(OUT.read_text()), json.loads(SENSITIVE_RATES.read_text())["posts"])
+        if OUT.is_file() and SENSITIVE_RATES.is_file()
+        else "Not computed yet: run python -m maintainers calibrate real --write"
+    )
+    return f"{HEADING}\n\n{BEGIN}\n{text}\n{END}\n"
+
+
 def markdown(results: dict) -> str:
     lines = [
         "# Error rates of `keras-rl check`'s rules",
@@ -448,7 +461,7 @@ def markdown(results: dict) -> str:
             lines.append("")
             if "held_back" in entry:
                 lines += held_back_table(entry["held_back"], rule)
-    lines += [held_out_block(), "", sensitive_block()]
+    lines += [held_out_block(), "", sensitive_block(), "", real_block()]
     return "\n".join(lines)
 
 

@@ -36,6 +36,7 @@ import numpy as np
 from keras_rl.check.rules import HELD_OUT, MUTANTS, RULES
 from keras_rl.check.statistics import changed_many, check_false_alarm_rate, family_false_alarm_rate, power
 from keras_rl.checkout import ROOT
+from maintainers.calibrate import real
 from maintainers.calibrate.runs import CHECKS, HOLM_LEVEL, TUNE, choose, halved, load, measure, power_cells, values
 
 POSTS = ("pendulum", "cartpole", "mountaincar")
@@ -91,9 +92,17 @@ def post_entry(post: str) -> dict:
         ).rate,
     }
     if rule.statistic == "episodes_to_threshold":
-        rates["shift_power"] = {
-            f"x{s:.2f}": shift_power(base, rule.seeds, rule.episodes, s, rule.alpha / HOLM_LEVEL, rng) for s in SHIFTS
-        }
+        pool = real.pool_values(post)
+        if pool is not None:  # held-back seeds no baseline holds (issue 52 item 4): the figure real.py tables
+            row = real.held_back_power(base, pool, rule.episodes, rule.alpha / HOLM_LEVEL, rule.seeds)
+            rates["shift_power"] = {f"x{s:.2f}": row[f"x{s:.2f}"] for s in SHIFTS}
+            entry["shift_power_from"] = f"{len(pool)} held-back unchanged seeds (results/checks/{post}/no-change)"
+        else:
+            rates["shift_power"] = {
+                f"x{s:.2f}": shift_power(base, rule.seeds, rule.episodes, s, rule.alpha / HOLM_LEVEL, rng)
+                for s in SHIFTS
+            }
+            entry["shift_power_from"] = "the baseline's own seeds"
     held = {}
     for m in HELD_OUT[post]:
         folder = CHECKS / post / "held-out" / m.name
@@ -144,13 +153,17 @@ def render(data: dict) -> str:
         "(`results/checks/sensitive_plan.md`, `results/checks/sensitive_plan_cartpole.md`).",
         "",
         "| post | statistic (first episodes) | engine | n fresh | baseline | false alarms at alpha 0.01 "
-        "| at alpha / 3 | power, median x0.90 / x1.10 (at alpha / 3) |",
+        "| at alpha / 3 | power, median x0.90 / x1.10 (at alpha / 3; fresh seeds drawn from) |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for post, p in posts.items():
         r, rates = p["rule"], p["rates"]
         shift = rates.get("shift_power")
-        moved = f"{shift['x0.90']:.2f} / {shift['x1.10']:.2f}" if shift else "- (not episodes to threshold)"
+        moved = (
+            f"{shift['x0.90']:.2f} / {shift['x1.10']:.2f} ({p['shift_power_from']})"
+            if shift
+            else "- (not episodes to threshold)"
+        )
         lines.append(
             f"| {post} | {r['statistic']} ({r['episodes']}) | {r['engine']} | {r['seeds']} | {p['baseline_seeds']} "
             f"(`{r['baseline']}`) | {rates['false_alarm_rate']:.2%} | {rates['false_alarm_holm_first']:.2%} | {moved} |"
