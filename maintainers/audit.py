@@ -14,8 +14,9 @@ batch reruns and its drawn seed is compared. Each rerun goes through ``manifest.
 (as ``manifest --regenerate``), at HEAD; a set that HEAD no longer makes the same bits for by
 design (``AT_RECORDED_COMMIT``: a retired path, a fixed bug) reruns at its seed's recorded commit,
 in a temporary ``git worktree`` with that commit's own ``keras_rl``, as ``keras-rl bisect`` does.
-Resumable: a rerun folder under ``--out`` resumes, and ``audit.json`` keeps each set's result as it
-lands. A seed that differs is explained where the host explains it (another CPU model or
+``--workers N`` audits N sets at once, each batch one job (on a Ray cluster with ``--address``).
+Resumable: a rerun folder under ``--out`` resumes, and ``audit.json`` keeps each set's result as
+it lands. A seed that differs is explained where the host explains it (another CPU model or
 instruction set than the run recorded: ``replay.why_not_bit_exact``); any other is a mismatch,
 and the command exits 1.
 """
@@ -28,6 +29,8 @@ import os
 import shutil
 import subprocess
 import tempfile
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -153,15 +156,25 @@ def run(args: argparse.Namespace) -> int:
         + (" --sets " + " ".join(f"'{p}'" for p in args.sets) if args.sets else "")
         + " --out OUT"
     )
-    results = []
-    for i, entry in enumerate(entries, 1):
+    finished = {
+        e["set"]: done[e["set"]] for e in entries if e["set"] in done and done[e["set"]]["batches"] == drawn[e["set"]]
+    }
+    todo = [e for e in entries if e["set"] not in finished]
+    lock = threading.Lock()
+
+    def one(entry: dict) -> None:
         batches = drawn[entry["set"]]
-        if entry["set"] in done and done[entry["set"]]["batches"] == batches:
-            results.append(done[entry["set"]])
-            continue
-        print(f"[{i}/{len(entries)}] {entry['set']}: seeds {[b[0] for b in batches]}", flush=True)
-        results.append(audit_set(entry, batches, args.out, args.workers, args.address))
-        atomic_write_json(log, {"draw_seed": args.draw_seed, "per_set": args.per_set, "results": results})
+        # a set's batch is one job: --workers sets at once (on Ray, each job on the cluster)
+        result = audit_set(entry, batches, args.out, 1, args.address)
+        with lock:
+            finished[entry["set"]] = result
+            ordered = [finished[e["set"]] for e in entries if e["set"] in finished]
+            atomic_write_json(log, {"draw_seed": args.draw_seed, "per_set": args.per_set, "results": ordered})
+            print(f"[{len(finished)}/{len(entries)}] {entry['set']}: seeds {[b[0] for b in batches]}", flush=True)
+
+    with ThreadPoolExecutor(max_workers=args.workers) as pool:
+        list(pool.map(one, todo))
+    results = [finished[e["set"]] for e in entries]
     text = markdown(results, command, args.per_set, args.draw_seed, len(entries))
     atomic_write_text(args.out / "audit.md", text)
     if args.write:
