@@ -109,7 +109,7 @@ def plan(study: Study) -> list[str]:
     """How each seed starts (``new``, ``overwrite``, ``resume`` or ``keep``), after every check
     of the study against the disk and the engine: a ConfigError (or RunFolderError) names the
     first problem, before anything is written or TensorFlow is loaded."""
-    from keras_rl.runs.lifecycle import _start_modes
+    from keras_rl.runs.lifecycle import _start_modes, check_keepable, check_resumable
     from keras_rl.runs.packed import refuse_packed
 
     experiment, config = study.experiment, study.config
@@ -133,6 +133,10 @@ def plan(study: Study) -> list[str]:
     study.options.check_address()  # now that the input is good: is the cluster there?
     check_seed_batch(study.options.seed_batch, experiment.name, config.framework)  # type: ignore[attr-defined]
     check_engine(study.options.engine, experiment, config)
+    # what the run would refuse of the folders it keeps or resumes, refused here (a dry run too)
+    triples = list(zip(study.seeds, study.seed_dirs(), modes))
+    check_keepable(config, [(s, d) for s, d, m in triples if m == "keep"])
+    check_resumable([(s, d) for s, d, m in triples if m == "resume"], study.options.engine)
     return modes
 
 

@@ -331,3 +331,23 @@ def test_the_resume_extension_and_closing_rules_are_written_once_for_every_engin
         text = (root / engine).read_text()
         for restated in ("check_resume_config(self.out_dir", "< wanted[", 'episodes.csv",', "stopped by {by}"):
             assert restated not in text, (engine, restated)
+
+
+def test_a_dry_run_refuses_what_the_real_run_would_and_touches_nothing(tmp_path):
+    """Issue 54 item 18: a completed seed that --resume would keep but another config made, and a
+    checkpoint another engine wrote, are refused by ``--dry-run`` as by the run itself (exit 2,
+    the same words), before anything runs."""
+    out = tmp_path / "run"
+    done = subprocess.run(args("pendulum", "keras", 3, out), capture_output=True, text=True, timeout=300)
+    assert done.returncode in (0, 1), done.stderr
+    before = {p.name: p.read_bytes() for p in (out / "seed_2").iterdir()}
+    for extra, says in (
+        (["--episodes", "2"], "was made with a different config (episodes=3 here, 2 wanted)"),
+        (["--episodes", "5", "--engine", "compiled"], "checkpoint was written by the gymnasium engine"),
+    ):
+        command = [*args("pendulum", "keras", 3, out)[:-2], "--out", str(out), "--resume", *extra]
+        dry = subprocess.run([*command, "--dry-run"], capture_output=True, text=True, timeout=300)
+        assert dry.returncode == 2 and says in dry.stderr, dry.stderr
+        real = subprocess.run(command, capture_output=True, text=True, timeout=300)
+        assert real.returncode == 2 and says in real.stderr, real.stderr
+    assert {p.name: p.read_bytes() for p in (out / "seed_2").iterdir()} == before

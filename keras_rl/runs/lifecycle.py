@@ -90,17 +90,16 @@ def _extendable(seed_dir: Path, episodes: int) -> bool:
     return summary.episodes_run == summary.budget_episodes < episodes and not stopped_early
 
 
-def _kept_runs(base, seeds_and_dirs: list) -> list:
-    """The summaries of the completed seeds ``--resume`` keeps; refuses a completed run made
-    by another config or code version, which must not join the set unnoticed."""
+def check_keepable(base, seeds_and_dirs: list) -> None:
+    """A ConfigError for a completed seed ``--resume`` would keep that another config or code
+    version made, which must not join the set unnoticed (``plan`` and the run both ask)."""
     from keras_rl.errors import RunFolderError
     from keras_rl.runs.provenance import code_version
     from keras_rl.runs.reuse import check_reusable
-    from keras_rl.runs.summary import RunSummary
 
     if not seeds_and_dirs:
-        return []
-    kept, version = [], code_version()
+        return
+    version = code_version()
     for seed, seed_dir in seeds_and_dirs:
         try:
             check_reusable(seed_dir, base.replace(seed=seed), version)
@@ -109,9 +108,44 @@ def _kept_runs(base, seeds_and_dirs: list) -> list:
                 f"--resume keeps completed seeds, but {str(exc).split('; ')[0]}; "
                 "use --overwrite to run it again, or --out for another folder"
             ) from None
+
+
+def _kept_runs(base, seeds_and_dirs: list) -> list:
+    """The summaries of the completed seeds ``--resume`` keeps (``check_keepable`` first)."""
+    from keras_rl.runs.summary import RunSummary
+
+    check_keepable(base, seeds_and_dirs)
+    kept = []
+    for seed, seed_dir in seeds_and_dirs:
         print(f"seed {seed}: already completed in {seed_dir}, kept", file=sys.stderr)
         kept.append(RunSummary.read(seed_dir))
     return kept
+
+
+def check_checkpoint_engine(out_dir: Path, state: dict, engine: str) -> None:
+    """A RunFolderError where the checkpoint ``state`` of ``out_dir`` was written by another
+    engine than the one asked to resume it (every engine's rule, and ``plan``'s)."""
+    from keras_rl.errors import RunFolderError
+
+    wrote = state.get("engine", "gymnasium")
+    if wrote != engine:
+        raise RunFolderError(
+            f"{out_dir}'s checkpoint was written by the {wrote} engine; resume it with --engine {wrote}, "
+            "or pass --overwrite to start again"
+        )
+
+
+def check_resumable(seeds_and_dirs: list, engine: str) -> None:
+    """What resuming these seed folders would refuse, found before anything runs: a checkpoint
+    of another engine, of a batch this command does not resume whole, or unreadable."""
+    from keras_rl.runs.checkpoint import checkpoint_batch, read_batch_checkpoints
+
+    for _, seed_dir in seeds_and_dirs:
+        batch = checkpoint_batch(seed_dir)
+        if len(batch) > 1:  # a batch's checkpoints are checked together when it resumes
+            continue
+        (state,) = read_batch_checkpoints([seed_dir], batch)
+        check_checkpoint_engine(seed_dir, state, engine)
 
 
 def check_resume_config(out_dir: Path, wanted: dict, theirs: dict, played: int) -> None:

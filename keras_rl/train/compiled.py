@@ -40,12 +40,13 @@ import numpy as np
 import tensorflow as tf
 
 from keras_rl.agents.skeleton import EpisodeStats, LossTally
-from keras_rl.errors import ConfigError, NonFiniteLossError, RunFolderError
+from keras_rl.errors import ConfigError, NonFiniteLossError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.common import step_function
 from keras_rl.learners.table import implementation
 from keras_rl.rngs import global_rng_state, rng_state, set_global_rng_state, set_rng_state
 from keras_rl.runs.checkpoint import VERSION, delete_checkpoints, read_batch_checkpoints, write_checkpoint
+from keras_rl.runs.lifecycle import check_checkpoint_engine
 from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import configure_tensorflow, seed_everything
 from keras_rl.tf_envs import MAX_STEPS, CartPole, MountainCarContinuous, Pendulum
@@ -313,11 +314,7 @@ class CompiledRun:
     def _restore(self) -> None:
         out_dir = self.life.out_dir
         (state,) = read_batch_checkpoints([out_dir], [self.config.seed])
-        if state.get("engine") != ENGINE:
-            raise RunFolderError(
-                f"{out_dir}'s checkpoint was written by the {state.get('engine', 'gymnasium')} engine; "
-                "resume it with that engine (--engine), or pass --overwrite to start again"
-            )
+        check_checkpoint_engine(out_dir, state, ENGINE)
         seed, own = state["seed"], state["engine_state"]
         self.life.resume(seed)  # first: a config the learner's state would not fit is refused, naming the field
         self.learner.load_state_dict(own["learner"])

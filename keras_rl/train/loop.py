@@ -45,12 +45,13 @@ from typing import Any
 import numpy as np
 
 from keras_rl.config import check_same_but_seed
-from keras_rl.errors import ConfigError, NonFiniteLossError, RunFolderError
+from keras_rl.errors import ConfigError, NonFiniteLossError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.axis import SeedAxisLearner
 from keras_rl.learners.table import implementation, stacked_implementation
 from keras_rl.rngs import global_rng_state, set_global_rng_state
 from keras_rl.runs.checkpoint import delete_checkpoints, read_batch_checkpoints, write_checkpoint
+from keras_rl.runs.lifecycle import check_checkpoint_engine
 from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import configure_tensorflow, seed_everything
 from keras_rl.train.life import SeedLife, checkpoint_at_close, interruption, live
@@ -108,12 +109,7 @@ def run_seeds(
     state = _Batch(seeds, axis, settings.checkpoint_every, batch)
     if settings.resume:
         checkpoints = read_batch_checkpoints([s.recorder.out_dir for s in seeds], batch)
-        engine = checkpoints[0].get("engine", "gymnasium")
-        if engine != "gymnasium":
-            raise RunFolderError(
-                f"{seeds[0].recorder.out_dir}'s checkpoint was written by the {engine} engine; resume it "
-                f"with --engine {engine}, or pass --overwrite to start again"
-            )
+        check_checkpoint_engine(seeds[0].recorder.out_dir, checkpoints[0], "gymnasium")
         state.restore(checkpoints)
     return live(experiment, configs, seeds, settings, lambda flag, bar: state.loop(flag, bar, should_stop), state.close)
 
