@@ -30,6 +30,7 @@ import shutil
 import subprocess
 import tempfile
 import threading
+import zlib
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -47,27 +48,36 @@ REPORT = RESULTS / "AUDIT.md"
 
 
 def draw(entries: list[dict], per_set: int, draw_seed: int) -> dict[str, list[list[int]]]:
-    """Set -> the batches drawn from it (``per_set`` of them, or all it has), in manifest order."""
-    rng = np.random.default_rng(draw_seed)
+    """Set -> the batches drawn from it (``per_set`` of them, or all it has). Each set's draw has a
+    generator of its own, seeded by ``draw_seed`` and the set's name, so a set draws the same
+    batches whichever other sets an audit takes (``--sets``)."""
     drawn = {}
     for entry in entries:
         batches = entry["batches"]
+        rng = np.random.default_rng([draw_seed, zlib.crc32(entry["set"].encode())])
         picks = rng.choice(len(batches), size=min(per_set, len(batches)), replace=False)
         drawn[entry["set"]] = [batches[i] for i in sorted(int(p) for p in picks)]
     return drawn
 
 
-def _at_commit(commit: str, command: list[str], cwd: Path) -> int:
-    """Run ``command`` (a ``python -m keras_rl`` line) with ``commit``'s own keras_rl, in a
-    temporary worktree that is removed afterwards."""
+_GIT = threading.Lock()
+"""``git worktree`` edits the repository's worktree list: one at a time across ``--workers`` threads."""
+
+
+def _at_commit(commit: str, command: list[str]) -> int:
+    """Run ``command`` (a ``python -m keras_rl`` line, its paths absolute) with ``commit``'s own
+    keras_rl: from a temporary worktree at that commit (``python -m`` puts the working folder
+    first on the path, as ``keras-rl bisect`` relies on), removed afterwards."""
     worktree = Path(tempfile.mkdtemp(prefix="keras-rl-audit-"))
     shutil.rmtree(worktree)
-    subprocess.run(["git", "worktree", "add", "--detach", str(worktree), commit], cwd=ROOT, check=True)
+    with _GIT:
+        subprocess.run(["git", "worktree", "add", "--detach", str(worktree), commit], cwd=ROOT, check=True)
     try:
         env = {**os.environ, "PYTHONPATH": str(worktree)}
-        return subprocess.run(command, cwd=cwd, env=env).returncode
+        return subprocess.run(command, cwd=worktree, env=env).returncode
     finally:
-        subprocess.run(["git", "worktree", "remove", "--force", str(worktree)], cwd=ROOT, check=False)
+        with _GIT:
+            subprocess.run(["git", "worktree", "remove", "--force", str(worktree)], cwd=ROOT, check=False)
 
 
 def audit_set(entry: dict, batches: list[list[int]], out: Path, workers: int, address: str | None = None) -> dict:
@@ -83,7 +93,7 @@ def audit_set(entry: dict, batches: list[list[int]], out: Path, workers: int, ad
         if entry["set"] in AT_RECORDED_COMMIT:
             commit = committed.run(batch[0]).summary_record()["provenance"]["commit"]
             where = f"recorded commit {commit[:8]} ({AT_RECORDED_COMMIT[entry['set']]})"
-            codes.append(_at_commit(commit, command, ROOT))
+            codes.append(_at_commit(commit, command))
         else:
             codes.append(subprocess.run(command, cwd=ROOT).returncode)
     seeds = [batch[0] for batch in batches]
@@ -138,9 +148,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.per_set < 1:
         raise ConfigError(f"--per-set must be at least 1, got {args.per_set}")
+    if args.workers < 1:
+        raise ConfigError(f"--workers must be at least 1, got {args.workers}")
     if args.out is None:
         raise ConfigError("audit needs --out: a fresh folder, or one to resume")
-    if args.out.resolve().is_relative_to(RESULTS.resolve()):
+    args.out = args.out.resolve()  # the reruns' paths hold from any working folder (a worktree's too)
+    if args.out.is_relative_to(RESULTS.resolve()):
         raise ConfigError("--out must not be inside results/: the reruns are compared with it, never written over it")
     entries = manifest()
     if args.sets:

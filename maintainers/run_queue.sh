@@ -19,9 +19,15 @@ if [[ -n "$(git status --porcelain --untracked-files=no)" ]]; then
   echo "run_queue: the worktree has uncommitted changes; long runs start from a committed version" >&2
   exit 2
 fi
-while IFS=$'\t' read -r out args; do
+while IFS=$'\t' read -r -u 3 out args; do
   [[ -z "$out" || "$out" == \#* ]] && continue
-  if [[ -f "$out/runs.parquet" ]]; then echo "run_queue: $out is packed already"; continue; fi
+  if git ls-files --error-unmatch "$out/runs.parquet" >/dev/null 2>&1; then
+    echo "run_queue: $out is committed already"; continue
+  fi
+  if [[ -f "$out/runs.parquet" ]]; then  # packed, then stopped before its commit
+    git add "$out" && git commit -q -m "long run landed: $out (keras-rl $args --resume --out $out)"
+    continue
+  fi
   echo "run_queue: $(date -u +%FT%TZ) starting $out"
   # shellcheck disable=SC2086  # the arguments are one line of plain words by design
   .venv/bin/keras-rl $args --resume --out "$out"
@@ -34,4 +40,4 @@ while IFS=$'\t' read -r out args; do
   git add "$out"
   git commit -q -m "long run landed: $out (keras-rl $args --resume --out $out)"
   echo "run_queue: $(date -u +%FT%TZ) committed $out"
-done < "$queue"
+done 3< "$queue"

@@ -152,7 +152,8 @@ def main() -> None:
         + ".",
         "",
     ]
-    disclosed = plans.disclosure(args.write.resolve().relative_to(ROOT).as_posix()) if args.write else ""
+    inside = args.write is not None and args.write.resolve().is_relative_to(ROOT)
+    disclosed = plans.disclosure(args.write.resolve().relative_to(ROOT).as_posix()) if inside else ""
     text = "\n".join(lines) + (f"\n{disclosed}" if disclosed else "")
     print(text)
     if args.write:

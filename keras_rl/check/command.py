@@ -613,8 +613,13 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
             f"the table, at {level} against its whole baseline, {'; '.join(methods)}, "
             "combined as independent tests; the same computation as results/checks/family.json)."
             + (
-                " **Above alpha**: the rank test's normal approximation, with the ties of seeds that never reached "
-                "the threshold, is not exact on this baseline; a larger baseline or more fresh seeds brings it down."
+                " **Above alpha**: on this baseline the test is not exact at this level ("
+                + (
+                    "Fisher's test on few seeds"
+                    if any(r.rule.statistic == "success" for r in results)
+                    else "the rank test's normal approximation, with the ties of seeds that never reached the threshold"
+                )
+                + "); a larger baseline or more fresh seeds brings it down."
                 if above
                 else ""
             ),

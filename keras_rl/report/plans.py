@@ -22,6 +22,10 @@ class Plan:
     """The plan, under the repository root."""
     governs: dict[str, range | None]
     """Run set under results/ -> the seeds the plan governs in it (None: every seed it holds)."""
+    section: str = ""
+    """A section added to the plan later, before its own runs: it governs from ``commit`` on."""
+    commit: str | None = None
+    """The commit whose time the seeds must follow (None: the one that added ``path``)."""
 
 
 @dataclass(frozen=True)
@@ -73,12 +77,19 @@ PLANS: tuple[Plan, ...] = (
             "checks/pendulum/no-change/seeds-10800-10999": None,
             "checks/pendulum/held-out-seeds-3200-3499/noise_sigma_x2": None,
             "checks/pendulum/held-out-seeds-3200-3499/batch_32": None,
+        },
+    ),
+    Plan(
+        "results/checks/real_checks_plan.md",
+        {
             "checks/mountaincar/no-change/seeds-20000-20199": None,
             **{
                 f"checks/mountaincar/held-out-seeds-30-109/{m}": None
                 for m in ("actor_lr_x3", "train_start_x2", "batch_64", "input_noise_x0.5")
             },
         },
+        section="Post 001 and post 003",
+        commit="0b012ef9",
     ),
 )
 

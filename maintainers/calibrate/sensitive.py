@@ -13,9 +13,12 @@ The tier's sizes were computed before its runs (``reproductions/sensitive_plan.p
   (``statistics.check_false_alarm_rate``), at alpha (a one-post command) and alpha / 3 (Holm's
   first level in the three-post command), and the command's rate with Holm, the posts' seeds
   being independent runs.
-- **A 10% move** (posts whose statistic is episodes to threshold): n of the baseline's own seeds
-  drawn with replacement, their episodes times 0.90 or 1.10 (rounded; past the budget they never
-  got there), tested against the whole baseline, ``SHIFT_DRAWS`` times, at alpha / 3.
+- **A 10% move** (posts whose statistic is episodes to threshold): n fresh seeds, their episodes
+  times 0.90 or 1.10 (rounded; past the budget they never got there), tested against the whole
+  baseline at alpha / 3. Where the post has a no-change pool of seeds no baseline holds (post 000,
+  ``calibrate/real.py``), they are drawn from it without replacement (``real.held_back_power``, the
+  figure ``calibrate real`` tables); otherwise from the baseline's own seeds with replacement,
+  ``SHIFT_DRAWS`` times.
 - **Post 001's statistic**: chosen among the rule's candidates by the rules' pre-registered
   criterion (``calibrate/runs.choose``) on the tuning mutants' seeds 0-14 (``MUTANTS``), at the
   tier's 40 fresh seeds; ``tests/test_sensitive_tier.py`` fails if the rule is not the one chosen.
