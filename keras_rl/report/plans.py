@@ -42,6 +42,15 @@ class Deviation:
     """Run set -> its seeds that started before the plan was committed."""
 
 
+def _queue(name: str) -> list[str]:
+    """The sets a committed queue of long runs makes (``maintainers/queues/<name>``)."""
+    from keras_rl.checkout import ROOT
+
+    path = ROOT / "maintainers" / "queues" / name
+    lines = path.read_text().splitlines() if path.is_file() else []
+    return [line for line in lines if line.strip() and not line.startswith("#")]
+
+
 _PILOT = range(30, 10**6)
 """results/compare/seed_plan.md was sized from the 30-seed arms (seeds 0-29): it governs seeds 30 on."""
 
@@ -90,6 +99,10 @@ PLANS: tuple[Plan, ...] = (
         },
         section="Post 001 and post 003",
         commit="0b012ef9",
+    ),
+    Plan(  # issue 52 item 5: the runs that settle the inconclusive quirk ablations
+        "results/ablation_plan.md",
+        {line.split("\t")[0].removeprefix("results/"): None for line in _queue("ablations.tsv")},
     ),
 )
 
