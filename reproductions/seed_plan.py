@@ -61,7 +61,9 @@ def observed(post: str, matched: bool) -> dict:
     arms = {}
     for framework, arm in result["frameworks"].items():
         n = len(arm["seeds"])
-        hits = [int(e) for e in arm["episodes_to_threshold"]]
+        # the plan was drawn (2026-11-24) from the list the report kept then: the code's reading before
+        # issue 52, which result.json keeps beside the plans' reading where the two differ (post 001)
+        hits = [int(e) for e in arm.get("before_issue_52", arm)["episodes_to_threshold"]]
         arms[framework] = {
             "seeds": n,
             "successes": int(arm["successes"]),

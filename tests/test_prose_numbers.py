@@ -129,6 +129,16 @@ def fits(table: str) -> dict[str, str]:
     return {r[0].strip(): r[2].strip() for r in rows}
 
 
+def ablation(point: str) -> dict:
+    rows = json.loads((RESULTS / "mountaincar" / "ablations" / "sweep.json").read_text())["points"]
+    return next(r for r in rows if r["point"] == point)
+
+
+def signed(d: dict) -> str:
+    """A median difference as the FIDELITY table writes it: +18 [+15, +23]."""
+    return f"{d['estimate']:+g} [{d['low']:+g}, {d['high']:+g}]"
+
+
 def compare_001(matched: bool) -> dict:
     return json.loads(
         (RESULTS / "compare" / "mountaincar" / ("matched-init" if matched else "") / "result.json").read_text()
@@ -315,6 +325,30 @@ CLAIMS: list[Claim] = [
         "docs/findings.md",
         "inconclusive too (Mann-Whitney p = {:.2f})",
         lambda: (compare_001(True)["mann_whitney"][1],),
+    ),
+    (
+        "docs/findings.md",
+        "median episode {:g} vs {:g} by the plan's reading (the code's reading, over the converged seeds: "
+        "{:g} vs {:g})",
+        lambda: (
+            *(compare_001(False)["frameworks"][fw]["median"] for fw in ("keras", "torch")),
+            *(
+                compare_001(False)["frameworks"][fw].get("before_issue_52", compare_001(False)["frameworks"][fw])[
+                    "median"
+                ]
+                for fw in ("keras", "torch")
+            ),
+        ),
+    ),
+    # post 001's ablations (results/mountaincar/ablations/sweep.json, the FIDELITY table's rows)
+    (
+        "reproductions/FIDELITY.md",
+        "median difference {} episodes by the plan's reading (each seed's first passing episode), {} by the "
+        "code's reading before issue 52",
+        lambda: (
+            signed(ablation("actor_gradient=dpg_intended")["median_difference"]),
+            signed(ablation("actor_gradient=dpg_intended")["before_issue_52"]["median_difference"]),
+        ),
     ),
 ]
 

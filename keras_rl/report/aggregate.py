@@ -9,6 +9,7 @@ import numpy as np
 
 from keras_rl.errors import RunFolderError
 from keras_rl.registry import get_experiment
+from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm
 from keras_rl.report.plots import plot_seed_curve, plt, save_figure
 from keras_rl.report.stats import episodes_to_threshold_stats
 from keras_rl.runs.files import atomic_write_text
@@ -39,7 +40,11 @@ def write_aggregate(
             rows = runs[s.seed].rows(expected_rows=s.rows_expected)
             if rows:
                 curves[s.seed] = rows
-    stats = episodes_to_threshold_stats([s.reached_at_episode for s in summaries], [s.success for s in summaries])
+    # one set, no comparison: its summary.md counts the seeds that succeeded, and where the plans'
+    # reading (each seed's first passing episode, which compare and sweep report) differs, says it
+    arm = Arm.of(summaries)
+    stats = episodes_to_threshold_stats(arm, CONVERGED_AT_END)
+    plans = episodes_to_threshold_stats(arm, FIRST_PASSING)
     walls = [s.wall_seconds for s in summaries]
     lines = [
         f"# {title}",
@@ -53,6 +58,15 @@ def write_aggregate(
         f"| {_fmt(stats['max'])} | {np.median(walls):.1f} |",
         "",
     ]
+    if plans["episodes_to_threshold"] != stats["episodes_to_threshold"]:
+        lines += [
+            f"Episodes to threshold above count the seeds that succeeded ({CONVERGED_AT_END}: the code's reading "
+            f"before issue 52). By the plans' reading (each seed's {FIRST_PASSING}, "
+            f"{len(plans['episodes_to_threshold'])} seeds), which `compare` and `sweep` report: "
+            f"median {_fmt(plans['median'])}, IQR "
+            f"{_fmt(plans['q25'])}-{_fmt(plans['q75'])}, range {_fmt(plans['min'])}-{_fmt(plans['max'])}.",
+            "",
+        ]
     if post_reference:
         lines += [post_reference, ""]
     lines += [

@@ -15,7 +15,7 @@ from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import compared_frameworks, frameworks
 from keras_rl.registry import get_experiment
-from keras_rl.report.equivalence import Arm, framework_verdict
+from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm, framework_verdict
 from keras_rl.report.plots import plt, save_figure
 from keras_rl.report.stats import (
     censored_mann_whitney,
@@ -52,11 +52,18 @@ def load_runs(folder: Path, seeds: list[int]) -> list[dict[str, Any]]:
 
 
 def analyse(runs: dict[str, list[dict[str, Any]]], budget: int) -> dict[str, Any]:
-    """Every number in the report, computed from the run folders' CSVs and summaries."""
+    """Every number in the report, computed from the run folders' CSVs and summaries.
+
+    Episodes to threshold (median, IQR, each seed's list, the median difference) are by the
+    plans' reading (``FIRST_PASSING``), as the Mann-Whitney test and the verdict are; where the
+    code's reading before issue 52 (``CONVERGED_AT_END``) differs, its numbers are kept beside
+    (``before_issue_52``, ``median_difference_before_issue_52``), not governing."""
     out: dict[str, Any] = {"frameworks": {}}
+    old: dict[str, dict[str, Any]] = {}
     for framework, rs in runs.items():
         summaries: list[RunSummary] = [r["summary"] for r in rs]
-        stats = episodes_to_threshold_stats([s.reached_at_episode for s in summaries], [s.success for s in summaries])
+        stats = episodes_to_threshold_stats(Arm.of(summaries), FIRST_PASSING)
+        old[framework] = episodes_to_threshold_stats(Arm.of(summaries), CONVERGED_AT_END)
         final = [r["rows"][-1]["metric"] for r in rs]
         ms = [s.wall_seconds / max(s.total_steps, 1) * 1e3 for s in summaries]
         out["frameworks"][framework] = {
@@ -72,14 +79,44 @@ def analyse(runs: dict[str, list[dict[str, Any]]], budget: int) -> dict[str, Any
             "wall_seconds_median": float(np.median([s.wall_seconds for s in summaries])),
             "ms_per_step_median": float(np.median(ms)),
         }
+        if old[framework]["episodes_to_threshold"] != stats["episodes_to_threshold"]:
+            out["frameworks"][framework]["before_issue_52"] = {
+                "reading": CONVERGED_AT_END,
+                "episodes_to_threshold": old[framework]["episodes_to_threshold"],
+                **{k: (np.nan if old[framework][k] is None else old[framework][k]) for k in ("median", "q25", "q75")},
+            }
     a, b = (out["frameworks"][fw]["episodes_to_threshold"] for fw in FRAMEWORKS)
     out["median_difference"] = median_difference_ci(a, b, np.random.default_rng(0)) if a and b else None
+    if any("before_issue_52" in out["frameworks"][fw] for fw in FRAMEWORKS):
+        a, b = (old[fw]["episodes_to_threshold"] for fw in FRAMEWORKS)
+        out["median_difference_before_issue_52"] = (
+            median_difference_ci(a, b, np.random.default_rng(0)) if a and b else None
+        )
     keras, torch = (arm(out["frameworks"][fw]) for fw in FRAMEWORKS)
     out["mann_whitney"] = censored_mann_whitney(keras.episodes(), torch.episodes(), budget)
     k, t = out["frameworks"]["keras"], out["frameworks"]["torch"]
     out["fisher_p"] = fisher_exact(k["successes"], len(k["seeds"]), t["successes"], len(t["seeds"]))
     out["budget"] = budget
     return out
+
+
+def _before_issue_52(result: dict[str, Any], fmt) -> list[str]:
+    """The report's line on the code's reading before issue 52, where it differs from the plans'
+    (none where the two coincide: post 000's and 003's reports are as they were)."""
+    if "median_difference_before_issue_52" not in result:
+        return []
+    cells = []
+    for fw in FRAMEWORKS:
+        f = result["frameworks"][fw]
+        o = f.get("before_issue_52", f)
+        cells.append(
+            f"{fw} {fmt(o['median'])} (IQR {fmt(o['q25'])}-{fmt(o['q75'])}, {len(o['episodes_to_threshold'])} seeds)"
+        )
+    return [
+        f"- The episodes to threshold above (table, difference, Mann-Whitney) are by the plan's reading (a seed's "
+        f"{FIRST_PASSING}). Beside them, not governing, the code's reading before issue 52 ({CONVERGED_AT_END}): "
+        f"median {', '.join(cells)}; keras minus torch {result['median_difference_before_issue_52'] or 'n/a'}.",
+    ]
 
 
 def arm(framework: dict[str, Any]) -> Arm:
@@ -171,6 +208,7 @@ def write_report(
         f"- Success rates, keras vs torch: Fisher exact test (two-sided) p = {fmt(result['fisher_p'])}.",
         f"- Median episodes-to-threshold, keras minus torch: {result['median_difference'] or 'n/a'} "
         "(percentile bootstrap, 10000 resamples, 95%).",
+        *_before_issue_52(result, fmt),
         f"- Mann-Whitney U (keras vs torch episodes-to-threshold over every seed, two-sided; a seed that never "
         f"reached the threshold counts as {result['budget'] + 1}, the budget + 1, as in the median ratio): "
         f"U = {fmt(u)}, p = {fmt(p)}.",

@@ -15,9 +15,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import stats
+
+if TYPE_CHECKING:  # report/equivalence.py imports this module
+    from keras_rl.report.equivalence import Arm
 
 
 def iqm(x) -> float:
@@ -124,20 +128,22 @@ def success_difference_ci(successes_a: int, n_a: int, successes_b: int, n_b: int
     return Interval(d, d - float(np.hypot(pa - la, ub - pb)), d + float(np.hypot(ua - pa, pb - lb)))
 
 
-def episodes_to_threshold_stats(reached: list[int | None], success: list[bool] | None = None) -> dict:
-    """Success rate and the distribution of episodes-to-threshold over successful seeds.
+def episodes_to_threshold_stats(arm: Arm, reading: str) -> dict:
+    """Success rate and the distribution of episodes to threshold of one arm's seeds.
 
-    ``success`` defaults to "reached the threshold"; experiments judged at the end of the
-    run (post 001) pass their own. IQR is the 25th to 75th percentile (NumPy's default
-    linear interpolation). The one place these percentiles are computed (``aggregate``
-    and ``compare`` both use it).
+    The success rate is the post's criterion (``arm.success``); episodes to threshold are the
+    hits by ``reading`` (``report/equivalence.py``: ``FIRST_PASSING``, the plans' reading, which
+    governs every comparison, or ``CONVERGED_AT_END``, the code's before issue 52, printed beside
+    it where the two differ), in seed order. IQR is the 25th to 75th percentile (NumPy's default
+    linear interpolation). The one place these percentiles are computed (``aggregate``,
+    ``compare``, ``sweep`` and the maintainers' runs table use it).
     """
-    success = [r is not None for r in reached] if success is None else list(success)
-    hits = [r for r, ok in zip(reached, success) if ok and r is not None]
+    hits = arm.hits(reading)
+    successes = int(arm.successes)
     out: dict = {
-        "seeds": len(reached),
-        "successes": int(sum(success)),
-        "success_rate": sum(success) / len(reached) if reached else 0.0,
+        "seeds": arm.seeds,
+        "successes": successes,
+        "success_rate": successes / arm.seeds if arm.seeds else 0.0,
         "episodes_to_threshold": hits,
     }
     if hits:

@@ -1,6 +1,8 @@
 """``sweep.md`` and ``sweep.json``: one row per grid point, each compared with a baseline point.
 
-Per point: success rate, episodes to threshold (median, IQR), and against the baseline
+Per point: success rate, episodes to threshold (median, IQR; by the plans' reading, each seed's
+first passing episode, with the code's reading before issue 52 beside it where the two differ),
+and against the baseline
 (the first point, or ``--baseline NAME``): the difference of medians with a 95% percentile
 bootstrap CI, Mann-Whitney U p, and Fisher's exact p on the success rates. The statistics
 are ``report/stats.py``'s, the same ones ``compare`` reports; each point's folder also gets
@@ -17,7 +19,7 @@ import numpy as np
 
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.report.aggregate import write_aggregate
-from keras_rl.report.equivalence import Arm
+from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm
 from keras_rl.report.plots import plot_sweep
 from keras_rl.report.stats import (
     censored_mann_whitney,
@@ -39,11 +41,13 @@ def analyse_sweep(summaries: dict[str, list[RunSummary]], baseline: str) -> dict
         raise RunFolderError(
             f"the baseline grid point {baseline!r} has no run to compare with (its jobs' errors are above)"
         )
-    stats = {
-        name: episodes_to_threshold_stats([s.reached_at_episode for s in ss], [s.success for s in ss])
-        for name, ss in summaries.items()
-        if ss  # a point none of whose seeds left a summary (each job's error was printed) has no row
-    }
+    # episodes to threshold by the plans' reading, as Mann-Whitney reads them; the code's reading
+    # before issue 52 kept beside (``before_issue_52``) where it differs (post 001), not governing
+    arms = {name: Arm.of(ss) for name, ss in summaries.items() if ss}  # a point none of whose seeds
+    # left a summary (each job's error was printed) has no row
+    stats = {name: episodes_to_threshold_stats(arm, FIRST_PASSING) for name, arm in arms.items()}
+    old = {name: episodes_to_threshold_stats(arm, CONVERGED_AT_END) for name, arm in arms.items()}
+    differ = any(old[name]["episodes_to_threshold"] != st["episodes_to_threshold"] for name, st in stats.items())
     base = stats[baseline]
     budget = max(s.budget_episodes for ss in summaries.values() for s in ss)
     rows = []
@@ -60,22 +64,42 @@ def analyse_sweep(summaries: dict[str, list[RunSummary]], baseline: str) -> dict
             "unfinished": sorted(s.seed for s in summaries[name] if s.status != "completed"),
         }
         if name != baseline:
-            a, b = st["episodes_to_threshold"], base["episodes_to_threshold"]
-            diff = median_difference_ci(a, b, np.random.default_rng(0)) if a and b else None
             row.update(
-                median_difference=None
-                if diff is None
-                else {"estimate": diff.estimate, "low": diff.low, "high": diff.high},
+                median_difference=_difference(st["episodes_to_threshold"], base["episodes_to_threshold"]),
                 success_difference=dataclasses.asdict(
                     success_difference_ci(st["successes"], st["seeds"], base["successes"], base["seeds"])
                 ),
-                mann_whitney_p=censored_mann_whitney(
-                    Arm.of(summaries[name]).episodes(), Arm.of(summaries[baseline]).episodes(), budget
-                )[1],
+                mann_whitney_p=censored_mann_whitney(arms[name].episodes(), arms[baseline].episodes(), budget)[1],
                 fisher_p=fisher_exact(st["successes"], st["seeds"], base["successes"], base["seeds"]),
             )
+        if differ:
+            was = old[name]
+            row["before_issue_52"] = {
+                "reading": CONVERGED_AT_END,
+                "median": was["median"],
+                "q25": was["q25"],
+                "q75": was["q75"],
+                "episodes_to_threshold": was["episodes_to_threshold"],
+                **(
+                    {}
+                    if name == baseline
+                    else {
+                        "median_difference": _difference(
+                            was["episodes_to_threshold"], old[baseline]["episodes_to_threshold"]
+                        )
+                    }
+                ),
+            }
         rows.append(row)
     return {"baseline": baseline, "points": rows}
+
+
+def _difference(a: list[int], b: list[int]) -> dict[str, float] | None:
+    """median(a) - median(b) with its percentile-bootstrap 95% CI (None where either is empty)."""
+    if not (a and b):
+        return None
+    diff = median_difference_ci(a, b, np.random.default_rng(0))
+    return {"estimate": diff.estimate, "low": diff.low, "high": diff.high}
 
 
 def _fmt(value: Any, digits: str = "g") -> str:
@@ -135,18 +159,34 @@ def write_sweep_report(
             "(baseline)" if rate is None else f"{rate['estimate']:+.2f} [{rate['low']:+.2f}, {rate['high']:+.2f}]"
         )
         unfinished = f" ({len(row['unfinished'])} unfinished)" if row["unfinished"] else ""
+        spread = f"{_fmt(row['median'])} ({_fmt(row['q25'])}-{_fmt(row['q75'])})"
+        was = row.get("before_issue_52")
+        if was is not None:  # the code's reading before issue 52, beside (the note below the table)
+            spread += f"; before issue 52: {_fmt(was['median'])} ({_fmt(was['q25'])}-{_fmt(was['q75'])})"
+            if row["point"] != baseline:
+                d = was["median_difference"]
+                diff_text += "; before issue 52: " + (
+                    "n/a" if d is None else f"{d['estimate']:.4g} [{d['low']:.4g}, {d['high']:.4g}]"
+                )
         lines.append(
             f"| `{row['point']}` | {row['successes']}/{row['seeds']}{unfinished} | {rate_text} "
             f"| {_fmt(row.get('fisher_p'), '.3g') if row['point'] != baseline else '-'} "
-            f"| {_fmt(row['median'])} ({_fmt(row['q25'])}-{_fmt(row['q75'])}) | {diff_text} "
+            f"| {spread} | {diff_text} "
             f"| {_fmt(row.get('mann_whitney_p'), '.3g') if row['point'] != baseline else '-'} "
             f"| [curves]({row['point']}/curves.png) |"
         )
     lines += [
         "",
         "The success difference is a point's success rate minus the baseline's, with Newcombe's hybrid "
-        "score interval; Fisher's exact test compares the success counts. Episodes to threshold are over the "
-        "seeds that succeeded; their difference is the median of a point minus the baseline's, with a "
+        "score interval; Fisher's exact test compares the success counts. "
+        + (
+            f"Episodes to threshold are by the plan's reading (each seed's {FIRST_PASSING}, whether or not it "
+            "succeeded), as Mann-Whitney reads them; beside them, labelled and not governing, the code's reading "
+            f"before issue 52 ({CONVERGED_AT_END}). Their difference"
+            if any("before_issue_52" in row for row in result["points"])
+            else "Episodes to threshold are over the seeds that succeeded; their difference"
+        )
+        + " is the median of a point minus the baseline's, with a "
         "percentile bootstrap (10000 resamples); Mann-Whitney U is two-sided over every seed, one that never "
         "reached the threshold counting as the budget + 1 (Gehan's treatment of censoring, as in `check`). At "
         f"{_seed_count(result)} seeds a point only effects large enough for these intervals to exclude 0 are "

@@ -12,8 +12,10 @@ with that switch flipped alone, seeds 0-9 at the post's budget. Every number com
 
 - the success rate under the post's own criterion, its difference from faithful with
   Newcombe's hybrid score 95% interval, and Fisher's exact p;
-- episodes to threshold over the seeds that succeeded (median and IQR), the difference of
-  medians with a percentile-bootstrap 95% interval, and the two-sided Mann-Whitney p.
+- episodes to threshold by the plans' reading (each seed's first passing episode; median and
+  IQR), the difference of medians with a percentile-bootstrap 95% interval, and the two-sided
+  Mann-Whitney p, with the code's reading before issue 52 (counted only if converged at the end)
+  beside them where the two differ (post 001).
 
 The reading is mechanical: "changes the success rate" when that interval excludes 0; else
 "faster"/"slower" when both the Mann-Whitney test (p < 0.05) and the interval of the median
@@ -193,6 +195,11 @@ def table(experiment: str, only: set[int] | None = None) -> str:
         r = result[label]
         stopped = f" ({len(r['unfinished'])} stopped early)" if r["unfinished"] else ""
         spread = "n/a" if r["median"] is None else f"{g(r['median'])} ({g(r['q25'])}-{g(r['q75'])})"
+        was = r.get("before_issue_52")  # the code's reading before issue 52, beside, where it differs
+        if was is not None:
+            spread += "; before issue 52: " + (
+                "n/a" if was["median"] is None else f"{g(was['median'])} ({g(was['q25'])}-{g(was['q75'])})"
+            )
         if label == "faithful":
             lines.append(
                 f"| {ledger_id} | {label} | {r['successes']}/{r['seeds']}{stopped} | - | - | {spread} | - | - | - |"
@@ -200,6 +207,11 @@ def table(experiment: str, only: set[int] | None = None) -> str:
             continue
         rate, diff = r["success_difference"], r.get("median_difference")
         diff_text = "n/a" if diff is None else f"{diff['estimate']:+g} [{diff['low']:+g}, {diff['high']:+g}]"
+        if was is not None:
+            d = was["median_difference"]
+            diff_text += "; before issue 52: " + (
+                "n/a" if d is None else f"{d['estimate']:+g} [{d['low']:+g}, {d['high']:+g}]"
+            )
         lines.append(
             f"| {ledger_id} | {label} | {r['successes']}/{r['seeds']}{stopped} "
             f"| {rate['estimate']:+.2f} [{rate['low']:+.2f}, {rate['high']:+.2f}] | {p(r['fisher_p'])} "

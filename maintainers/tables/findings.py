@@ -266,13 +266,19 @@ def compare_table() -> str:
         k, t = r["frameworks"]["keras"], r["frameworks"]["torch"]
         d = r["median_difference"]
         diff = "-" if d is None else f"{d['estimate']:g} [{d['low']:g}, {d['high']:g}]"
+        medians = f"{m(k['median'])} / {m(t['median'])}"
+        if "median_difference_before_issue_52" in r:  # the code's reading before issue 52, beside
+            ko, to = (f.get("before_issue_52", f) for f in (k, t))
+            medians += f"; before issue 52: {m(ko['median'])} / {m(to['median'])}"
+            d = r["median_difference_before_issue_52"]
+            diff += "; before issue 52: " + ("-" if d is None else f"{d['estimate']:g} [{d['low']:g}, {d['high']:g}]")
         link = path.parent.relative_to(ROOT / "results") / "report.md"
         _, judged = framework_verdict(arm(k), arm(t), r["budget"])
         readings = _readings(judged)
         lines.append(
             f"| {r['experiment']} ({r['variant']}) | {'matched to Keras' if r['matched_init'] else 'torch default'} "
             f"| {k['successes']}/{len(k['seeds'])} / {t['successes']}/{len(t['seeds'])} ({g(r['fisher_p'])}) "
-            f"| {m(k['median'])} / {m(t['median'])} | {diff} | {g(r['mann_whitney'][1])} | {readings} "
+            f"| {medians} | {diff} | {g(r['mann_whitney'][1])} | {readings} "
             f"| [{link}]({link}) | {_planned_cell(reading(c := planned[(r['experiment'], r['matched_init'])]))}"
             f"{plans.mark(f'Keras vs PyTorch, the planned seeds: {c.label} ({c.planned} planned)')} |"
         )

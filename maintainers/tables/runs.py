@@ -6,7 +6,9 @@
 Each argument is a folder of ``seed_<n>/summary.json`` written by ``keras-rl reproduce``.
 The first is the baseline. For each folder it prints, as a Markdown table: the seeds and the
 success rate with a two-sided Fisher exact p-value against the baseline's; episodes-to-threshold
-(median and IQR over successful seeds, and their range) with a two-sided Mann-Whitney U
+(median and IQR over the seeds that reached it, by the plans' reading: each seed's first passing
+episode, with the code's reading before issue 52, counted only if converged at the end, beside it
+where the two differ; and their range) with a two-sided Mann-Whitney U
 p-value against the baseline's over every seed, a seed that never reached the threshold counting
 as the budget + 1 (``report/stats.censored_mann_whitney``, as ``compare`` and ``check`` treat it);
 and the final metric (median) with its Mann-Whitney p-value
@@ -24,7 +26,7 @@ from scipy.stats import fisher_exact, mannwhitneyu
 
 from keras_rl.checkout import ROOT
 from keras_rl.errors import ConfigError
-from keras_rl.report.equivalence import Arm
+from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm
 from keras_rl.report.markdown import seed_span
 from keras_rl.report.stats import censored_mann_whitney, episodes_to_threshold_stats
 from keras_rl.runs.run_set import RunSet
@@ -45,7 +47,7 @@ def runs_table(folders: list[Path]) -> str:
     """The table, the first folder the baseline; a folder is shown relative to the repository
     when it is inside it."""
     base = load(folders[0])
-    base_hits = [s["reached_at_episode"] for s in base if s["success"] and s["reached_at_episode"]]
+    base_hits = Arm.of(base).hits(FIRST_PASSING)
     base_ok = sum(bool(s["success"]) for s in base)
     base_final = [s["final_metric"] for s in base]
     lines = [
@@ -55,10 +57,9 @@ def runs_table(folders: list[Path]) -> str:
     ]
     for i, folder in enumerate(folders):
         summaries = load(folder)
-        st = episodes_to_threshold_stats(
-            [s["reached_at_episode"] for s in summaries], [bool(s["success"]) for s in summaries]
-        )
-        hits = [s["reached_at_episode"] for s in summaries if s["success"] and s["reached_at_episode"]]
+        st = episodes_to_threshold_stats(Arm.of(summaries), FIRST_PASSING)
+        was = episodes_to_threshold_stats(Arm.of(summaries), CONVERGED_AT_END)
+        hits = st["episodes_to_threshold"]
         final = [s["final_metric"] for s in summaries]
         first = i == 0
         budget = max(int(x["budget_episodes"]) for x in [*summaries, *base])
@@ -70,11 +71,9 @@ def runs_table(folders: list[Path]) -> str:
         table = [[st["successes"], st["seeds"] - st["successes"]], [base_ok, len(base) - base_ok]]
         p_ok = "-" if first else p_text(fisher_exact(table).pvalue)
         p_final = "-" if first else p_text(mannwhitneyu(final, base_final).pvalue)
-        med = (
-            "n/a"
-            if st["median"] is None
-            else f"{st['median']:g} ({st['q25']:g}-{st['q75']:g}), {st['min']}-{st['max']}"
-        )
+        med = _spread(st)
+        if was["episodes_to_threshold"] != hits:  # the code's reading before issue 52, beside, not governing
+            med += f"; before issue 52: {_spread(was)}"
         shown = folder.resolve()
         shown = shown.relative_to(ROOT) if shown.is_relative_to(ROOT) else folder
         lines.append(
@@ -82,6 +81,10 @@ def runs_table(folders: list[Path]) -> str:
             f"| {med} | {p_hits} | {np.median(final):.4g} | {p_final} |"
         )
     return "\n".join(lines)
+
+
+def _spread(st: dict) -> str:
+    return "n/a" if st["median"] is None else f"{st['median']:g} ({st['q25']:g}-{st['q75']:g}), {st['min']}-{st['max']}"
 
 
 def run(args: argparse.Namespace) -> int:
