@@ -150,9 +150,13 @@ def test_set_folders_are_named_from_parsed_values(capsys):
     assert len(set(folders)) == 1 and "faithful-set-tau=0.005/seed_0" in folders[0]
 
 
-def test_resume_keeps_a_completed_run_by_its_summary_status(tmp_path, capsys):
+def test_resume_would_keep_a_completed_run_by_its_summary_status_and_refuses_another_codes(tmp_path, capsys):
+    """A completed seed is one ``--resume`` keeps (by its summary's status), so it is checked as
+    kept: a committed run that an older code version made is refused, by the dry run as by the
+    run (issue 54 item 18), with nothing written for the new seed."""
     out = tmp_path / "runs"
     shutil.copytree(committed_seed("pendulum/faithful/seed_0"), out / "seed_0")
-    assert main(["reproduce", "pendulum", "--seeds", "0-1", "--out", str(out), "--resume", "--dry-run"]) == 0
-    lines = capsys.readouterr().out.splitlines()
-    assert lines[-2].endswith("(completed, kept)") and lines[-1].endswith("seed_1 (new)")
+    assert main(["reproduce", "pendulum", "--seeds", "0-1", "--out", str(out), "--resume", "--dry-run"]) == 2
+    err = capsys.readouterr().err
+    assert "--resume keeps completed seeds, but" in err and "was made by code version" in err
+    assert not (out / "seed_1").exists()

@@ -11,7 +11,6 @@ from keras_rl.errors import RunFolderError
 from keras_rl.registry import get_experiment
 from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm
 from keras_rl.report.plots import plot_seed_curve, plt, save_figure
-from keras_rl.report.stats import episodes_to_threshold_stats
 from keras_rl.runs.files import atomic_write_text
 from keras_rl.runs.run_set import RunSet
 from keras_rl.runs.summary import RunSummary
@@ -43,8 +42,8 @@ def write_aggregate(
     # one set, no comparison: its summary.md counts the seeds that succeeded, and where the plans'
     # reading (each seed's first passing episode, which compare and sweep report) differs, says it
     arm = Arm.of(summaries)
-    stats = episodes_to_threshold_stats(arm, CONVERGED_AT_END)
-    plans = episodes_to_threshold_stats(arm, FIRST_PASSING)
+    stats = arm.stats(CONVERGED_AT_END)
+    plans = arm.stats(FIRST_PASSING)
     walls = [s.wall_seconds for s in summaries]
     lines = [
         f"# {title}",

@@ -19,7 +19,6 @@ from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm, fr
 from keras_rl.report.plots import plt, save_figure
 from keras_rl.report.stats import (
     censored_mann_whitney,
-    episodes_to_threshold_stats,
     fisher_exact,
     iqm_ci,
     median_difference_ci,
@@ -62,8 +61,8 @@ def analyse(runs: dict[str, list[dict[str, Any]]], budget: int) -> dict[str, Any
     old: dict[str, dict[str, Any]] = {}
     for framework, rs in runs.items():
         summaries: list[RunSummary] = [r["summary"] for r in rs]
-        stats = episodes_to_threshold_stats(Arm.of(summaries), FIRST_PASSING)
-        old[framework] = episodes_to_threshold_stats(Arm.of(summaries), CONVERGED_AT_END)
+        stats = Arm.of(summaries).stats(FIRST_PASSING)
+        old[framework] = Arm.of(summaries).stats(CONVERGED_AT_END)
         final = [r["rows"][-1]["metric"] for r in rs]
         ms = [s.wall_seconds / max(s.total_steps, 1) * 1e3 for s in summaries]
         out["frameworks"][framework] = {

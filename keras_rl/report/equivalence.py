@@ -186,6 +186,31 @@ class Arm:
             return [r for r, ok in zip(self.reached, self.success, strict=True) if ok and r is not None]
         raise ValueError(f"no reading {reading!r}; the readings are {FIRST_PASSING!r} and {CONVERGED_AT_END!r}")
 
+    def stats(self, reading: str) -> dict:
+        """Success rate and the distribution of episodes to threshold of one arm's seeds.
+
+        The success rate is the post's criterion (``self.success``); episodes to threshold are the
+        hits by ``reading`` (``FIRST_PASSING``, the plans' reading, which
+        governs every comparison, or ``CONVERGED_AT_END``, the code's before issue 52, printed beside
+        it where the two differ), in seed order. IQR is the 25th to 75th percentile (NumPy's default
+        linear interpolation). The one place these percentiles are computed (``aggregate``,
+        ``compare``, ``sweep`` and the maintainers' runs table use it).
+        """
+        hits = self.hits(reading)
+        successes = int(self.successes)
+        out: dict = {
+            "seeds": self.seeds,
+            "successes": successes,
+            "success_rate": successes / self.seeds if self.seeds else 0.0,
+            "episodes_to_threshold": hits,
+        }
+        if hits:
+            q25, q50, q75 = np.percentile(np.asarray(hits, float), [25, 50, 75])
+            out.update(median=float(q50), q25=float(q25), q75=float(q75), min=int(min(hits)), max=int(max(hits)))
+        else:
+            out.update(median=None, q25=None, q75=None, min=None, max=None)
+        return out
+
     def episodes(self, reading: str = FIRST_PASSING) -> list[int | None]:
         """Every seed's episodes to threshold by ``reading``: the hits, then None (counted as budget
         + 1) for each seed that never reached it. Not in seed order: the bootstrap's draws depend

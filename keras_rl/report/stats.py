@@ -15,13 +15,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import stats
-
-if TYPE_CHECKING:  # report/equivalence.py imports this module
-    from keras_rl.report.equivalence import Arm
 
 
 def iqm(x) -> float:
@@ -126,29 +122,3 @@ def success_difference_ci(successes_a: int, n_a: int, successes_b: int, n_b: int
     (pa, pb), ((la, ua), (lb, ub)) = rates, bounds
     d = pa - pb
     return Interval(d, d - float(np.hypot(pa - la, ub - pb)), d + float(np.hypot(ua - pa, pb - lb)))
-
-
-def episodes_to_threshold_stats(arm: Arm, reading: str) -> dict:
-    """Success rate and the distribution of episodes to threshold of one arm's seeds.
-
-    The success rate is the post's criterion (``arm.success``); episodes to threshold are the
-    hits by ``reading`` (``report/equivalence.py``: ``FIRST_PASSING``, the plans' reading, which
-    governs every comparison, or ``CONVERGED_AT_END``, the code's before issue 52, printed beside
-    it where the two differ), in seed order. IQR is the 25th to 75th percentile (NumPy's default
-    linear interpolation). The one place these percentiles are computed (``aggregate``,
-    ``compare``, ``sweep`` and the maintainers' runs table use it).
-    """
-    hits = arm.hits(reading)
-    successes = int(arm.successes)
-    out: dict = {
-        "seeds": arm.seeds,
-        "successes": successes,
-        "success_rate": successes / arm.seeds if arm.seeds else 0.0,
-        "episodes_to_threshold": hits,
-    }
-    if hits:
-        q25, q50, q75 = np.percentile(np.asarray(hits, float), [25, 50, 75])
-        out.update(median=float(q50), q25=float(q25), q75=float(q75), min=int(min(hits)), max=int(max(hits)))
-    else:
-        out.update(median=None, q25=None, q75=None, min=None, max=None)
-    return out

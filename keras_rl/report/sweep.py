@@ -23,7 +23,6 @@ from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm
 from keras_rl.report.plots import plot_sweep
 from keras_rl.report.stats import (
     censored_mann_whitney,
-    episodes_to_threshold_stats,
     fisher_exact,
     median_difference_ci,
     success_difference_ci,
@@ -45,8 +44,8 @@ def analyse_sweep(summaries: dict[str, list[RunSummary]], baseline: str) -> dict
     # before issue 52 kept beside (``before_issue_52``) where it differs (post 001), not governing
     arms = {name: Arm.of(ss) for name, ss in summaries.items() if ss}  # a point none of whose seeds
     # left a summary (each job's error was printed) has no row
-    stats = {name: episodes_to_threshold_stats(arm, FIRST_PASSING) for name, arm in arms.items()}
-    old = {name: episodes_to_threshold_stats(arm, CONVERGED_AT_END) for name, arm in arms.items()}
+    stats = {name: arm.stats(FIRST_PASSING) for name, arm in arms.items()}
+    old = {name: arm.stats(CONVERGED_AT_END) for name, arm in arms.items()}
     differ = any(old[name]["episodes_to_threshold"] != st["episodes_to_threshold"] for name, st in stats.items())
     base = stats[baseline]
     budget = max(s.budget_episodes for ss in summaries.values() for s in ss)

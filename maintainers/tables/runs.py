@@ -28,7 +28,7 @@ from keras_rl.checkout import ROOT
 from keras_rl.errors import ConfigError
 from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm
 from keras_rl.report.markdown import seed_span
-from keras_rl.report.stats import censored_mann_whitney, episodes_to_threshold_stats
+from keras_rl.report.stats import censored_mann_whitney
 from keras_rl.runs.run_set import RunSet
 
 
@@ -57,8 +57,8 @@ def runs_table(folders: list[Path]) -> str:
     ]
     for i, folder in enumerate(folders):
         summaries = load(folder)
-        st = episodes_to_threshold_stats(Arm.of(summaries), FIRST_PASSING)
-        was = episodes_to_threshold_stats(Arm.of(summaries), CONVERGED_AT_END)
+        st = Arm.of(summaries).stats(FIRST_PASSING)
+        was = Arm.of(summaries).stats(CONVERGED_AT_END)
         hits = st["episodes_to_threshold"]
         final = [s["final_metric"] for s in summaries]
         first = i == 0
