@@ -181,16 +181,22 @@ def run(args: argparse.Namespace) -> int:
         result = audit_set(entry, batches, args.out, 1, args.address)
         with lock:
             finished[entry["set"]] = result
-            ordered = [finished[e["set"]] for e in entries if e["set"] in finished]
-            atomic_write_json(log, {"draw_seed": args.draw_seed, "per_set": args.per_set, "results": ordered})
+            report(finished)
             print(f"[{len(finished)}/{len(entries)}] {entry['set']}: seeds {[b[0] for b in batches]}", flush=True)
+
+    def report(finished: dict) -> str:
+        """audit.json, audit.md (and with --write results/AUDIT.md) as they stand: a stopped audit
+        leaves a true report of the sets it did."""
+        ordered = [finished[e["set"]] for e in entries if e["set"] in finished]
+        atomic_write_json(log, {"draw_seed": args.draw_seed, "per_set": args.per_set, "results": ordered})
+        text = markdown(ordered, command, args.per_set, args.draw_seed, len(entries))
+        atomic_write_text(args.out / "audit.md", text)
+        if args.write:
+            atomic_write_text(REPORT, text)
+        return text
 
     with ThreadPoolExecutor(max_workers=args.workers) as pool:
         list(pool.map(one, todo))
     results = [finished[e["set"]] for e in entries]
-    text = markdown(results, command, args.per_set, args.draw_seed, len(entries))
-    atomic_write_text(args.out / "audit.md", text)
-    if args.write:
-        atomic_write_text(REPORT, text)
-    print(text)
+    print(report(finished))
     return 1 if any(r["mismatches"] for r in results) else 0
