@@ -35,13 +35,10 @@ def test_ray_servers_listen_on_loopback_only():
         ray_module.shutdown()
 
 
-def test_two_node_cluster_runs_jobs_on_both_nodes_and_files_land_in_the_drivers_out(tmp_path):
-    """Two seed batches (``--seed-batch 2``) and two solo seeds on a 2-node cluster."""
+@pytest.fixture(scope="module")
+def two_node_cluster():
+    """A local two-node Ray cluster on loopback, started once for the tests that need one."""
     from ray.cluster_utils import Cluster
-
-    from keras_rl.posts.pendulum import PendulumDDPGConfig
-    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched, read_outcome
-    from keras_rl.runs.ray_backend import RayBackend
 
     os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
     cluster = Cluster(
@@ -50,6 +47,20 @@ def test_two_node_cluster_runs_jobs_on_both_nodes_and_files_land_in_the_drivers_
     )
     cluster.add_node(num_cpus=1, object_store_memory=80 * 1024 * 1024)
     cluster.wait_for_nodes()
+    try:
+        yield cluster
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
+
+
+def test_two_node_cluster_runs_jobs_on_both_nodes_and_files_land_in_the_drivers_out(tmp_path, two_node_cluster):
+    """Two seed batches (``--seed-batch 2``) and two solo seeds on a 2-node cluster."""
+    from keras_rl.posts.pendulum import PendulumDDPGConfig
+    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched, read_outcome
+    from keras_rl.runs.ray_backend import RayBackend
+
+    cluster = two_node_cluster
     try:
         config = PendulumDDPGConfig(episodes=2, stop_at_threshold=False, framework="torch")  # Keras's no longer batches
         jobs = [SeedJob.of(config.replace(seed=s), tmp_path / f"seed_{s}") for s in range(6)]
@@ -64,43 +75,30 @@ def test_two_node_cluster_runs_jobs_on_both_nodes_and_files_land_in_the_drivers_
             assert len(read_episodes(tmp_path / f"seed_{s}" / "episodes.csv")) == 2
             assert (tmp_path / f"seed_{s}" / "actor.pt").is_file()
     finally:
-        ray.shutdown()
-        cluster.shutdown()
+        ray.shutdown()  # this driver's connection; the cluster stays for the module
 
 
-def test_committed_seeds_rerun_on_a_two_node_cluster_to_their_committed_bits(tmp_path):
+def test_committed_seeds_rerun_on_a_two_node_cluster_to_their_committed_bits(tmp_path, two_node_cluster):
     """``python -m maintainers audit --address ADDR`` (the reruns of ``manifest --regenerate``, one
     function): a drawn seed of a committed set reruns through the cluster (their summaries name a
     Ray node) and agrees with the committed run bit for bit."""
     import json
     import sys
 
-    from ray.cluster_utils import Cluster
-
-    os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
-    cluster = Cluster(
-        initialize_head=True,
-        head_node_args={"num_cpus": 1, "include_dashboard": False, "object_store_memory": 80 * 1024 * 1024},
-    )
-    cluster.add_node(num_cpus=1, object_store_memory=80 * 1024 * 1024)
-    cluster.wait_for_nodes()
-    try:
-        out = tmp_path / "audit"
-        sets = ["checks/pendulum/mutants/tau_x10"]  # about 2 s a seed
-        command = [sys.executable, "-m", "maintainers", "audit", "--sets", *sets, "--out", str(out)]
-        command += ["--workers", "2", "--address", cluster.address]
-        done = subprocess.run(command, capture_output=True, text=True, timeout=600)
-        assert done.returncode == 0, done.stdout + done.stderr
-        results = json.loads((out / "audit.json").read_text())["results"]
-        assert [r["set"] for r in results] == sorted(sets)
-        for r in results:
-            ((seed, verdict),) = r["by_seed"].items()
-            assert verdict["verdict"] == "same bits", r
-            summary = json.loads((out / r["set"] / f"seed_{seed}" / "summary.json").read_text())
-            assert summary["provenance"].get("ray_node_id")  # trained through the cluster
-    finally:
-        ray.shutdown()
-        cluster.shutdown()
+    # the reruns are subprocesses: each connects to the cluster itself
+    out = tmp_path / "audit"
+    sets = ["checks/pendulum/mutants/tau_x10"]  # about 2 s a seed
+    command = [sys.executable, "-m", "maintainers", "audit", "--sets", *sets, "--out", str(out)]
+    command += ["--workers", "2", "--address", two_node_cluster.address]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stdout + done.stderr
+    results = json.loads((out / "audit.json").read_text())["results"]
+    assert [r["set"] for r in results] == sorted(sets)
+    for r in results:
+        ((seed, verdict),) = r["by_seed"].items()
+        assert verdict["verdict"] == "same bits", r
+        summary = json.loads((out / r["set"] / f"seed_{seed}" / "summary.json").read_text())
+        assert summary["provenance"].get("ray_node_id")  # trained through the cluster
 
 
 @pytest.mark.parametrize(

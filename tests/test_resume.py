@@ -130,6 +130,8 @@ def test_a_seed_killed_resumed_and_extended_in_three_processes_equals_one_straig
     summary = json.loads((out / "seed_2" / "summary.json").read_text())
     assert (summary["episodes_run"], summary["budget_episodes"], summary["status"]) == (budget, budget, "completed")
 
+    if (experiment, framework) not in (("pendulum", "keras"), ("cartpole", "torch")):
+        return  # the seed reaching the learner is shown once per framework: a process more each costs ~9 s
     shown = max(1, budget // 4)  # another seed parts from this one at once
     other = subprocess.run(
         args(experiment, framework, shown, tmp_path / "other", seed=3), capture_output=True, text=True, timeout=600

@@ -27,39 +27,25 @@ import pytest
 
 def pendulum_2_of_3(tmp_path, framework: str) -> list[dict]:
     """Seeds 0-2 of post 000's faithful variant, 300 episodes; at least 2 must pass -300.
+    Seeds 0 and 1 run first; seed 2 runs only where one of them missed, since then it decides
+    (the same verdict as running all three, without the third seed's run where it cannot matter).
 
     Derivation for the Keras learner (results/pendulum/faithful, 10 seeds, budget 1000):
     10/10 succeeded, episodes-to-threshold median 130, range 95-155; 300 episodes is about
     twice the slowest seed, and one of three may miss."""
     out = tmp_path / "runs"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "keras_rl",
-            "reproduce",
-            "pendulum",
-            "--variant",
-            "faithful",
-            "--framework",
-            framework,
-            "--seeds",
-            "0-2",
-            "--episodes",
-            "300",
-            "--workers",
-            "1",  # one process: no Ray instance competing with the other xdist worker
-            "--no-progress",
-            "--min-success-rate",
-            "0.66",
-            "--out",
-            str(out),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=1800,
-    )
-    summaries = [json.loads((out / f"seed_{s}" / "summary.json").read_text()) for s in range(3)]
+
+    def run(seeds: str) -> subprocess.CompletedProcess:
+        command = [sys.executable, "-m", "keras_rl", "reproduce", "pendulum", "--variant", "faithful"]
+        command += ["--framework", framework, "--seeds", seeds, "--episodes", "300", "--workers", "1"]
+        command += ["--no-progress", "--min-success-rate", "0", "--resume", "--out", str(out)]
+        return subprocess.run(command, capture_output=True, text=True, timeout=1800)
+
+    proc = run("0-1")
+    summaries = [json.loads((out / f"seed_{s}" / "summary.json").read_text()) for s in range(2)]
+    if not all(s["success"] for s in summaries):
+        proc = run("2")
+        summaries.append(json.loads((out / "seed_2" / "summary.json").read_text()))
     reached = [s["reached_at_episode"] for s in summaries]
     assert sum(r is not None and r <= 300 for r in reached) >= 2, (reached, proc.stderr[-2000:])
     assert proc.returncode == 0, proc.stderr[-2000:]
