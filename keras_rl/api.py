@@ -15,16 +15,18 @@ anything is written; each returns a typed result. ``docs/api.md`` shows them.
 
 from __future__ import annotations
 
+import numbers
 import os
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from keras_rl.config import ExperimentConfig
 from keras_rl.errors import ConfigError
 from keras_rl.runs.options import RunOptions
 from keras_rl.runs.run_set import RunSet
-from keras_rl.study import checked_seeds
+from keras_rl.study import MIN_SUCCESS_RATE, checked_seeds
 
 __all__ = ["Reproduced", "RunSet", "check", "compare", "load", "reproduce"]
 
@@ -46,12 +48,17 @@ def load(folder: str | Path) -> RunSet:
 
     if not isinstance(folder, (str, os.PathLike)):
         raise ConfigError(f"load takes a folder's path, got {folder!r}")
-    runs = RunSet(Path(folder))
-    if not Path(folder).is_dir():
-        raise RunFolderError(f"{folder} is not a folder of runs (no such folder)")
-    if not runs.runs():
-        raise RunFolderError(f"{folder} holds no run set: no seed_<n>/summary.json and no runs.parquet")
-    return runs
+    path = Path(folder)
+    if path.is_file():
+        raise RunFolderError(f"{path} is a file, not a folder of runs; load the folder that holds it, {path.parent}")
+    if not path.is_dir():
+        raise RunFolderError(f"{path} is not a folder of runs (no such folder)")
+    runs = RunSet(path)
+    if runs.runs():
+        return runs
+    if any((path / name).is_file() for name in ("summary.json", "config.json")):
+        raise RunFolderError(f"{path} is one seed's run folder; load the set that holds it, {path.parent}")
+    raise RunFolderError(f"{path} holds no run set: no seed_<n>/summary.json and no runs.parquet")
 
 
 def reproduce(
@@ -68,7 +75,7 @@ def reproduce(
     resume: bool = False,
     overwrite: bool = False,
     progress: bool = False,
-    min_success_rate: float = 1.0,
+    min_success_rate: float = MIN_SUCCESS_RATE,
 ) -> Reproduced:
     """Train ``seeds`` of a config into ``out``/seed_<n>/ (``keras_rl.study``, as ``keras-rl
     reproduce`` does). ``config`` is a post's typed config (``PendulumDDPGConfig(tau=0.005)``),
@@ -83,10 +90,10 @@ def reproduce(
         config = get_experiment(config).config_cls.for_variant(variant, framework=framework)
     elif not isinstance(config, ExperimentConfig):
         raise ConfigError(f"config must be a post's config or an experiment's name, got {config!r}")
-    changes = dict(overrides or {})
+    changes = _overrides(overrides)
     if episodes is not None:
         changes["episodes"] = episodes
-    config = config.replace(**changes) if changes else config
+    config = config.replace(**changes)  # typed and checked, a config built directly too
     rate = check_success_rate(min_success_rate, "min_success_rate")
     if config.framework == "torch":  # type: ignore[attr-defined]
         from keras_rl.torch import check_torch
@@ -96,12 +103,34 @@ def reproduce(
         config,
         checked_seeds(seeds),
         _path(out, "out"),
-        RunOptions.checked(workers=workers, engine=engine, progress=progress),
+        RunOptions.checked(workers=_whole(workers), engine=engine, progress=progress),
         resume=resume,
         overwrite=overwrite,
     )
     result = run(study, plan(study))
     return Reproduced(result.runs, result.summaries, result.exit_code(len(study.seeds), rate))
+
+
+RUN_PARAMETERS = {"seed": "seeds", "variant": "variant", "framework": "framework"}
+"""Config fields that ``reproduce`` sets from its own parameters, so ``overrides`` may not."""
+
+
+def _overrides(overrides: object) -> dict[str, object]:
+    """``overrides`` as a dict of config fields, or a ConfigError naming what is not one."""
+    if overrides is None:
+        return {}
+    if not isinstance(overrides, Mapping):
+        raise ConfigError(f"overrides must be a mapping of config field to value, got {overrides!r}")
+    for name in overrides:
+        if name in RUN_PARAMETERS:
+            raise ConfigError(f"overrides cannot set {name}; pass {RUN_PARAMETERS[name]}=")
+    return dict(overrides)
+
+
+def _whole(value: Any) -> Any:
+    """NumPy's whole numbers as Python's (``workers=np.int64(2)``); anything else as given, for
+    ``RunOptions.checked`` to refuse by name."""
+    return int(value) if isinstance(value, numbers.Integral) and not isinstance(value, bool) else value
 
 
 def _path(value: object, name: str) -> Path:
@@ -128,7 +157,7 @@ def compare(
     return compare_frameworks(
         _name(experiment),
         checked_seeds(seeds),
-        RunOptions.checked(workers=workers, progress=False),
+        RunOptions.checked(workers=_whole(workers), progress=False),
         runs=_path(runs, "runs"),
         out=_path(out, "out"),
         matched_init=matched_init,
@@ -155,7 +184,8 @@ def check(
 
     check_writable_dir(out_path, "out")
     baselines = default_baselines() if against is None else _path(against, "against")
-    return run_check(names, tier, baselines, out_path, None, RunOptions.checked(workers=workers, progress=False))
+    options = RunOptions.checked(workers=_whole(workers), progress=False)
+    return run_check(names, tier, baselines, out_path, None, options)
 
 
 def _name(experiment: object) -> str:

@@ -18,10 +18,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar, Literal
+
+import numpy as np
 
 from keras_rl.errors import ConfigError
 from keras_rl.learners.table import frameworks
@@ -80,18 +83,22 @@ class ExperimentConfig:
     def from_dict(cls, values: Mapping[str, Any]) -> ExperimentConfig:
         """A config from ``to_dict``'s output, including ``config.json`` of older runs."""
         values = cls.upgrade(values)
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(values) - names - {"experiment", "post"})
-        if unknown:
-            raise ConfigError(f"unknown {cls.experiment} config field(s): {', '.join(unknown)}")
-        kwargs = {k: v for k, v in values.items() if k in names}
-        hints = typing.get_type_hints(cls)
-        for name, value in kwargs.items():
-            if typing.get_origin(hints[name]) is tuple and isinstance(value, list):
-                kwargs[name] = tuple(value)
-        config = cls(**kwargs)
+        config = cls(**cls.typed({k: v for k, v in values.items() if k not in ("experiment", "post")}))
         config.validate()
         return config
+
+    @classmethod
+    def typed(cls, values: Mapping[str, Any]) -> dict[str, Any]:
+        """Field values as their fields' own types, whether read from JSON or passed from Python:
+        a list (or NumPy array) of widths as a tuple, NumPy's numbers and booleans as Python's,
+        a whole number in a float field as a float. A value of another kind is left as it is,
+        for ``validate`` to refuse by name; a name that is not a field is a ConfigError."""
+        hints = typing.get_type_hints(cls)
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - names)
+        if unknown:
+            raise ConfigError(f"unknown {cls.experiment} config field(s): {', '.join(unknown)}")
+        return {name: _as_field_type(name, hints[name], value) for name, value in values.items()}
 
     @classmethod
     def upgrade(cls, values: Mapping[str, Any]) -> dict[str, Any]:
@@ -120,7 +127,10 @@ class ExperimentConfig:
         return sorted(k for k in mine.keys() | theirs.keys() if k != "seed" and mine.get(k) != theirs.get(k))
 
     def replace(self, **changes: Any) -> ExperimentConfig:
-        config = dataclasses.replace(self, **changes)
+        """This config with ``changes``, every field typed (``typed``) and checked (``validate``):
+        ``replace()`` with no changes checks a config built directly."""
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.init}
+        config = dataclasses.replace(self, **self.typed({**fields, **changes}))
         config.validate()
         return config
 
@@ -192,7 +202,7 @@ class ExperimentConfig:
                     raise ConfigError(f"{f.name} must be a number, got {value!r}")
                 if hints[f.name] is int and not isinstance(value, int):
                     raise ConfigError(f"{f.name} must be a whole number, got {value!r}")
-                if hints[f.name] is int and abs(value) > MAX_INT:
+                if hints[f.name] is int and f.name != "seed" and abs(value) > MAX_INT:  # the seed's own range is below
                     raise ConfigError(f"{f.name} must be at most {MAX_INT:,} (a 32-bit count), got {value!r}")
                 if not math.isfinite(value):
                     raise ConfigError(f"{f.name} must be finite, got {value!r}")
@@ -204,6 +214,8 @@ class ExperimentConfig:
             if kind == "widths":
                 if not value or any(isinstance(w, bool) or not isinstance(w, int) or w < 1 for w in value):
                     raise ConfigError(f"{f.name} must be one or more positive layer widths, got {value!r}")
+                if max(value) > MAX_INT:
+                    raise ConfigError(f"{f.name} must be at most {MAX_INT:,} wide (a 32-bit count), got {value!r}")
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise ConfigError(f"{f.name} must be a number, got {value!r}")
@@ -324,6 +336,27 @@ def fraction(default: Any) -> Any:
 
 def widths(default: tuple[int, ...]) -> Any:
     return field(default=default, metadata={"check": "widths"})
+
+
+def _as_field_type(name: str, hint: Any, value: Any) -> Any:
+    """``value`` as a field of type ``hint`` holds it, where it is of the right kind (see ``typed``)."""
+    if isinstance(value, np.bool_):
+        return bool(value) if hint is bool else value
+    if isinstance(value, bool):
+        return value
+    if hint is int and isinstance(value, numbers.Integral):
+        return int(value)
+    if hint is float and isinstance(value, numbers.Real):
+        try:
+            return float(value)
+        except OverflowError:
+            raise ConfigError(f"{name} must be finite, got a whole number too large for a float") from None
+    if typing.get_origin(hint) is tuple and isinstance(value, (list, tuple, np.ndarray)):
+        return tuple(
+            int(v) if isinstance(v, numbers.Integral) and not isinstance(v, (bool, np.bool_)) else v
+            for v in (value.tolist() if isinstance(value, np.ndarray) else value)
+        )
+    return value
 
 
 def _parse_value(name: str, hint: Any, text: str) -> Any:

@@ -166,6 +166,11 @@ class StudyResult:
         return 1 if self.failures or self.unsaid or self.successes / seeds < min_success_rate else 0
 
 
+MIN_SUCCESS_RATE = 1.0
+"""The share of seeds that must succeed for a study to exit 0, unless told otherwise: all of them.
+``api.reproduce``'s ``min_success_rate`` defaults to it, as the command's does (``test_api``)."""
+
+
 def check_success_rate(rate: object, name: str = "--min-success-rate") -> float:
     """A share of seeds in [0, 1], or a ConfigError naming ``name``."""
     if isinstance(rate, bool) or not isinstance(rate, (int, float)):
