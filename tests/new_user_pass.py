@@ -1,9 +1,11 @@
-"""A new user's pass over a fresh clone: what two rounds of new users reported (every item of the second), run again.
+"""A new user's pass over a fresh clone: what three rounds of new users reported (every item of the
+second, and the third's that a command or an API call shows), run again.
 
     python tests/new_user_pass.py [--write]
 
 Clones this repository (its committed HEAD) into a temporary folder, and runs each scenario
-there with this interpreter and the clone's own code (``PYTHONPATH``). Every scenario states
+there with this interpreter and the clone's own code (``PYTHONPATH``): ``keras-rl``, the
+maintainers' tools (``python -m maintainers``) and the Python API. Every scenario states
 what a user must see: the exit code, a message that names the problem, no Python traceback,
 and no file of theirs lost. ``--write`` puts the table in ``results/new-user-pass.md``.
 """
@@ -26,6 +28,38 @@ from keras_rl.runs.run_set import RunSet
 
 ROOT = Path(__file__).resolve().parents[1]
 
+PROGRAMS = {
+    "keras-rl": ["-m", "keras_rl"],
+    "python -m maintainers": ["-m", "maintainers"],
+    "keras-rl (torch not installed)": [
+        "-c",
+        "import sys; sys.modules['torch'] = None; from keras_rl.cli import main; sys.exit(main(sys.argv[1:]))",
+    ],
+}
+"""How a scenario's command is started, by the name its row shows (``sys.modules['torch'] = None``
+makes ``import torch`` and ``importlib.util.find_spec('torch')`` find nothing, as on a machine
+that never installed it)."""
+
+API_CALL = """
+import sys
+from keras_rl import api, study
+from keras_rl.errors import KerasRLError
+
+
+def planned(s, modes, after_job=None):  # what reproduce would train, printed instead of trained
+    print(f"would train seeds {s.seeds}: actor_hidden_units {s.config.actor_hidden_units}")
+    raise SystemExit(0)
+
+
+study.run = planned
+try:
+    exec(sys.argv[1])
+except KerasRLError as exc:
+    print(f"{type(exc).__name__}: {exc}")
+"""
+"""A notebook's call (``sys.argv[1]``): a refusal prints as the user would read it; a call that
+gets as far as training prints what it would train, and trains nothing."""
+
 
 @dataclass
 class Outcome:
@@ -40,9 +74,9 @@ class Pass:
         self.clone, self.work, self.outcomes = clone, work, []
         self.env = {**os.environ, "PYTHONPATH": str(clone), "PYTHONUNBUFFERED": "1", "TF_CPP_MIN_LOG_LEVEL": "3"}
 
-    def cli(self, *args: str, timeout: float = 600, env=None) -> subprocess.CompletedProcess:
+    def cli(self, *args: str, timeout: float = 600, env=None, program="keras-rl") -> subprocess.CompletedProcess:
         return subprocess.run(
-            [sys.executable, "-m", "keras_rl", *args],
+            [sys.executable, *PROGRAMS[program], *args],
             cwd=self.work,
             env=env or self.env,
             capture_output=True,
@@ -51,10 +85,18 @@ class Pass:
         )
 
     def expect(
-        self, item: str, args: list[str], code: int, message: str, keep: list[Path] = (), timeout=600, env=None
+        self,
+        item: str,
+        args: list[str],
+        code: int,
+        message: str,
+        keep: list[Path] = (),
+        timeout=600,
+        env=None,
+        program="keras-rl",
     ) -> subprocess.CompletedProcess:
         before = {p: p.read_bytes() for p in keep if p.is_file()}
-        done = self.cli(*args, timeout=timeout, env=env)
+        done = self.cli(*args, timeout=timeout, env=env, program=program)
         out = done.stdout + done.stderr
         lost = [str(p) for p, data in before.items() if not p.is_file() or p.read_bytes() != data]
         ok = done.returncode == code and message in out and "Traceback" not in out and not lost
@@ -64,8 +106,21 @@ class Pass:
         ]
         last = next((line for line in lines if line.startswith("error")), lines[-1] if lines else "")
         seen = f"exit {done.returncode}; {last[:160]}" + (f"; LOST {lost}" if lost else "")
-        self.outcomes.append(Outcome(item, "keras-rl " + " ".join(args), ok, seen))
+        self.outcomes.append(Outcome(item, f"{program} " + " ".join(args), ok, seen))
         return done
+
+    def api(self, item: str, call: str, message: str, absent: Path | None = None) -> None:
+        """A notebook's call of ``keras_rl.api`` (``API_CALL``): ``message`` printed, no traceback,
+        and ``absent`` (the call's ``out``) not made."""
+        done = subprocess.run(
+            [sys.executable, "-c", API_CALL, call], cwd=self.work, env=self.env, capture_output=True, text=True
+        )
+        out = done.stdout + done.stderr
+        made = absent is not None and absent.exists()
+        ok = done.returncode == 0 and message in out and "Traceback" not in out and not made
+        lines = [line for line in out.splitlines() if line.strip()]
+        seen = f"exit {done.returncode}; {(lines[-1] if lines else '')[:160]}" + (f"; MADE {absent}" if made else "")
+        self.outcomes.append(Outcome(item, call, ok, seen))
 
     def judge(self, item: str, command: str, ok: bool, seen: str) -> None:
         """A scenario whose outcome is not one command's exit code and message."""
@@ -560,6 +615,178 @@ def docs_and_weight(p: Pass) -> None:
     )
 
 
+def round_three(p: Pass) -> None:
+    """The third round (issue 54): each item a command or an API call shows, refused before anything
+    trains where it is bad input; two tiny training runs (a 2-seed check, one episode of post 001)
+    where only a finished run shows the item."""
+    w = p.work
+    results = p.clone / "results"
+    out = ["--out", str(w / "R3")]
+    # 1. a baseline made with another framework, or on another engine, than the tier trains
+    for item, source, field in [
+        ("r3.1 check against a PyTorch baseline", "faithful-torch", "framework 'torch'"),
+        ("r3.1 check against a Gymnasium-loop baseline (the tier trains compiled)", "faithful", "engine 'gymnasium'"),
+    ]:
+        against = w / f"against-{source}"
+        (against / "pendulum" / "baseline").mkdir(parents=True)
+        (against / "pendulum" / "baseline" / "runs.parquet").symlink_to(results / "pendulum" / source / "runs.parquet")
+        p.expect(
+            item,
+            ["check", "pendulum", "--tier", "sensitive", "--against", str(against), "--dry-run"]
+            + ["--out", str(w / "C1")],
+            2,
+            f"was made with {field}",
+        )
+    # 3. a consistent verdict says what its tier can see (the round's one check that trains: 2 fresh seeds)
+    p.expect(
+        "r3.3 a consistent verdict says what the tier can see",
+        ["check", "pendulum", "--tier", "smoke", "--set", "actor_lr=8e-4", "--seeds", "1000-1001", "--no-progress"]
+        + ["--out", str(w / "C3")],
+        0,
+        "is the sensitive tier's (--tier sensitive",
+    )
+    # 5-7, 10. the Python API
+    p.api(
+        "r3.5 api.reproduce with seeds that are not whole numbers",
+        f"api.reproduce('pendulum', seeds=[0.0, 1.5], out={str(w / 'A5')!r})",
+        "ConfigError: seeds must be whole numbers",
+        absent=w / "A5",
+    )
+    p.api(
+        "r3.5 api.compare with seeds that are not whole numbers",
+        f"api.compare('pendulum', seeds=[0.5, 1.9], runs={str(results)!r}, out={str(w / 'A5c')!r})",
+        "ConfigError: seeds must be whole numbers",
+        absent=w / "A5c",
+    )
+    p.api(
+        "r3.6 api.reproduce(workers='two')",
+        f"api.reproduce('pendulum', seeds=[0], workers='two', out={str(w / 'A6')!r})",
+        "ConfigError: --workers must be a whole number, got 'two'",
+        absent=w / "A6",
+    )
+    p.api(
+        "r3.6 api.reproduce(episodes=2.5)",
+        f"api.reproduce('pendulum', seeds=[0], episodes=2.5, out={str(w / 'A6')!r})",
+        "ConfigError: episodes must be a whole number, got 2.5",
+        absent=w / "A6",
+    )
+    p.api(
+        "r3.7 api.load of a path that does not exist",
+        "api.load('/nonexistent').summaries()",
+        "RunFolderError: /nonexistent is not a folder of runs",
+    )
+    seed = RunSet.seed_at(results / "pendulum" / "faithful" / "seed_0").extract(w / "L7" / "seed_0")
+    for what, path, message in [
+        ("a file", results / "pendulum" / "faithful" / "runs.parquet", "is a file, not a folder of runs"),
+        ("one seed's folder", seed, "is one seed's run folder; load the set that holds it"),
+    ]:
+        p.api(f"r3.7 api.load of {what}", f"api.load({str(path)!r}).summaries()", f"RunFolderError: {path} {message}")
+    p.api(
+        "r3.10 a tuple of layer widths as an override",
+        f"api.reproduce('pendulum', seeds=[0], overrides={{'actor_hidden_units': (32, 32)}}, out={str(w / 'A10')!r})",
+        "would train seeds (0,): actor_hidden_units (32, 32)",
+    )
+    # 12. compare says what it reused, trained and where, with no Markdown on the terminal
+    done = p.expect(
+        "r3.12 compare says what it reused and where",
+        ["compare", "pendulum", "--seeds", "0-2", "--reuse-only", "--runs", str(results), "--out", str(w / "C12")],
+        0,
+        f"keras: {results / 'pendulum' / 'faithful'}: 3 of 3 seeds reused, none to train",
+    )
+    p.judge(
+        "r3.12 no Markdown ** on the terminal; the report named",
+        "(the compare above)",
+        "**" not in done.stdout and f"report: {w / 'C12' / 'pendulum' / 'report.md'}" in done.stdout,
+        next((line[:160] for line in done.stdout.splitlines() if "**" in line), "no **"),
+    )
+    # 14. a post judged at the end (post 001) says so (one episode of training)
+    p.expect(
+        "r3.14 post 001's line says its last episode decides",
+        ["reproduce", "mountaincar", "--seeds", "0", "--episodes", "1", "--no-progress", "--min-success-rate", "0"]
+        + ["--out", str(w / "M14")],
+        0,
+        "judged on the last episode's metric",
+    )
+    # 15. reproduce --help: every variant, and no seed batch the README calls retired
+    wide = {**p.env, "COLUMNS": "1000"}  # one line per option
+    done = p.expect("r3.15 reproduce --help lists pr-3384", ["reproduce", "--help"], 0, "pr-3384", env=wide)
+    line = next((line for line in done.stdout.splitlines() if line.strip().startswith("--seed-batch ")), "")
+    offered, _, retired = line.partition("Retired")
+    p.judge(
+        "r3.15 --seed-batch names post 000's and 003's Keras batches retired, offers them nothing",
+        "(the help above)",
+        all(pair in retired and pair not in offered for pair in ("pendulum (keras)", "cartpole (keras)")),
+        line.strip()[:160],
+    )
+    # 16. the compiled engine's refusals come before TensorFlow or torch load, and name every reason
+    started = time.monotonic()
+    p.expect(
+        "r3.16 --engine compiled --framework torch refused",
+        ["reproduce", "pendulum", "--engine", "compiled", "--framework", "torch", "--dry-run", *out],
+        2,
+        "--engine compiled: it runs the Keras learner",
+    )
+    seconds = time.monotonic() - started
+    p.judge(
+        "r3.16 refused in seconds (before TensorFlow or torch)", "(the refusal above)", seconds < 5, f"{seconds:.1f} s"
+    )
+    done = p.expect(
+        "r3.16 --variant fixed --engine compiled names every switch",
+        ["reproduce", "mountaincar", "--variant", "fixed", "--engine", "compiled", "--dry-run", *out],
+        2,
+        "popping_buffer=False",
+    )
+    named = [f for f in ("popping_buffer", "episode_returns_as_rewards", "exploration") if f in done.stderr]
+    p.judge("r3.16 all three switches named", "(the refusal above)", len(named) == 3, ", ".join(named))
+    # 17. a whole number no array can hold: exit 2 naming it, nothing left behind (the real run and the dry run)
+    for extra in (["--episodes", "2"], ["--dry-run"]):
+        r17 = w / ("R17" + extra[0].replace("--", "-"))
+        p.expect(
+            f"r3.17 --set buffer_size=99999999999999999999999 {extra[0]}",
+            ["reproduce", "pendulum", "--set", "buffer_size=99999999999999999999999", *extra, "--out", str(r17)],
+            2,
+            "buffer_size must be at most 2,147,483,647",
+        )
+        p.judge(
+            f"r3.17 nothing left behind ({extra[0]})",
+            "(the refusal above)",
+            not r17.exists(),
+            f"{r17} made: {r17.exists()}",
+        )
+    # 19. an --out no file system takes, and a symlink loop
+    p.expect(
+        "r3.19 a 300-character --out",
+        ["reproduce", "pendulum", "--dry-run", "--out", str(w / ("x" * 300))],
+        2,
+        "more than the 255 a file system takes; pass --out",
+    )
+    (w / "loop-a").symlink_to(w / "loop-b")
+    (w / "loop-b").symlink_to(w / "loop-a")
+    p.expect(
+        "r3.19 a symlink-loop --out",
+        ["reproduce", "pendulum", "--dry-run", "--out", str(w / "loop-a")],
+        2,
+        "is a symlink loop",
+    )
+    # 20. the maintainers' tools on a set that does not exist: exit 2 at once
+    for args, message in [
+        (["tables", "runs", "/nonexistent"], "/nonexistent holds no run set"),
+        (["manifest", "--regenerate", "no/such/set", "--out", str(w / "M20")], "no committed set matches no/such/set"),
+    ]:
+        started = time.monotonic()
+        p.expect(f"r3.20 {args[0]} of a set that does not exist", args, 2, message, program="python -m maintainers")
+        seconds = time.monotonic() - started
+        p.judge(f"r3.20 {args[0]} refused at once", "(the refusal above)", seconds < 10, f"{seconds:.1f} s")
+    # 21. without torch, the advice works for an installed package
+    p.expect(
+        "r3.21 --framework torch where torch is not installed",
+        ["reproduce", "pendulum", "--framework", "torch", "--dry-run", *out],
+        2,
+        "pip install 'keras-rl-repro[torch]'",
+        program="keras-rl (torch not installed)",
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--write", action="store_true", help="write results/new-user-pass.md")
@@ -573,13 +800,14 @@ def main() -> None:
     try:
         scenarios(p)
         round_two(p)
+        round_three(p)
     finally:
         lines = [
             "# A new user's pass over a fresh clone",
             "",
             f"`python tests/new_user_pass.py --write` on a fresh clone of commit `{commit.strip()}`: the",
-            "commands two rounds of new users reported, each with what a user must see (the exit code, a",
-            "message naming the problem, no traceback, none of their files lost).",
+            "commands and API calls three rounds of new users reported, each with what a user must see (the",
+            "exit code, a message naming the problem, no traceback, none of their files lost).",
             "",
             "| item | command | as it should be | seen |",
             "|---|---|---|---|",

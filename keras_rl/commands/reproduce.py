@@ -13,6 +13,7 @@ from keras_rl.commands.common import (
 )
 from keras_rl.errors import ConfigError
 from keras_rl.runs.options import RUN_FLAGS, RunOptions, path_arg, shared_flags
+from keras_rl.study import MIN_SUCCESS_RATE
 
 
 def add_parser(sub) -> None:
@@ -46,8 +47,8 @@ def add_parser(sub) -> None:
     rep.add_argument(
         "--min-success-rate",
         type=float,
-        default=1.0,
-        help="exit 0 only if at least this share of seeds succeed (default 1.0: all)",
+        default=MIN_SUCCESS_RATE,
+        help=f"exit 0 only if at least this share of seeds succeed (default {MIN_SUCCESS_RATE:g}; 1 is every seed)",
     )
     rep.add_argument(
         "--resume",

@@ -145,6 +145,32 @@ def path_arg(text: str) -> Path:
     return Path(text)
 
 
+def variant_help(command: str) -> str:
+    """``--variant``'s help: each post's variants as its config class names them (``VARIANTS``),
+    so that a variant added to a post is offered without editing a help text (issue 54, item 15)."""
+    from keras_rl.registry import EXPERIMENTS
+
+    posts = "; ".join(f"{name}: {', '.join(e.config_cls.VARIANTS)}" for name, e in EXPERIMENTS.items())
+    return f"the variant (default faithful): {posts} (`keras-rl list` says what each changes)"
+
+
+def seed_batch_help(command: str) -> str:
+    """``--seed-batch``'s help: the posts and frameworks with a seed-batched learner
+    (``learners/table.STACKED``), and the retired ones as retired (``RETIRED``), never offered."""
+    from keras_rl.learners.table import RETIRED, STACKED
+
+    def pairs(table) -> str:
+        names = [f"{experiment} ({framework})" for experiment, framework in table]
+        return ", ".join(names[:-1]) + " and " + names[-1] if len(names) > 1 else "".join(names)
+
+    instead = "run their seeds with --engine compiled" if command == "reproduce" else "auto runs their seeds alone"
+    return (
+        f"train S seeds together in one compiled step per env step, for {pairs(STACKED)} (default 1: each "
+        f"seed alone; auto: the post's measured batch size, split evenly over --workers). Retired for "
+        f"{pairs(RETIRED)}: {instead}"
+    )
+
+
 FLAGS: dict[str, dict[str, Any]] = {
     "--workers": dict(
         type=int,
@@ -152,14 +178,7 @@ FLAGS: dict[str, dict[str, Any]] = {
         help="seeds (or seed batches) at once, each in a process of its own (default 1: in this process)",
     ),
     "--address": dict(default=None, help="run on the Ray cluster at HOST:PORT instead (default: $RAY_ADDRESS if set)"),
-    "--seed-batch": dict(
-        type=seed_batch_arg,
-        default=1,
-        metavar="S",
-        help="train S seeds together in one compiled step per env step (default 1: each seed "
-        "alone; auto: the post's measured batch size, split evenly over --workers; "
-        "`keras-rl list` shows which frameworks batch)",
-    ),
+    "--seed-batch": dict(type=seed_batch_arg, default=1, metavar="S", help=seed_batch_help),
     "--episodes": dict(
         type=int,
         default=None,
@@ -188,11 +207,7 @@ FLAGS: dict[str, dict[str, Any]] = {
         default=None,
         help="where the command writes",
     ),
-    "--variant": dict(
-        default=None,
-        help="the variant: faithful (the default); pendulum and mountaincar have fixed, mountaincar "
-        "faithful-intended, cartpole issue-3080 and pr-3384 (each post's: `keras-rl list`)",
-    ),
+    "--variant": dict(default=None, help=variant_help),
     "--framework": dict(default=None, help="keras (ours; the default) or torch (where the experiment has one)"),
     "--matched-init": dict(
         action="store_true",
@@ -229,7 +244,8 @@ FLAGS: dict[str, dict[str, Any]] = {
 }
 """Every flag that more than one command takes, declared once: one type and one default wherever
 it appears (``tests/test_options.py`` reads every command's parser). Its help text here is what
-it means everywhere; where a command means more, ``COMMAND_HELP`` says it for that command alone.
+it means everywhere (a function where the text lists what the tables hold: the variants, the
+seed-batched learners); where a command means more, ``COMMAND_HELP`` says it for that command alone.
 Where a command reads a None default as a value of its own, ``COMMAND_DEFAULTS`` says which,
 and that command's help text says it too."""
 
@@ -307,8 +323,10 @@ def shared_flags(command: str, *spellings: str) -> argparse.ArgumentParser:
 
 
 def help_for(command: str, spelling: str) -> str:
-    """The help text of a shared flag in ``command``."""
-    return COMMAND_HELP.get(command, {}).get(spelling, FLAGS[spelling]["help"])
+    """The help text of a shared flag in ``command`` (one made from the tables, where ``FLAGS``
+    gives a function, made for that command)."""
+    text = COMMAND_HELP.get(command, {}).get(spelling, FLAGS[spelling]["help"])
+    return text(command) if callable(text) else text
 
 
 RUN_FLAGS = ("--workers", "--address", "--seed-batch", "--episodes", "--set", "--no-progress", "--engine")
