@@ -1,0 +1,90 @@
+"""The vectorised PyTorch engine's core (``keras_rl/torch/vectorised.py``, issue 53): its random
+streams, its draw of a batch, a seed's independence of the seeds beside it, and its update against
+the tutorial's own code. Eager, on the CPU; ``benchmarks/thousand_seeds.py`` runs it compiled and on
+a GPU."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from scipy import stats
+
+torch = pytest.importorskip("torch", reason="needs the torch extra")
+
+from keras_rl.envs import discrete_spec  # noqa: E402
+from keras_rl.posts.cartpole import CartPoleDQNConfig  # noqa: E402
+from keras_rl.torch.dqn_tutorial import TutorialDQNAgent  # noqa: E402
+from keras_rl.torch.vectorised import SeedStreams, VectorisedDQN, distinct  # noqa: E402
+
+
+@pytest.mark.parametrize("n", [128, 129, 300, 10_000])
+def test_a_batch_is_128_distinct_slots_each_equally_likely(n):
+    """Floyd's algorithm as ``distinct`` writes it, over 4,000 seeds' draws: every row is 128
+    distinct slots of [0, n), and each slot is drawn 128/n of the time (a chi-square test at
+    p > 0.001; the seeds are fixed, so this passes or fails the same way every run)."""
+    streams = SeedStreams(torch.arange(4000))
+    picks = distinct(streams.bits(SeedStreams.SAMPLE, torch.tensor(17), 128), n)
+    assert picks.shape == (4000, 128) and int(picks.min()) >= 0 and int(picks.max()) < n
+    assert all(len(set(row.tolist())) == 128 for row in picks)
+    if n > 128:  # at n = 128 every row is every slot
+        counts = torch.bincount(picks.flatten(), minlength=n).numpy()
+        assert stats.chisquare(counts).pvalue > 1e-3
+
+
+def test_a_seeds_streams_are_its_own_uniform_bits():
+    alone = SeedStreams(torch.tensor([3]))
+    among = SeedStreams(torch.tensor([9, 3, 0]))
+    for stream in (SeedStreams.EXPLORE, SeedStreams.SAMPLE, SeedStreams.RESET):
+        assert torch.equal(alone.bits(stream, torch.tensor(5), 8)[0], among.bits(stream, torch.tensor(5), 8)[1])
+    u = SeedStreams(torch.arange(1000)).uniform64(SeedStreams.EXPLORE, torch.tensor(0), 50).flatten().numpy()
+    assert 0 <= u.min() and u.max() < 1 and stats.kstest(u, "uniform").pvalue > 1e-3
+    assert not torch.equal(alone.bits(1, torch.tensor(5), 4), alone.bits(2, torch.tensor(5), 4))
+
+
+def _seed_3(seeds: list[int], steps: int = 400):
+    engine = VectorisedDQN([CartPoleDQNConfig(seed=s) for s in seeds])
+    ends = [e for _ in range(steps // 200) for e in engine.play(200) if e.seed == 3]
+    at = seeds.index(3)
+    return [(e.episode, e.steps, e.loss_sum, e.updates) for e in ends], {k: v[at] for k, v in engine.params.items()}
+
+
+def test_seed_3_plays_the_same_episodes_alone_and_inside_two_different_batches():
+    """Issue 53: each seed's streams are its own and independent of S and of the seeds beside it.
+    400 steps in two chunks (training from step 128): the episodes, their losses and the weights,
+    bit for bit, with seed 3 first, last and between others."""
+    alone, weights = _seed_3([3])
+    assert len(alone) > 10 and sum(e[3] for e in alone) > 0  # episodes ended and it trained
+    for seeds in ([0, 1, 2, 3], [11, 3, 7]):
+        episodes, theirs = _seed_3(seeds)
+        assert episodes == alone, seeds
+        assert all(torch.equal(weights[k], theirs[k]) for k in weights), seeds
+
+
+def test_it_starts_as_the_tutorial_does_and_updates_as_its_code_does():
+    """The same seed's initial policy as the tutorial's agent, bit for bit; then five updates with
+    the tutorial's ``learn`` (Huber loss, clip, AdamW with AMSGrad) and soft update on the same
+    batches agree to float32 rounding (the order of a few products differs)."""
+    config = CartPoleDQNConfig(seed=5)
+    env = gym.make("CartPole-v1")
+    tutorial = TutorialDQNAgent(config, discrete_spec(env, "post 003"), env.action_space)
+    engine = VectorisedDQN([config])
+    names = [name for name, _ in tutorial.policy_net.named_parameters()]
+    for name in names:
+        assert torch.equal(engine.params[name][0], tutorial.policy_net.state_dict()[name])
+    rng = np.random.default_rng(0)
+    for step in range(1, 6):
+        state = torch.tensor(rng.normal(0, 1, (128, 4)), dtype=torch.float32)
+        action = torch.tensor(rng.integers(0, 2, 128))
+        reward = torch.ones(128)
+        next_state = torch.tensor(rng.normal(0, 1, (128, 4)), dtype=torch.float32)
+        non_final = torch.tensor(rng.random(128) > 0.1)
+        theirs = tutorial.learn(state, action[:, None], reward, non_final, next_state[non_final])
+        tutorial.soft_update()
+        batch = [x[None] for x in (state, action, reward, next_state, non_final)]
+        ours = engine.learn(batch, torch.tensor(float(step), dtype=torch.float64))
+        engine.soft_update()
+        np.testing.assert_allclose(ours[0].item(), theirs.item(), rtol=1e-6)
+    for net, mine in ((tutorial.policy_net, engine.params), (tutorial.target_net, engine.target)):
+        for name, p in net.named_parameters():
+            np.testing.assert_allclose(mine[name][0].numpy(), p.detach().numpy(), rtol=1e-5, atol=1e-7)
