@@ -100,6 +100,7 @@ PLANS: tuple[Plan, ...] = (
         section="Post 001 and post 003",
         commit="0b012ef9",
     ),
+    Plan("results/cartpole/vectorised-torch/plan.md", {"cartpole/vectorised-torch/seeds-0-199": None}),
     Plan(  # issue 52 item 5: the runs that settle the inconclusive quirk ablations
         "results/ablation_plan.md",
         {line.split("\t")[0].removeprefix("results/"): None for line in _queue("ablations.tsv")},
