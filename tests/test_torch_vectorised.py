@@ -88,3 +88,31 @@ def test_it_starts_as_the_tutorial_does_and_updates_as_its_code_does():
     for net, mine in ((tutorial.policy_net, engine.params), (tutorial.target_net, engine.target)):
         for name, p in net.named_parameters():
             np.testing.assert_allclose(mine[name][0].numpy(), p.detach().numpy(), rtol=1e-5, atol=1e-7)
+
+
+def test_seeds_resume_from_their_own_states_in_any_batch_bit_for_bit():
+    """Two seeds played 400 steps straight against the same two cut after 200 (their states taken
+    as a checkpoint keeps them, the engine rebuilt from them) and against seed 5 resumed alone:
+    the same episodes and weights after the cut."""
+
+    def play(engine, steps):
+        return [(e.seed, e.episode, e.steps, e.loss_sum) for e in engine.play(steps)]
+
+    configs = [CartPoleDQNConfig(seed=s) for s in (3, 5)]
+    straight = VectorisedDQN(configs)
+    play(straight, 200)
+    after = play(straight, 200)
+    cut = VectorisedDQN(configs)
+    play(cut, 200)
+    states = cut.seed_states()
+    resumed = VectorisedDQN(configs)
+    resumed.load_seed_states(states)
+    assert play(resumed, 200) == after and resumed.t == straight.t == 400
+    alone = VectorisedDQN(configs[1:])
+    alone.load_seed_states(states[1:])
+    assert play(alone, 200) == [e for e in after if e[0] == 5]
+    for k in straight.params:
+        assert torch.equal(resumed.params[k], straight.params[k])
+        assert torch.equal(alone.params[k][0], straight.params[k][1])
+    with pytest.raises(ValueError, match="same step"):
+        VectorisedDQN(configs).load_seed_states([states[0], {**states[1], "t": 100}])

@@ -175,6 +175,40 @@ class VectorisedDQN:
         self.records = self._records(1)  # a chunk's records; play sizes them to its chunk
         self._step = torch.compile(self._train_step) if compile else self._train_step
 
+    # -- a seed's state ----------------------------------------------------------------------
+    _TABLES = ("params", "target", "exp_avg", "exp_avg_sq", "max_exp_avg_sq", "memory")
+    _ROWS = ("episode", "ep_steps", "ep_loss", "ep_updates", "state")
+
+    def seed_states(self) -> list[dict]:
+        """Each seed's part of the engine between chunks, on the CPU: what its checkpoint keeps.
+        A seed's state is its own (its streams are keyed by its seed and the step), so any batch
+        of seeds at the same step resumes from these parts, whichever batch they were played in."""
+        return [
+            {
+                "seed": seed,
+                "t": self.t,
+                **{name: {k: v[i].cpu().clone() for k, v in getattr(self, name).items()} for name in self._TABLES},
+                **{name: getattr(self, name)[i].cpu().clone() for name in self._ROWS},
+            }
+            for i, seed in enumerate(self.seeds)
+        ]
+
+    def load_seed_states(self, states: list[dict]) -> None:
+        """``seed_states``' parts back, one per seed of this engine and in its order, all taken
+        at the same step."""
+        if [s["seed"] for s in states] != self.seeds:
+            raise ValueError(f"states of seeds {[s['seed'] for s in states]} for an engine of seeds {self.seeds}")
+        steps = {int(s["t"]) for s in states}
+        if len(steps) != 1:
+            raise ValueError(f"the seeds of one batch must resume at the same step, not at {sorted(steps)}")
+        for name in self._TABLES:
+            for k, v in getattr(self, name).items():
+                v.copy_(torch.stack([s[name][k] for s in states]))
+        for name in self._ROWS:
+            getattr(self, name).copy_(torch.stack([s[name] for s in states]))
+        (self.t,) = steps
+        self.clock.fill_(self.t)
+
     # -- pieces ------------------------------------------------------------------------------
     def _reset_states(self, episode: torch.Tensor) -> torch.Tensor:
         """Gymnasium CartPole's reset: each state variable uniform on [-0.05, 0.05], float64."""
