@@ -25,10 +25,11 @@ import math
 
 import tensorflow as tf
 
-F32, F64 = tf.float32, tf.float64
+from keras_rl.dynamics import MAX_STEPS, CartPoleDynamics
 
-MAX_STEPS = {"Pendulum-v1": 200, "CartPole-v1": 500, "MountainCarContinuous-v0": 999}
-"""Gymnasium's registered ``max_episode_steps`` (its ``TimeLimit``)."""
+__all__ = ["MAX_STEPS", "CartPole", "MountainCarContinuous", "Pendulum"]
+
+F32, F64 = tf.float32, tf.float64
 
 
 class Pendulum:
@@ -61,16 +62,9 @@ class Pendulum:
         return new, self.observe(new), -costs, tf.zeros_like(costs, tf.bool)
 
 
-class CartPole:
-    """``gymnasium.envs.classic_control.CartPoleEnv`` (Euler, reward 1 per step): state
-    ``[..., 4]`` float64 (x, x dot, theta, theta dot), action ``[...]`` int (0 left, 1 right)."""
-
-    gravity, masscart, masspole, length, force_mag, tau = 9.8, 1.0, 0.1, 0.5, 10.0, 0.02
-    total_mass = masspole + masscart
-    polemass_length = masspole * length
-    theta_threshold_radians = 12 * 2 * math.pi / 360
-    x_threshold = 2.4
-    obs_dim = 4
+class CartPole(CartPoleDynamics):
+    """``gymnasium.envs.classic_control.CartPoleEnv`` in TensorFlow (``dynamics.CartPoleDynamics``):
+    state ``[..., 4]`` float64, action ``[...]`` int (0 left, 1 right)."""
 
     @staticmethod
     def observe(state: tf.Tensor) -> tf.Tensor:
@@ -78,31 +72,10 @@ class CartPole:
 
     def step(self, state: tf.Tensor, action: tf.Tensor):
         x, x_dot, theta, theta_dot = (state[..., i] for i in range(4))
-        force = tf.where(tf.equal(action, 1), self.force_mag, -self.force_mag)
-        force = tf.cast(force, F64)
-        costheta, sintheta = tf.cos(theta), tf.sin(theta)
-        temp = (force + self.polemass_length * (theta_dot * theta_dot) * sintheta) / self.total_mass
-        thetaacc = (self.gravity * sintheta - costheta * temp) / (
-            self.length * (4.0 / 3.0 - self.masspole * (costheta * costheta) / self.total_mass)
-        )
-        xacc = temp - self.polemass_length * thetaacc * costheta / self.total_mass
-        new = tf.stack(
-            [
-                x + self.tau * x_dot,
-                x_dot + self.tau * xacc,
-                theta + self.tau * theta_dot,
-                theta_dot + self.tau * thetaacc,
-            ],
-            axis=-1,
-        )
-        nx, ntheta = new[..., 0], new[..., 2]
-        terminated = (
-            (nx < -self.x_threshold)
-            | (nx > self.x_threshold)
-            | (ntheta < -self.theta_threshold_radians)
-            | (ntheta > self.theta_threshold_radians)
-        )
-        return new, self.observe(new), tf.ones_like(nx), terminated
+        force = tf.cast(tf.where(tf.equal(action, 1), self.force_mag, -self.force_mag), F64)
+        new = tf.stack(self.euler(x, x_dot, theta, theta_dot, force, tf.cos(theta), tf.sin(theta)), axis=-1)
+        terminated = self.terminated(new[..., 0], new[..., 2])
+        return new, self.observe(new), tf.ones_like(new[..., 0]), terminated
 
 
 class MountainCarContinuous:
