@@ -28,7 +28,7 @@ import numpy as np
 from keras_rl.check.rules import HELD_OUT, RULES
 from keras_rl.check.statistics import changed_many
 from keras_rl.runs.run_set import RunSet
-from maintainers.calibrate.runs import CHECKS, HOLM_LEVEL, clopper_pearson, load, values
+from maintainers.calibrate.runs import CHECKS, HOLM_LEVEL, clopper_pearson, load, shifted, values
 
 TIER = "sensitive"
 OUT = CHECKS / "real_checks.json"
@@ -111,7 +111,7 @@ def held_back_power(baseline: np.ndarray, pool: np.ndarray, budget: int, alpha: 
     bases = np.broadcast_to(baseline, (DRAWS, len(baseline)))
     row = {"n": n, "false_alarms": float(changed_many(bases, fresh, "episodes_to_threshold", alpha).mean())}
     for shift in SHIFTS:
-        moved = np.where(fresh > budget, budget + 1, np.minimum(np.round(fresh * shift), budget + 1))
+        moved = shifted(fresh, shift, budget)
         row[f"x{shift:.2f}"] = float(changed_many(bases, moved, "episodes_to_threshold", alpha).mean())
     return row
 

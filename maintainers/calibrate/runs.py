@@ -173,3 +173,9 @@ def engine_args(name: str, batch: int | str) -> list[str]:
     if engine != "gymnasium":
         return ["--engine", engine]
     return ["--seed-batch", str(batch)] if batch != 1 else []
+
+
+def shifted(episodes: np.ndarray, shift: float, budget: int) -> np.ndarray:
+    """Episodes to threshold times ``shift``, rounded, censored at ``budget + 1`` (never got
+    there); a seed that never got there stays so: the change a power figure is measured against."""
+    return np.where(episodes > budget, budget + 1, np.minimum(np.round(episodes * shift), budget + 1))

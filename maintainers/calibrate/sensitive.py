@@ -40,7 +40,18 @@ from keras_rl.check.rules import HELD_OUT, MUTANTS, RULES
 from keras_rl.check.statistics import changed_many, check_false_alarm_rate, family_false_alarm_rate, power
 from keras_rl.checkout import ROOT
 from maintainers.calibrate import real
-from maintainers.calibrate.runs import CHECKS, HOLM_LEVEL, TUNE, choose, halved, load, measure, power_cells, values
+from maintainers.calibrate.runs import (
+    CHECKS,
+    HOLM_LEVEL,
+    TUNE,
+    choose,
+    halved,
+    load,
+    measure,
+    power_cells,
+    shifted,
+    values,
+)
 
 POSTS = ("pendulum", "cartpole", "mountaincar")
 TIER = "sensitive"
@@ -57,7 +68,7 @@ def shift_power(baseline: np.ndarray, n: int, budget: int, shift: float, alpha: 
     """How often n fresh seeds whose episodes to threshold are the baseline's times ``shift``
     are flagged against the whole baseline (``budget + 1``: never got there)."""
     fresh = np.stack([rng.choice(baseline, n) for _ in range(SHIFT_DRAWS)])
-    moved = np.where(fresh > budget, budget + 1, np.minimum(np.round(fresh * shift), budget + 1))
+    moved = shifted(fresh, shift, budget)
     bases = np.broadcast_to(np.asarray(baseline, float), (SHIFT_DRAWS, len(baseline)))
     return int(changed_many(bases, moved, "episodes_to_threshold", alpha).sum()) / SHIFT_DRAWS
 
