@@ -114,10 +114,51 @@ def _comparisons() -> list[Comparison]:
         out.append(Comparison("seed-batched vs solo", label, batched, solo))
     from maintainers.tables.ablations import SOURCES
 
+    planned = planned_ablations()
+    grown = {folder for *_, first, second in planned for folder in first + second}
     for post, source in SOURCES.items():
         points, base = source["points"].removeprefix("results/"), source["base"].removeprefix("results/")
         for point in sorted(p.name for p in (RESULTS / points).iterdir() if p.is_dir() and p.name != "base"):
+            if f"{points}/{point}" in grown and point.rpartition("-seeds-")[1]:
+                continue  # a set the ablation plan grew an arm by: read in the planned row below
             out.append(Comparison(f"{post} ablation vs faithful", point, f"{points}/{point}", base))
+    for post, switch, n, first, second in planned:
+        out.append(
+            Comparison(
+                f"{post} ablation vs faithful, the planned seeds",
+                f"{switch} ({n} planned)",
+                first,
+                second,
+                seeds_before_reading=n,
+                first_seeds_only=True,
+            )
+        )
+    return out
+
+
+def planned_ablations() -> list[tuple[str, str, int, tuple[str, ...], tuple[str, ...]]]:
+    """Each quirk ablation ``results/ablation_plan.json`` runs: (post, switch, seeds per arm, the
+    ablation arm's sets, the faithful arm's sets), the arms grown by the sets of its queue
+    (``maintainers/queues/ablations.tsv``, named ``<switch>-seeds-A-B`` and ``base-seeds-A-B``
+    beside the pilot on the plan's engine). Read at the planned seeds, pending until both arms
+    hold them all."""
+    import json
+
+    from keras_rl.report.plans import _queue
+
+    path = RESULTS / "ablation_plan.json"
+    queued = [line.split("\t")[0].removeprefix("results/") for line in _queue("ablations.tsv")]
+    out = []
+    for entry in json.loads(path.read_text()) if path.is_file() else []:
+        post, switch, n, engine = entry["post"], entry["switch"], entry["seeds_per_arm"], entry["engine"]
+        grown = [q for q in queued if q.startswith(f"{post}/ablations-{engine}/")]
+        mine = [q for q in grown if q.rpartition("/")[2].startswith(f"{switch}-seeds-")]
+        if not mine:
+            continue  # the plan runs nothing for it: it stays as the plan says
+        pilot = (entry["pilot"],) if entry["pilot_engine"] == engine else ()
+        more = tuple(q for q in grown if q.rpartition("/")[2].startswith("base-seeds-"))
+        base = tuple(entry["base"].split(",")) + more
+        out.append((post, switch, int(n), pilot + tuple(mine), base))
     return out
 
 
