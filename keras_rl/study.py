@@ -131,7 +131,7 @@ def plan(study: Study) -> list[str]:
                 )
     modes = _start_modes(study.seed_dirs(), study.overwrite, study.resume, config.episodes)  # type: ignore[attr-defined]
     study.options.check_address()  # now that the input is good: is the cluster there?
-    check_seed_batch(study.options.seed_batch, experiment.name, config.framework)  # type: ignore[attr-defined]
+    check_seed_batch(study.options.seed_batch, experiment.name, config.framework, study.options.engine)  # type: ignore[attr-defined]
     check_engine(study.options.engine, experiment, config)
     # what the run would refuse of the folders it keeps or resumes, refused here (a dry run too)
     triples = list(zip(study.seeds, study.seed_dirs(), modes))
@@ -347,18 +347,24 @@ def check_engine(engine: str, experiment, config) -> None:
     """A clear error before anything runs where ``engine`` cannot run ``config``."""
     if engine == "gymnasium":
         return
-    from keras_rl.train.compiled_scope import ENGINE, refusal  # no TensorFlow: refused before it loads
-
-    if engine != ENGINE:
+    # each engine's refusal imports neither TensorFlow nor torch: refused before they load
+    if engine == "compiled":
+        from keras_rl.train.compiled_scope import refusal
+    elif engine == "vectorised":
+        from keras_rl.train.vectorised import refusal
+    else:
         raise ConfigError(f"unknown engine {engine!r}")
     why = refusal(experiment.name, config)
     if why is not None:
         raise ConfigError(f"--engine {engine}: {why}")
 
 
-def check_seed_batch(seed_batch: int | str, experiment: str, framework: str) -> None:
+def check_seed_batch(seed_batch: int | str, experiment: str, framework: str, engine: str = "gymnasium") -> None:
     """A seed batch (S > 1): a clear error before anything runs when it cannot apply (``auto``
-    runs seeds alone where nothing batches)."""
+    runs seeds alone where nothing batches). The vectorised engine batches whatever it runs
+    (``check_engine`` says what that is)."""
+    if engine == "vectorised":
+        return
     if seed_batch != "auto" and int(seed_batch) > 1:
         from keras_rl.learners.table import stacked_implementation
 

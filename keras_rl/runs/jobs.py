@@ -31,6 +31,7 @@ from keras_rl.runs.signals import sigterm_as_interrupt
 from keras_rl.runs.summary import RunSummary
 from keras_rl.train.engine import DEFAULT_ENGINE, get_engine
 from keras_rl.train.settings import TrainSettings
+from keras_rl.train.vectorised import ENGINE as VECTORISED
 
 
 @dataclass(frozen=True)
@@ -88,9 +89,10 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
     ``auto_batch_size`` gives for each group, with the post's ``SEED_BATCH_CAP`` and
     ``workers`` jobs at once). Only jobs that differ in
     nothing but the seed share a batch (a sweep's grid points never do), and only jobs of
-    an experiment and framework with a seed-batched learner (``learners/table.py``) are
-    packed: the others (post 003's PyTorch tutorial in ``compare``, say) run alone, and so do
-    configs no stacked learner covers (``learners/table.NOT_STACKED``) under ``"auto"``; a fixed
+    an experiment and framework with a seed-batched learner (``learners/table.py``), or of the
+    vectorised engine (its program is a batch), are packed: the others (post 003's PyTorch
+    tutorial on the Gymnasium loop in ``compare``, say) run alone, and so do configs no
+    stacked learner covers (``learners/table.NOT_STACKED``) under ``"auto"``; a fixed
     size refuses them with a ConfigError before anything runs. A job
     that resumes joins the batch its checkpoint was written by, whatever ``seed_batch`` is
     now. A group of one is the job itself."""
@@ -105,7 +107,8 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
             if len(batch) > 1:
                 resumed.setdefault((tuple(batch), job.command), []).append(job)
                 continue
-        if seed_batch == 1 or job.start == "resume" or (job.experiment, job.config.get("framework")) not in STACKED:
+        seed_axis = (job.experiment, job.config.get("framework")) in STACKED or job.engine == VECTORISED
+        if seed_batch == 1 or job.start == "resume" or not seed_axis:
             alone.append(job)
             continue
         refusal = batch_refusal(job.experiment, job.config)

@@ -21,7 +21,7 @@ from typing import Any
 
 from keras_rl.errors import ConfigError
 
-ENGINE_NAMES = ("gymnasium", "compiled")
+ENGINE_NAMES = ("gymnasium", "compiled", "vectorised")
 """``train/engine.ENGINES``' names (a test keeps them equal), here so that parsing imports no TensorFlow."""
 
 
@@ -46,7 +46,8 @@ class RunOptions:
     """Where ``address`` came from, for messages: ``--address`` or ``$RAY_ADDRESS``."""
     engine: str = "gymnasium"
     """Which engine trains the seeds (``train/engine.ENGINES``): ``gymnasium``, the reference
-    loop, or ``compiled``, each episode one XLA program."""
+    loop, ``compiled``, each episode one XLA program, or ``vectorised``, post 003's PyTorch
+    tutorial on a batch of seeds in one program."""
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> RunOptions:
@@ -94,8 +95,13 @@ class RunOptions:
             raise ConfigError(f"--seed-batch must be at least 1 or auto, got {seed_batch}")
         if engine not in ENGINE_NAMES:
             raise ConfigError(f"unknown engine {engine!r}; known: {', '.join(ENGINE_NAMES)}")
-        if engine != "gymnasium" and seed_batch != 1:
+        if engine == "compiled" and seed_batch != 1:
             raise ConfigError(f"--engine {engine} runs one seed per program; --seed-batch is the gymnasium engine's")
+        if engine == "vectorised" and seed_batch == "auto":
+            raise ConfigError(
+                "--engine vectorised takes --seed-batch S, a whole number: the seeds stepped in one program "
+                "(auto is the gymnasium engine's measured size)"
+            )
         cores = os.cpu_count() or 1
         if workers > cores:
             print(
@@ -164,10 +170,13 @@ def seed_batch_help(command: str) -> str:
         return ", ".join(names[:-1]) + " and " + names[-1] if len(names) > 1 else "".join(names)
 
     instead = "run their seeds with --engine compiled" if command == "reproduce" else "auto runs their seeds alone"
+    vectorised = (
+        "; with --engine vectorised, S seeds of cartpole (torch) in one program" if command == "reproduce" else ""
+    )
     return (
         f"train S seeds together in one compiled step per env step, for {pairs(STACKED)} (default 1: each "
-        f"seed alone; auto: the post's measured batch size, split evenly over --workers). Retired for "
-        f"{pairs(RETIRED)}: {instead}"
+        f"seed alone; auto: the post's measured batch size, split evenly over --workers){vectorised}. Retired "
+        f"for {pairs(RETIRED)}: {instead}"
     )
 
 
@@ -195,8 +204,9 @@ FLAGS: dict[str, dict[str, Any]] = {
     "--engine": dict(
         choices=ENGINE_NAMES,
         default="gymnasium",
-        help="gymnasium (the reference loop: Gymnasium's envs, one learner call per env step; the default) "
-        "or compiled (each episode one XLA program; posts 000, 001 and 003 in Keras)",
+        help="gymnasium (the reference loop: Gymnasium's envs, one learner call per env step; the default), "
+        "compiled (each episode one XLA program; posts 000, 001 and 003 in Keras) or vectorised (post 003's "
+        "PyTorch tutorial, --seed-batch S seeds in one program, on the GPU where there is one)",
     ),
     "--seeds": dict(
         default=None,

@@ -27,11 +27,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
+import numpy as np
 import torch
 from torch import nn
 from torch.func import functional_call, grad_and_value, stack_module_state, vmap
 
+from keras_rl.torch import save_state
 from keras_rl.torch.envs import MAX_STEPS, CartPole
 
 F = nn.functional
@@ -113,6 +116,11 @@ class DQN(nn.Module):
 
     def forward(self, x):
         return self.layer3(F.relu(self.layer2(F.relu(self.layer1(x)))))
+
+
+def default_device() -> torch.device:
+    """Where the vectorised engine runs: the GPU where torch sees one, else the CPU."""
+    return torch.device("cuda" if torch.cuda.is_available() else "cpu")
 
 
 @dataclass
@@ -334,3 +342,29 @@ class VectorisedDQN:
             )
             for i, s in zip(*torch.nonzero(rec["done"], as_tuple=True))
         ]
+
+    # -- one seed's policy, between chunks ------------------------------------------------------
+    def policy(self, k: int) -> DQN:
+        """Seed ``k``'s policy network as it stands, a module of its own on the CPU: the tutorial's
+        ``DQN``, its parameters named as the tutorial's ``policy_net``'s (``layer1.weight`` ...), so
+        its state dict is the ``q_network.pt`` that ``keras-rl evaluate`` loads. Built on the meta
+        device and given the seed's tensors: no draw from torch's generator."""
+        with torch.device("meta"):
+            net = DQN(4, 2, self.config.q_hidden_units)
+        net.load_state_dict({name: v[k].detach().cpu().clone() for name, v in self.params.items()}, assign=True)
+        return net.eval()
+
+
+class SeedPolicy:
+    """One seed's policy between chunks (``VectorisedDQN.policy``): its greedy action, as the
+    tutorial agent's ``greedy_action`` picks it, and its ``q_network.pt``."""
+
+    def __init__(self, engine: VectorisedDQN, k: int):
+        self.net = engine.policy(k)
+
+    def __call__(self, obs) -> int:
+        with torch.no_grad():
+            return int(self.net(torch.as_tensor(np.asarray(obs), dtype=torch.float32)[None]).argmax(1))
+
+    def save(self, run_dir: Path) -> None:
+        save_state(self.net, Path(run_dir) / "q_network.pt")

@@ -4,9 +4,13 @@
   not in their configs (resume, checkpoints, TensorBoard, evaluation, progress), one typed
   object from the command to the loop;
 - ``engine.py``: the seam. ``Engine`` is what ``runs/jobs.execute`` calls; ``ENGINES`` names
-  each implementation. Today there is one, ``gymnasium``;
+  each implementation: ``gymnasium``, ``compiled`` and ``vectorised``;
+- ``life.py``: one seed's life, the same on every engine (records, resume and extension,
+  checkpoints at close, signals, TensorBoard, evaluation);
 - ``loop.py``: the ``gymnasium`` engine's episode loop over a seed axis (Gymnasium envs in
-  NumPy, the learner's compiled updates, one host round trip per env step).
+  NumPy, the learner's compiled updates, one host round trip per env step);
+- ``compiled.py``: the ``compiled`` engine (a post's episode as one XLA program, Keras);
+- ``vectorised.py``: the ``vectorised`` engine (post 003 in PyTorch, S seeds in one program).
 
 Nothing above this package (``commands/``, ``runs/jobs.py``, ``report/``) knows which engine
 ran a seed: each writes the same run folder.

@@ -24,6 +24,7 @@ from keras_rl.runs.summary import RunSummary
 from keras_rl.train.compiled import CompiledEngine
 from keras_rl.train.loop import run_seeds
 from keras_rl.train.settings import TrainSettings
+from keras_rl.train.vectorised import VectorisedEngine
 
 
 class Engine(Protocol):
@@ -66,7 +67,11 @@ class GymnasiumEngine:
         return run_seeds(experiment, configs, out_dirs, settings, should_stop=should_stop)
 
 
-ENGINES: dict[str, Engine] = {"gymnasium": GymnasiumEngine(), "compiled": CompiledEngine()}
+ENGINES: dict[str, Engine] = {
+    "gymnasium": GymnasiumEngine(),
+    "compiled": CompiledEngine(),
+    "vectorised": VectorisedEngine(),
+}
 DEFAULT_ENGINE = "gymnasium"
 
 

@@ -20,6 +20,7 @@ import datetime
 import math
 import sys
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Literal
@@ -310,6 +311,45 @@ def checkpoint_at_close(lives: Sequence[SeedLife]) -> CloseCheckpoint | None:
     if all(s.status in ("completed", "non_finite_loss") for s in lives):
         return "delete"
     return None
+
+
+def close_lives(lives: Sequence[SeedLife], write_checkpoints: Callable[[], None], flush: Callable[[int], None]) -> None:
+    """How a job of one or more seeds ends on any engine: a seed still running after an error
+    outside any one seed says so; the checkpoints ``checkpoint_at_close`` asks for are written
+    (``write_checkpoints``: every seed's) or removed; every seed without a final summary flushes
+    (``flush(k)``) and its evaluator closes. A checkpoint an interrupted seed cannot write (a full
+    disk) makes that seed an error naming the folder; a solo run's kept final checkpoint that
+    cannot be written costs only the extension, with a warning."""
+    from keras_rl.runs.checkpoint import delete_checkpoints
+
+    for life in lives:
+        if life.active:
+            life.finish("error", "the batch stopped on an error")
+    action = checkpoint_at_close(lives)
+    if action == "write":
+        try:
+            write_checkpoints()
+        except Exception as exc:  # disk full: say so in every interrupted seed's summary
+            for life in lives:
+                if life.status == "interrupted":
+                    life.finish(
+                        "error", f"could not write the checkpoint in {life.out_dir}: {type(exc).__name__}: {exc}"
+                    )
+                    life.final = None
+    elif action == "keep":  # a solo run's final state, for --resume --episodes N
+        try:
+            write_checkpoints()
+        except OSError as exc:
+            delete_checkpoints(lives[0].out_dir)
+            warnings.warn(f"could not keep the final checkpoint (the run cannot be extended): {exc}", stacklevel=2)
+    elif action == "delete":
+        for life in lives:
+            delete_checkpoints(life.out_dir)
+    for k, life in enumerate(lives):
+        if life.final is None:
+            flush(k)
+        if life.evaluator is not None:
+            life.evaluator.close()
 
 
 def progress_bar(experiment: Experiment, configs: list, lives: Sequence[SeedLife], position: int):

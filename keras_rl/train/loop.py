@@ -37,7 +37,6 @@ episodes exactly as a straight run of N would have played them.
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -50,11 +49,11 @@ from keras_rl.experiment import Experiment
 from keras_rl.learners.axis import SeedAxisLearner
 from keras_rl.learners.table import implementation, stacked_implementation
 from keras_rl.rngs import global_rng_state, set_global_rng_state
-from keras_rl.runs.checkpoint import delete_checkpoints, read_batch_checkpoints, write_checkpoint
+from keras_rl.runs.checkpoint import read_batch_checkpoints, write_checkpoint
 from keras_rl.runs.lifecycle import check_checkpoint_engine
 from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import configure_tensorflow, seed_everything
-from keras_rl.train.life import SeedLife, checkpoint_at_close, interruption, live
+from keras_rl.train.life import SeedLife, close_lives, interruption, live
 from keras_rl.train.settings import DEFAULT_SETTINGS, TrainSettings
 
 
@@ -476,18 +475,6 @@ class _Batch:
             write_checkpoint(s.recorder.out_dir, {**shared, "seed": s.snapshot(), "axis": self.axis.seed_state(k)})
         self.since_checkpoint = 0
 
-    def write_final_checkpoints(self) -> None:
-        """The state a solo run ended in when it played its whole budget, kept so that
-        ``--resume --episodes N`` can extend it as if it had run N episodes straight. (Not
-        in a batch: a seed that finished before the others is masked, and its slice moves
-        on.) A failed write costs only that: the run is complete, and says so."""
-        try:
-            self.write_checkpoints()
-        except OSError as exc:
-            for s in self.seeds:
-                delete_checkpoints(s.recorder.out_dir)
-            warnings.warn(f"could not keep the final checkpoint (the run cannot be extended): {exc}", stacklevel=2)
-
     def restore(self, states: list[dict[str, Any]]) -> None:
         for k, (s, state) in enumerate(zip(self.seeds, states)):
             s.restore(state["seed"])
@@ -502,33 +489,9 @@ class _Batch:
         self.seeds[k].flush(lambda d: self.axis.save(k, d))
 
     def close(self) -> None:
-        """Every seed's final files. Checkpoints: an interrupted batch writes them (every
-        seed's, finished ones included, so the batch resumes whole); a batch that ended
-        removes them."""
-        seeds = self.seeds
-        for s in seeds:
-            if s.active:  # an error outside any one seed: every seed still running says so
-                s.finish("error", "the batch stopped on an error")
-        action = checkpoint_at_close(seeds)
-        if action == "write":
-            try:
-                self.write_checkpoints()
-            except Exception as exc:  # disk full: say so in every interrupted seed's summary
-                for s in seeds:
-                    if s.status == "interrupted":
-                        s.finish(
-                            "error",
-                            f"could not write the checkpoint in {s.recorder.out_dir}: {type(exc).__name__}: {exc}",
-                        )
-                        s.final = None
-        elif action == "keep":
-            self.write_final_checkpoints()
-        elif action == "delete":
-            for s in seeds:
-                delete_checkpoints(s.recorder.out_dir)
-        for k, s in enumerate(seeds):
-            if s.final is None:
-                self.flush(k)
+        """Every seed's final files (``life.close_lives``): an interrupted batch writes every
+        seed's checkpoint, finished ones included, so the batch resumes whole; a solo run that
+        played its whole budget keeps its final one; a batch that ended removes them."""
+        close_lives(self.seeds, self.write_checkpoints, self.flush)
+        for s in self.seeds:
             s.env.close()
-            if s.evaluator is not None:
-                s.evaluator.close()
