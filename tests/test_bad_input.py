@@ -268,11 +268,9 @@ def test_a_sweep_names_each_nan_stop_and_does_not_fail_on_it(capsys, tmp_path, r
     assert "learning_phase_training=true seed 0 stopped (non_finite_loss): loss is nan at update 1" in err
 
 
-# -- 14, 15, 21: what a command prints --------------------------------------------------------------
+# -- 14, 15, 21: what a command prints (21, a GIF drawn without a word of error: tests/test_evaluate.py) ----
 @pytest.mark.slow
-def test_a_run_names_its_files_a_resume_says_where_and_a_gif_prints_no_error(tmp_path):
-    import os
-
+def test_a_run_names_its_files_and_a_resume_says_where(tmp_path):
     from clitools import run_cli
 
     out = tmp_path / "runs"
@@ -284,10 +282,6 @@ def test_a_run_names_its_files_a_resume_says_where_and_a_gif_prints_no_error(tmp
     more = run_cli(*base, "--episodes", "3", "--resume")
     assert more.returncode == 0, more.stderr
     assert f"seed 0: resumed in {out / 'seed_0'} after episode 2" in more.stderr
-    env = {k: v for k, v in os.environ.items() if k not in ("XDG_RUNTIME_DIR", "SDL_VIDEODRIVER")}
-    gif = run_cli("evaluate", str(out / "seed_0"), "--episodes", "1", "--gif", str(tmp_path / "a.gif"), env=env)
-    assert gif.returncode == 0, gif.stderr
-    assert "error" not in (gif.stdout + gif.stderr).lower() and (tmp_path / "a.gif").is_file()
 
 
 @pytest.mark.slow

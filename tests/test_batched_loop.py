@@ -2,7 +2,10 @@
 solo run's episodes.csv and stops on its own threshold, NaN or Ctrl-C. The cases batch post
 000's PyTorch port: posts 000 and 003's Keras learners no longer batch (issue 34 retired them
 for the compiled engine), and the loop is the same for every stacked learner. Post 001's
-batch, whose seeds train in bursts of their own sizes, is ``tests/test_stacked_post001.py``'s."""
+batch, whose seeds train in bursts of their own sizes, is ``tests/test_stacked_post001.py``'s.
+A solo run is this loop with one seed (``run_seed``): that it plays the same episodes in
+another process is tests/test_resume.py's life of a seed, and that they are the committed
+ones is tests/test_committed_runs_replay.py's."""
 
 from __future__ import annotations
 
@@ -28,38 +31,6 @@ def _batch(tmp_path, name, seeds, **overrides):
     exp = get_experiment("pendulum")
     configs = [exp.config_cls.for_variant("faithful", seed=s, framework="torch", **overrides) for s in seeds]
     return run_seed_batch(exp, configs, [tmp_path / name / f"seed_{s}" for s in seeds], TrainSettings(progress=False))
-
-
-@pytest.mark.slow
-def test_one_seed_through_the_batched_loop_writes_the_solo_runs_episodes_csv(tmp_path):
-    import subprocess
-    import sys
-
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "keras_rl",
-            "reproduce",
-            "pendulum",
-            "--framework",
-            "torch",
-            "--seeds",
-            "3",
-            "--episodes",
-            "12",
-            "--no-progress",
-            "--out",
-            str(tmp_path / "solo"),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert proc.returncode == 1, proc.stderr
-    summaries = _batch(tmp_path, "batch", [3], episodes=12)
-    assert summaries[0].status == "completed"
-    assert _csv(tmp_path / "batch" / "seed_3" / "episodes.csv") == _csv(tmp_path / "solo" / "seed_3" / "episodes.csv")
 
 
 @pytest.mark.slow

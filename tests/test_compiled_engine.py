@@ -1,7 +1,7 @@
 """The compiled engine (``keras_rl/train/compiled.py``) against the Gymnasium loop, and the run
 features it must keep: records, threshold, resume bit for bit, extension, stops between
-chunks (a dispatcher's flag, Ctrl-C and SIGTERM to the command), evaluation, TensorBoard,
-refusals; for post 000 and post 003 each.
+chunks (a dispatcher's flag here; Ctrl-C and SIGTERM to the command in tests/test_resume.py's
+life of a seed), evaluation, TensorBoard, refusals; for post 000 and post 003 each.
 
 Equivalence, measured (over 100 seeds: ``results/engines/pendulum/report.md``): with the
 same streams (reset states, noise, sample indices), post 000's seed 0 agrees with the Gymnasium
@@ -429,46 +429,3 @@ def test_post_003_evaluates_logs_and_stops_at_its_threshold_on_the_compiled_engi
     loop = train_cartpole("gymnasium", cartpole(threshold=-1.0, stop_at_threshold=True), tmp_path / "loop")
     assert stopped.status == "completed" and stopped.success and stopped.reached_at_episode == 1
     assert (stopped.episodes_run, stopped.total_steps) == (loop.episodes_run, loop.total_steps) == (1, loop.total_steps)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize(
-    "post, sig, extra",
-    [
-        ("pendulum", "SIGINT", ("--episodes", "400", "--set", "stop_at_threshold=false")),
-        ("cartpole", "SIGTERM", ("--episodes", "300")),
-    ],
-)
-def test_ctrl_c_or_sigterm_stops_a_compiled_run_between_chunks_and_resume_finishes_it_bit_for_bit(
-    tmp_path, post, sig, extra
-):
-    """A real signal to the command: the run stops at the end of the chunk in flight, exits as
-    the user asked (130 for Ctrl-C, 143 for SIGTERM), keeps its episodes and a checkpoint, and
-    ``--resume`` plays the rest as the uninterrupted run played it."""
-    import signal
-    import subprocess
-
-    from clitools import CLI, default_signals, wait_for_rows
-
-    def command(out):
-        return [*CLI, "reproduce", post, "--engine", "compiled", "--seeds", "0", *extra, "--no-progress"] + [
-            "--min-success-rate", "0", "--checkpoint-every", "2", "--out", str(out)
-        ]  # fmt: skip
-
-    straight = subprocess.run(command(tmp_path / "straight"), capture_output=True, text=True, timeout=600)
-    assert straight.returncode == 0, straight.stderr[-2000:]
-    proc = subprocess.Popen(
-        command(tmp_path / "cut"), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=default_signals
-    )
-    wait_for_rows(proc, tmp_path / "cut" / "seed_0" / "episodes.csv", 3)
-    proc.send_signal(getattr(signal, sig))
-    _, stderr = proc.communicate(timeout=120)
-    assert proc.returncode == (130 if sig == "SIGINT" else 143), stderr[-2000:]
-    summary = json.loads((tmp_path / "cut" / "seed_0" / "summary.json").read_text())
-    assert summary["status"] == "interrupted" and sig in summary["message"]
-    assert summary["episodes_run"] == len(read_episodes(tmp_path / "cut" / "seed_0" / "episodes.csv")) >= 3
-    assert (tmp_path / "cut" / "seed_0" / "checkpoint.pkl").is_file()
-    resumed = subprocess.run([*command(tmp_path / "cut"), "--resume"], capture_output=True, text=True, timeout=600)
-    assert resumed.returncode == 0, resumed.stderr[-2000:]
-    read = cartpole_columns if post == "cartpole" else columns
-    assert read(tmp_path / "cut" / "seed_0") == read(tmp_path / "straight" / "seed_0")

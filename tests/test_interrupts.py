@@ -115,29 +115,21 @@ def test_stop_signals_as_flag_records_instead_of_raising_and_respects_an_ignored
         signal.signal(signal.SIGINT, previous)
 
 
-@pytest.mark.parametrize("seeds,workers", [("0", 1), ("0-2", 2)])
 @pytest.mark.slow
-def test_ctrl_c_leaves_valid_files_marked_unfinished(tmp_path, seeds, workers):
+def test_ctrl_c_leaves_valid_files_marked_unfinished_that_resume_only_with_the_same_options(tmp_path):
+    """A terminal's Ctrl-C (SIGINT to the whole group) to a run in one process; the same under
+    ``--workers 2`` is tests/test_pool.py's pooled sweep. The seed it left resumes with the
+    options that made it and no others: one more field is refused, naming it, before anything
+    in the folder is touched."""
     out = tmp_path / "run"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    command = [*CLI, "reproduce", "pendulum", "--seeds", "0", "--workers", "1", "--no-progress"]
+    command += ["--set", "stop_at_threshold=false", "--out", str(out)]
     # A new session, so that SIGINT can go to the whole group as a terminal's Ctrl-C does.
     # SIGINT back to its default in the child: a test run launched in the background (`cmd &`
     # in a script) inherits SIGINT as ignored, and Python then never raises KeyboardInterrupt.
     proc = subprocess.Popen(
-        [
-            *CLI,
-            "reproduce",
-            "pendulum",
-            "--seeds",
-            seeds,
-            "--workers",
-            str(workers),
-            "--no-progress",
-            "--set",
-            "stop_at_threshold=false",
-            "--out",
-            str(out),
-        ],
+        command,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -156,5 +148,9 @@ def test_ctrl_c_leaves_valid_files_marked_unfinished(tmp_path, seeds, workers):
     rows = read_episodes(csv)
     assert len(rows) >= 3 and summary["episodes_run"] == len(rows)
     assert not list((out / "seed_0").glob(".tmp-*"))  # no half-written temporary files
-    if workers > 1:
-        assert not (out / "seed_2").exists()  # the queued seed never started
+    assert (out / "seed_0" / "checkpoint.pkl").is_file()
+
+    before = {p.name: p.read_bytes() for p in (out / "seed_0").iterdir()}
+    other = subprocess.run([*command, "--resume", "--set", "tau=0.01"], capture_output=True, text=True, timeout=300)
+    assert other.returncode == 2 and "was made with tau=0.001" in other.stderr, other.stderr
+    assert {p.name: p.read_bytes() for p in (out / "seed_0").iterdir()} == before

@@ -218,9 +218,11 @@ def test_ctrl_c_during_a_pooled_sweep_keeps_episodes_marks_interrupted_and_start
     os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the whole group
     _, stderr = proc.communicate(timeout=300)
     assert proc.returncode == 130, stderr
+    assert "interrupted" in stderr
     summary = json.loads((out / "tau=0.001" / "seed_0" / "summary.json").read_text())
-    assert summary["status"] == "interrupted"
+    assert summary["status"] == "interrupted" and summary["finished"] is False
     assert summary["episodes_run"] == len(read_episodes(csv_path)) >= 3
+    assert not list((out / "tau=0.001" / "seed_0").glob(".tmp-*"))  # no half-written temporary files
     assert not (out / "tau=0.001" / "seed_2").exists()  # queued: never started
     assert (out / "sweep.md").is_file()
 
