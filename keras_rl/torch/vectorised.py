@@ -35,6 +35,7 @@ from torch import nn
 from torch.func import functional_call, grad_and_value, stack_module_state, vmap
 
 from keras_rl.torch import save_state
+from keras_rl.torch.dqn_tutorial import DQN
 from keras_rl.torch.envs import MAX_STEPS, CartPole
 
 F = nn.functional
@@ -105,19 +106,6 @@ def distinct(bits: torch.Tensor, n: torch.Tensor | int) -> torch.Tensor:
     return torch.where(repeat, j, t)
 
 
-class DQN(nn.Module):
-    """The tutorial's network (``keras_rl/torch/dqn_tutorial.py``'s, built here for its init)."""
-
-    def __init__(self, n_observations: int, n_actions: int, hidden=(128, 128)):
-        super().__init__()
-        self.layer1 = nn.Linear(n_observations, hidden[0])
-        self.layer2 = nn.Linear(hidden[0], hidden[1])
-        self.layer3 = nn.Linear(hidden[1], n_actions)
-
-    def forward(self, x):
-        return self.layer3(F.relu(self.layer2(F.relu(self.layer1(x)))))
-
-
 def default_device() -> torch.device:
     """Where the vectorised engine runs: the GPU where torch sees one, else the CPU."""
     return torch.device("cuda" if torch.cuda.is_available() else "cpu")
@@ -180,7 +168,8 @@ class VectorisedDQN:
         self.ep_loss = torch.zeros(S, dtype=torch.float64, device=dev)
         self.ep_updates = torch.zeros(S, dtype=torch.int64, device=dev)
         self.state = self._reset_states(self.episode)
-        self.records = self._records(1)  # a chunk's records; play sizes them to its chunk
+        self.rows = torch.arange(S, device=dev)
+        self.records = self._records(1)  # a chunk's records; play grows them to its longest chunk
         self._step = torch.compile(self._train_step) if compile else self._train_step
 
     # -- a seed's state ----------------------------------------------------------------------
@@ -271,7 +260,7 @@ class VectorisedDQN:
         from it, so one compiled program serves every step and nothing crosses to the host."""
         c, mem, rec, S = self.config, self.memory, self.records, len(self.seeds)
         t = self.clock  # env steps every seed has taken before this one (the tutorial's steps_done)
-        rows = torch.arange(S, device=self.device)
+        rows = self.rows
         obs = self.env.observe(self.state)
         eps = c.eps_end + (c.eps_start - c.eps_end) * torch.exp(-t.to(torch.float64) / c.eps_decay)
         with torch.no_grad():
@@ -279,13 +268,13 @@ class VectorisedDQN:
         explore = self.streams.uniform64(SeedStreams.EXPLORE, t, 1)[:, 0]
         coin = self.streams.bits(SeedStreams.ACTION, t, 1)[:, 0] & 1
         action = torch.where(explore > eps, greedy, coin)
-        new_state, next_obs, _, terminated = self.env.step(self.state, action)
+        new_state, next_obs, reward, terminated = self.env.step(self.state, action)
         self.ep_steps.add_(1)
         done = terminated | (self.ep_steps >= self.max_steps)
         slot = (t % c.buffer_size).expand(S)
         mem["state"].index_put_((rows, slot), obs)
         mem["action"].index_put_((rows, slot), action)
-        mem["reward"].index_put_((rows, slot), torch.ones(S, device=self.device))
+        mem["reward"].index_put_((rows, slot), reward.to(torch.float32))
         mem["next_state"].index_put_((rows, slot), next_obs)
         mem["non_final"].index_put_((rows, slot), ~terminated)
         if trains:  # the memory holds train_start transitions or more: it did before the push
@@ -324,14 +313,14 @@ class VectorisedDQN:
     def play(self, steps: int) -> list[EpisodeEnd]:
         """``steps`` env steps of every seed, then one read of what they recorded: the episodes
         that ended, in order."""
-        if self.records["done"].shape[0] != steps:
+        if self.records["done"].shape[0] < steps:  # sized to the longest chunk yet, reused
             self.records = self._records(steps)
-        self.records["done"].zero_()
+        self.records["done"][:steps].zero_()
         self.chunk_start.fill_(self.t)
         for _ in range(steps):
             self.t += 1
             self._step(min(self.t, self.config.buffer_size) >= self.config.train_start)
-        rec = {k: v.cpu() for k, v in self.records.items()}  # the chunk's one host read
+        rec = {k: v[:steps].cpu() for k, v in self.records.items()}  # the chunk's one host read
         return [
             EpisodeEnd(
                 self.seeds[int(s)],
