@@ -70,7 +70,7 @@ def reproduce(
     framework: str = "keras",
     overrides: Mapping[str, object] | None = None,
     episodes: int | None = None,
-    engine: str = "gymnasium",
+    engine: str = "auto",
     workers: int = 1,
     resume: bool = False,
     overwrite: bool = False,

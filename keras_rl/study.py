@@ -7,7 +7,8 @@ builds a command line.
     from keras_rl.study import Study, plan, run
 
     study = Study(PendulumDDPGConfig(tau=0.005), seeds=(0, 1), out=Path("runs/p"))
-    result = run(study, plan(study))      # a StudyResult: .runs, .summaries, .successes
+    planned = plan(study)                 # a StudyPlan: .modes, .engine (auto resolved), .engine_why
+    result = run(study, planned)          # a StudyResult: .runs, .summaries, .successes
 """
 
 from __future__ import annotations
@@ -75,6 +76,9 @@ class Study:
     tensorboard: Path | None = None
     evaluation: object | None = None
     """An ``EvalSchedule``: greedy episodes during training, or None."""
+    recorded_engine: str | None = None
+    """The engine that made the run ``config`` was read from (``reproduce --config``), which
+    ``--engine auto`` reruns it on; None for a config made here."""
 
     def __post_init__(self) -> None:
         from keras_rl.config import ExperimentConfig
@@ -105,10 +109,22 @@ class Study:
         return [self.out / f"seed_{s}" for s in self.seeds]
 
 
-def plan(study: Study) -> list[str]:
-    """How each seed starts (``new``, ``overwrite``, ``resume`` or ``keep``), after every check
-    of the study against the disk and the engine: a ConfigError (or RunFolderError) names the
-    first problem, before anything is written or TensorFlow is loaded."""
+@dataclass(frozen=True)
+class StudyPlan:
+    """What ``plan`` found: how each seed starts, and the engine that trains them, with why that one."""
+
+    modes: list[str]
+    """Each seed's start, in seed order: ``new``, ``overwrite``, ``resume`` or ``keep`` (``START_WORDS``)."""
+    engine: str
+    """One of ``train/engine.ENGINES``: never ``auto``."""
+    engine_why: str
+    """Why that engine, in words (``choose_engine``)."""
+
+
+def plan(study: Study) -> StudyPlan:
+    """How each seed starts (``new``, ``overwrite``, ``resume`` or ``keep``) and on which engine,
+    after every check of the study against the disk and the engine: a ConfigError (or
+    RunFolderError) names the first problem, before anything is written or TensorFlow is loaded."""
     from keras_rl.runs.lifecycle import _start_modes, check_keepable, check_resumable
     from keras_rl.runs.packed import refuse_packed
 
@@ -131,13 +147,46 @@ def plan(study: Study) -> list[str]:
                 )
     modes = _start_modes(study.seed_dirs(), study.overwrite, study.resume, config.episodes)  # type: ignore[attr-defined]
     study.options.check_address()  # now that the input is good: is the cluster there?
-    check_seed_batch(study.options.seed_batch, experiment.name, config.framework, study.options.engine)  # type: ignore[attr-defined]
-    check_engine(study.options.engine, experiment, config)
+    engine, why = choose_engine(study, modes)
+    check_seed_batch(study.options.seed_batch, experiment.name, config.framework, engine)  # type: ignore[attr-defined]
+    check_engine(engine, experiment, config)
     # what the run would refuse of the folders it keeps or resumes, refused here (a dry run too)
     triples = list(zip(study.seeds, study.seed_dirs(), modes))
     check_keepable(config, [(s, d) for s, d, m in triples if m == "keep"])
-    check_resumable([(s, d) for s, d, m in triples if m == "resume"], study.options.engine)
-    return modes
+    check_resumable([(s, d) for s, d, m in triples if m == "resume"], engine)
+    return StudyPlan(modes, engine, why)
+
+
+def choose_engine(study: Study, modes: list[str]) -> tuple[str, str]:
+    """The engine that trains ``study`` and why, for ``--engine auto`` (issue 54, item 11): a
+    recorded run replays on the engine that made it, so that no committed command changes what it
+    makes. In order: the engine asked for; the engine of ``--config``'s run; the engine of the runs
+    already in ``out`` that stay (a set keeps the engine it was started on); else the compiled
+    engine where it is certified (``compiled_scope.CERTIFIED``) and can run the config alone;
+    else the Gymnasium loop."""
+    from keras_rl.runs.lifecycle import set_engine
+    from keras_rl.runs.options import AUTO
+
+    asked = study.options.engine
+    if asked != AUTO:
+        return asked, f"--engine {asked}"
+    if study.recorded_engine is not None:
+        return study.recorded_engine, "the engine that made --config's run"
+    leaving = [d for d, m in zip(study.seed_dirs(), modes) if m == "overwrite"]
+    held = set_engine(study.out, leaving)
+    if held is not None:
+        return held, f"the engine of the runs already in {study.out} (a set stays on the engine it started on)"
+    from keras_rl.train.compiled_scope import CERTIFIED, refusal
+
+    experiment, framework = study.experiment.name, study.config.framework  # type: ignore[attr-defined]
+    if (experiment, framework) not in CERTIFIED:
+        return "gymnasium", f"the compiled engine is not certified for {experiment} in {framework}"
+    if study.options.seed_batch != 1:
+        return "gymnasium", f"--seed-batch {study.options.seed_batch} batches seeds on the Gymnasium loop"
+    why_not = refusal(experiment, study.config)
+    if why_not is not None:
+        return "gymnasium", f"the compiled engine cannot run this config: {why_not}"
+    return "compiled", f"certified for {experiment} in {framework}: {CERTIFIED[(experiment, framework)]}"
 
 
 @dataclass
@@ -180,16 +229,16 @@ def check_success_rate(rate: object, name: str = "--min-success-rate") -> float:
     return float(rate)
 
 
-def run(study: Study, modes: list[str], after_job=None) -> StudyResult:
-    """Train what ``plan`` found to do (its ``modes``), keep what it found done, and write the
-    set's ``summary.md`` and ``curves.png`` where there are several seeds."""
+def run(study: Study, planned: StudyPlan, after_job=None) -> StudyResult:
+    """Train what ``plan`` found to do (each seed's mode, on its engine), keep what it found
+    done, and write the set's ``summary.md`` and ``curves.png`` where there are several seeds."""
     from keras_rl.report.aggregate import write_aggregate
     from keras_rl.runs.backends import train_seeds
     from keras_rl.runs.jobs import SeedJob
     from keras_rl.runs.lifecycle import _kept_runs
 
     experiment, base, seeds = study.experiment, study.config, list(study.seeds)
-    triples = list(zip(seeds, study.seed_dirs(), modes))
+    triples = list(zip(seeds, study.seed_dirs(), planned.modes))
     kept = _kept_runs(base, [(s, d) for s, d, m in triples if m == "keep"])
     outcome = train_seeds(
         [
@@ -200,7 +249,7 @@ def run(study: Study, modes: list[str], after_job=None) -> StudyResult:
                 checkpoint_every=study.checkpoint_every,
                 tensorboard=study.tensorboard,
                 evaluation=study.evaluation,
-                engine=study.options.engine,
+                engine=planned.engine,
             )
             for s, d, m in triples
             if m != "keep"

@@ -142,13 +142,13 @@ def cost(entry: dict) -> float:
 
 def by_kind(entries: list[dict]) -> dict[str, float]:
     """Process-minutes counted once (``cost``), by how the runs ran: PyTorch, Keras on the
-    compiled engine (``--engine compiled`` in a command), Keras on the Gymnasium loop; the
-    largest first."""
+    compiled engine (the engine the set recorded: since ``--engine auto`` its command need not
+    name it), Keras on the Gymnasium loop; the largest first."""
     out: dict[str, float] = {}
     for e in entries:
         if e["framework"] == "torch":
             kind = "PyTorch"
-        elif any("--engine compiled" in c for c in e["commands"]):
+        elif e["engine"] == "compiled":
             kind = "Keras on the compiled engine"
         else:
             kind = "Keras on the Gymnasium loop"

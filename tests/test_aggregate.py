@@ -67,3 +67,24 @@ def test_aggregate_redraws_curves_against_env_steps(short_run, tmp_path, capsys)
     assert (parent / "seed_3" / "curve.png").read_bytes()[:4] == b"\x89PNG"
     with pytest.raises(SystemExit):
         main(["aggregate", str(parent), "--x-axis", "time"])
+
+
+def test_a_post_judged_at_the_end_counts_only_its_successes_in_the_median_and_says_the_plans_reading(tmp_path):
+    """Issue 54 item 14: post 001's summary.md gave a median of 10 episodes to threshold while
+    counting a seed that met the threshold at episode 10 and failed at the end. The table's median
+    counts the seeds that succeeded; the sentence below gives the plans' reading (each seed's first
+    passing episode, the failed seed included), labelled."""
+    from keras_rl.report.aggregate import write_aggregate
+    from keras_rl.runs.summary import RunSummary
+
+    def summary(seed, success, reached):
+        return RunSummary(
+            "mountaincar", "faithful", seed, "completed", success, "metric <= 2 after all 100 episodes", reached,
+            100, 100, 99900, None, 0.0 if success else 9.0, 0.0, 1.0,
+        )  # fmt: skip
+
+    write_aggregate(tmp_path, [summary(0, False, 10), summary(1, True, 20), summary(2, True, 30)], 2.0, "t", "m")
+    text = (tmp_path / "summary.md").read_text()
+    assert "| 3 | 2/3 (67%) | 25 | " in text  # the two seeds that succeeded: 20 and 30
+    assert "count the seeds that succeeded" in text and "By the plans' reading" in text
+    assert "(each seed's first passing episode, 3 seeds)" in text and "median 20," in text

@@ -21,8 +21,8 @@ def planned(monkeypatch):
     """``api.reproduce`` up to its plan: the Study it would run, nothing trained."""
     seen = {}
 
-    def fake_run(s, modes, after_job=None):
-        seen["study"], seen["modes"] = s, modes
+    def fake_run(s, planned, after_job=None):
+        seen["study"], seen["plan"] = s, planned
         return study.StudyResult(api.RunSet(s.out), [], False, [], [])
 
     monkeypatch.setattr(study, "run", fake_run)
@@ -34,7 +34,8 @@ def test_a_typed_config_travels_as_itself(planned, tmp_path):
     api.reproduce(config, seeds=np.arange(2), out=tmp_path / "o", overrides={"actor_hidden_units": (32, 32)})
     made = planned["study"]
     assert made.config == config.replace(actor_hidden_units=(32, 32)) and made.seeds == (0, 1)
-    assert planned["modes"] == ["new", "new"] and made.out == tmp_path / "o"
+    assert planned["plan"].modes == ["new", "new"] and made.out == tmp_path / "o"
+    assert planned["plan"].engine == "compiled"  # auto, as the command: certified for post 000
     api.reproduce("pendulum", seeds=np.int64(3), out=tmp_path / "p", variant="fixed", episodes=4)
     assert planned["study"].config == PendulumDDPGConfig.for_variant("fixed", episodes=4)
     assert planned["study"].seeds == (3,)

@@ -426,7 +426,7 @@ def test_calibration_md_shows_the_spread_figure_and_the_figure_marks_the_bound(t
 
 
 @pytest.mark.slow  # 60-100 s: 20,000 resamples per tied statistic, 2,000 baselines per spread entry
-def test_the_committed_family_wise_rates_are_what_the_baselines_give():
+def test_the_committed_family_wise_rates_are_what_the_baselines_give(capsys):
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
@@ -437,6 +437,8 @@ def test_the_committed_family_wise_rates_are_what_the_baselines_give():
     assert same_to_rounding(family.compute(), committed), (
         "results/checks/family.json is stale: python -m maintainers calibrate family --write"
     )
+    shown = capsys.readouterr().err  # issue 54 item 20: minutes of work, not minutes of nothing
+    assert "smoke tier: each post's rate" in shown and "smoke tier, 30-seed baselines" in shown
 
 
 def test_same_to_rounding_forgives_the_last_bits_and_nothing_else():

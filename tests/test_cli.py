@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from clitools import run_cli
@@ -132,7 +133,22 @@ def test_bad_input_is_named_and_exits_non_zero(argv, message, capsys, tmp_path):
 def test_torch_framework_without_torch_is_a_clear_error(monkeypatch, capsys, tmp_path):
     monkeypatch.setitem(sys.modules, "torch", None)  # makes `import torch` fail
     assert main(["reproduce", "cartpole", "--framework", "torch", "--out", str(tmp_path)]) == 2
-    assert "the torch framework needs PyTorch" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "the torch framework needs PyTorch" in err
+
+
+def test_the_torch_advice_works_for_an_installed_package_first():
+    """Issue 54 item 21: from an installed wheel there is no checkout to ``pip install -e``; the
+    advice names the package and its extra as setup.cfg declares them, the checkout's second."""
+    import configparser
+
+    from keras_rl.torch import NO_TORCH
+
+    setup = configparser.ConfigParser()
+    setup.read(Path(__file__).resolve().parents[1] / "setup.cfg")
+    assert "torch==2.13.0" in setup["options.extras_require"]["torch"]
+    installed = f"pip install '{setup['metadata']['name']}[torch]'"
+    assert installed in NO_TORCH and NO_TORCH.index(installed) < NO_TORCH.index("pip install -e")
 
 
 def test_framework_the_experiment_does_not_have(capsys, tmp_path):

@@ -117,6 +117,32 @@ def test_the_check_figure_draws_the_baseline_as_a_band_and_each_fresh_seed(monke
     assert len(curves.collections) >= 2  # the baseline's bands
 
 
+def test_the_check_figure_says_how_far_it_reads_ends_its_axis_there_and_labels_its_medians(monkeypatch, tmp_path):
+    """Issue 54 item 4: the title said "first 1000 episodes" under an axis that ended at 250, the
+    baseline median fell where a few slow seeds still played, and the median bars had no label."""
+    from keras_rl.check import command
+    from keras_rl.check.rules import rule_for
+    from keras_rl.check.statistics import Decision
+    from keras_rl.registry import get_experiment
+
+    figures = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, path: figures.append(fig))
+    baseline = {s: rows(60 if s < 60 else 250) for s in range(100)}  # 40 slow seeds play to 250
+    new = {s: rows(50) for s in range(100, 110)}
+    rule = rule_for("pendulum", "sensitive")
+    result = command.CheckResult(
+        "pendulum", rule, {s: 50.0 for s in baseline}, {s: 50.0 for s in new}, Decision(0.5, False, "U", 1.0), [], None
+    )
+    command._plot(tmp_path / "check.png", get_experiment("pendulum"), result, baseline, new)
+    curves, dist = figures[0].axes
+    assert f"reads up to episode {rule.episodes}" in curves.get_title()
+    assert "the longest seed played 250" in curves.get_title()
+    assert curves.get_xlim()[1] == 251
+    median = next(line for line in curves.get_lines() if line.get_label().startswith("baseline median"))
+    assert max(median.get_xdata()) == 60  # not the 40 slow seeds alone
+    assert "median" in [t.get_text() for t in dist.get_legend().get_texts()]
+
+
 def test_a_sets_curves_show_seeds_thin_a_median_band_and_where_each_met_the_threshold_without_a_seed_legend():
     """Round three: a 30-entry legend covered a third of the plot and ten colours repeated. Seeds
     are thin lines of one colour, the median and interquartile band stop where fewer than half the

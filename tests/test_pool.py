@@ -100,6 +100,8 @@ def sweep_dir(tmp_path_factory):
     assert proc.returncode == 0, proc.stderr
     assert "4 jobs; 0 already done, 4 to run" in proc.stderr
     assert "median episodes to threshold" in proc.stdout and "None" not in proc.stdout  # #23.9: it printed None
+    # issue 54 item 12: what it reused and trained (above), where it wrote, and no Markdown on the terminal
+    assert f"report: {out / 'sweep.md'}" in proc.stdout and "**" not in proc.stdout + proc.stderr
     assert "Ray" not in proc.stderr  # no Ray instance: the process pool
     return out
 
@@ -172,6 +174,8 @@ def test_seeds_run_in_the_pool_equal_the_same_seeds_run_in_process(sweep_dir, tm
             "--set",
             "stop_at_threshold=false",
             "--no-progress",
+            "--engine",
+            "gymnasium",  # the sweep's engine: compare the same loop in two backends
             "--out",
             str(tmp_path),
         ],

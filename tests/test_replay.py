@@ -54,6 +54,9 @@ def test_a_whole_run_replays_with_its_own_budget_and_a_cut_one_with_its_length()
     command = first.command(Path("OUT"), "--framework", "torch", python="py")
     assert command[:5] == ["py", "-m", "keras_rl", "reproduce", "pendulum"]
     assert command[command.index("--episodes") + 1] == "7" and command[-2:] == ["--framework", "torch"]
+    assert command[command.index("--engine") + 1] == "gymnasium" == first.engine  # as recorded, not auto's pick
+    compiled = plan_replay(RESULTS / "engines" / "pendulum" / "compiled" / "seed_0", "pendulum", 3)
+    assert compiled.command(Path("OUT"))[compiled.command(Path("OUT")).index("--engine") + 1] == "compiled"
 
 
 def test_a_machine_listed_as_not_bit_exact_or_another_isa_is_named(tmp_path, monkeypatch):

@@ -271,6 +271,7 @@ def test_the_manifest_splits_the_regeneration_cost_by_how_the_runs_ran():
     def entry(framework, command, minutes, seeds=2, copies=None):
         return {
             "framework": framework,
+            "engine": "compiled" if "--engine compiled" in command else "gymnasium",
             "commands": [command],
             "process_minutes": minutes,
             "seeds": list(range(seeds)),
@@ -280,13 +281,16 @@ def test_the_manifest_splits_the_regeneration_cost_by_how_the_runs_ran():
     entries = [
         entry("torch", "keras-rl reproduce cartpole --framework torch", 60.0),
         entry("keras", "keras-rl reproduce cartpole --engine compiled --seeds 0-1", 30.0),
+        # made by --engine auto: its command names no engine, its summaries record the compiled one
+        {**entry("keras", "keras-rl reproduce cartpole --seeds 2-3", 12.0), "engine": "compiled"},
         entry("keras", "keras-rl reproduce cartpole --seeds 0-1", 90.0, copies={"other": [0]}),  # half counted
     ]
     assert gen.by_kind(entries) == {
         "PyTorch": 60.0,
         "Keras on the Gymnasium loop": 45.0,
-        "Keras on the compiled engine": 30.0,
+        "Keras on the compiled engine": 42.0,
     }
+    entries = [e for e in entries if e["commands"] != ["keras-rl reproduce cartpole --seeds 2-3"]]
     # 135 process-minutes counted once; on 2 cores 67.5 minutes, but never less than the longest job
     for e, longest in zip(entries, (30.0, 10.0, 45.0)):
         e["longest_job_minutes"] = longest
@@ -321,6 +325,36 @@ def test_the_performance_page_quotes_the_manifests_regeneration_cost():
         f"{many} h on 256",
     ):
         assert quoted in row, f"docs/performance.md's regeneration row lacks {quoted!r}: quote results/MANIFEST.md"
+
+
+def test_the_forest_marks_cut_intervals_and_says_no_estimate_under_one_heading_per_group(monkeypatch, tmp_path):
+    """Issue 54 item 22: intervals past the axis ran off unmarked, rows without an estimate were
+    blank, and no heading said which arm was first."""
+    from keras_rl.report import plots
+
+    gen = load_generator("forest")
+    figures = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, path: figures.append(fig))
+
+    def reading(estimate, low, high, margin):
+        return {"estimate": estimate, "low": low, "high": high, "margin": margin, "reading": "inconclusive"}
+
+    wide = {
+        "group": "Keras vs PyTorch",
+        "label": "wide",
+        "seeds": 30,
+        "pending": False,
+        "success": reading(0.0, -1.4, 0.2, [-0.15, 0.15]),
+        "speed": reading(1.2, 0.8, 3.5, [0.9, 1.1]),
+    }
+    empty = {**wide, "label": "none", "speed": reading(None, None, None, [0.9, 1.1])}
+    gen.draw([wide, empty], tmp_path / "f.png")
+    success, speed = figures[0].axes
+    markers = lambda ax: [(line.get_marker(), tuple(line.get_xdata())) for line in ax.get_lines()]  # noqa: E731
+    assert ("<", (-1.0,)) in markers(success) and (">", gen.RATIO_AXIS[1:]) in markers(speed)
+    assert [t.get_text() for t in speed.texts] == ["no estimate"]
+    labels = [t.get_text() for t in success.get_yticklabels()]
+    assert labels[0] == "Keras vs PyTorch: first = Keras, second = PyTorch" and len(labels) == 3
 
 
 def test_the_forest_groups_its_rows_under_headings_that_say_which_arm_is_first():

@@ -108,7 +108,7 @@ LIFE_CASES = [
     ("cartpole", "keras", COMPILED, "SIGTERM", 120, 3, 140),  # training from about episode 6 on
     ("cartpole", "torch", (), "SIGKILL", 40, 25, 60),  # the tutorial's own agent
     # bursts of training after episodes 2 and up; killed past the checkpoint at 3
-    ("mountaincar", "keras", (), "SIGKILL", 6, 4, 8),
+    ("mountaincar", "keras", ("--engine", "gymnasium"), "SIGKILL", 6, 4, 8),  # auto would pick compiled
     ("mountaincar", "torch", (), "SIGKILL", 6, 4, 8),
 ]
 
@@ -357,7 +357,7 @@ def test_a_dry_run_refuses_what_the_real_run_would_and_touches_nothing(tmp_path)
     before = {p.name: p.read_bytes() for p in (out / "seed_2").iterdir()}
     for extra, says in (
         (["--episodes", "2"], "was made with a different config (episodes=3 here, 2 wanted)"),
-        (["--episodes", "5", "--engine", "compiled"], "checkpoint was written by the gymnasium engine"),
+        (["--episodes", "5", "--engine", "gymnasium"], "checkpoint was written by the compiled engine"),
     ):
         command = [*args("pendulum", "keras", 3, out)[:-2], "--out", str(out), "--resume", *extra]
         dry = subprocess.run([*command, "--dry-run"], capture_output=True, text=True, timeout=300)
@@ -365,3 +365,35 @@ def test_a_dry_run_refuses_what_the_real_run_would_and_touches_nothing(tmp_path)
         real = subprocess.run(command, capture_output=True, text=True, timeout=300)
         assert real.returncode == 2 and says in real.stderr, real.stderr
     assert {p.name: p.read_bytes() for p in (out / "seed_2").iterdir()} == before
+
+
+def test_a_dry_run_names_a_kept_seeds_damaged_episodes_csv_as_the_run_does(tiny, tmp_path, capsys):
+    """Issue 54 item 18: a completed seed whose episodes.csv lost its last row was kept by the dry
+    run without a word; the run itself stopped on it after training the others. Both now refuse
+    it before anything trains (exit 2, the file named), and leave it as it is."""
+    import shutil
+
+    from keras_rl.cli import main
+
+    out = tmp_path / "set"
+    shutil.copytree(tiny[0] / "seed_1", out / "seed_1")
+    csv_path = out / "seed_1" / "episodes.csv"
+    csv_path.write_text("".join(csv_path.read_text().splitlines(keepends=True)[:-1]))
+    damaged = csv_path.read_bytes()
+    argv = [
+        "reproduce",
+        "cartpole",
+        "--seeds",
+        "1-2",
+        "--episodes",
+        "2",
+        "--resume",
+        "--no-progress",
+        "--out",
+        str(out),
+    ]
+    for extra in (["--dry-run"], []):
+        assert main([*argv, *extra]) == 2
+        err = capsys.readouterr().err
+        assert f"{csv_path} holds 1 episodes, but its summary.json counts 2" in err, err
+    assert csv_path.read_bytes() == damaged and not (out / "seed_2").exists()

@@ -79,7 +79,8 @@ def _config_text(path: Path) -> str:
 
 
 def _recorded_config(experiment, args: argparse.Namespace):
-    """``--config``: the config a run folder recorded; the options it settles must not be given too."""
+    """``--config``: the config a run folder recorded, and the engine that made that run (None
+    for a config.json with no run beside it); the options it settles must not be given too."""
     import json
 
     given = [f"--{name.replace('_', '-')}" for name in ("variant", "framework") if getattr(args, name) is not None]
@@ -106,4 +107,6 @@ def _recorded_config(experiment, args: argparse.Namespace):
             f"--config {path} lacks field(s) {', '.join(lacking)}: a recorded config.json names every "
             "field, so none is filled in silently; add them, or use --variant and --set"
         )
-    return cls.from_dict(values)
+    from keras_rl.runs.lifecycle import recorded_engine
+
+    return cls.from_dict(values), recorded_engine(path.parent)

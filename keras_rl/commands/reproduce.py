@@ -100,18 +100,21 @@ def reproduce(args: argparse.Namespace) -> int:
     from keras_rl.study import START_WORDS, plan, run
 
     study = study_from_args(args)
-    modes = plan(study)
+    planned = plan(study)
     if args.dry_run:
         import json
 
         config = study.config.to_dict()  # type: ignore[attr-defined]
         print(json.dumps({k: v for k, v in config.items() if k != "seed"}, indent=2, sort_keys=True))
-        for s, d, m in zip(study.seeds, study.seed_dirs(), modes):
+        print(f"engine: {planned.engine} ({planned.engine_why})")
+        for s, d, m in zip(study.seeds, study.seed_dirs(), planned.modes):
             print(f"seed {s}: {d} ({START_WORDS[m]})")
         return EXIT_OK
     from keras_rl.report.plots import draw_job_curves
 
-    result = run(study, modes, after_job=draw_job_curves)
+    if study.options.engine != planned.engine:  # chosen by --engine auto: say which, and why
+        print(f"engine: {planned.engine} ({planned.engine_why})", file=sys.stderr)
+    result = run(study, planned, after_job=draw_job_curves)
     return report(study, result, args.min_success_rate)
 
 
@@ -124,7 +127,7 @@ def study_from_args(args: argparse.Namespace):
     from keras_rl.study import Study, check_success_rate
 
     experiment = get_experiment(args.experiment)
-    recorded = _recorded_config(experiment, args) if args.config is not None else None
+    recorded, recorded_engine = _recorded_config(experiment, args) if args.config is not None else (None, None)
     seeds = parse_seeds(args.seeds if args.seeds is not None else str(recorded.seed) if recorded else "0")
     variant = recorded.variant if recorded else args.variant or "faithful"
     framework = recorded.framework if recorded else args.framework or "keras"
@@ -162,6 +165,7 @@ def study_from_args(args: argparse.Namespace):
         checkpoint_every=args.checkpoint_every,
         tensorboard=args.tensorboard,
         evaluation=evaluation,
+        recorded_engine=recorded_engine,
     )
 
 

@@ -22,6 +22,7 @@ from keras_rl.runs.jobs import AfterJob, SeedJob
 from keras_rl.runs.options import RunOptions
 from keras_rl.runs.provenance import code_version
 from keras_rl.runs.reuse import check_reusable, start_of
+from keras_rl.train.engine import DEFAULT_ENGINE
 
 
 def framework_overrides(framework: str, matched_init: bool) -> dict[str, Any]:
@@ -45,13 +46,15 @@ def gather(
     for framework in compared:
         base = experiment.config_cls.for_variant(variant, **framework_overrides(framework, matched_init), **overrides)
         folder = run_folder(runs_root, experiment.name, variant, framework, matched_init)
+        engine = arm_engine(folder, seeds if rerun else ())
         for seed in seeds:
             config = base.replace(seed=seed)
             seed_dir = folder / f"seed_{seed}"
             # a report of existing runs trains nothing, so it mixes no code versions: it names them
             why = None if rerun else check_reusable(seed_dir, config, None if reuse_only else code_version())
             if rerun or why is not None:
-                jobs.append(SeedJob.of(config, seed_dir, start="overwrite" if rerun else start_of(seed_dir, why)))
+                start = "overwrite" if rerun else start_of(seed_dir, why)
+                jobs.append(SeedJob.of(config, seed_dir, start=start, engine=engine))
                 missing.setdefault(framework, []).append(seed)
     if reuse_only and missing:
         have = {fw: sorted(set(seeds) - set(missing.get(fw, []))) for fw in compared}
@@ -60,6 +63,15 @@ def gather(
             f"(reusable: {have}); run without --reuse-only to make them"
         )
     return jobs
+
+
+def arm_engine(folder: Path, rerun: list[int] | tuple[int, ...] = ()) -> str:
+    """The engine an arm's missing seeds train on: that of the runs its folder already holds (a
+    set stays on the engine it started on, as ``reproduce``'s does), else the Gymnasium loop, on
+    which every committed comparison was made."""
+    from keras_rl.runs.lifecycle import set_engine
+
+    return set_engine(folder, [folder / f"seed_{s}" for s in rerun]) or DEFAULT_ENGINE
 
 
 def make_compare_runs(
@@ -82,7 +94,11 @@ def make_compare_runs(
         folder = run_folder(runs_root, experiment.name, variant, framework, matched_init)
         made = sorted(j.config["seed"] for j in jobs if j.config["framework"] == framework)
         reused = len(seeds) - len(made)
-        to_run = f"training {len(made)} ({', '.join(map(str, made[:10]))}{', ...' if len(made) > 10 else ''})"
+        engines = {j.engine for j in jobs if j.config["framework"] == framework}
+        to_run = (
+            f"training {len(made)} ({', '.join(map(str, made[:10]))}{', ...' if len(made) > 10 else ''}) "
+            f"on the {' and '.join(sorted(engines))} engine"
+        )
         print(f"{framework}: {folder}: {reused} of {len(seeds)} seeds reused, {to_run if made else 'none to train'}",
               file=sys.stderr)  # fmt: skip
     if train_seeds(jobs, options, after_job=after_job).interrupted:

@@ -99,6 +99,8 @@ def check_keepable(base, seeds_and_dirs: list) -> None:
 
     if not seeds_and_dirs:
         return
+    from keras_rl.runs.run_set import RunSet
+
     version = code_version()
     for seed, seed_dir in seeds_and_dirs:
         try:
@@ -108,6 +110,10 @@ def check_keepable(base, seeds_and_dirs: list) -> None:
                 f"--resume keeps completed seeds, but {str(exc).split('; ')[0]}; "
                 "use --overwrite to run it again, or --out for another folder"
             ) from None
+        # its rows as the set's summary will read them: a damaged episodes.csv is named now, by
+        # the dry run too, not after the other seeds have trained (issue 54 item 18)
+        run = RunSet.seed_at(seed_dir)
+        run.rows(expected_rows=run.summary().rows_expected)
 
 
 def _kept_runs(base, seeds_and_dirs: list) -> list:
@@ -120,6 +126,57 @@ def _kept_runs(base, seeds_and_dirs: list) -> list:
         print(f"seed {seed}: already completed in {seed_dir}, kept", file=sys.stderr)
         kept.append(RunSummary.read(seed_dir))
     return kept
+
+
+def recorded_engine(seed_dir: Path) -> str | None:
+    """The engine that made the run at ``seed_dir``, as its summary records it (the folder's, or
+    where the set is packed, its ``runs.parquet``'s) or, where a kill left no summary, its
+    checkpoint; None where there is no run. A run that names no engine was made on the
+    Gymnasium loop, the only engine before the others came."""
+    from keras_rl.errors import KerasRLError
+    from keras_rl.runs.checkpoint import CHECKPOINT, read_checkpoint
+    from keras_rl.runs.run_set import SEED_FOLDER, RunSet
+
+    seed_dir = Path(seed_dir)
+    if SEED_FOLDER.fullmatch(seed_dir.name) and ((seed_dir / "summary.json").is_file() or not seed_dir.is_dir()):
+        try:
+            record = RunSet.seed_at(seed_dir).summary_record()
+        except (KerasRLError, OSError, ValueError):
+            record = None
+        if isinstance(record, dict):
+            return str((record.get("provenance") or {}).get("engine", "gymnasium"))
+    if (seed_dir / CHECKPOINT).is_file():
+        try:
+            return str(read_checkpoint(seed_dir).get("engine", "gymnasium"))
+        except KerasRLError:
+            return None
+    return None
+
+
+def set_engine(folder: Path, leaving: list[Path] | tuple[Path, ...] = ()) -> str | None:
+    """The engine of the runs in the set ``folder`` (its seed folders and its packed seeds), but
+    those in ``leaving`` (to be overwritten); None where it holds none. A set of two engines is a
+    ConfigError that names them: what continues it must name its engine."""
+    from keras_rl.runs.run_set import RunSet
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        return None
+    in_set = RunSet(folder)
+    packed = in_set.packed()
+    seeds = in_set.seed_dirs() + [folder / f"seed_{s}" for s in (packed.seeds if packed is not None else [])]
+    held: dict[str, list[Path]] = {}
+    for seed_dir in seeds:
+        engine = None if seed_dir in leaving else recorded_engine(seed_dir)
+        if engine is not None:
+            held.setdefault(engine, []).append(seed_dir)
+    if len(held) > 1:
+        found = "; ".join(f"the {e} engine: {', '.join(d.name for d in dirs[:3])}" for e, dirs in sorted(held.items()))
+        raise ConfigError(
+            f"{folder} holds runs of more than one engine ({found}), so which to continue on is not "
+            "known; name it with --engine"
+        )
+    return next(iter(held), None)
 
 
 def check_checkpoint_engine(out_dir: Path, state: dict, engine: str) -> None:

@@ -23,6 +23,9 @@ from keras_rl.errors import ConfigError
 
 ENGINE_NAMES = ("gymnasium", "compiled", "vectorised")
 """``train/engine.ENGINES``' names (a test keeps them equal), here so that parsing imports no TensorFlow."""
+AUTO = "auto"
+"""``--engine auto``, the default: ``study.choose_engine`` picks the engine when the study is planned
+(the one a set or ``--config``'s run recorded; else compiled where it is certified, else gymnasium)."""
 
 
 @dataclass(frozen=True)
@@ -44,10 +47,10 @@ class RunOptions:
     progress: bool = True
     address_source: str = "--address"
     """Where ``address`` came from, for messages: ``--address`` or ``$RAY_ADDRESS``."""
-    engine: str = "gymnasium"
+    engine: str = AUTO
     """Which engine trains the seeds (``train/engine.ENGINES``): ``gymnasium``, the reference
     loop, ``compiled``, each episode one XLA program, or ``vectorised``, post 003's PyTorch
-    tutorial on a batch of seeds in one program."""
+    tutorial on a batch of seeds in one program; ``auto`` (the default): ``study.choose_engine``'s."""
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> RunOptions:
@@ -60,7 +63,7 @@ class RunOptions:
             workers=getattr(args, "workers", 1),
             episodes=getattr(args, "episodes", None),
             seed_batch=getattr(args, "seed_batch", 1),
-            engine=getattr(args, "engine", "gymnasium"),
+            engine=getattr(args, "engine", AUTO),
             address=address,
             address_source=source,
             overrides=tuple(getattr(args, "overrides", ())),
@@ -74,7 +77,7 @@ class RunOptions:
         workers: int = 1,
         episodes: int | None = None,
         seed_batch: int | str = 1,
-        engine: str = "gymnasium",
+        engine: str = AUTO,
         address: str | None = None,
         address_source: str = "--address",
         overrides: tuple[str, ...] = (),
@@ -93,8 +96,8 @@ class RunOptions:
             raise ConfigError(f"--episodes must be positive, got {episodes}")
         if seed_batch != "auto" and int(seed_batch) < 1:
             raise ConfigError(f"--seed-batch must be at least 1 or auto, got {seed_batch}")
-        if engine not in ENGINE_NAMES:
-            raise ConfigError(f"unknown engine {engine!r}; known: {', '.join(ENGINE_NAMES)}")
+        if engine not in (AUTO, *ENGINE_NAMES):
+            raise ConfigError(f"unknown engine {engine!r}; known: {', '.join((AUTO, *ENGINE_NAMES))}")
         if engine == "compiled" and seed_batch != 1:
             raise ConfigError(f"--engine {engine} runs one seed per program; --seed-batch is the gymnasium engine's")
         if engine == "vectorised" and seed_batch == "auto":
@@ -202,11 +205,13 @@ FLAGS: dict[str, dict[str, Any]] = {
     ),
     "--no-progress": dict(action="store_true", help="no progress bars"),
     "--engine": dict(
-        choices=ENGINE_NAMES,
-        default="gymnasium",
-        help="gymnasium (the reference loop: Gymnasium's envs, one learner call per env step; the default), "
-        "compiled (each episode one XLA program; posts 000, 001 and 003 in Keras) or vectorised (post 003's "
-        "PyTorch tutorial, --seed-batch S seeds in one program, on the GPU where there is one)",
+        choices=(AUTO, *ENGINE_NAMES),
+        default=AUTO,
+        help="auto (the default: the engine the runs already in --out, or --config's run, were made on; "
+        "else compiled where it is certified, posts 000, 001 and 003 in Keras with their faithful switches "
+        "and no --seed-batch; else gymnasium), gymnasium (the reference loop: Gymnasium's envs, one learner "
+        "call per env step), compiled (each episode one XLA program) or vectorised (post 003's PyTorch "
+        "tutorial, --seed-batch S seeds in one program, on the GPU where there is one)",
     ),
     "--seeds": dict(
         default=None,

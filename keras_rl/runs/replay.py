@@ -66,6 +66,9 @@ class Replay:
     seed: int
     budget: int  # episodes to rerun
     expected: list[dict[str, str]]  # the committed rows the rerun must equal
+    engine: str = "gymnasium"
+    """The engine the run recorded (``runs/lifecycle.recorded_engine``): the rerun names it, since
+    ``--engine auto`` would pick the compiled engine for a new Keras study."""
 
     def command(self, out: Path, *extra: str, python: str | None = None) -> list[str]:
         return [
@@ -81,6 +84,8 @@ class Replay:
             "--episodes",
             str(self.budget),
             "--no-progress",
+            "--engine",
+            self.engine,
             "--out",
             str(out),
             *extra,
@@ -102,7 +107,8 @@ def plan_replay(folder: Path, experiment: str, episodes: int | None = None) -> R
     rows = run.text_rows()
     expected = rows[:episodes] if episodes is not None else rows
     budget = len(expected) if episodes is not None else int(config["episodes"])
-    return Replay(folder, experiment, str(config["variant"]), int(config["seed"]), budget, expected)
+    engine = str((run.summary_record().get("provenance") or {}).get("engine", "gymnasium"))
+    return Replay(folder, experiment, str(config["variant"]), int(config["seed"]), budget, expected, engine)
 
 
 PLATFORMS = Path(__file__).resolve().parents[2] / "results" / "PLATFORMS.json"

@@ -20,6 +20,19 @@ SWITCHES = {
 with fixed weights only when nothing trains before its end): field -> (value, ledger ID, why)."""
 
 
+CERTIFIED = {
+    ("pendulum", "keras"): "equivalent to the Gymnasium loop on success and median episodes over 100 seeds per engine "
+    "(results/engines/pendulum/report.md)",
+    ("cartpole", "keras"): "equivalent to the Gymnasium loop on success and median episodes over 100 seeds per engine "
+    "(results/engines/cartpole/report.md)",
+    ("mountaincar", "keras"): "equivalent to the Gymnasium loop on success and median episodes over 200 seeds per "
+    "engine, read as its plan defines them (results/engines/mountaincar/report.md)",
+}
+"""Where the compiled engine is certified, with what says so: the default engine there
+(``study.choose_engine``). The forest's "compiled engine vs Gymnasium loop" rows are the
+evidence; ``tests/test_engine_default.py`` keeps this table equal to them."""
+
+
 def refusal(experiment: str, config) -> str | None:
     """Why the compiled engine cannot run ``config`` of ``experiment`` (every reason at once), or None."""
     if experiment not in ENV_IDS:

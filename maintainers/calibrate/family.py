@@ -39,6 +39,13 @@ BEGIN, END = "<!-- family-wise:begin -->", "<!-- family-wise:end -->"
 SPREAD_FIGURE = CHECKS / "spread.png"
 
 
+def progress(items, desc: str):
+    """``items`` with a progress bar on stderr (the table takes minutes; issue 54 item 20)."""
+    from tqdm.auto import tqdm
+
+    return tqdm(items, desc=desc, unit="", leave=False, mininterval=1.0)
+
+
 def compute(with_spread: bool = True) -> dict:
     """Per tier: each post's rate at alpha and at alpha / 3, and the command's rate both ways."""
 
@@ -47,7 +54,7 @@ def compute(with_spread: bool = True) -> dict:
         rules = [RULES[(post, tier)] for post in POSTS]
         alpha = rules[0].alpha
         posts, unadjusted, holm = {}, [], []
-        for rule in rules:
+        for rule in progress(rules, f"{tier} tier: each post's rate"):
             values, _ = baseline_values(get_experiment(rule.experiment), rule, CHECKS / rule.experiment / "baseline")
             baseline = list(values.values())
             one = command_false_alarm_rate(baseline, rule.seeds, rule.statistic, alpha)
@@ -94,7 +101,7 @@ def command_rates(tier: str, m: int):
     rng = np.random.default_rng(4)
     regions = [rejection_region(r.seeds, m, level) for r in rules]
     command = []
-    for _ in range(BASELINES):
+    for _ in progress(range(BASELINES), f"{tier} tier, {m}-seed baselines"):
         rates = [false_alarm_rate_given_baseline(rng.random(m), r.seeds, reg) for r, reg in zip(rules, regions)]
         command.append(family_false_alarm_rate(rates))
     return np.array(command)
