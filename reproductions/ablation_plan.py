@@ -18,6 +18,18 @@ ablation stays inconclusive, with the numbers, and nothing runs.
 
     python reproductions/ablation_plan.py            # print the plan
     python reproductions/ablation_plan.py --write    # results/ablation_plan.{json,md}
+
+The second look (rule set 2026-11-27, after ``store_raw_next_state=false`` read equivalent on
+success and inconclusive on the median ratio at its 150 planned seeds, 1 (0.968 to 1.13), and
+before any seed past them ran): an ablation that the forest reads at its planned seeds as still
+unsettled (no reading different, not both equivalent) is planned once more by the same rule, each
+arm now drawn from its own planned seeds instead of the pilot's 30, over the candidates above the
+first plan's count, and run to it where affordable. There is no third look: what the second
+leaves unsettled stays so, with its numbers. The forest marks the row as a second look; its
+interval is not adjusted for the first look (the same seeds are read again with more beside them).
+
+    python reproductions/ablation_plan.py --second            # print the second look's plan
+    python reproductions/ablation_plan.py --second --write    # results/ablation_plan_second.{json,md}
 """
 
 from __future__ import annotations
@@ -99,12 +111,14 @@ ABLATIONS = (
 )
 
 
-def arm(folder: str) -> tuple[np.ndarray, np.ndarray, int]:
-    """(successes 0/1, first passing episode or budget + 1, budget) of each seed of an arm."""
+def arm(folder: str, below: int | None = None) -> tuple[np.ndarray, np.ndarray, int]:
+    """(successes 0/1, first passing episode or budget + 1, budget) of each seed of an arm (its
+    seeds below ``below`` only, where given: an arm read at its planned seeds)."""
     from keras_rl.report.certified import arm as records_of
 
     paths = tuple(str(RESULTS / f) for f in folder.split(","))
-    records = list(records_of(paths, Path("/")).values())
+    held = records_of(paths, Path("/"))
+    records = [held[s] for s in sorted(held) if below is None or s < below]
     budget = int(records[0]["budget_episodes"])
     success = np.array([bool(r["success"]) for r in records])
     episodes = np.array([budget + 1 if r["reached_at_episode"] is None else r["reached_at_episode"] for r in records])
@@ -135,6 +149,37 @@ def seed_seconds(folder: str) -> tuple[float, str]:
     return sum(batches.values()) / len(runs), engine + ("+batched" if batched else "")
 
 
+def simulate(ablation_arm, faithful_arm, budget: int, candidates, seconds: float, rng) -> tuple[list[dict], int | None]:
+    """Each candidate ``n``'s chance that a comparison settles, drawing each arm's ``n`` seeds from
+    its own, until one reaches ``PROBABILITY``: (the rows, the chosen ``n`` or None)."""
+    rows, chosen = [], None
+    for n in candidates:
+        hits = 0
+        for _ in range(REPS):
+            picks = [rng.integers(0, len(x[0]), n) for x in (ablation_arm, faithful_arm)]
+            a, b = ((x[0][p], x[1][p]) for x, p in zip((ablation_arm, faithful_arm), picks))
+            hits += settles(a, b, budget, rng)
+        p = hits / REPS
+        rows.append({"n": n, "p_settles": p, "process_hours": n * seconds / 3600})
+        if p >= PROBABILITY:
+            chosen = n
+            break
+    return rows, chosen
+
+
+def decision(chosen: int | None, cost: float, base_seeds: int, engine: str, candidates) -> str:
+    if chosen is None:
+        return f"stays inconclusive: no candidate up to {candidates[-1]} seeds settles it 80% of the time"
+    if cost > AFFORDABLE_HOURS:
+        return (
+            f"stays inconclusive: {chosen} seeds would settle it but cost {cost:.1f} process-hours, "
+            f"past the {AFFORDABLE_HOURS:g} the issue allows"
+        )
+    if chosen > base_seeds:
+        return f"runs {chosen} seeds; the faithful arm needs {chosen - base_seeds} more on {engine}"
+    return f"runs {chosen} seeds of the ablation on the {engine} engine"
+
+
 def plan_one(ablation: Ablation, seed: int) -> dict:
     pilot, faithful = arm(ablation.pilot), arm(ablation.faithful)
     budget = pilot[2]
@@ -142,21 +187,9 @@ def plan_one(ablation: Ablation, seed: int) -> dict:
     seconds, pilot_engine = seed_seconds(ablation.pilot)  # the switch's own cost, where its pilot ran on the engine
     if pilot_engine != ablation.engine:
         seconds, _ = seed_seconds(ablation.base)
-    rows, chosen = [], None
-    for n in CANDIDATES:
-        hits = 0
-        for _ in range(REPS):
-            picks = [rng.integers(0, len(x[0]), n) for x in (pilot, faithful)]
-            a, b = ((x[0][p], x[1][p]) for x, p in zip((pilot, faithful), picks))
-            hits += settles(a, b, budget, rng)
-        p = hits / REPS
-        hours = n * seconds / 3600
-        rows.append({"n": n, "p_settles": p, "process_hours": hours})
-        if p >= PROBABILITY:
-            chosen = n
-            break
+    rows, chosen = simulate(pilot, faithful, budget, CANDIDATES, seconds, rng)
     base_seeds = len(arm(ablation.base)[0])
-    entry = {
+    return {
         "post": ablation.post,
         "switch": ablation.switch,
         "pilot": ablation.pilot,
@@ -169,22 +202,8 @@ def plan_one(ablation: Ablation, seed: int) -> dict:
         "pilot_successes": [int(pilot[0].sum()), int(faithful[0].sum())],
         "probabilities": rows,
         "seeds_per_arm": chosen,
+        "decision": decision(chosen, rows[-1]["process_hours"], base_seeds, ablation.engine, CANDIDATES),
     }
-    cost = rows[-1]["process_hours"]
-    if chosen is None:
-        entry["decision"] = f"stays inconclusive: no candidate up to {CANDIDATES[-1]} seeds settles it 80% of the time"
-    elif cost > AFFORDABLE_HOURS:
-        entry["decision"] = (
-            f"stays inconclusive: {chosen} seeds would settle it but cost {cost:.1f} process-hours, "
-            f"past the {AFFORDABLE_HOURS:g} the issue allows"
-        )
-    elif chosen > base_seeds:
-        entry["decision"] = (
-            f"runs {chosen} seeds; the faithful arm needs {chosen - base_seeds} more on {ablation.engine}"
-        )
-    else:
-        entry["decision"] = f"runs {chosen} seeds of the ablation on the {ablation.engine} engine"
-    return entry
 
 
 def commands_of(entry: dict) -> list[str]:
@@ -205,6 +224,112 @@ def commands_of(entry: dict) -> list[str]:
         b = entry["base_seeds"]
         runs.append(f"{folder}/base-seeds-{b}-{n - 1}\treproduce {post} --seeds {b}-{n - 1} {args}")
     return runs
+
+
+def first_look_arms(entry: dict) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The sets each arm of ``entry`` is read from at its planned seeds, as the forest reads them:
+    the pilot where it ran on the plan's engine and the plan's runs, against its base and the
+    plan's base runs."""
+    folders = [c.split("\t")[0].removeprefix("results/") for c in commands_of(entry)]
+    pilot = (entry["pilot"],) if entry["pilot_engine"] == entry["engine"] else ()
+    mine = tuple(f for f in folders if f.rpartition("/")[2].startswith(f"{entry['switch']}-seeds-"))
+    more = tuple(f for f in folders if f.rpartition("/")[2].startswith("base-seeds-"))
+    return pilot + mine, tuple(entry["base"].split(",")) + more
+
+
+def unsettled(row: dict | None) -> bool:
+    """A forest row read (not pending) with no reading different and not both equivalent."""
+    if row is None or row["pending"]:
+        return False
+    readings = {row["success"]["reading"], row["speed"]["reading"]}
+    return "different" not in readings and readings != {"equivalent within the margin"}
+
+
+def second_look(entry: dict, row: dict, seed: int) -> dict:
+    """The second look's plan for a first look the forest read unsettled (the docstring's rule)."""
+    n, post, engine, switch = entry["seeds_per_arm"], entry["post"], entry["engine"], entry["switch"]
+    ablation_sets, faithful_sets = first_look_arms(entry)
+    ablation_arm, faithful_arm = arm(",".join(ablation_sets), below=n), arm(",".join(faithful_sets), below=n)
+    candidates = [c for c in CANDIDATES if c > n]
+    rng = np.random.default_rng(seed)
+    rows, chosen = simulate(ablation_arm, faithful_arm, ablation_arm[2], candidates, entry["seed_seconds"], rng)
+    base_seeds = len(arm(",".join(faithful_sets))[0])
+    cost = rows[-1]["process_hours"]
+    runs = []
+    if chosen is not None and cost <= AFFORDABLE_HOURS:
+        folder = f"results/{post}/ablations-{engine}"
+        args = f"--engine {engine} --workers 2 --no-progress --min-success-rate 0"
+        runs.append(
+            f"{folder}/{switch}-seeds-{n}-{chosen - 1}\treproduce {post} --seeds {n}-{chosen - 1} --set {switch} {args}"
+        )
+        if chosen > base_seeds:
+            span = f"{base_seeds}-{chosen - 1}"
+            runs.append(f"{folder}/base-seeds-{span}\treproduce {post} --seeds {span} {args}")
+    return {
+        "post": post,
+        "switch": switch,
+        "engine": engine,
+        "first_seeds": n,
+        "first_reading": {
+            k: {x: row[k][x] for x in ("estimate", "low", "high", "reading")} for k in ("success", "speed")
+        },
+        "ablation_sets": list(ablation_sets),
+        "faithful_sets": list(faithful_sets),
+        "faithful_seeds": base_seeds,
+        "seed_seconds": entry["seed_seconds"],
+        "successes_at_first_look": [int(ablation_arm[0].sum()), int(faithful_arm[0].sum())],
+        "probabilities": rows,
+        "seeds_per_arm": chosen,
+        "decision": decision(chosen, cost, base_seeds, engine, candidates).replace("runs", "runs to", 1),
+        "runs": runs,
+    }
+
+
+def second_plan(plan: list[dict]) -> list[dict]:
+    """A second look for every planned ablation the committed forest reads unsettled."""
+    import json
+
+    forest = json.loads((RESULTS / "forest.json").read_text())["rows"]
+    out = []
+    for i, entry in enumerate(plan):
+        if entry["seeds_per_arm"] is None or entry["decision"].startswith("stays"):
+            continue
+        group = f"{entry['post']} ablation vs faithful, the planned seeds"
+        label = f"{entry['switch']} ({entry['seeds_per_arm']} planned)"
+        row = next((r for r in forest if r["group"] == group and r["label"] == label), None)
+        if unsettled(row):
+            out.append(second_look(entry, row, 100 + i))
+    return out
+
+
+def render_second(plan: list[dict]) -> str:
+    lines = [
+        "# The second look at the quirk ablations still unsettled at their planned seeds (planned 2026-11-27, "
+        "before the runs)",
+        "",
+        "Generated by `python reproductions/ablation_plan.py --second --write`; the rule is in its docstring "
+        "(the second look). Each cell: seeds per arm: the probability that the comparison settles "
+        f"({REPS} simulated comparisons, each arm drawn from its own planned seeds), and the ablation arm's "
+        "process-hours. The reading at the second look is not adjusted for the first.",
+        "",
+        "| post | ablation | first look: seeds, success difference, median ratio | n: P(settles), hours | plan |",
+        "|---|---|---|---|---|",
+    ]
+
+    def reading(v: dict) -> str:
+        return f"{v['estimate']:.3g} ({v['low']:.3g} to {v['high']:.3g}): {v['reading']}"
+
+    for p in plan:
+        cells = "; ".join(f"{r['n']}: {r['p_settles']:.2f}, {r['process_hours']:.1f} h" for r in p["probabilities"])
+        first = p["first_reading"]
+        lines.append(
+            f"| {p['post']} | `{p['switch']}` | {p['first_seeds']}; {reading(first['success'])}; "
+            f"{reading(first['speed'])} | {cells} | {p['decision']} |"
+        )
+    runs = [c for p in plan for c in p["runs"]]
+    lines += ["", "The runs, in `maintainers/queues/ablations-second.tsv` (folder, then the `keras-rl` arguments):", ""]
+    lines += [f"    {c.replace(chr(9), '  ')}" for c in runs] or ["    (none)"]
+    return "\n".join(lines) + "\n"
 
 
 def render(plan: list[dict]) -> str:
@@ -235,13 +360,29 @@ def render(plan: list[dict]) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--write", action="store_true", help="write results/ablation_plan.{json,md} and the queue")
+    parser.add_argument(
+        "--second", action="store_true", help="the second look, from the committed plan and forest (its own files)"
+    )
     args = parser.parse_args(argv)
+    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+
+    if args.second:
+        import json
+
+        second = second_plan(json.loads((RESULTS / "ablation_plan.json").read_text()))
+        text = render_second(second)
+        print(text)
+        if args.write:
+            atomic_write_json(RESULTS / "ablation_plan_second.json", second)
+            atomic_write_text(RESULTS / "ablation_plan_second.md", text)
+            queue = ["# Issue 52 item 5, the second look: results/ablation_plan_second.md's runs"]
+            queue += [c for p in second for c in p["runs"]]
+            atomic_write_text(ROOT / "maintainers" / "queues" / "ablations-second.tsv", "\n".join(queue) + "\n")
+        return 0
     plan = [plan_one(a, i) for i, a in enumerate(ABLATIONS)]
     text = render(plan)
     print(text)
     if args.write:
-        from keras_rl.runs.files import atomic_write_json, atomic_write_text
-
         atomic_write_json(RESULTS / "ablation_plan.json", plan)
         atomic_write_text(RESULTS / "ablation_plan.md", text)
         queue = ["# Issue 52 item 5: the runs results/ablation_plan.md plans (python reproductions/ablation_plan.py)"]

@@ -5,22 +5,18 @@ known, its statistic, its refusals, how its fresh seeds run, and its committed r
 
 from __future__ import annotations
 
-import importlib.util
 import re
 from pathlib import Path
 
 import numpy as np
 import pytest
+from clitools import reproduction
 from committed import copy_seeds, same_to_rounding
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def load(name: str):
-    spec = importlib.util.spec_from_file_location(name, ROOT / "reproductions" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+load = reproduction
 
 
 def test_the_plans_power_is_alpha_without_a_shift_and_grows_with_the_shift(monkeypatch):

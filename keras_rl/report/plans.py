@@ -105,6 +105,10 @@ PLANS: tuple[Plan, ...] = (
         "results/ablation_plan.md",
         {line.split("\t")[0].removeprefix("results/"): None for line in _queue("ablations.tsv")},
     ),
+    Plan(  # its second look, at an ablation its planned seeds left unsettled
+        "results/ablation_plan_second.md",
+        {line.split("\t")[0].removeprefix("results/"): None for line in _queue("ablations-second.tsv")},
+    ),
 )
 
 DEVIATIONS: tuple[Deviation, ...] = (

@@ -122,11 +122,11 @@ def _comparisons() -> list[Comparison]:
             if f"{points}/{point}" in grown and point.rpartition("-seeds-")[1]:
                 continue  # a set the ablation plan grew an arm by: read in the planned row below
             out.append(Comparison(f"{post} ablation vs faithful", point, f"{points}/{point}", base))
-    for post, switch, n, first, second in planned:
+    for post, switch, planned_text, n, first, second in planned:
         out.append(
             Comparison(
                 f"{post} ablation vs faithful, the planned seeds",
-                f"{switch} ({n} planned)",
+                f"{switch} ({planned_text})",
                 first,
                 second,
                 seeds_before_reading=n,
@@ -136,9 +136,10 @@ def _comparisons() -> list[Comparison]:
     return out
 
 
-def planned_ablations() -> list[tuple[str, str, int, tuple[str, ...], tuple[str, ...]]]:
-    """Each quirk ablation ``results/ablation_plan.json`` runs: (post, switch, seeds per arm, the
-    ablation arm's sets, the faithful arm's sets), the arms grown by the sets of its queue
+def planned_ablations() -> list[tuple[str, str, str, int, tuple[str, ...], tuple[str, ...]]]:
+    """Each quirk ablation ``results/ablation_plan.json`` runs: (post, switch, the planned seeds in
+    words, seeds per arm, the ablation arm's sets, the faithful arm's sets), the arms grown by the
+    sets of its queue
     (``maintainers/queues/ablations.tsv``, named ``<switch>-seeds-A-B`` and ``base-seeds-A-B``
     beside the pilot on the plan's engine). Read at the planned seeds, pending until both arms
     hold them all."""
@@ -159,7 +160,24 @@ def planned_ablations() -> list[tuple[str, str, int, tuple[str, ...], tuple[str,
         more = tuple(q for q in grown if q.rpartition("/")[2].startswith("base-seeds-"))
         base = tuple(entry["base"].split(",")) + more
         out.append((post, switch, int(n), pilot + tuple(mine), base))
-    return out
+    return [second_look(*planned) for planned in out]
+
+
+def second_look(post: str, switch: str, n: int, first: tuple[str, ...], second: tuple[str, ...]):
+    """A planned ablation as ``results/ablation_plan_second.json`` plans its second look, where it
+    plans one: read at the second look's seeds, each arm grown by the sets of its queue
+    (``maintainers/queues/ablations-second.tsv``), the label saying so; else as it was."""
+    import json
+
+    path = RESULTS / "ablation_plan_second.json"
+    for entry in json.loads(path.read_text()) if path.is_file() else []:
+        if (entry["post"], entry["switch"]) == (post, switch) and entry["runs"]:
+            sets = [line.split("\t")[0].removeprefix("results/") for line in entry["runs"]]
+            mine = tuple(q for q in sets if q.rpartition("/")[2].startswith(f"{switch}-seeds-"))
+            more = tuple(q for q in sets if q.rpartition("/")[2].startswith("base-seeds-"))
+            label = f"{entry['seeds_per_arm']} planned, a second look after {n}"
+            return post, switch, label, int(entry["seeds_per_arm"]), first + mine, second + more
+    return post, switch, f"{n} planned", n, first, second
 
 
 def _arm(folders: str | tuple[str, ...]) -> dict[int, dict[str, Any]]:
@@ -259,7 +277,9 @@ def table(data: list[dict[str, Any]]) -> str:
         f"block is stale). A seed's episodes to threshold is its {FIRST_PASSING}, as the plans define it, "
         "a seed that never passed counting as the budget + 1; where the code's reading before issue 52 "
         f"({CONVERGED_AT_END}) differs (post 001), it follows the ratio in parentheses, and does not "
-        "govern.",
+        'govern. A 30-seed ablation row whose quirk has a row under "the planned seeds" is that row\'s '
+        "pilot: its seed plan (`results/ablation_plan.md`, and `results/ablation_plan_second.md` for a second "
+        "look) was sized from it, so an inconclusive pilot stays so and the planned row is the verdict.",
         "",
         "| comparison | first against second | seeds | success difference | median-episodes ratio |",
         "|---|---|---|---|---|",

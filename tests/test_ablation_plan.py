@@ -1,0 +1,64 @@
+"""The quirk ablations' seed plans (issue 52 item 5): the second look's rule, and what the forest
+reads from the committed plans."""
+
+from __future__ import annotations
+
+import json
+from importlib import import_module
+from pathlib import Path
+
+import pytest
+from clitools import reproduction
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "results"
+
+
+def reading(text: str) -> dict:
+    return {"estimate": 1.0, "low": 0.9, "high": 1.1, "reading": text}
+
+
+@pytest.mark.parametrize(
+    "success, speed, unsettled",
+    [
+        ("equivalent within the margin", "inconclusive", True),
+        ("inconclusive", "inconclusive", True),
+        ("equivalent within the margin", "equivalent within the margin", False),
+        ("different", "inconclusive", False),
+        ("inconclusive", "different", False),
+    ],
+)
+def test_a_second_look_is_planned_only_where_the_first_settled_nothing(success, speed, unsettled):
+    plan = reproduction("ablation_plan")
+    row = {"pending": False, "success": reading(success), "speed": reading(speed)}
+    assert plan.unsettled(row) is unsettled
+    assert plan.unsettled({**row, "pending": True}) is False and plan.unsettled(None) is False
+
+
+def test_the_second_look_runs_what_its_plan_says_under_a_registered_plan():
+    """Its queue holds exactly the runs its JSON plans, each set governed by the committed plan
+    (so the plan-order test compares their seeds' start with its commit), and the forest reads the
+    ablation at the second look's seeds, its arms grown by those sets."""
+    from keras_rl.report.plans import PLANS
+
+    second = json.loads((RESULTS / "ablation_plan_second.json").read_text())
+    queue = (ROOT / "maintainers" / "queues" / "ablations-second.tsv").read_text().splitlines()
+    runs = [line for line in queue if line and not line.startswith("#")]
+    assert runs == [r for entry in second for r in entry["runs"]]
+    governed = next(p.governs for p in PLANS if p.path == "results/ablation_plan_second.md")
+    assert set(governed) == {r.split("\t")[0].removeprefix("results/") for r in runs}
+    forest = import_module("maintainers.tables.forest")
+    planned = {(post, switch): rest for post, switch, *rest in forest.planned_ablations()}
+    for entry in second:
+        first = json.loads((RESULTS / "ablation_plan.json").read_text())
+        n = next(e["seeds_per_arm"] for e in first if (e["post"], e["switch"]) == (entry["post"], entry["switch"]))
+        assert entry["first_seeds"] == n and entry["first_reading"]["speed"]["reading"] == "inconclusive"
+        text, seeds, ablation_sets, faithful_sets = planned[(entry["post"], entry["switch"])]
+        if entry["runs"]:
+            assert (text, seeds) == (
+                f"{entry['seeds_per_arm']} planned, a second look after {n}",
+                entry["seeds_per_arm"],
+            )
+            grown = {r.split("\t")[0].removeprefix("results/") for r in entry["runs"]}
+            assert grown <= set(ablation_sets) | set(faithful_sets)
+            assert set(entry["ablation_sets"]) <= set(ablation_sets)
