@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from keras_rl.errors import ConfigError
-from keras_rl.runs.options import RunOptions
+from keras_rl.runs.options import VECTORISED, RunOptions
 from keras_rl.runs.run_set import RunSet
 
 MAX_SEEDS = 10_000
@@ -399,7 +399,7 @@ def check_engine(engine: str, experiment, config) -> None:
     # each engine's refusal imports neither TensorFlow nor torch: refused before they load
     if engine == "compiled":
         from keras_rl.train.compiled_scope import refusal
-    elif engine == "vectorised":
+    elif engine in VECTORISED:
         from keras_rl.train.vectorised import refusal
     else:
         raise ConfigError(f"unknown engine {engine!r}")
@@ -412,7 +412,7 @@ def check_seed_batch(seed_batch: int | str, experiment: str, framework: str, eng
     """A seed batch (S > 1): a clear error before anything runs when it cannot apply (``auto``
     runs seeds alone where nothing batches). The vectorised engine batches whatever it runs
     (``check_engine`` says what that is)."""
-    if engine == "vectorised":
+    if engine in VECTORISED:
         return
     if seed_batch != "auto" and int(seed_batch) > 1:
         from keras_rl.learners.table import stacked_implementation

@@ -173,7 +173,10 @@ def test_a_checkpoint_resumes_only_on_the_engine_that_wrote_it(tmp_path):
 
 
 def test_the_option_names_every_engine():
-    from keras_rl.runs.options import ENGINE_NAMES
+    from keras_rl.runs.options import ENGINE_NAMES, VECTORISED
+    from keras_rl.train.vectorised import COMPILED_ENGINE, ENGINE
+
+    assert VECTORISED == (ENGINE, COMPILED_ENGINE)  # the vectorised engine's two programs, named once each
     from keras_rl.train.engine import ENGINES
 
     assert sorted(ENGINE_NAMES) == sorted(ENGINES)

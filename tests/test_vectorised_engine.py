@@ -295,3 +295,22 @@ def test_the_engine_refuses_before_it_trains_and_the_options_let_it_batch(tmp_pa
     assert RunOptions.checked(engine="vectorised", seed_batch=8).seed_batch == 8
     with pytest.raises(ConfigError, match="--engine compiled runs one seed per program"):
         RunOptions.checked(engine="compiled", seed_batch=8)
+
+
+@pytest.mark.slow
+@TRAINS
+def test_the_compiled_program_is_an_engine_of_its_own_that_resumes_bit_for_bit(tmp_path, capsys):
+    """``vectorised-compiled`` (the step through ``torch.compile``) rounds otherwise than the eager
+    program, so its runs name it, a checkpoint of it resumes on it alone, and resumed it plays
+    what a straight run of it plays."""
+    straight, resumed = tmp_path / "straight", tmp_path / "resumed"
+    compiled = "vectorised-compiled"
+    assert main(reproduce(straight, "1", episodes=6, engine=compiled)) == 1
+    assert summary(straight / "seed_1")["provenance"]["engine"] == compiled
+    assert main(reproduce(resumed, "1", episodes=3, engine=compiled)) == 1
+    capsys.readouterr()
+    assert main(reproduce(resumed, "1", "--resume", episodes=6, engine="vectorised")) == 2
+    assert f"written by the {compiled} engine; resume it with --engine {compiled}" in capsys.readouterr().err
+    assert main(reproduce(resumed, "1", "--resume", episodes=6, engine="auto")) == 1  # the set's engine
+    assert episodes(resumed / "seed_1") == episodes(straight / "seed_1")
+    assert summary(resumed / "seed_1")["provenance"]["engine"] == compiled

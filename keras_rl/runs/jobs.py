@@ -31,7 +31,7 @@ from keras_rl.runs.signals import sigterm_as_interrupt
 from keras_rl.runs.summary import RunSummary
 from keras_rl.train.engine import DEFAULT_ENGINE, get_engine
 from keras_rl.train.settings import TrainSettings
-from keras_rl.train.vectorised import ENGINE as VECTORISED
+from keras_rl.train.vectorised import COMPILED_ENGINE, ENGINE
 
 
 @dataclass(frozen=True)
@@ -107,7 +107,7 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
             if len(batch) > 1:
                 resumed.setdefault((tuple(batch), job.command), []).append(job)
                 continue
-        seed_axis = (job.experiment, job.config.get("framework")) in STACKED or job.engine == VECTORISED
+        seed_axis = (job.experiment, job.config.get("framework")) in STACKED or job.engine in (ENGINE, COMPILED_ENGINE)
         if seed_batch == 1 or job.start == "resume" or not seed_axis:
             alone.append(job)
             continue

@@ -71,6 +71,7 @@ ENGINES: dict[str, Engine] = {
     "gymnasium": GymnasiumEngine(),
     "compiled": CompiledEngine(),
     "vectorised": VectorisedEngine(),
+    "vectorised-compiled": VectorisedEngine(compiled=True),
 }
 DEFAULT_ENGINE = "gymnasium"
 

@@ -39,8 +39,10 @@ The host and the program:
   ``--resume --episodes N`` extends it as a straight run of N would have played.
 
 It runs on CUDA where torch sees a GPU, else on the CPU with one thread (as the tutorial's agent
-does), and eagerly: ``torch.compile`` of the step costs 30-70 s per process on a CPU, more than a
-test or a short run can wait. ``benchmarks/thousand_seeds.py`` shows the compiled program.
+does), eagerly as ``vectorised``; as ``vectorised-compiled`` its step is compiled by
+``torch.compile``, which costs 30-95 s per process on a CPU (more than a test or a short run can
+wait) and then steps about 2.5x faster there (``docs/performance.md``). The two are two programs
+whose bits differ, so each is an engine name of its own, recorded and resumed by itself.
 
 ``refusal`` (no torch or TensorFlow imported) names what the engine cannot run faithfully:
 anything but post 003 in PyTorch from the tutorial's own initial weights.
@@ -66,6 +68,10 @@ from keras_rl.train.life import SeedLife, close_lives, interruption, live
 from keras_rl.train.settings import TrainSettings
 
 ENGINE = "vectorised"
+COMPILED_ENGINE = "vectorised-compiled"
+"""The same engine with its step compiled by ``torch.compile``: another program, whose rounding
+differs from the eager one's (measured: 8 seeds part within 4,000 steps), so it is an engine of
+its own name, recorded by its runs and resumed only by itself."""
 CHUNK = 500
 """The most env steps of one host call."""
 
@@ -104,7 +110,9 @@ def refusal(experiment: str, config) -> str | None:
 
 
 class VectorisedEngine:
-    name = ENGINE
+    def __init__(self, compiled: bool = False):
+        self.compiled = compiled
+        self.name = COMPILED_ENGINE if compiled else ENGINE
 
     def refusal(self, experiment: Experiment, config) -> str | None:
         return refusal(experiment.name, config)
@@ -123,13 +131,20 @@ class VectorisedEngine:
         why = self.refusal(experiment, configs[0])
         if why is not None:
             raise ConfigError(why)
-        return VectorisedRun(experiment, configs, [Path(d) for d in out_dirs], settings).run(should_stop)
+        return VectorisedRun(experiment, configs, [Path(d) for d in out_dirs], settings, self.compiled).run(should_stop)
 
 
 class VectorisedRun:
     """One job on the vectorised engine: its seeds' lives around one ``VectorisedDQN``."""
 
-    def __init__(self, experiment: Experiment, configs: list, out_dirs: list[Path], settings: TrainSettings):
+    def __init__(
+        self,
+        experiment: Experiment,
+        configs: list,
+        out_dirs: list[Path],
+        settings: TrainSettings,
+        compiled: bool = False,
+    ):
         from keras_rl.torch import single_threaded
         from keras_rl.torch.vectorised import VectorisedDQN, default_device
 
@@ -137,13 +152,14 @@ class VectorisedRun:
         device = default_device()
         if device.type == "cpu":
             single_threaded()
-        self.core = VectorisedDQN(configs, device)
+        self.core = VectorisedDQN(configs, device, compile=compiled)
+        self.engine = COMPILED_ENGINE if compiled else ENGINE
         self.batch = [c.seed for c in configs]
         self.slot = {seed: k for k, seed in enumerate(self.batch)}
         """Each seed's row in the core."""
         self.lives = [SeedLife(experiment, c, d, ("loss",), settings) for c, d in zip(configs, out_dirs)]
         for life in self.lives:
-            life.records.provenance.update(engine=ENGINE, device=str(device))
+            life.records.provenance.update(engine=self.engine, device=str(device))
             if len(self.lives) > 1:  # one wall clock for the batch (its bits do not depend on it)
                 life.records.provenance["seed_batch"] = self.batch
         self.policies: dict[int, Any] = {}
@@ -240,7 +256,7 @@ class VectorisedRun:
                 life.out_dir,
                 {
                     "version": VERSION,
-                    "engine": ENGINE,
+                    "engine": self.engine,
                     "batch": self.batch,
                     "vector_step": self.core.t,
                     "seed": {
@@ -256,7 +272,7 @@ class VectorisedRun:
         out_dirs = [life.out_dir for life in self.lives]
         states = read_batch_checkpoints(out_dirs, self.batch)
         for out_dir, state in zip(out_dirs, states):
-            check_checkpoint_engine(out_dir, state, ENGINE)
+            check_checkpoint_engine(out_dir, state, self.engine)
         steps = sorted({int(state["engine_state"]["t"]) for state in states})
         if len(steps) != 1:
             raise RunFolderError(
