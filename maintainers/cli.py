@@ -3,7 +3,7 @@ checkout as ``python -m maintainers ...`` (this folder is not part of the instal
 
 - ``python -m maintainers calibrate rules|family|held-out|designs|sensitive|real|bisect-levels``: the check's
   calibration (``maintainers/calibrate/``), whose JSON ships as package data;
-- ``python -m maintainers tables findings|ablations|compat|forest|runs``: the generated Markdown tables
+- ``python -m maintainers tables findings|ablations|compat|forest|check-figure|runs``: the generated Markdown tables
   (``maintainers/tables/``), each spliced between its markers (``report/markdown.py``);
 - ``python -m maintainers manifest``: ``results/MANIFEST``, and ``--regenerate`` to rerun sets and compare;
 - ``python -m maintainers audit``: rerun K drawn seeds of every set and compare (``results/AUDIT.md``).
@@ -135,6 +135,14 @@ def add_parser(sub) -> None:
         "maintainers.tables.forest",
         "every two-arm comparison's estimate, 90% interval, margin and reading, drawn (results/forest.png) "
         "and tabled (results/README.md, docs/findings.md)",
+        "--write",
+    )
+    _what(
+        inner,
+        "check-figure",
+        "maintainers.tables.check_figure",
+        "what check.png shows at the sensitive tier: post 000's baseline against 80 real unchanged seeds "
+        "(docs/check-example.png)",
         "--write",
     )
     p = _what(

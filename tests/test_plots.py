@@ -113,7 +113,7 @@ def test_the_check_figure_draws_the_baseline_as_a_band_and_each_fresh_seed(monke
     command._plot(tmp_path / "check.png", get_experiment("pendulum"), result, baseline, new)
     curves = figures[0].axes[0]
     drawn_lines = [line for line in curves.get_lines() if len(line.get_xdata())]
-    assert len(drawn_lines) <= len(new) + 2  # the fresh seeds, the baseline's median, the threshold
+    assert len(drawn_lines) <= len(new) + 3  # the fresh seeds, both medians, the threshold
     assert len(curves.collections) >= 2  # the baseline's bands
 
 
@@ -141,6 +141,8 @@ def test_the_check_figure_says_how_far_it_reads_ends_its_axis_there_and_labels_i
     median = next(line for line in curves.get_lines() if line.get_label().startswith("baseline median"))
     assert max(median.get_xdata()) == 60  # not the 40 slow seeds alone
     assert "median" in [t.get_text() for t in dist.get_legend().get_texts()]
+    new_median = next(line for line in curves.get_lines() if line.get_label().startswith("new median"))
+    assert max(new_median.get_xdata()) == 50 and new_median.get_zorder() > 1  # on top of the seeds' lines
 
 
 def test_a_sets_curves_show_seeds_thin_a_median_band_and_where_each_met_the_threshold_without_a_seed_legend():

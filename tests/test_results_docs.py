@@ -18,6 +18,7 @@ GENERATORS = {
     "compat_table": "maintainers.tables.compat",
     "forest": "maintainers.tables.forest",
     "manifest": "maintainers.manifest",
+    "check_figure": "maintainers.tables.check_figure",
 }
 
 
@@ -364,3 +365,12 @@ def test_the_forest_groups_its_rows_under_headings_that_say_which_arm_is_first()
         "Keras vs PyTorch (matched init): first = Keras, second = PyTorch"
     )
     assert gen._heading("seed-batched vs solo") == "seed-batched vs solo: first = seed-batched, second = solo"
+
+
+def test_the_check_example_figure_is_what_its_command_draws(tmp_path):
+    """Issue 54 item 4: docs/check-example.png (the sensitive tier's check.png from committed runs)
+    is the bytes its command draws now, so the picture the docs show is the check's own."""
+    gen = load_generator("check_figure")
+    verdict = gen.draw(tmp_path / "check.png")
+    assert verdict.startswith("consistent") and "80 fresh seeds against 200" in verdict
+    assert (tmp_path / "check.png").read_bytes() == gen.FIGURE.read_bytes(), f"stale: {gen.COMMAND}"

@@ -697,15 +697,23 @@ def _plot(path: Path, experiment, result: CheckResult, baseline_rows: dict, new_
     x, (q05, q25, q50, q75, q95) = metric_quantiles(
         list(baseline_rows.values()), (5, 25, 50, 75, 95), episodes, min_share=0.5
     )
-    curves.fill_between(x, q05, q95, color="tab:blue", alpha=0.12, lw=0, label="baseline 5-95%")
-    curves.fill_between(x, q25, q75, color="tab:blue", alpha=0.3, lw=0, label="baseline IQR")
-    curves.plot(
-        x, q50, color="tab:blue", lw=1.4, label=f"baseline median ({len(baseline_rows)} seeds, while half play)"
-    )
+    # the fresh seeds thin and underneath, the two medians on top: 80 fresh lines hid the baseline
     for rows in new_rows.values():
         metric = [r["metric"] for r in rows[:episodes]]
-        curves.plot(range(1, len(metric) + 1), metric, color="tab:orange", alpha=0.7, lw=0.9)
-    curves.plot([], [], color="tab:orange", label=f"new ({len(new_rows)} seeds, one line each)")
+        curves.plot(range(1, len(metric) + 1), metric, color="tab:orange", alpha=0.35, lw=0.6, zorder=1)
+    curves.plot([], [], color="tab:orange", alpha=0.6, lw=0.8, label=f"new ({len(new_rows)} seeds, one line each)")
+    curves.fill_between(x, q05, q95, color="tab:blue", alpha=0.15, lw=0, zorder=2, label="baseline 5-95%")
+    curves.fill_between(x, q25, q75, color="tab:blue", alpha=0.35, lw=0, zorder=2, label="baseline IQR")
+    curves.plot(
+        x,
+        q50,
+        color="tab:blue",
+        lw=1.8,
+        zorder=3,
+        label=f"baseline median ({len(baseline_rows)} seeds, while half play)",
+    )
+    nx, (new_median,) = metric_quantiles(list(new_rows.values()), (50,), episodes, min_share=0.5)
+    curves.plot(nx, new_median, color="tab:red", lw=1.8, zorder=3, label="new median (while half play)")
     config = experiment.config_cls.for_variant("faithful")
     curves.axhline(config.threshold, color="k", ls="--", lw=0.8, label="threshold")
     curves.set_xlabel("episode")
