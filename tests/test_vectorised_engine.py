@@ -314,3 +314,17 @@ def test_the_compiled_program_is_an_engine_of_its_own_that_resumes_bit_for_bit(t
     assert main(reproduce(resumed, "1", "--resume", episodes=6, engine="auto")) == 1  # the set's engine
     assert episodes(resumed / "seed_1") == episodes(straight / "seed_1")
     assert summary(resumed / "seed_1")["provenance"]["engine"] == compiled
+
+
+def test_the_certification_queue_runs_the_command_its_plan_names():
+    """``maintainers/queues/vectorised.tsv`` makes the arm as the plan's addendum words it (the queue
+    adds ``--resume --out FOLDER``), into the set the plan governs."""
+    from keras_rl.report.plans import PLANS
+
+    root = Path(__file__).resolve().parents[1]
+    plan = (root / "results" / "cartpole" / "vectorised-torch" / "plan.md").read_text()
+    lines = (root / "maintainers" / "queues" / "vectorised.tsv").read_text().splitlines()
+    ((folder, args),) = [line.split("\t") for line in lines if line and not line.startswith("#")]
+    assert f"keras-rl {args} --resume --out {folder}" in plan
+    governed = next(p.governs for p in PLANS if p.path == "results/cartpole/vectorised-torch/plan.md")
+    assert folder.removeprefix("results/") in governed
