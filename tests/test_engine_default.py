@@ -141,3 +141,19 @@ def test_the_api_and_the_command_share_one_default():
 
     assert inspect.signature(api.reproduce).parameters["engine"].default == AUTO
     assert FLAGS["--engine"]["default"] == AUTO == RunOptions().engine
+
+
+def test_the_maintainers_commands_that_make_runs_name_their_engine():
+    """The calibration's run commands (``calibrate/runs.engine_args``) and the findings table's
+    commands name the engine their sets were made on, so that ``auto`` changes none of them."""
+    from importlib import import_module
+
+    from keras_rl.check.rules import CALIBRATED_TIERS, RULES
+
+    runs = import_module("maintainers.calibrate.runs")
+    for post in ("pendulum", "cartpole", "mountaincar"):
+        for batch in (1, 10):
+            args = runs.engine_args(post, batch)
+            assert args[args.index("--engine") + 1] == RULES[(post, CALIBRATED_TIERS[0])].engine
+    findings = import_module("maintainers.tables.findings")
+    assert "--engine gymnasium" in findings.row_command("pendulum", "faithful", "keras", False, "0-29")

@@ -168,11 +168,12 @@ def choose(name: str, rule, baseline: list, mutants: dict) -> tuple[list[dict[st
 
 
 def engine_args(name: str, batch: int | str) -> list[str]:
-    """How a post's check runs are made: on its rules' engine; batched ``batch`` on the Gymnasium loop."""
+    """How a post's check runs are made: on its rules' engine, named (``--engine auto`` would pick
+    the compiled engine for a Keras post); batched ``batch`` on the Gymnasium loop."""
     engine = RULES[(name, CALIBRATED_TIERS[0])].engine
     if engine != "gymnasium":
         return ["--engine", engine]
-    return ["--seed-batch", str(batch)] if batch != 1 else []
+    return ["--engine", "gymnasium", *(["--seed-batch", str(batch)] if batch != 1 else [])]
 
 
 def shifted(episodes: np.ndarray, shift: float, budget: int) -> np.ndarray:

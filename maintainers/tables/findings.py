@@ -43,9 +43,11 @@ def post_markers(post: str) -> tuple[str, str]:
 
 
 REPRODUCE = (
-    "keras-rl reproduce {exp} --variant {variant} --framework {fw}{matched} --seeds {seeds} --workers 2 --no-progress "
-    "--min-success-rate 0"
+    "keras-rl reproduce {exp} --variant {variant} --framework {fw}{matched} --seeds {seeds} --engine {engine} "
+    "--workers 2 --no-progress --min-success-rate 0"
 )
+"""A row's command, naming the engine its folder's runs recorded: ``--engine auto`` would train a
+new Keras study of posts 000, 001 and 003 compiled, and these sets ran on the Gymnasium loop."""
 
 PENDULUM = ("000 Pendulum DDPG", "pendulum")
 CARTPOLE = ("003 CartPole DQN", "cartpole")
@@ -84,10 +86,11 @@ def row_folder(exp: str, variant: str, fw: str, matched: bool) -> Path:
     return run_folder(ROOT / "results", exp, variant, fw, matched)
 
 
-def row_command(exp: str, variant: str, fw: str, matched: bool, seeds: str) -> str:
+def row_command(exp: str, variant: str, fw: str, matched: bool, seeds: str, engine: str = "gymnasium") -> str:
     if (exp, variant) in ELSEWHERE:
         return ELSEWHERE[(exp, variant)].command(fw, seeds)
-    return REPRODUCE.format(exp=exp, variant=variant, fw=fw, matched=" --matched-init" if matched else "", seeds=seeds)
+    matched_text = " --matched-init" if matched else ""
+    return REPRODUCE.format(exp=exp, variant=variant, fw=fw, matched=matched_text, seeds=seeds, engine=engine)
 
 
 def row_numbers(folder: Path, seeds: set[int] | None = None) -> dict | None:
@@ -202,7 +205,9 @@ def table() -> str:
         numbers = row_numbers(folder)
         framework = fw + (" (matched init)" if matched else "")
         span = "0-9" if numbers is None else seed_span(numbers["seeds"])
-        command = row_command(exp, variant, fw, matched, span)
+        from keras_rl.runs.lifecycle import set_engine
+
+        command = row_command(exp, variant, fw, matched, span, set_engine(folder) or "gymnasium")
         if numbers is None:
             lines.append(
                 f"| {post} | {variant} | {framework} | not run | {criterion} | - | {theirs} | - | `{command}` |"
