@@ -216,9 +216,30 @@ def table(experiment: str, only: set[int] | None = None) -> str:
             f"| {ledger_id} | {label} | {r['successes']}/{r['seeds']}{stopped} "
             f"| {rate['estimate']:+.2f} [{rate['low']:+.2f}, {rate['high']:+.2f}] | {p(r['fisher_p'])} "
             f"| {spread} | {diff_text} | {p(r.get('mann_whitney_p'))} "
-            f"| {_reading(r, summaries[label], summaries['faithful'], budget)} |"
+            f"| {_reading(r, summaries[label], summaries['faithful'], budget)}{planned_reading(experiment, label)} |"
         )
     return "\n".join(lines)
+
+
+def planned_reading(experiment: str, label: str) -> str:
+    """Where the forest reads this ablation at the seeds its plan set (``results/ablation_plan.md``
+    and its second look), that reading, after the pilot's: the quirk's effect as settled."""
+    import json
+
+    switch = label.replace("`", "").replace(": ", "=").split(" -> ")
+    if len(switch) != 2:
+        return ""
+    name = f"{switch[0].split('=')[0]}={switch[1]}"
+    forest = ROOT / "results" / "forest.json"
+    rows = json.loads(forest.read_text())["rows"] if forest.is_file() else []
+    group = f"{experiment} ablation vs faithful, the planned seeds"
+    for row in rows:
+        if row["group"] == group and row["label"].startswith(f"{name} ("):
+            if row["pending"]:
+                return f"; at its planned seeds ({row['label'].split('(', 1)[1].rstrip(')')}): pending"
+            readings = f"{row['success']['reading']} on success, {row['speed']['reading']} on the median ratio"
+            return f"; at its planned seeds ({row['seeds']}, the forest): {readings}"
+    return ""
 
 
 def changes(experiment: str) -> list[tuple[str, str, str]]:
