@@ -740,6 +740,55 @@ def round_three(p: Pass) -> None:
         0,
         "judged on the last episode's metric",
     )
+    # 18. the dry run names a kept seed's damaged episodes.csv, as the run does (that seed, its last row cut)
+    csv_path = w / "M14" / "seed_0" / "episodes.csv"
+    if csv_path.is_file():
+        csv_path.write_text("".join(csv_path.read_text().splitlines(keepends=True)[:-1]))
+    p.expect(
+        "r3.18 --dry-run of a kept seed whose episodes.csv lost a row",
+        [
+            "reproduce",
+            "mountaincar",
+            "--seeds",
+            "0",
+            "--episodes",
+            "1",
+            "--resume",
+            "--dry-run",
+            "--out",
+            str(w / "M14"),
+        ],
+        2,
+        f"{csv_path} holds 0 episodes, but its summary.json counts 1",
+        keep=[csv_path],
+    )
+    # 8. api.reproduce's default success rate is the command's: a study whose every seed fails exits 1
+    call = (
+        "from keras_rl import api; "
+        f"r = api.reproduce('mountaincar', seeds=[0], episodes=1, out={str(w / 'A8')!r}); "
+        "print('exit_code', r.exit_code, 'successes', sum(s.success for s in r.summaries))"
+    )
+    done = subprocess.run([sys.executable, "-c", call], cwd=w, env=p.env, capture_output=True, text=True, timeout=600)
+    p.judge(
+        "r3.8 api.reproduce with every seed failing: exit_code 1 by default",
+        "api.reproduce('mountaincar', seeds=[0], episodes=1, ...)",
+        "exit_code 1 successes 0" in done.stdout and "Traceback" not in done.stderr,
+        (done.stdout.strip().splitlines() or [done.stderr.strip()[-120:]])[-1][:120],
+    )
+    # 13. under --workers the progress counts episodes, not only seeds
+    done = p.expect(
+        "r3.13 --workers 2: progress in episodes",
+        ["reproduce", "cartpole", "--seeds", "0-1", "--workers", "2", "--episodes", "3", "--engine", "gymnasium"]
+        + ["--min-success-rate", "0", "--out", str(w / "W13")],
+        0,
+        "2 seeds",
+    )
+    p.judge(
+        "r3.13 the bar counts the seeds' episodes (6 in all)",
+        "(the run above)",
+        "/6 [" in done.stderr or "6/6" in done.stderr,
+        next((line.strip()[-100:] for line in done.stderr.replace("\r", "\n").splitlines() if "ep" in line), ""),
+    )
     # 15. reproduce --help: every variant, and no seed batch the README calls retired
     wide = {**p.env, "COLUMNS": "1000"}  # one line per option
     done = p.expect("r3.15 reproduce --help lists pr-3384", ["reproduce", "--help"], 0, "pr-3384", env=wide)
