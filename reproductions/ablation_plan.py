@@ -35,6 +35,7 @@ interval is not adjusted for the first look (the same seeds are read again with 
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -357,6 +358,23 @@ def render(plan: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def write(name: str, plan: list[dict], text: str, queue: str, heading: str, runs: list[str]) -> None:
+    """``results/<name>.{json,md}`` and the queue of the runs it plans, ``maintainers/queues/<queue>``:
+    once. A plan is written before its runs; redrawn after them it would read other data (the
+    second look's, a forest that has read it), so a committed one is never replaced by accident."""
+    from keras_rl.errors import ConfigError
+    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+
+    if (RESULTS / f"{name}.json").exists():
+        raise ConfigError(
+            f"results/{name}.json exists: a plan is written once, before its runs; delete it (and say why in "
+            "the commit) to plan again, or leave out --write to print what it would say now"
+        )
+    atomic_write_json(RESULTS / f"{name}.json", plan)
+    atomic_write_text(RESULTS / f"{name}.md", text)
+    atomic_write_text(ROOT / "maintainers" / "queues" / queue, "\n".join([f"# {heading}", *runs]) + "\n")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--write", action="store_true", help="write results/ablation_plan.{json,md} and the queue")
@@ -364,8 +382,6 @@ def main(argv: list[str] | None = None) -> int:
         "--second", action="store_true", help="the second look, from the committed plan and forest (its own files)"
     )
     args = parser.parse_args(argv)
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
-
     if args.second:
         import json
 
@@ -373,23 +389,30 @@ def main(argv: list[str] | None = None) -> int:
         text = render_second(second)
         print(text)
         if args.write:
-            atomic_write_json(RESULTS / "ablation_plan_second.json", second)
-            atomic_write_text(RESULTS / "ablation_plan_second.md", text)
-            queue = ["# Issue 52 item 5, the second look: results/ablation_plan_second.md's runs"]
-            queue += [c for p in second for c in p["runs"]]
-            atomic_write_text(ROOT / "maintainers" / "queues" / "ablations-second.tsv", "\n".join(queue) + "\n")
+            heading = "Issue 52 item 5, the second look: results/ablation_plan_second.md's runs"
+            write(
+                "ablation_plan_second",
+                second,
+                text,
+                "ablations-second.tsv",
+                heading,
+                [c for p in second for c in p["runs"]],
+            )
         return 0
     plan = [plan_one(a, i) for i, a in enumerate(ABLATIONS)]
     text = render(plan)
     print(text)
     if args.write:
-        atomic_write_json(RESULTS / "ablation_plan.json", plan)
-        atomic_write_text(RESULTS / "ablation_plan.md", text)
-        queue = ["# Issue 52 item 5: the runs results/ablation_plan.md plans (python reproductions/ablation_plan.py)"]
-        queue += [c for p in plan for c in commands_of(p)]
-        atomic_write_text(ROOT / "maintainers" / "queues" / "ablations.tsv", "\n".join(queue) + "\n")
+        heading = "Issue 52 item 5: the runs results/ablation_plan.md plans (python reproductions/ablation_plan.py)"
+        write("ablation_plan", plan, text, "ablations.tsv", heading, [c for p in plan for c in commands_of(p)])
     return 0
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from keras_rl.errors import ConfigError
+
+    try:
+        raise SystemExit(main())
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None

@@ -62,3 +62,20 @@ def test_the_second_look_runs_what_its_plan_says_under_a_registered_plan():
             grown = {r.split("\t")[0].removeprefix("results/") for r in entry["runs"]}
             assert grown <= set(ablation_sets) | set(faithful_sets)
             assert set(entry["ablation_sets"]) <= set(ablation_sets)
+
+
+def test_a_committed_plan_is_never_rewritten_by_accident(monkeypatch, tmp_path):
+    """Drawn again after its runs a plan reads other data (the second look now finds nothing
+    unsettled), so ``--write`` refuses a plan that exists, and writes one that does not."""
+    from keras_rl.errors import ConfigError
+
+    plan = reproduction("ablation_plan")
+    (tmp_path / "results").mkdir()
+    (tmp_path / "maintainers" / "queues").mkdir(parents=True)
+    monkeypatch.setattr(plan, "RESULTS", tmp_path / "results")
+    monkeypatch.setattr(plan, "ROOT", tmp_path)
+    plan.write("p", [{"n": 1}], "text\n", "q.tsv", "heading", ["a\tb"])
+    assert (tmp_path / "maintainers" / "queues" / "q.tsv").read_text() == "# heading\na\tb\n"
+    with pytest.raises(ConfigError, match="a plan is written once"):
+        plan.write("p", [{"n": 2}], "other\n", "q.tsv", "heading", [])
+    assert json.loads((tmp_path / "results" / "p.json").read_text()) == [{"n": 1}]
