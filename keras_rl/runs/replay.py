@@ -107,7 +107,9 @@ def plan_replay(folder: Path, experiment: str, episodes: int | None = None) -> R
     rows = run.text_rows()
     expected = rows[:episodes] if episodes is not None else rows
     budget = len(expected) if episodes is not None else int(config["episodes"])
-    engine = str((run.summary_record().get("provenance") or {}).get("engine", "gymnasium"))
+    from keras_rl.runs.lifecycle import recorded_engine
+
+    engine = recorded_engine(folder) or "gymnasium"
     return Replay(folder, experiment, str(config["variant"]), int(config["seed"]), budget, expected, engine)
 
 
