@@ -57,6 +57,12 @@ def args(experiment, framework, episodes, out, seed=2, extra=None):
 def stop_when_on_disk(command: list[str], csv_path: Path, episodes: int, sig: int, timeout: float = 600):
     """Start ``command``, send it ``sig`` once ``csv_path`` holds ``episodes`` rows; its exit code
     and its stderr."""
+    return stop_when(command, lambda: csv_path.is_file() and len(rows(csv_path)) >= episodes, sig, timeout)
+
+
+def stop_when(command: list[str], ready, sig: int, timeout: float = 600):
+    """Start ``command``, send it ``sig`` once ``ready()`` (polled every 20 ms; at ``timeout`` s at
+    the latest); its exit code and its stderr."""
     proc = subprocess.Popen(
         command,
         stdout=subprocess.DEVNULL,
@@ -67,9 +73,7 @@ def stop_when_on_disk(command: list[str], csv_path: Path, episodes: int, sig: in
     )
     deadline = time.monotonic() + timeout
     try:
-        while time.monotonic() < deadline and proc.poll() is None:
-            if csv_path.is_file() and len(rows(csv_path)) >= episodes:
-                break
+        while time.monotonic() < deadline and proc.poll() is None and not ready():
             time.sleep(0.02)
         proc.send_signal(sig)
     finally:

@@ -116,3 +116,28 @@ def test_seeds_resume_from_their_own_states_in_any_batch_bit_for_bit():
         assert torch.equal(alone.params[k][0], straight.params[k][1])
     with pytest.raises(ValueError, match="same step"):
         VectorisedDQN(configs).load_seed_states([states[0], {**states[1], "t": 100}])
+
+
+def test_a_batch_that_sheds_seeds_plays_the_rest_as_the_whole_batch_does():
+    """``keep`` (how a batch sheds the seeds whose runs are done): seeds 3 and 11 of the batch
+    [3, 7, 11], kept in the other order after 200 steps, play the next 200 as the whole batch
+    plays them, episodes, losses and weights bit for bit; lanes that are not distinct rows of the
+    batch are refused."""
+
+    def play(engine, steps):
+        return [(e.seed, e.episode, e.steps, e.loss_sum) for e in engine.play(steps)]
+
+    configs = [CartPoleDQNConfig(seed=s) for s in (3, 7, 11)]
+    whole, shed = VectorisedDQN(configs), VectorisedDQN(configs)
+    play(whole, 200)
+    play(shed, 200)
+    shed.keep([2, 0])
+    assert shed.seeds == [11, 3]
+    after = play(whole, 200)
+    assert sorted(play(shed, 200)) == sorted(e for e in after if e[0] != 7) and any(e[0] == 11 for e in after)
+    for k in whole.params:
+        assert torch.equal(shed.params[k], whole.params[k][[2, 0]])
+    assert torch.equal(shed.memory["state"], whole.memory["state"][[2, 0]])
+    for lanes in ([], [0, 0], [2]):
+        with pytest.raises(ValueError, match="not distinct rows of a batch of 2"):
+            shed.keep(lanes)

@@ -1,7 +1,8 @@
 """The vectorised engine (``keras_rl/train/vectorised.py``, ``--engine vectorised``): post 003's
 PyTorch tutorial on a batch of seeds in one program writes the run folders every engine writes; a
 seed's folder is the same alone and inside a batch (its episodes and its final weights, bit for
-bit); a batch stopped by Ctrl-C or killed, then ``--resume``d, equals the straight batch; a solo
+bit); a batch stopped by Ctrl-C or killed, then ``--resume``d, equals the straight batch, also
+after it shed a finished seed; a solo
 run extended by ``--resume --episodes N`` equals a straight run of N, and its checkpoint resumes
 on no other engine; evaluation during training and TensorBoard write their files and leave
 training as it is; a non-finite loss stops its seed, naming the episode; what it cannot run is
@@ -24,10 +25,11 @@ from pathlib import Path
 
 import pytest
 from clitools import CLI
-from test_resume import stop_when_on_disk
+from test_resume import stop_when, stop_when_on_disk
 
 from keras_rl.cli import main
 from keras_rl.errors import ConfigError
+from keras_rl.runs.checkpoint import read_checkpoint
 
 BUDGET = 12
 SEEDS = [0, 1, 2]
@@ -216,6 +218,35 @@ def test_a_batch_stopped_mid_run_and_resumed_equals_the_straight_batch(batch, tm
     for seed in SEEDS:
         run_dir = out / f"seed_{seed}"
         assert episodes(run_dir) == episodes(batch / f"seed_{seed}"), f"seed {seed}, resumed after {kept[seed]}"
+        assert (run_dir / "q_network.pt").read_bytes() == (batch / f"seed_{seed}" / "q_network.pt").read_bytes()
+        assert summary(run_dir)["status"] == "completed" and not (run_dir / "checkpoint.pkl").exists()
+
+
+@pytest.mark.parametrize("stop", ["SIGINT", "SIGKILL"])
+@pytest.mark.slow
+@TRAINS
+def test_a_batch_that_shed_a_finished_seed_resumes_to_the_straight_batch(batch, tmp_path, stop):
+    """A seed done with its budget leaves the batch (``VectorisedDQN.keep``) instead of stepping
+    on to the end of its longest seed. Stopped once one seed has completed: by Ctrl-C, the seeds
+    still in the batch write their checkpoints and the shed seed's goes; by SIGKILL, often while
+    the periodic checkpoints of ``--checkpoint-every 1`` are written, what was written stands
+    (the shed seed's checkpoint too, until the batch writes its next). Either way ``--resume``
+    gives every seed the straight batch's rows and final weights, bit for bit."""
+    out = tmp_path / "stopped"
+    command = [*CLI, *reproduce(out, "0-2", "--seed-batch", "3", "--checkpoint-every", "1")]
+    completed = lambda d: (d / "summary.json").is_file() and summary(d)["status"] == "completed"  # noqa: E731
+    code, stderr = stop_when(command, lambda: any(completed(d) for d in out.glob("seed_*")), getattr(signal, stop))
+    done = [s for s in SEEDS if summary(out / f"seed_{s}")["status"] == "completed"]
+    assert 1 <= len(done) < len(SEEDS) and code != 0, (f"seeds {done} completed before the stop", stderr[-2000:])
+    if stop == "SIGINT":
+        for seed in SEEDS:
+            held = (out / f"seed_{seed}" / "checkpoint.pkl").is_file()
+            assert held == (seed not in done), seed
+            assert not held or read_checkpoint(out / f"seed_{seed}")["batch"] == SEEDS
+    assert main(reproduce(out, "0-2", "--seed-batch", "3", "--resume")) == 1
+    for seed in SEEDS:
+        run_dir = out / f"seed_{seed}"
+        assert episodes(run_dir) == episodes(batch / f"seed_{seed}"), f"seed {seed}"
         assert (run_dir / "q_network.pt").read_bytes() == (batch / f"seed_{seed}" / "q_network.pt").read_bytes()
         assert summary(run_dir)["status"] == "completed" and not (run_dir / "checkpoint.pkl").exists()
 

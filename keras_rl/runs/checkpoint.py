@@ -66,9 +66,11 @@ def delete_checkpoints(run_dir: Path) -> None:
         (Path(run_dir) / name).unlink(missing_ok=True)
 
 
-def read_batch_checkpoints(run_dirs: list[Path], batch: list[int]) -> list[dict[str, Any]]:
+def read_batch_checkpoints(run_dirs: list[Path], batch: list[int], part: bool = False) -> list[dict[str, Any]]:
     """Each seed's checkpoint of one vector step, the newest that every seed of the batch
-    holds (current or previous); a RunFolderError that names the folder otherwise."""
+    holds (current or previous); a RunFolderError that names the folder otherwise. ``part``:
+    the seeds may be part of the batch that wrote them (the vectorised engine's seeds are
+    independent of the batch: one killed while its batch shed it resumes alone)."""
     current = [read_checkpoint(d) for d in run_dirs]
     for d, state in zip(run_dirs, current):
         if state.get("version") != VERSION:
@@ -76,7 +78,7 @@ def read_batch_checkpoints(run_dirs: list[Path], batch: list[int]) -> list[dict[
                 f"{Path(d) / CHECKPOINT} was written by an older keras-rl (checkpoint layout "
                 f"{state.get('version', 1)}, this one reads {VERSION}); pass --overwrite to start again"
             )
-        if state["batch"] != batch:
+        if state["batch"] != batch and not (part and set(batch) <= set(state["batch"])):
             raise RunFolderError(
                 f"{Path(d) / CHECKPOINT} belongs to a batch of seeds {state['batch']}, this command "
                 f"resumes seeds {batch} together; resume with the same --seeds and --seed-batch"

@@ -22,7 +22,7 @@ from typing import Any, Literal, Protocol
 
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.registry import get_experiment
-from keras_rl.runs.checkpoint import checkpoint_batch
+from keras_rl.runs.checkpoint import CHECKPOINT, checkpoint_batch
 from keras_rl.runs.evaluate import EvalSchedule
 from keras_rl.runs.files import run_folder_locks
 from keras_rl.runs.packed import refuse_packed
@@ -142,7 +142,10 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
             out.append(chunk[0] if len(chunk) == 1 else SeedBatchJob(chunk))
     for (batch, _), group in resumed.items():
         have = sorted(j.config["seed"] for j in group)
-        if have != sorted(batch):
+        # the seeds of the batch that still hold its checkpoint: a vectorised batch removes those
+        # of the seeds it shed, which then resume no more (runs/checkpoint.read_batch_checkpoints)
+        folder = Path(group[0].out_dir).parent
+        if have != sorted(s for s in batch if (folder / f"seed_{s}" / CHECKPOINT).is_file()):
             raise RunFolderError(
                 f"{group[0].out_dir} was checkpointed in a batch of seeds {list(batch)}; resume "
                 f"them together (this command resumes {have} of them)"

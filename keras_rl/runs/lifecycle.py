@@ -144,13 +144,18 @@ def recorded_engine(seed_dir: Path) -> str | None:
         except (KerasRLError, OSError, ValueError):
             record = None
         if isinstance(record, dict):
-            return str((record.get("provenance") or {}).get("engine", "gymnasium"))
+            return _summary_engine(record)
     if (seed_dir / CHECKPOINT).is_file():
         try:
             return str(read_checkpoint(seed_dir).get("engine", "gymnasium"))
         except KerasRLError:
             return None
     return None
+
+
+def _summary_engine(record: dict) -> str:
+    """The engine a summary record names (the Gymnasium loop where it names none)."""
+    return str((record.get("provenance") or {}).get("engine", "gymnasium"))
 
 
 def set_engine(folder: Path, leaving: list[Path] | tuple[Path, ...] = ()) -> str | None:
@@ -163,13 +168,16 @@ def set_engine(folder: Path, leaving: list[Path] | tuple[Path, ...] = ()) -> str
     if not folder.is_dir():
         return None
     in_set = RunSet(folder)
-    packed = in_set.packed()
-    seeds = in_set.seed_dirs() + [folder / f"seed_{s}" for s in (packed.seeds if packed is not None else [])]
     held: dict[str, list[Path]] = {}
-    for seed_dir in seeds:
+    for seed_dir in in_set.seed_dirs():
         engine = None if seed_dir in leaving else recorded_engine(seed_dir)
         if engine is not None:
             held.setdefault(engine, []).append(seed_dir)
+    packed = in_set.packed()  # its records read once, not a seed at a time
+    for s in packed.seeds if packed is not None else []:
+        seed_dir = folder / f"seed_{s}"
+        if seed_dir not in leaving and not seed_dir.is_dir():
+            held.setdefault(_summary_engine(packed.summary_record(s)), []).append(seed_dir)
     if len(held) > 1:
         found = "; ".join(f"the {e} engine: {', '.join(d.name for d in dirs[:3])}" for e, dirs in sorted(held.items()))
         raise ConfigError(

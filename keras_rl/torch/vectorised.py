@@ -106,6 +106,16 @@ def distinct(bits: torch.Tensor, n: torch.Tensor | int) -> torch.Tensor:
     return torch.where(repeat, j, t)
 
 
+def compiled(step):
+    """``step`` through ``torch.compile``, one static program per batch size (a batch that sheds
+    seeds meets several): never a dynamic-shape program, whose rounding may differ, and never the
+    eager fallback torch takes silently past its recompile limit, which would run another engine's
+    program under this one's name; past the limit it fails instead."""
+    torch._dynamo.config.recompile_limit = max(torch._dynamo.config.recompile_limit, 64)
+    torch._dynamo.config.fail_on_recompile_limit_hit = True
+    return torch.compile(step, dynamic=False)
+
+
 def default_device() -> torch.device:
     """Where the vectorised engine runs: the GPU where torch sees one, else the CPU."""
     return torch.device("cuda" if torch.cuda.is_available() else "cpu")
@@ -170,7 +180,7 @@ class VectorisedDQN:
         self.state = self._reset_states(self.episode)
         self.rows = torch.arange(S, device=dev)
         self.records = self._records(1)  # a chunk's records; play grows them to its longest chunk
-        self._step = torch.compile(self._train_step) if compile else self._train_step
+        self._step = compiled(self._train_step) if compile else self._train_step
 
     # -- a seed's state ----------------------------------------------------------------------
     _TABLES = ("params", "target", "exp_avg", "exp_avg_sq", "max_exp_avg_sq", "memory")
@@ -205,6 +215,24 @@ class VectorisedDQN:
             getattr(self, name).copy_(torch.stack([s[name] for s in states]))
         (self.t,) = steps
         self.clock.fill_(self.t)
+
+    def keep(self, lanes: list[int]) -> None:
+        """Only the seeds at rows ``lanes`` play on, in that order: every stacked table, counter
+        and stream key is cut to them. A seed's state is its own, so the seeds kept play on as
+        they would have in the whole batch (a batch sheds the seeds whose runs are done, rather
+        than stepping them to the end of its longest seed). The compiled step compiles once per
+        batch size it meets (``compiled``)."""
+        if not lanes or sorted(set(lanes)) != sorted(lanes) or not all(0 <= k < len(self.seeds) for k in lanes):
+            raise ValueError(f"lanes {lanes} are not distinct rows of a batch of {len(self.seeds)}")
+        at = torch.tensor(lanes, device=self.device)
+        for name in self._TABLES:
+            setattr(self, name, {k: v.index_select(0, at) for k, v in getattr(self, name).items()})
+        for name in self._ROWS:
+            setattr(self, name, getattr(self, name).index_select(0, at))
+        self.streams.keys = self.streams.keys.index_select(0, at)
+        self.seeds = [self.seeds[k] for k in lanes]
+        self.rows = torch.arange(len(lanes), device=self.device)
+        self.records = self._records(1)
 
     # -- pieces ------------------------------------------------------------------------------
     def _reset_states(self, episode: torch.Tensor) -> torch.Tensor:

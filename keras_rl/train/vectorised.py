@@ -4,8 +4,10 @@ program, ``keras_rl/torch/vectorised.VectorisedDQN``, stepped a chunk of env ste
 A job's seeds are the batch: ``--seed-batch S`` packs them (``runs/jobs.batched``), and a solo
 run is a batch of one. Each seed's results are its own, whichever seeds share its batch (the
 core's counter-based streams), so a seed's ``episodes.csv`` and ``q_network.pt`` are the same
-alone and in any batch (``tests/test_vectorised_engine.py``). They are not the Gymnasium loop's:
-the core's docstring says what it keeps of the tutorial and what it draws otherwise.
+alone and in any batch (``tests/test_vectorised_engine.py``), but for the compiled program's loss
+column, whose last digits follow the batch's size (its weights and episodes do not;
+``benchmarks/vectorised_batch_bits.py``). They are not the Gymnasium loop's: the core's
+docstring says what it keeps of the tutorial and what it draws otherwise.
 
 Everything a run folder shows is every engine's one seed life (``train/life.py``): the rows of
 ``episodes.csv`` (the loss column is the mean of the episode's updates, summed in float64 on the
@@ -17,8 +19,11 @@ The host and the program:
 
 - The program plays a chunk of up to ``CHUNK`` env steps, then the host reads the episodes that
   ended in it (``VectorisedDQN.play``) and hands each to its seed's life in order. A seed whose
-  budget is done (or that stopped at its threshold, or at a non-finite loss) keeps stepping in
-  the batch, and its later episodes are never recorded.
+  budget is done (or that stopped at its threshold, or at a non-finite loss) leaves the batch
+  after that chunk (``VectorisedDQN.keep``): the batch sheds it instead of stepping it on,
+  unrecorded, to the end of its longest seed. Its episodes within the chunk after its last are
+  never recorded. The compiled program compiles once per batch size it meets (``compiled``;
+  cached on disk, so once per machine).
 - A seed's policy is read between chunks only (``SeedPolicy``): for an evaluation, for its
   ``q_network.pt`` and for ``best/``. So a chunk never runs past the end of an episode after
   which a policy is read (a seed's last episode, one that ``--eval-every`` evaluates after, one
@@ -30,11 +35,14 @@ The host and the program:
 - Where a signal or the dispatcher's stop request arrives, it is taken after the chunk: every
   running seed ends ``interrupted`` and every seed of the batch writes its checkpoint.
 - Checkpoints (``--checkpoint-every N``) count episodes as the Gymnasium loop counts a batch's:
-  after the chunk in which the batch has recorded N episodes per seed (N x S in all) since the
-  last one. Each seed's ``checkpoint.pkl`` holds its life's records (as ``train/compiled.py``'s
-  do), its own part of the core (``VectorisedDQN.seed_states``: networks, optimizer, memory,
-  env and episode counters), the batch and the env step ``t`` as its vector step; ``--resume``
-  continues from them bit for bit, and the seeds of a batch resume at one ``t``. A solo run that
+  after the chunk in which the batch has recorded N episodes per seed (N x S in all, S the
+  seeds still in it) since the last one. Each seed's ``checkpoint.pkl`` holds its life's records
+  (as ``train/compiled.py``'s do), its own part of the core (``VectorisedDQN.seed_states``:
+  networks, optimizer, memory, env and episode counters), the batch and the env step ``t`` as
+  its vector step; ``--resume`` continues from them bit for bit, and the seeds of a batch resume
+  at one ``t``. A seed the batch shed keeps its last checkpoint until the batch writes its next,
+  so that a batch killed in between resumes whole from the step they share and sheds it again
+  where it did; after that, the seeds of the batch that hold a checkpoint resume without it. A solo run that
   played its whole budget keeps its final checkpoint, taken at its last episode's end, so
   ``--resume --episodes N`` extends it as a straight run of N would have played.
 
@@ -61,7 +69,7 @@ from keras_rl.config import check_same_but_seed
 from keras_rl.dynamics import MAX_STEPS
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.experiment import Experiment
-from keras_rl.runs.checkpoint import VERSION, read_batch_checkpoints, write_checkpoint
+from keras_rl.runs.checkpoint import VERSION, delete_checkpoints, read_batch_checkpoints, write_checkpoint
 from keras_rl.runs.lifecycle import check_checkpoint_engine
 from keras_rl.runs.summary import RunSummary
 from keras_rl.train.life import SeedLife, close_lives, interruption, live
@@ -155,8 +163,13 @@ class VectorisedRun:
         self.core = VectorisedDQN(configs, device, compile=compiled)
         self.engine = COMPILED_ENGINE if compiled else ENGINE
         self.batch = [c.seed for c in configs]
-        self.slot = {seed: k for k, seed in enumerate(self.batch)}
-        """Each seed's row in the core."""
+        self.life_of = {seed: k for k, seed in enumerate(self.batch)}
+        """Each seed's index in ``lives``."""
+        self.slot = dict(self.life_of)
+        """Each seed's row in the core, while it plays there."""
+        self.shed: list[int] = []
+        """The seeds the core shed whose last checkpoint (taken while they still played in the
+        batch) the next checkpoint of the core replaces by deleting it."""
         self.lives = [SeedLife(experiment, c, d, ("loss",), settings) for c, d in zip(configs, out_dirs)]
         for life in self.lives:
             life.records.provenance.update(engine=self.engine, device=str(device))
@@ -185,7 +198,7 @@ class VectorisedRun:
             ends = self.core.play(self._chunk_steps())
             self.policies.clear()
             for end in ends:
-                k = self.slot[end.seed]
+                k = self.life_of[end.seed]
                 life = lives[k]
                 if not life.active:  # done with its budget: its later episodes are not its run's
                     continue
@@ -214,9 +227,21 @@ class VectorisedRun:
                         life.finish("interrupted", interruption(interrupted))
                 return
             every = self.settings.checkpoint_every
-            if every and any(life.active for life in lives) and since >= every * len(lives):
+            if every and any(life.active for life in lives) and since >= every * len(self.core.seeds):
                 self._write_checkpoints()
                 since = 0
+            self._shed()
+
+    def _shed(self) -> None:
+        """The core keeps only the seeds still running, where some are done but not all: a seed
+        done with its budget (or stopped) stepped on with the batch, unrecorded, to its longest
+        seed's end (a third of a batch of 8's seed-steps on post 003: ``benchmarks/lockstep_waste.py``)."""
+        playing = [seed for seed in self.core.seeds if self.lives[self.life_of[seed]].active]
+        if playing and len(playing) < len(self.core.seeds):
+            self.shed += [seed for seed in self.core.seeds if seed not in playing]
+            self.core.keep([self.slot[seed] for seed in playing])
+            self.slot = {seed: k for k, seed in enumerate(playing)}
+            self.policies.clear()
 
     def _chunk_steps(self) -> int:
         """The next chunk's length: ``CHUNK``, or fewer, so that no running seed can end an episode
@@ -242,16 +267,21 @@ class VectorisedRun:
         return min(candidates)
 
     def _policy(self, k: int):
+        """Seed ``lives[k]``'s policy, read from its row in the core."""
         from keras_rl.torch.vectorised import SeedPolicy
 
         if k not in self.policies:
-            self.policies[k] = SeedPolicy(self.core, k)
+            self.policies[k] = SeedPolicy(self.core, self.slot[self.batch[k]])
         return self.policies[k]
 
     # -- checkpoints ---------------------------------------------------------------------------
     def _write_checkpoints(self) -> None:
-        """Every seed's checkpoint at the core's step ``t``, each into its own folder."""
-        for life, own in zip(self.lives, self.core.seed_states()):
+        """The checkpoint of every seed in the core at its step ``t``, each into its own folder,
+        naming the batch the job started as; then the shed seeds' older ones go, so that the
+        batch resumes as it is now. Killed before they go, the batch resumes whole from the step
+        its seeds share (the seeds ahead from their previous checkpoint) and sheds them again."""
+        for seed, own in zip(self.core.seeds, self.core.seed_states()):
+            life = self.lives[self.life_of[seed]]
             write_checkpoint(
                 life.out_dir,
                 {
@@ -267,10 +297,13 @@ class VectorisedRun:
                     "engine_state": own,
                 },
             )
+        for seed in self.shed:
+            delete_checkpoints(self.lives[self.life_of[seed]].out_dir)
+        self.shed = []
 
     def _restore(self) -> None:
         out_dirs = [life.out_dir for life in self.lives]
-        states = read_batch_checkpoints(out_dirs, self.batch)
+        states = read_batch_checkpoints(out_dirs, self.batch, part=True)
         for out_dir, state in zip(out_dirs, states):
             check_checkpoint_engine(out_dir, state, self.engine)
         steps = sorted({int(state["engine_state"]["t"]) for state in states})
