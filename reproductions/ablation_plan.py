@@ -231,11 +231,11 @@ def first_look_arms(entry: dict) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """The sets each arm of ``entry`` is read from at its planned seeds, as the forest reads them:
     the pilot where it ran on the plan's engine and the plan's runs, against its base and the
     plan's base runs."""
+    from keras_rl.report.plans import ablation_arms
+
     folders = [c.split("\t")[0].removeprefix("results/") for c in commands_of(entry)]
     pilot = (entry["pilot"],) if entry["pilot_engine"] == entry["engine"] else ()
-    mine = tuple(f for f in folders if f.rpartition("/")[2].startswith(f"{entry['switch']}-seeds-"))
-    more = tuple(f for f in folders if f.rpartition("/")[2].startswith("base-seeds-"))
-    return pilot + mine, tuple(entry["base"].split(",")) + more
+    return ablation_arms(entry["switch"], pilot, tuple(entry["base"].split(",")), folders)
 
 
 def unsettled(row: dict | None) -> bool:

@@ -51,6 +51,16 @@ def _queue(name: str) -> list[str]:
     return [line for line in lines if line.strip() and not line.startswith("#")]
 
 
+def ablation_arms(
+    switch: str, first: tuple[str, ...], second: tuple[str, ...], folders: list[str]
+) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """An ablation's two arms as a plan grows them: ``first`` (its pilot) and the ``folders``
+    named ``<switch>-seeds-A-B``, against ``second`` (its base) and those named ``base-seeds-A-B``
+    (the names ``reproductions/ablation_plan.py`` gives its runs)."""
+    named = lambda prefix: tuple(f for f in folders if f.rpartition("/")[2].startswith(prefix))  # noqa: E731
+    return first + named(f"{switch}-seeds-"), second + named("base-seeds-")
+
+
 _PILOT = range(30, 10**6)
 """results/compare/seed_plan.md was sized from the 30-seed arms (seeds 0-29): it governs seeds 30 on."""
 

@@ -153,13 +153,11 @@ def planned_ablations() -> list[tuple[str, str, str, int, tuple[str, ...], tuple
     for entry in json.loads(path.read_text()) if path.is_file() else []:
         post, switch, n, engine = entry["post"], entry["switch"], entry["seeds_per_arm"], entry["engine"]
         grown = [q for q in queued if q.startswith(f"{post}/ablations-{engine}/")]
-        mine = [q for q in grown if q.rpartition("/")[2].startswith(f"{switch}-seeds-")]
-        if not mine:
-            continue  # the plan runs nothing for it: it stays as the plan says
         pilot = (entry["pilot"],) if entry["pilot_engine"] == engine else ()
-        more = tuple(q for q in grown if q.rpartition("/")[2].startswith("base-seeds-"))
-        base = tuple(entry["base"].split(",")) + more
-        out.append((post, switch, int(n), pilot + tuple(mine), base))
+        first, second = plans.ablation_arms(switch, pilot, tuple(entry["base"].split(",")), grown)
+        if first == pilot:
+            continue  # the plan runs nothing for it: it stays as the plan says
+        out.append((post, switch, int(n), first, second))
     return [second_look(*planned) for planned in out]
 
 
@@ -173,10 +171,8 @@ def second_look(post: str, switch: str, n: int, first: tuple[str, ...], second: 
     for entry in json.loads(path.read_text()) if path.is_file() else []:
         if (entry["post"], entry["switch"]) == (post, switch) and entry["runs"]:
             sets = [line.split("\t")[0].removeprefix("results/") for line in entry["runs"]]
-            mine = tuple(q for q in sets if q.rpartition("/")[2].startswith(f"{switch}-seeds-"))
-            more = tuple(q for q in sets if q.rpartition("/")[2].startswith("base-seeds-"))
             label = f"{entry['seeds_per_arm']} planned, a second look after {n}"
-            return post, switch, label, int(entry["seeds_per_arm"]), first + mine, second + more
+            return post, switch, label, int(entry["seeds_per_arm"]), *plans.ablation_arms(switch, first, second, sets)
     return post, switch, f"{n} planned", n, first, second
 
 
