@@ -235,7 +235,7 @@ def test_a_batch_that_shed_a_finished_seed_resumes_to_the_straight_batch(batch, 
     out = tmp_path / "stopped"
     command = [*CLI, *reproduce(out, "0-2", "--seed-batch", "3", "--checkpoint-every", "1")]
     completed = lambda d: (d / "summary.json").is_file() and summary(d)["status"] == "completed"  # noqa: E731
-    code, stderr = stop_when(command, lambda: any(completed(d) for d in out.glob("seed_*")), getattr(signal, stop))
+    code, stderr = stop_when(command, lambda: any(completed(out / f"seed_{s}") for s in SEEDS), getattr(signal, stop))
     done = [s for s in SEEDS if summary(out / f"seed_{s}")["status"] == "completed"]
     assert 1 <= len(done) < len(SEEDS) and code != 0, (f"seeds {done} completed before the stop", stderr[-2000:])
     if stop == "SIGINT":
