@@ -347,15 +347,25 @@ def test_the_compiled_program_is_an_engine_of_its_own_that_resumes_bit_for_bit(t
     assert summary(resumed / "seed_1")["provenance"]["engine"] == compiled
 
 
-def test_the_certification_queue_runs_the_command_its_plan_names():
-    """``maintainers/queues/vectorised.tsv`` makes the arm as the plan's addendum words it (the queue
-    adds ``--resume --out FOLDER``), into the set the plan governs."""
+@pytest.mark.parametrize(
+    "queue, plan, sets",
+    [
+        ("vectorised.tsv", "results/cartpole/vectorised-torch/plan.md", 1),
+        ("tutorial-fix-vectorised.tsv", "results/cartpole/tutorial-fix/plan.md", 2),
+    ],
+)
+def test_the_vectorised_queues_run_the_commands_their_plans_name(queue, plan, sets):
+    """``maintainers/queues/vectorised.tsv`` (the certification arm) and ``tutorial-fix-vectorised.tsv``
+    (issue 53 item 5's proposals) make their sets as their plans word them (the queue adds
+    ``--resume --out FOLDER``), into sets those plans govern."""
     from keras_rl.report.plans import PLANS
 
     root = Path(__file__).resolve().parents[1]
-    plan = (root / "results" / "cartpole" / "vectorised-torch" / "plan.md").read_text()
-    lines = (root / "maintainers" / "queues" / "vectorised.tsv").read_text().splitlines()
-    ((folder, args),) = [line.split("\t") for line in lines if line and not line.startswith("#")]
-    assert f"keras-rl {args} --resume --out {folder}" in plan
-    governed = next(p.governs for p in PLANS if p.path == "results/cartpole/vectorised-torch/plan.md")
-    assert folder.removeprefix("results/") in governed
+    text = (root / plan).read_text()
+    lines = (root / "maintainers" / "queues" / queue).read_text().splitlines()
+    runs = [line.split("\t") for line in lines if line and not line.startswith("#")]
+    assert len(runs) == sets
+    governed = {folder for p in PLANS if p.path == plan for folder in p.governs}
+    for folder, args in runs:
+        assert f"keras-rl {args} --resume --out {folder}" in text
+        assert folder.removeprefix("results/") in governed

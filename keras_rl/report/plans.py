@@ -111,6 +111,12 @@ PLANS: tuple[Plan, ...] = (
         commit="0b012ef9",
     ),
     Plan("results/cartpole/vectorised-torch/plan.md", {"cartpole/vectorised-torch/seeds-0-199": None}),
+    Plan(  # issue 53 item 5: the proposals on the vectorised engine, once it is certified
+        "results/cartpole/tutorial-fix/plan.md",
+        {line.split("\t")[0].removeprefix("results/"): None for line in _queue("tutorial-fix-vectorised.tsv")},
+        section="the three PyTorch arms on 100 seeds of the vectorised engine",
+        commit="3458f801",
+    ),
     Plan(  # issue 52 item 5: the runs that settle the inconclusive quirk ablations
         "results/ablation_plan.md",
         {line.split("\t")[0].removeprefix("results/"): None for line in _queue("ablations.tsv")},
