@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections import defaultdict
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
@@ -28,9 +27,8 @@ def main() -> None:
         parser.error("--batch must be at least 2")
     from keras_rl.runs.run_set import RunSet
 
-    steps: dict[int, int] = defaultdict(int)
-    for run in RunSet(Path(args.set)).runs(holding="episodes.csv"):
-        steps[run.seed] = sum(int(row["steps"]) for row in run.rows())
+    runs = RunSet(Path(args.set)).runs(holding="episodes.csv")
+    steps = {run.seed: sum(int(row["steps"]) for row in run.rows()) for run in runs}
     if not steps:
         sys.exit(f"error: {args.set} holds no runs")
     seeds = sorted(steps)

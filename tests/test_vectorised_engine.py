@@ -190,6 +190,17 @@ def test_a_seed_whose_loss_is_not_finite_stops_alone_naming_the_episode(tmp_path
     assert not (out / "seed_0" / "q_network.pt").exists()
 
 
+def resumes_to_the_straight_batch(out: Path, batch: Path, when: str) -> None:
+    """``--resume`` of the stopped batch in ``out`` completes every seed with the straight batch's
+    rows and final weights, bit for bit, and leaves no checkpoint."""
+    assert main(reproduce(out, "0-2", "--seed-batch", "3", "--resume")) == 1
+    for seed in SEEDS:
+        run_dir = out / f"seed_{seed}"
+        assert episodes(run_dir) == episodes(batch / f"seed_{seed}"), f"seed {seed}, {when}"
+        assert (run_dir / "q_network.pt").read_bytes() == (batch / f"seed_{seed}" / "q_network.pt").read_bytes()
+        assert summary(run_dir)["status"] == "completed" and not (run_dir / "checkpoint.pkl").exists()
+
+
 @pytest.mark.parametrize("stop", ["SIGINT", "SIGKILL"])
 @pytest.mark.slow
 @TRAINS
@@ -214,12 +225,7 @@ def test_a_batch_stopped_mid_run_and_resumed_equals_the_straight_batch(batch, tm
             s = summary(out / f"seed_{seed}")
             assert s["status"] == "interrupted" and "SIGINT" in s["message"], s
             assert s["episodes_run"] == kept[seed]
-    assert main(reproduce(out, "0-2", "--seed-batch", "3", "--resume")) == 1
-    for seed in SEEDS:
-        run_dir = out / f"seed_{seed}"
-        assert episodes(run_dir) == episodes(batch / f"seed_{seed}"), f"seed {seed}, resumed after {kept[seed]}"
-        assert (run_dir / "q_network.pt").read_bytes() == (batch / f"seed_{seed}" / "q_network.pt").read_bytes()
-        assert summary(run_dir)["status"] == "completed" and not (run_dir / "checkpoint.pkl").exists()
+    resumes_to_the_straight_batch(out, batch, f"resumed after {kept}")
 
 
 @pytest.mark.parametrize("stop", ["SIGINT", "SIGKILL"])
@@ -243,12 +249,7 @@ def test_a_batch_that_shed_a_finished_seed_resumes_to_the_straight_batch(batch, 
             held = (out / f"seed_{seed}" / "checkpoint.pkl").is_file()
             assert held == (seed not in done), seed
             assert not held or read_checkpoint(out / f"seed_{seed}")["batch"] == SEEDS
-    assert main(reproduce(out, "0-2", "--seed-batch", "3", "--resume")) == 1
-    for seed in SEEDS:
-        run_dir = out / f"seed_{seed}"
-        assert episodes(run_dir) == episodes(batch / f"seed_{seed}"), f"seed {seed}"
-        assert (run_dir / "q_network.pt").read_bytes() == (batch / f"seed_{seed}" / "q_network.pt").read_bytes()
-        assert summary(run_dir)["status"] == "completed" and not (run_dir / "checkpoint.pkl").exists()
+    resumes_to_the_straight_batch(out, batch, f"seeds {done} done at the stop")
 
 
 @pytest.mark.slow

@@ -222,7 +222,7 @@ class VectorisedDQN:
         they would have in the whole batch (a batch sheds the seeds whose runs are done, rather
         than stepping them to the end of its longest seed). The compiled step compiles once per
         batch size it meets (``compiled``)."""
-        if not lanes or sorted(set(lanes)) != sorted(lanes) or not all(0 <= k < len(self.seeds) for k in lanes):
+        if not lanes or len(set(lanes)) != len(lanes) or not all(0 <= k < len(self.seeds) for k in lanes):
             raise ValueError(f"lanes {lanes} are not distinct rows of a batch of {len(self.seeds)}")
         at = torch.tensor(lanes, device=self.device)
         for name in self._TABLES:

@@ -165,11 +165,6 @@ class VectorisedRun:
         self.batch = [c.seed for c in configs]
         self.life_of = {seed: k for k, seed in enumerate(self.batch)}
         """Each seed's index in ``lives``."""
-        self.slot = dict(self.life_of)
-        """Each seed's row in the core, while it plays there."""
-        self.shed: list[int] = []
-        """The seeds the core shed whose last checkpoint (taken while they still played in the
-        batch) the next checkpoint of the core replaces by deleting it."""
         self.lives = [SeedLife(experiment, c, d, ("loss",), settings) for c, d in zip(configs, out_dirs)]
         for life in self.lives:
             life.records.provenance.update(engine=self.engine, device=str(device))
@@ -236,11 +231,9 @@ class VectorisedRun:
         """The core keeps only the seeds still running, where some are done but not all: a seed
         done with its budget (or stopped) stepped on with the batch, unrecorded, to its longest
         seed's end (a third of a batch of 8's seed-steps on post 003: ``benchmarks/lockstep_waste.py``)."""
-        playing = [seed for seed in self.core.seeds if self.lives[self.life_of[seed]].active]
-        if playing and len(playing) < len(self.core.seeds):
-            self.shed += [seed for seed in self.core.seeds if seed not in playing]
-            self.core.keep([self.slot[seed] for seed in playing])
-            self.slot = {seed: k for k, seed in enumerate(playing)}
+        rows = [k for k, seed in enumerate(self.core.seeds) if self.lives[self.life_of[seed]].active]
+        if rows and len(rows) < len(self.core.seeds):
+            self.core.keep(rows)
             self.policies.clear()
 
     def _chunk_steps(self) -> int:
@@ -271,7 +264,7 @@ class VectorisedRun:
         from keras_rl.torch.vectorised import SeedPolicy
 
         if k not in self.policies:
-            self.policies[k] = SeedPolicy(self.core, self.slot[self.batch[k]])
+            self.policies[k] = SeedPolicy(self.core, self.core.seeds.index(self.batch[k]))
         return self.policies[k]
 
     # -- checkpoints ---------------------------------------------------------------------------
@@ -297,9 +290,8 @@ class VectorisedRun:
                     "engine_state": own,
                 },
             )
-        for seed in self.shed:
+        for seed in set(self.batch) - set(self.core.seeds):  # shed: their older checkpoints go
             delete_checkpoints(self.lives[self.life_of[seed]].out_dir)
-        self.shed = []
 
     def _restore(self) -> None:
         out_dirs = [life.out_dir for life in self.lives]
