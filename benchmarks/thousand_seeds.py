@@ -1,17 +1,19 @@
 """Post 003 on many seeds at once on the vectorised PyTorch engine (issue 53 item 4): a thousand
 seeds of the tutorial's DQN on one GPU, or any number on a CPU, in one process.
 
-    python benchmarks/thousand_seeds.py --seeds 0-999 --device cuda --out DIR [--max-seconds 330]
+    python benchmarks/thousand_seeds.py --seeds 0-999 --device cuda --cuda-graph --out DIR [--max-seconds 330]
 
 Steps every seed until each has played its budget (600 episodes) or ``--max-seconds`` of stepping
-have passed, reading the episodes back once per chunk, and writes to ``DIR``:
+have passed, reading the episodes back once per chunk and shedding the seeds that played their
+budget (as a run's batch does), and writes to ``DIR``:
 
 - ``episodes.csv.gz``: one row per finished episode within its seed's budget (seed, episode,
   steps, the mean loss of its updates);
 - ``report.json``: the device and its torch, CUDA and GPU names, the seeds, the steps, the compile
-  and stepping seconds, ms per seed-env-step after the first chunk (which compiles; every seed
-  stepped counts, finished or not), the share of seed-env-steps inside a seed's budget, and the
-  CartPole step on this device against the CPU's.
+  and stepping seconds, the whole set's wall time, ms per seed-env-step after the first chunk
+  (which compiles; every seed stepped counts), each chunk's batch size and seconds, and on a GPU
+  the CartPole step there against the CPU's and, with ``--cuda-graph``, the graphed step against
+  the eager one bit for bit.
 
 Needs only torch, numpy and gymnasium (the device machines have no TensorFlow).
 """
@@ -56,6 +58,51 @@ def env_agreement(device) -> dict:
     }
 
 
+def graph_agreement(device, seeds: int = 16, chunks: int = 4, chunk: int = 100) -> dict:
+    """The CUDA-graph step (``VectorisedDQN(cuda_graph=True)``) against the eager step on ``device``:
+    the same seeds played side by side, shedding half the batch after the second chunk (a new
+    graph), and every episode and parameter compared bit for bit."""
+    from keras_rl.posts.cartpole import CartPoleDQNConfig
+    from keras_rl.torch.vectorised import VectorisedDQN
+
+    configs = [CartPoleDQNConfig(seed=s) for s in range(seeds)]
+    eager, graphed = VectorisedDQN(configs, device=device), VectorisedDQN(configs, device=device, cuda_graph=True)
+    same = True
+    for i in range(chunks):
+        same &= eager.play(chunk) == graphed.play(chunk)
+        if i == 1:
+            eager.keep(list(range(0, seeds, 2)))
+            graphed.keep(list(range(0, seeds, 2)))
+    worst = max(float((eager.params[k] - graphed.params[k]).abs().max()) for k in eager.params)
+    return {
+        "seeds": seeds,
+        "env_steps": chunks * chunk,
+        "episodes_equal": bool(same),
+        "max_abs_parameter_difference": worst,
+    }
+
+
+def eager_baseline(configs, device, steps: int = 200) -> dict:
+    """The eager step's time on the same seeds and device, in the same run as the graphed one: a
+    fresh engine played to where its memory trains, then ``steps`` training steps timed."""
+    import torch
+
+    from keras_rl.torch.vectorised import VectorisedDQN
+
+    engine = VectorisedDQN(configs, device=device)
+    engine.play(configs[0].train_start)
+    torch.cuda.synchronize()
+    start = time.perf_counter()
+    engine.play(steps)
+    seconds = time.perf_counter() - start
+    return {
+        "S": len(configs),
+        "training_steps": steps,
+        "ms_per_step": seconds * 1e3 / steps,
+        "ms_per_seed_env_step": seconds * 1e3 / (steps * len(configs)),
+    }
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", default="0-999", help="a range, FIRST-LAST")
@@ -64,7 +111,14 @@ def main() -> int:
     parser.add_argument("--chunk", type=int, default=500, help="env steps between reads of the episodes")
     parser.add_argument("--max-seconds", type=float, default=330.0, help="stop stepping after this long")
     parser.add_argument("--no-compile", action="store_true")
+    parser.add_argument(
+        "--cuda-graph",
+        action="store_true",
+        help="record the eager step as a CUDA graph (no compile; implies --no-compile)",
+    )
+    parser.add_argument("--episodes", type=int, help="each seed's budget (default the post's, 600)")
     args = parser.parse_args()
+    args.no_compile |= args.cuda_graph
     import numpy as np
     import torch
 
@@ -76,7 +130,7 @@ def main() -> int:
     device = torch.device(args.device)
     if device.type == "cpu":
         torch.set_num_threads(1)
-    configs = [CartPoleDQNConfig(seed=s) for s in seeds]
+    configs = [CartPoleDQNConfig(seed=s, **({"episodes": args.episodes} if args.episodes else {})) for s in seeds]
     budget = configs[0].episodes
     report: dict = {
         "command": " ".join(["python", *sys.argv]),
@@ -87,11 +141,16 @@ def main() -> int:
         "S": len(seeds),
         "budget_episodes": budget,
         "compiled": not args.no_compile,
+        "cuda_graph": args.cuda_graph,
     }
     if device.type == "cuda":
         report["env_on_this_device"] = env_agreement(device)
-    start = time.perf_counter()
-    engine = VectorisedDQN(configs, device=device, compile=not args.no_compile)
+    if args.cuda_graph:
+        report["cuda_graph_against_eager"] = graph_agreement(device)
+        report["eager_baseline"] = eager_baseline(configs, device)
+        print(json.dumps(report, indent=2), flush=True)
+    set_start = start = time.perf_counter()
+    engine = VectorisedDQN(configs, device=device, compile=not args.no_compile, cuda_graph=args.cuda_graph)
     report["build_seconds"] = round(time.perf_counter() - start, 2)
     steps = {s: [] for s in seeds}
     losses = {s: [] for s in seeds}
@@ -102,28 +161,39 @@ def main() -> int:
                 steps[e.seed].append(e.steps)
                 losses[e.seed].append(e.loss_sum / e.updates if e.updates else float("nan"))
 
+    def shed():  # the seeds that played their budget leave the batch, as a run's do
+        rest = [k for k, s in enumerate(engine.seeds) if len(steps[s]) < budget]
+        if rest and len(rest) < len(engine.seeds):
+            engine.keep(rest)
+
     # the first chunk compiles both programs (before and after the memory holds a batch)
     start = time.perf_counter()
     take(engine.play(args.chunk))
     if device.type == "cuda":
         torch.cuda.synchronize()
     report["first_chunk_seconds"] = round(time.perf_counter() - start, 2)
-    stepping_start, stepped = time.perf_counter(), 0
+    shed()
+    stepping_start, stepped, chunks = time.perf_counter(), 0, []
     while min(len(v) for v in steps.values()) < budget:
         if time.perf_counter() - stepping_start > args.max_seconds:
             break
+        size, chunk_start = len(engine.seeds), time.perf_counter()
         take(engine.play(args.chunk))
-        stepped += args.chunk
+        shed()
+        chunks.append([engine.t, size, round(time.perf_counter() - chunk_start, 4)])
+        stepped += args.chunk * size
         done = sum(len(v) >= budget for v in steps.values())
         report["progress"] = {  # rewritten after every chunk: a run stopped from outside keeps it
             "stepping_seconds": round(time.perf_counter() - stepping_start, 2),
             "env_steps_per_seed": engine.t,
-            "ms_per_seed_env_step": (time.perf_counter() - stepping_start) * 1e3 / (stepped * len(seeds)),
+            "ms_per_seed_env_step": (time.perf_counter() - stepping_start) * 1e3 / stepped,
             "seeds_that_played_their_budget": done,
+            "chunks": chunks,
         }
         (args.out / "report.json").write_text(json.dumps(report, indent=2) + "\n")
         print(
             f"{time.perf_counter() - stepping_start:7.1f} s  step {engine.t:7d}  seeds done {done}/{len(seeds)}  "
+            f"batch {len(engine.seeds):4d}  "
             f"episodes min {min(len(v) for v in steps.values())}",
             flush=True,
         )
@@ -133,9 +203,12 @@ def main() -> int:
         {
             "env_steps_per_seed": engine.t,
             "stepping_seconds": round(wall, 2),
-            "ms_per_seed_env_step": wall * 1e3 / (stepped * len(seeds)) if stepped else None,
+            "set_wall_seconds": round(time.perf_counter() - set_start, 2),
+            "ms_per_seed_env_step": wall * 1e3 / stepped if stepped else None,
+            "seed_env_steps_stepped": stepped + args.chunk * len(seeds),
             "seed_env_steps_within_budgets": within,
-            "share_of_seed_env_steps_within_budgets": within / (engine.t * len(seeds)),
+            "share_of_seed_env_steps_within_budgets": within / (stepped + args.chunk * len(seeds)),
+            "chunks": {"columns": ["env_steps_per_seed", "seeds_in_batch", "seconds"], "rows": chunks},
             "seeds_that_played_their_budget": sum(len(v) >= budget for v in steps.values()),
             "stopped_by": "budget" if min(len(v) for v in steps.values()) >= budget else "max-seconds",
         }

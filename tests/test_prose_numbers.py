@@ -9,6 +9,7 @@ fails here.
 
 from __future__ import annotations
 
+import gzip
 import json
 import re
 from collections.abc import Callable
@@ -143,6 +144,27 @@ def compare_001(matched: bool) -> dict:
     return json.loads(
         (RESULTS / "compare" / "mountaincar" / ("matched-init" if matched else "") / "result.json").read_text()
     )
+
+
+@cache
+def thousand_seeds() -> dict:
+    """The H200 run of ``benchmarks/thousand_seeds.py`` (issue 53 item 4): its report, its chunks'
+    full-batch time per step, and the seeds whose 100-episode mean of steps reaches 475."""
+    here = RESULTS / "cartpole" / "vectorised-torch" / "h200"
+    report = json.loads((here / "report.json").read_text())
+    rows = np.asarray(report["chunks"]["rows"], dtype=float)
+    with gzip.open(here / "episodes.csv.gz", "rt") as fh:
+        table = np.loadtxt(fh, delimiter=",", skiprows=1, usecols=(0, 2))
+    reached = 0
+    for seed in np.unique(table[:, 0]):
+        steps = table[table[:, 0] == seed, 1]
+        reached += bool((np.convolve(steps, np.ones(100) / 100, mode="valid") >= 475).any())
+    return {
+        **report,
+        "full_batch_ms": float(np.median(rows[rows[:, 1] == report["S"], 2])),
+        "reached": reached,
+        "rows": len(table),
+    }
 
 
 Claim = tuple[str, str, Callable[[], tuple]]
@@ -339,6 +361,32 @@ CLAIMS: list[Claim] = [
                 for fw in ("keras", "torch")
             ),
         ),
+    ),
+    # issue 53 item 4: a thousand seeds on one H200
+    (
+        "results/cartpole/vectorised-torch/h200/README.md",
+        "the whole set's wall time, engine built to the last seed's 600th episode | **{:.0f} s**",
+        lambda: (thousand_seeds()["set_wall_seconds"],),
+    ),
+    (
+        "results/cartpole/vectorised-torch/h200/README.md",
+        "at the full batch) | **{:.2f}** ({:.2f} us per seed-env-step) |",
+        lambda: (thousand_seeds()["full_batch_ms"], thousand_seeds()["full_batch_ms"]),
+    ),
+    (
+        "results/cartpole/vectorised-torch/h200/README.md",
+        "eager, same run (200 training steps) | {:.2f} |",
+        lambda: (thousand_seeds()["eager_baseline"]["ms_per_step"],),
+    ),
+    (
+        "results/cartpole/vectorised-torch/h200/README.md",
+        "mean loss of its updates; {:,} rows)",
+        lambda: (thousand_seeds()["rows"],),
+    ),
+    (
+        "results/cartpole/vectorised-torch/h200/README.md",
+        "**{} of 1,000 ({:.3f},",
+        lambda: (thousand_seeds()["reached"], thousand_seeds()["reached"] / 1000),
     ),
     # post 001's ablations (results/mountaincar/ablations/sweep.json, the FIDELITY table's rows)
     (

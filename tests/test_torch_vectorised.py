@@ -141,3 +141,13 @@ def test_a_batch_that_sheds_seeds_plays_the_rest_as_the_whole_batch_does():
     for lanes in ([], [0, 0], [2]):
         with pytest.raises(ValueError, match="not distinct rows of a batch of 2"):
             shed.keep(lanes)
+
+
+def test_a_cuda_graph_is_refused_on_a_cpu_and_beside_compile():
+    """``cuda_graph=True`` records the eager step on a CUDA device (``GraphedStep``; checked bit
+    for bit against the eager step where a GPU is lent, by ``benchmarks/thousand_seeds.py
+    --cuda-graph``): asked for on a CPU, or with ``compile``, it is refused before anything is built."""
+    configs = [CartPoleDQNConfig(seed=0)]
+    for kwargs in ({"device": "cpu"}, {"device": "cpu", "compile": True}):
+        with pytest.raises(ValueError, match="cuda_graph records the eager step on a CUDA device"):
+            VectorisedDQN(configs, cuda_graph=True, **kwargs)

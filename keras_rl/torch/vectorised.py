@@ -5,7 +5,9 @@ a leading seed axis; one call steps every seed's env once and, as the tutorial's
 pushes the transition, trains on a batch of 128 drawn without replacement (once the memory holds
 128), soft-updates the target and chooses the next action. The update goes through ``torch.func``
 (``functional_call``, ``grad_and_value``, ``vmap`` over the seed axis); the optimizer, the soft
-update and the env are elementwise over the stacked tensors. The same code runs on a CPU or a GPU.
+update and the env are elementwise over the stacked tensors. The same code runs on a CPU or a GPU; on a GPU the step can
+be recorded once as a CUDA graph and replayed (``cuda_graph=True``, ``GraphedStep``), the same
+kernels without a launch from the host for each.
 
 What is the tutorial's, and what is not:
 - the networks start as the tutorial's do for the same seed (``torch.manual_seed(seed)``, then
@@ -116,6 +118,43 @@ def compiled(step):
     return torch.compile(step, dynamic=False)
 
 
+class GraphedStep:
+    """The training step recorded once as a CUDA graph and replayed for every later training step
+    (``VectorisedDQN(..., cuda_graph=True)``): on a GPU the eager step is hundreds of small kernels
+    whose launches from the host cost more than the kernels, and a graph launches them all at once
+    with no compile. The math is the eager step's, kernel for kernel.
+
+    A graph replays on the tensors it was recorded on, so the step may change none of its state's
+    storage: it writes every table, counter and record in place, and the steps that move the clock
+    live on the device (the step has no host sync, and the random draws are counter-based, so there
+    is no generator state to capture). The first ``WARMUP`` training steps run eagerly on a side
+    stream, as torch asks before a capture; they are real steps. The steps before the memory
+    trains run eagerly (a different program, played once)."""
+
+    WARMUP = 3
+
+    def __init__(self, step):
+        self.step, self.graph, self.warm = step, None, 0
+        self.side = torch.cuda.Stream()
+
+    def __call__(self, trains: bool) -> None:
+        if not trains:
+            self.step(False)
+            return
+        if self.graph is None:
+            if self.warm < self.WARMUP:
+                self.side.wait_stream(torch.cuda.current_stream())
+                with torch.cuda.stream(self.side):
+                    self.step(True)
+                torch.cuda.current_stream().wait_stream(self.side)
+                self.warm += 1
+                return
+            self.graph = torch.cuda.CUDAGraph()
+            with torch.cuda.graph(self.graph):  # recorded, not run: the replay below runs it
+                self.step(True)
+        self.graph.replay()
+
+
 def default_device() -> torch.device:
     """Where the vectorised engine runs: the GPU where torch sees one, else the CPU."""
     return torch.device("cuda" if torch.cuda.is_available() else "cpu")
@@ -136,7 +175,7 @@ class VectorisedDQN:
     """S seeds of post 003's tutorial DQN (``CartPoleDQNConfig``: equal configs but for the seed)
     stepped together on ``device``."""
 
-    def __init__(self, configs, device: str | torch.device = "cpu", compile: bool = False):
+    def __init__(self, configs, device: str | torch.device = "cpu", compile: bool = False, cuda_graph: bool = False):
         c = self.config = configs[0]
         others = {k: v for k, v in c.to_dict().items() if k != "seed"}
         for other in configs[1:]:
@@ -145,6 +184,9 @@ class VectorisedDQN:
         if c.init != "torch" or getattr(c, "matched_init", False):
             raise ValueError("the vectorised engine starts the tutorial's torch init only (init=torch)")
         self.device = torch.device(device)
+        if cuda_graph and (compile or self.device.type != "cuda"):
+            raise ValueError("cuda_graph records the eager step on a CUDA device: not with compile, not on a CPU")
+        self.cuda_graph = cuda_graph
         self.seeds = [cfg.seed for cfg in configs]
         S, dev = len(configs), self.device
         self.env = CartPole()
@@ -181,6 +223,13 @@ class VectorisedDQN:
         self.rows = torch.arange(S, device=dev)
         self.records = self._records(1)  # a chunk's records; play grows them to its longest chunk
         self._step = compiled(self._train_step) if compile else self._train_step
+        self._regraph()
+
+    def _regraph(self) -> None:
+        """A new CUDA graph, where the engine records one, once the state's tensors were replaced
+        (``keep``, larger records): the old graph would replay on the old tensors."""
+        if self.cuda_graph:
+            self._step = GraphedStep(self._train_step)
 
     # -- a seed's state ----------------------------------------------------------------------
     _TABLES = ("params", "target", "exp_avg", "exp_avg_sq", "max_exp_avg_sq", "memory")
@@ -233,6 +282,7 @@ class VectorisedDQN:
         self.seeds = [self.seeds[k] for k in lanes]
         self.rows = torch.arange(len(lanes), device=self.device)
         self.records = self._records(1)
+        self._regraph()
 
     # -- pieces ------------------------------------------------------------------------------
     def _reset_states(self, episode: torch.Tensor) -> torch.Tensor:
@@ -343,6 +393,7 @@ class VectorisedDQN:
         that ended, in order."""
         if self.records["done"].shape[0] < steps:  # sized to the longest chunk yet, reused
             self.records = self._records(steps)
+            self._regraph()
         self.records["done"][:steps].zero_()
         self.chunk_start.fill_(self.t)
         for _ in range(steps):
