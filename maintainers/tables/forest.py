@@ -15,11 +15,11 @@ within the margin, different, or inconclusive at its number of seeds.
 The rows: Keras against PyTorch, default and matched init (the committed ``compare`` results,
 ``results/compare/<post>/[matched-init/]result.json``, 30 seeds) and again at the seeds the plan
 asked for (``report.certified``: pending until both arms hold them); the compiled engine against the
-Gymnasium loop; the tutorial's community fix (pytorch/tutorials #3080) against the tutorial as
-published; seed-batched against solo runs; and each post's ablations, every quirk switched
-off alone against the faithful base. A comparison whose plan sets a number of seeds before its
-reading (``COMPARISONS``' ``seeds_before_reading``) is listed as pending, and not drawn, until
-both arms hold that many.
+Gymnasium loop; the vectorised PyTorch engine against the tutorial's own code; the tutorial's
+community fix (pytorch/tutorials #3080) against the tutorial as published; seed-batched against solo
+runs; and each post's ablations, every quirk switched off alone against the faithful base. A
+comparison whose plan sets a number of seeds before its reading (``COMPARISONS``'
+``seeds_before_reading``) is listed as pending, and not drawn, until both arms hold that many.
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ class Comparison:
 
 
 def _comparisons() -> list[Comparison]:
-    from keras_rl.report.certified import certifications
+    from keras_rl.report.certified import TORCH_ARMS, certifications
     from keras_rl.report.tutorial_fix import FRAMEWORKS, PUBLISHED, TUTORIAL_FIXES
 
     out = []
@@ -91,6 +91,15 @@ def _comparisons() -> list[Comparison]:
             "mountaincar",
             "engines/mountaincar/compiled",
             ("checks/mountaincar/baseline", "mountaincar/faithful-seeds-100-199"),
+            seeds_before_reading=200,
+        )
+    )
+    out.append(  # results/cartpole/vectorised-torch/plan.md (issue 53): independent arms, read at 200 seeds
+        Comparison(
+            "vectorised PyTorch engine vs the tutorial's own code",
+            "cartpole",
+            "cartpole/vectorised-torch/seeds-0-199",
+            TORCH_ARMS[("cartpole", False)],  # the tutorial's own code, seeds 0-199
             seeds_before_reading=200,
         )
     )
