@@ -5,9 +5,9 @@ a leading seed axis; one call steps every seed's env once and, as the tutorial's
 pushes the transition, trains on a batch of 128 drawn without replacement (once the memory holds
 128), soft-updates the target and chooses the next action. The update goes through ``torch.func``
 (``functional_call``, ``grad_and_value``, ``vmap`` over the seed axis); the optimizer, the soft
-update and the env are elementwise over the stacked tensors. The same code runs on a CPU or a GPU; on a GPU the step can
-be recorded once as a CUDA graph and replayed (``cuda_graph=True``, ``GraphedStep``), the same
-kernels without a launch from the host for each.
+update and the env are elementwise over the stacked tensors. The same code runs on a CPU or a
+GPU; on a GPU the step can be recorded once as a CUDA graph and replayed (``cuda_graph=True``,
+``GraphedStep``): the same kernels, without a launch from the host for each.
 
 What is the tutorial's, and what is not:
 - the networks start as the tutorial's do for the same seed (``torch.manual_seed(seed)``, then
