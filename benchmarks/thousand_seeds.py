@@ -150,7 +150,9 @@ def main() -> int:
         report["eager_baseline"] = eager_baseline(configs, device)
         print(json.dumps(report, indent=2), flush=True)
     set_start = start = time.perf_counter()
-    engine = VectorisedDQN(configs, device=device, compile=not args.no_compile, cuda_graph=args.cuda_graph)
+    engine = VectorisedDQN(
+        configs, device=device, compile=not args.no_compile, cuda_graph=args.cuda_graph, chunk=args.chunk
+    )
     report["build_seconds"] = round(time.perf_counter() - start, 2)
     steps = {s: [] for s in seeds}
     losses = {s: [] for s in seeds}

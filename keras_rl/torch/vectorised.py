@@ -108,12 +108,24 @@ def distinct(bits: torch.Tensor, n: torch.Tensor | int) -> torch.Tensor:
     return torch.where(repeat, j, t)
 
 
-def compiled(step):
+RECOMPILE_LIMIT = 64
+"""The fewest programs of the step one process may compile before it fails (``compiled``)."""
+
+
+def compiled(step, seeds: int):
     """``step`` through ``torch.compile``, one static program per batch size (a batch that sheds
-    seeds meets several): never a dynamic-shape program, whose rounding may differ, and never the
-    eager fallback torch takes silently past its recompile limit, which would run another engine's
-    program under this one's name; past the limit it fails instead."""
-    torch._dynamo.config.recompile_limit = max(torch._dynamo.config.recompile_limit, 64)
+    seeds meets several) and per ``trains``: never a dynamic-shape program, whose rounding may
+    differ, and never the eager fallback torch takes silently past its recompile limit, which would
+    run another engine's program under this one's name; past the limit it fails instead.
+
+    The limit counts the programs of one code object in one process, and every engine's
+    ``_train_step`` is the same code. Its programs are keyed by the shapes of the engine's tensors,
+    not by the engine: engines built one after another in a process (a pool worker, batch after
+    batch) reuse the programs of the sizes met before. The records keep one length (``chunk``;
+    ``keep`` keeps it), so a batch of ``seeds`` meets at most two programs per size it sheds to,
+    and the limit is at least that (``tests/test_vectorised_engine.py`` runs batch after batch in
+    one process at exactly that limit)."""
+    torch._dynamo.config.recompile_limit = max(torch._dynamo.config.recompile_limit, RECOMPILE_LIMIT, 2 * seeds)
     torch._dynamo.config.fail_on_recompile_limit_hit = True
     return torch.compile(step, dynamic=False)
 
@@ -175,7 +187,14 @@ class VectorisedDQN:
     """S seeds of post 003's tutorial DQN (``CartPoleDQNConfig``: equal configs but for the seed)
     stepped together on ``device``."""
 
-    def __init__(self, configs, device: str | torch.device = "cpu", compile: bool = False, cuda_graph: bool = False):
+    def __init__(
+        self,
+        configs,
+        device: str | torch.device = "cpu",
+        compile: bool = False,
+        cuda_graph: bool = False,
+        chunk: int = 1,
+    ):
         c = self.config = configs[0]
         others = {k: v for k, v in c.to_dict().items() if k != "seed"}
         for other in configs[1:]:
@@ -221,8 +240,10 @@ class VectorisedDQN:
         self.ep_updates = torch.zeros(S, dtype=torch.int64, device=dev)
         self.state = self._reset_states(self.episode)
         self.rows = torch.arange(S, device=dev)
-        self.records = self._records(1)  # a chunk's records; play grows them to its longest chunk
-        self._step = compiled(self._train_step) if compile else self._train_step
+        # a chunk's records, for ``chunk`` steps (the longest chunk the caller plays); play grows
+        # them to a longer one and keep keeps their length: a compiled step meets one shape
+        self.records = self._records(chunk)
+        self._step = compiled(self._train_step, S) if compile else self._train_step
         self._regraph()
 
     def _regraph(self) -> None:
@@ -270,7 +291,7 @@ class VectorisedDQN:
         and stream key is cut to them. A seed's state is its own, so the seeds kept play on as
         they would have in the whole batch (a batch sheds the seeds whose runs are done, rather
         than stepping them to the end of its longest seed). The compiled step compiles once per
-        batch size it meets (``compiled``)."""
+        batch size it meets (``compiled``); the records keep their length."""
         if not lanes or len(set(lanes)) != len(lanes) or not all(0 <= k < len(self.seeds) for k in lanes):
             raise ValueError(f"lanes {lanes} are not distinct rows of a batch of {len(self.seeds)}")
         at = torch.tensor(lanes, device=self.device)
@@ -281,7 +302,7 @@ class VectorisedDQN:
         self.streams.keys = self.streams.keys.index_select(0, at)
         self.seeds = [self.seeds[k] for k in lanes]
         self.rows = torch.arange(len(lanes), device=self.device)
-        self.records = self._records(1)
+        self.records = self._records(self.records["done"].shape[0])
         self._regraph()
 
     # -- pieces ------------------------------------------------------------------------------

@@ -22,8 +22,9 @@ The host and the program:
   budget is done (or that stopped at its threshold, or at a non-finite loss) leaves the batch
   after that chunk (``VectorisedDQN.keep``): the batch sheds it instead of stepping it on,
   unrecorded, to the end of its longest seed. Its episodes within the chunk after its last are
-  never recorded. The compiled program compiles once per batch size it meets (``compiled``;
-  cached on disk, so once per machine).
+  never recorded. The compiled program compiles once per batch size it meets, before and after
+  the memory trains (``compiled``), and a process's later batches reuse those programs (cached
+  on disk too, so the next process compiles them faster).
 - A seed's policy is read between chunks only (``SeedPolicy``): for an evaluation, for its
   ``q_network.pt`` and for ``best/``. So a chunk never runs past the end of an episode after
   which a policy is read (a seed's last episode, one that ``--eval-every`` evaluates after, one
@@ -160,7 +161,7 @@ class VectorisedRun:
         device = default_device()
         if device.type == "cpu":
             single_threaded()
-        self.core = VectorisedDQN(configs, device, compile=compiled)
+        self.core = VectorisedDQN(configs, device, compile=compiled, chunk=CHUNK)
         self.engine = COMPILED_ENGINE if compiled else ENGINE
         self.batch = [c.seed for c in configs]
         self.life_of = {seed: k for k, seed in enumerate(self.batch)}
