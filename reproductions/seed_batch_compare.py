@@ -47,10 +47,15 @@ def _first_difference(ra: list[dict], rb: list[dict], key) -> int | None:
 
 def _batch_walls(summaries: list[RunSummary], size: int) -> str:
     """Each batch lasts until its last seed stops: the longest ``wall_seconds`` among its
-    seeds, the batches being ``size`` consecutive seeds of the batched folder (all of them,
-    also those without a solo twin)."""
+    seeds. A batch is the seeds a run records as its ``seed_batch`` (the batches it was made
+    in, whichever seeds they held), else ``size`` consecutive seeds of the batched folder (all
+    of them, also those without a solo twin)."""
     ordered = sorted(summaries, key=lambda s: s.seed)
-    walls = [max(s.wall_seconds for s in ordered[i : i + size]) for i in range(0, len(ordered), size)]
+    batches: dict[tuple, list[float]] = {}
+    for i, s in enumerate(ordered):
+        made_in = s.provenance.get("seed_batch")
+        batches.setdefault(tuple(made_in) if made_in else ("consecutive", i // size), []).append(s.wall_seconds)
+    walls = [max(w) for w in batches.values()]
     return (
         f"the {len(walls)} batches of {size} took "
         + ", ".join(f"{w:.0f} s" for w in walls)

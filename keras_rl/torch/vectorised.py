@@ -21,8 +21,9 @@ What is the tutorial's, and what is not:
 - a batch is a uniform draw of 128 distinct memory slots (Floyd's algorithm, ``distinct``), as
   ``random.sample`` is; the order of the 128 within a batch differs, which the mean loss ignores.
 
-So a seed here does not replay the tutorial's episodes; ``results/cartpole/vectorised-torch`` is
-read against the tutorial's own code for equivalence, on two readings, as the compiled engine was.
+So a seed here does not replay the tutorial's episodes; ``results/cartpole/vectorised-torch`` reads
+the compiled program against the tutorial's own code on 200 seeds, as the compiled engine was read:
+equivalent in success and in episodes to threshold (its ``report.md``).
 """
 
 from __future__ import annotations
@@ -123,7 +124,7 @@ def compiled(step, seeds: int):
     not by the engine: engines built one after another in a process (a pool worker, batch after
     batch) reuse the programs of the sizes met before. The records keep one length (``chunk``;
     ``keep`` keeps it), so a batch of ``seeds`` meets at most two programs per size it sheds to,
-    and the limit is at least that (``tests/test_vectorised_engine.py`` runs batch after batch in
+    and the limit is at least that (``tests/test_torch_vectorised.py`` runs batch after batch in
     one process at exactly that limit)."""
     torch._dynamo.config.recompile_limit = max(torch._dynamo.config.recompile_limit, RECOMPILE_LIMIT, 2 * seeds)
     torch._dynamo.config.fail_on_recompile_limit_hit = True
