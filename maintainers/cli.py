@@ -133,7 +133,7 @@ def add_parser(sub) -> None:
         inner,
         "forest",
         "maintainers.tables.forest",
-        "every two-arm comparison's estimate, 90% interval, margin and reading, drawn (results/forest.png) "
+        "every two-arm comparison's estimate, 90%% interval, margin and reading, drawn (results/forest.png) "
         "and tabled (results/README.md, docs/findings.md)",
         "--write",
     )

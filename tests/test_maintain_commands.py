@@ -83,6 +83,24 @@ def test_keras_rl_lists_users_commands_only_and_never_imports_the_maintainers_to
     assert shown.returncode == 0 and all(w in shown.stdout for w in ("calibrate", "tables", "manifest"))
 
 
+def test_every_maintainers_command_prints_its_help():
+    """Each command's and subcommand's ``--help`` formats (argparse reads a bare "%" in a help
+    string as a format: "90% interval" once broke ``tables --help``)."""
+    import argparse
+
+    from maintainers.cli import build_parser
+
+    def helps(parser: argparse.ArgumentParser, name: str):
+        yield name, parser
+        for action in parser._subparsers._group_actions if parser._subparsers else ():  # type: ignore[union-attr]
+            if isinstance(action, argparse._SubParsersAction):
+                for sub, child in action.choices.items():
+                    yield from helps(child, f"{name} {sub}")
+
+    shown = {name: parser.format_help() for name, parser in helps(build_parser(), "maintainers")}
+    assert "maintainers tables forest" in shown and all("usage:" in text for text in shown.values())
+
+
 def _imports(path: Path) -> set[str]:
     import ast
 

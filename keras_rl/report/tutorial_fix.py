@@ -14,18 +14,39 @@ from dataclasses import dataclass
 
 from keras_rl.report.certified import TORCH_ARMS
 
-FRAMEWORKS = ("keras", "torch")
-PLANNED_SEEDS = {"keras": 100, "torch": 30}
-"""Seeds per arm before the first reading (plan.md: 100+ in Keras, 30+ in the tutorial's PyTorch code)."""
+FRAMEWORKS = ("keras", "torch", "vectorised")
+"""The arms of each proposal: Keras, the tutorial's own PyTorch code, and PyTorch on the vectorised
+engine (issue 53 item 5, plan.md's last addendum), once that engine was certified against the
+tutorial's code (``results/cartpole/vectorised-torch``)."""
+FRAMEWORK_OF = {"keras": "keras", "torch": "torch", "vectorised": "torch"}
+"""Each arm's ``--framework``: the vectorised engine runs the tutorial's PyTorch DQN."""
+PLANNED_SEEDS = {"keras": 100, "torch": 30, "vectorised": 100}
+"""Seeds per arm before the first reading (plan.md: 100+ in Keras, 30+ in the tutorial's PyTorch
+code, 100 on the vectorised engine)."""
 PUBLISHED: dict[str, tuple[str, ...]] = {
     "keras": ("engines/cartpole/compiled",),
     "torch": TORCH_ARMS[("cartpole", False)],
+    "vectorised": ("cartpole/vectorised-torch/seeds-0-199",),
 }
-"""The tutorial as published, each framework's arm the proposals are read against (plan.md): the
-PyTorch one is the certified comparison's arm, several run sets (``report.certified.arm``)."""
-FRAMEWORK_NAMES = {"keras": "Keras", "torch": "the tutorial's PyTorch code"}
-MAKES = {"keras": "--engine compiled", "torch": "--framework torch"}
-"""How each framework's arm was run: Keras on the compiled engine, PyTorch as the tutorial wrote it."""
+"""The tutorial as published, each arm's reference the proposals are read against (plan.md): the
+PyTorch one is the certified comparison's arm, several run sets (``report.certified.arm``); the
+vectorised engine's is its certification arm, read on the proposals' seeds."""
+FRAMEWORK_NAMES = {
+    "keras": "Keras",
+    "torch": "the tutorial's PyTorch code",
+    "vectorised": "PyTorch, the vectorised engine",
+}
+COMMANDS = {
+    "keras": "keras-rl reproduce cartpole --variant {variant} --engine compiled --seeds {seeds} --workers 1 --resume "
+    "--no-progress --min-success-rate 0 --out results/{folder}",
+    "torch": "keras-rl reproduce cartpole --variant {variant} --framework torch --seeds {seeds} --workers 1 --resume "
+    "--no-progress --min-success-rate 0 --out results/{folder}",
+    "vectorised": "keras-rl reproduce cartpole --variant {variant} --framework torch --engine vectorised-compiled "
+    "--seed-batch 8 --seeds {seeds} --workers 2 --no-progress --min-success-rate 0 --resume --out results/{folder}",
+}
+"""How each arm was run: Keras on the compiled engine, PyTorch as the tutorial wrote it, and PyTorch
+in batches of 8 seeds on the vectorised engine (its queue, ``maintainers/queues/tutorial-fix-vectorised.tsv``)."""
+FOLDER_SUFFIX = {"keras": "", "torch": "-torch", "vectorised": "-vectorised"}
 
 
 @dataclass(frozen=True)
@@ -50,14 +71,11 @@ class TutorialFix:
 
     def folder(self, fw: str) -> str:
         """The arm's run-set folder under ``results/``."""
-        return f"cartpole/tutorial-fix/{self.variant}" + ("-torch" if fw == "torch" else "")
+        return f"cartpole/tutorial-fix/{self.variant}{FOLDER_SUFFIX[fw]}"
 
     def command(self, fw: str, seeds: str) -> str:
         """The command that made the arm's folder, for ``seeds``."""
-        return (
-            f"keras-rl reproduce cartpole --variant {self.variant} {MAKES[fw]} --seeds {seeds} --workers 1 --resume "
-            f"--no-progress --min-success-rate 0 --out results/{self.folder(fw)}"
-        )
+        return COMMANDS[fw].format(variant=self.variant, seeds=seeds, folder=self.folder(fw))
 
     def label(self, fw: str, seeds: int) -> str:
         """The forest's row label for the reading at ``seeds``."""

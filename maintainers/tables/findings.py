@@ -27,7 +27,7 @@ from keras_rl.checkout import ROOT
 from keras_rl.report import plans
 from keras_rl.report.markdown import replace_block, seed_span
 from keras_rl.report.stats import wilson_interval
-from keras_rl.report.tutorial_fix import FRAMEWORKS, TUTORIAL_FIXES
+from keras_rl.report.tutorial_fix import FRAMEWORKS, PLANNED_SEEDS, TUTORIAL_FIXES
 from keras_rl.runs.run_set import RunSet
 from maintainers.tables.runs import load, runs_table
 
@@ -76,6 +76,23 @@ ROWS = [
 ELSEWHERE = {("cartpole", fix.variant): fix for fix in TUTORIAL_FIXES}
 """(experiment, variant) -> the tutorial's community fix whose folders and commands its rows take
 (``report/tutorial_fix.py``), for rows not in ``run_folder``'s default place."""
+
+
+def queued(folder: Path) -> bool:
+    """Whether a committed queue of long runs (``maintainers/queues/*.tsv``) makes this run set: a
+    row of it is pending until it lands (the forest lists its reading as pending), not "not run"."""
+    named = {
+        line.split("\t")[0]
+        for queue in (ROOT / "maintainers" / "queues").glob("*.tsv")
+        for line in queue.read_text().splitlines()
+        if line.strip() and not line.startswith("#")
+    }
+    return folder.relative_to(ROOT).as_posix() in named
+
+
+def arm_name(fw: str, matched: bool) -> str:
+    """A row's framework as the tables print it: ``vectorised`` is PyTorch on the vectorised engine."""
+    return ("torch, vectorised engine" if fw == "vectorised" else fw) + (" (matched init)" if matched else "")
 
 
 def row_folder(exp: str, variant: str, fw: str, matched: bool) -> Path:
@@ -203,8 +220,11 @@ def table() -> str:
     for post, exp, variant, fw, matched, criterion, theirs in ROWS:
         folder = row_folder(exp, variant, fw, matched)
         numbers = row_numbers(folder)
-        framework = fw + (" (matched init)" if matched else "")
-        span = "0-9" if numbers is None else seed_span(numbers["seeds"])
+        if numbers is None and queued(folder):
+            continue
+        framework = arm_name(fw, matched)
+        planned = PLANNED_SEEDS[fw] if (exp, variant) in ELSEWHERE else 10  # what a row not yet run asks for
+        span = f"0-{planned - 1}" if numbers is None else seed_span(numbers["seeds"])
         from keras_rl.runs.lifecycle import set_engine
 
         command = row_command(exp, variant, fw, matched, span, set_engine(folder) or "gymnasium")
@@ -226,7 +246,8 @@ def table() -> str:
 
 
 def short_table() -> str:
-    """The README's version: success and median episodes to threshold per row, with the seeds."""
+    """The README's version: success and median episodes to threshold per row, with the seeds (a
+    row whose queue is still running is left out, as in ``table``)."""
 
     lines = [
         "| post | variant | framework | seeds | success (95% Wilson interval) | median episodes to threshold "
@@ -234,10 +255,12 @@ def short_table() -> str:
         "|---|---|---|---|---|---|---|",
     ]
     for post, exp, variant, fw, matched, _criterion, theirs in ROWS:
-        numbers = row_numbers(row_folder(exp, variant, fw, matched))
-        framework = fw + (" (matched init)" if matched else "")
+        folder = row_folder(exp, variant, fw, matched)
+        numbers = row_numbers(folder)
+        framework = arm_name(fw, matched)
         if numbers is None:
-            lines.append(f"| {post} | {variant} | {framework} | - | not run | - | {theirs} |")
+            if not queued(folder):
+                lines.append(f"| {post} | {variant} | {framework} | - | not run | - | {theirs} |")
             continue
         seeds = numbers["seeds"]
         span = seed_span(seeds) if seeds == list(range(seeds[0], seeds[-1] + 1)) else f"{len(seeds)} seeds"
@@ -332,7 +355,7 @@ def changes_table() -> str:
     for post, exp, variant, fw, matched, _criterion, _theirs in ROWS:
         folder = row_folder(exp, variant, fw, matched)
         ten, every = row_numbers(folder, FIRST_TEN), row_numbers(folder)
-        name = f"{post}, {variant}, {fw}{' (matched init)' if matched else ''}"
+        name = f"{post}, {variant}, {arm_name(fw, matched)}"
         if ten is None or every is None or every["n"] <= 10:
             lines.append(f"| {name} | - | - | {every['n'] if every else 0} seeds | - | not yet on more seeds |")
             continue

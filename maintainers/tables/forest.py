@@ -103,6 +103,19 @@ def _comparisons() -> list[Comparison]:
             seeds_before_reading=200,
         )
     )
+    # results/cartpole/tutorial-fix/plan.md's last addendum: the engine on a config it was not certified on,
+    # PR #3384's values, against the same values in the tutorial's own code, seeds 0-99 of both
+    pr = next(fix for fix in TUTORIAL_FIXES if fix.variant == "pr-3384")
+    out.append(
+        Comparison(
+            "vectorised PyTorch engine vs the tutorial's own code",
+            f"cartpole, {pr.upstream}",
+            pr.folder("vectorised"),
+            pr.folder("torch"),
+            seeds_before_reading=100,
+            first_seeds_only=True,
+        )
+    )
     for fix in TUTORIAL_FIXES:  # results/cartpole/tutorial-fix/plan.md (and its addenda)
         for fw in FRAMEWORKS:
             for seeds in fix.readings(fw):
