@@ -25,7 +25,8 @@ from keras_rl.runs.options import shared_flags
 
 
 def _what(inner, name: str, module: str, help: str, *flags: str) -> argparse.ArgumentParser:
-    p = inner.add_parser(name, help=help, description=help, parents=[shared_flags(name, *flags)])
+    # argparse formats a help string with %: a bare "90%" in it would be read as a format
+    p = inner.add_parser(name, help=help.replace("%", "%%"), description=help, parents=[shared_flags(name, *flags)])
     p.set_defaults(module=module)
     return p
 
@@ -81,7 +82,7 @@ def add_parser(sub) -> None:
         inner,
         "sensitive",
         "maintainers.calibrate.sensitive",
-        "the sensitive tier's false alarms, power against a 10%% move and against the held-out mutants, "
+        "the sensitive tier's false alarms, power against a 10% move and against the held-out mutants, "
         "and post 001's statistic (keras_rl/check/sensitive.json, calibration.md's block)",
         "--write",
     )
@@ -133,7 +134,7 @@ def add_parser(sub) -> None:
         inner,
         "forest",
         "maintainers.tables.forest",
-        "every two-arm comparison's estimate, 90%% interval, margin and reading, drawn (results/forest.png) "
+        "every two-arm comparison's estimate, 90% interval, margin and reading, drawn (results/forest.png) "
         "and tabled (results/README.md, docs/findings.md)",
         "--write",
     )

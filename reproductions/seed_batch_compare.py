@@ -24,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 
-from keras_rl.checkout import ROOT
 from keras_rl.report import plans
 from keras_rl.report.equivalence import CONVERGED_AT_END, Arm, framework_verdict
 from keras_rl.report.stats import censored_mann_whitney, fisher_exact, median_difference_ci
@@ -57,7 +56,7 @@ def _batch_walls(summaries: list[RunSummary], size: int) -> str:
         batches.setdefault(tuple(made_in) if made_in else ("consecutive", i // size), []).append(s.wall_seconds)
     walls = [max(w) for w in batches.values()]
     return (
-        f"the {len(walls)} batches of {size} took "
+        f"the {len(walls)} batches the runs record (of up to {size} seeds) took "
         + ", ".join(f"{w:.0f} s" for w in walls)
         + " (each as long as its slowest seed)"
     )
@@ -157,8 +156,7 @@ def main() -> None:
         + ".",
         "",
     ]
-    inside = args.write is not None and args.write.resolve().is_relative_to(ROOT)
-    disclosed = plans.disclosure(args.write.resolve().relative_to(ROOT).as_posix()) if inside else ""
+    disclosed = plans.disclosure_at(args.write)
     text = "\n".join(lines) + (f"\n{disclosed}" if disclosed else "")
     print(text)
     if args.write:

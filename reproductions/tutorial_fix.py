@@ -46,6 +46,7 @@ import numpy as np
 from keras_rl.commands.common import parse_seeds
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.posts.cartpole import tutorial_num_episodes
+from keras_rl.report import plans
 from keras_rl.report.certified import arm_where
 from keras_rl.report.equivalence import Arm, median_ratio_equivalence, success_rate_equivalence
 from keras_rl.report.markdown import seed_span
@@ -187,6 +188,8 @@ def main() -> None:
     )
     first_look = None if first_seeds is None else (arm(arms[0], first_seeds), arm(arms[1], first_seeds))
     text = report(arm(arms[0], seeds), arm(arms[1], seeds), (labels[0], labels[1]), command, first_look)
+    disclosed = plans.disclosure_at(args.write)  # a deviation of a plan this reading touches
+    text = text.rstrip("\n") + f"\n\n{disclosed}" if disclosed else text
     if args.write:
         atomic_write_text(args.write, text)
         print(f"wrote {args.write}")

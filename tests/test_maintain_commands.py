@@ -99,6 +99,9 @@ def test_every_maintainers_command_prints_its_help():
 
     shown = {name: parser.format_help() for name, parser in helps(build_parser(), "maintainers")}
     assert "maintainers tables forest" in shown and all("usage:" in text for text in shown.values())
+    assert all("%%" not in text for text in shown.values()) and "90% interval" in shown["maintainers tables forest"]
+    listed = build_parser()._subparsers._group_actions[0].choices["tables"].format_help()  # type: ignore[union-attr]
+    assert "90% interval" in listed and "%%" not in listed
 
 
 def _imports(path: Path) -> set[str]:

@@ -12,6 +12,7 @@ marks the row; ``tests/test_plan_order.py`` fails on an earlier seed no deviatio
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from keras_rl.report.certified import KERAS_ARMS, TORCH_ARMS
 
@@ -42,13 +43,17 @@ class Deviation:
     """Run set -> its seeds that started before the plan was committed."""
 
 
-def _queue(name: str) -> list[str]:
-    """The sets a committed queue of long runs makes (``maintainers/queues/<name>``)."""
+def queued_sets(name: str = "*.tsv") -> list[str]:
+    """The run sets (under ``results/``) that the committed queues of long runs make
+    (``maintainers/queues/<name>``; every queue by default), in the queues' order."""
     from keras_rl.checkout import ROOT
 
-    path = ROOT / "maintainers" / "queues" / name
-    lines = path.read_text().splitlines() if path.is_file() else []
-    return [line for line in lines if line.strip() and not line.startswith("#")]
+    return [
+        line.split("\t")[0].removeprefix("results/")
+        for path in sorted((ROOT / "maintainers" / "queues").glob(name))
+        for line in path.read_text().splitlines()
+        if line.strip() and not line.startswith("#")
+    ]
 
 
 def ablation_arms(
@@ -113,17 +118,17 @@ PLANS: tuple[Plan, ...] = (
     Plan("results/cartpole/vectorised-torch/plan.md", {"cartpole/vectorised-torch/seeds-0-199": None}),
     Plan(  # issue 53 item 5: the proposals on the vectorised engine, once it is certified
         "results/cartpole/tutorial-fix/plan.md",
-        {line.split("\t")[0].removeprefix("results/"): None for line in _queue("tutorial-fix-vectorised.tsv")},
+        {folder: None for folder in queued_sets("tutorial-fix-vectorised.tsv")},
         section="the three PyTorch arms on 100 seeds of the vectorised engine",
         commit="3458f801",
     ),
     Plan(  # issue 52 item 5: the runs that settle the inconclusive quirk ablations
         "results/ablation_plan.md",
-        {line.split("\t")[0].removeprefix("results/"): None for line in _queue("ablations.tsv")},
+        {folder: None for folder in queued_sets("ablations.tsv")},
     ),
     Plan(  # its second look, at an ablation its planned seeds left unsettled
         "results/ablation_plan_second.md",
-        {line.split("\t")[0].removeprefix("results/"): None for line in _queue("ablations-second.tsv")},
+        {folder: None for folder in queued_sets("ablations-second.tsv")},
     ),
 )
 
@@ -211,3 +216,13 @@ def disclosure(report: str) -> str:
     if not touching:
         return ""
     return "\n".join(["## Deviations from the plan", "", *notes(touching), ""])
+
+
+def disclosure_at(written: Path | None) -> str:
+    """``disclosure`` for a report a script writes to ``written`` (None, or a path outside the
+    checkout: "")."""
+    from keras_rl.checkout import ROOT
+
+    if written is None or not written.resolve().is_relative_to(ROOT):
+        return ""
+    return disclosure(written.resolve().relative_to(ROOT).as_posix())

@@ -110,7 +110,7 @@ def distinct(bits: torch.Tensor, n: torch.Tensor | int) -> torch.Tensor:
 
 
 RECOMPILE_LIMIT = 64
-"""The fewest programs of the step one process may compile before it fails (``compiled``)."""
+"""The fewest programs of the step a process may compile before it fails (``compiled``)."""
 
 
 def compiled(step, seeds: int):
@@ -120,14 +120,17 @@ def compiled(step, seeds: int):
     run another engine's program under this one's name; past the limit it fails instead.
 
     The limit counts the programs of one code object in one process, and every engine's
-    ``_train_step`` is the same code. Its programs are keyed by the shapes of the engine's tensors,
-    not by the engine: engines built one after another in a process (a pool worker, batch after
-    batch) reuse the programs of the sizes met before. The records keep one length (``chunk``;
-    ``keep`` keeps it), so a batch of ``seeds`` meets at most two programs per size it sheds to,
-    and the limit is at least that (``tests/test_torch_vectorised.py`` runs batch after batch in
-    one process at exactly that limit)."""
-    torch._dynamo.config.recompile_limit = max(torch._dynamo.config.recompile_limit, RECOMPILE_LIMIT, 2 * seeds)
-    torch._dynamo.config.fail_on_recompile_limit_hit = True
+    ``_train_step`` is the same code. Its programs are keyed by the shapes of the engine's tensors
+    and by its config's values, not by the engine: engines built one after another in a process (a
+    pool worker, batch after batch) reuse the programs of the sizes met before with the same config,
+    and a config not met before (a sweep's next point) compiles its own. The records keep one length
+    (``chunk``; ``keep`` keeps it), so a batch of ``seeds`` compiles at most two programs per size it
+    sheds to: each engine raises both of torch's limits (per code object, and over the process) by
+    those ``2 * seeds`` (``tests/test_torch_vectorised.py`` runs batch after batch in one process)."""
+    config = torch._dynamo.config
+    config.recompile_limit = max(config.recompile_limit, RECOMPILE_LIMIT) + 2 * seeds
+    config.accumulated_recompile_limit = max(config.accumulated_recompile_limit, config.recompile_limit)
+    config.fail_on_recompile_limit_hit = True
     return torch.compile(step, dynamic=False)
 
 
@@ -291,8 +294,8 @@ class VectorisedDQN:
         """Only the seeds at rows ``lanes`` play on, in that order: every stacked table, counter
         and stream key is cut to them. A seed's state is its own, so the seeds kept play on as
         they would have in the whole batch (a batch sheds the seeds whose runs are done, rather
-        than stepping them to the end of its longest seed). The compiled step compiles once per
-        batch size it meets (``compiled``); the records keep their length."""
+        than stepping them to the end of its longest seed). The compiled step compiles at most
+        twice per batch size it meets (``compiled``); the records keep their length."""
         if not lanes or len(set(lanes)) != len(lanes) or not all(0 <= k < len(self.seeds) for k in lanes):
             raise ValueError(f"lanes {lanes} are not distinct rows of a batch of {len(self.seeds)}")
         at = torch.tensor(lanes, device=self.device)

@@ -81,13 +81,9 @@ ELSEWHERE = {("cartpole", fix.variant): fix for fix in TUTORIAL_FIXES}
 def queued(folder: Path) -> bool:
     """Whether a committed queue of long runs (``maintainers/queues/*.tsv``) makes this run set: a
     row of it is pending until it lands (the forest lists its reading as pending), not "not run"."""
-    named = {
-        line.split("\t")[0]
-        for queue in (ROOT / "maintainers" / "queues").glob("*.tsv")
-        for line in queue.read_text().splitlines()
-        if line.strip() and not line.startswith("#")
-    }
-    return folder.relative_to(ROOT).as_posix() in named
+    from keras_rl.report.plans import queued_sets
+
+    return folder.relative_to(ROOT / "results").as_posix() in queued_sets()
 
 
 def arm_name(fw: str, matched: bool) -> str:
@@ -355,6 +351,8 @@ def changes_table() -> str:
     for post, exp, variant, fw, matched, _criterion, _theirs in ROWS:
         folder = row_folder(exp, variant, fw, matched)
         ten, every = row_numbers(folder, FIRST_TEN), row_numbers(folder)
+        if every is None and queued(folder):
+            continue
         name = f"{post}, {variant}, {arm_name(fw, matched)}"
         if ten is None or every is None or every["n"] <= 10:
             lines.append(f"| {name} | - | - | {every['n'] if every else 0} seeds | - | not yet on more seeds |")

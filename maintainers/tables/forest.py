@@ -167,10 +167,10 @@ def planned_ablations() -> list[tuple[str, str, str, int, tuple[str, ...], tuple
     hold them all."""
     import json
 
-    from keras_rl.report.plans import _queue
+    from keras_rl.report.plans import queued_sets
 
     path = RESULTS / "ablation_plan.json"
-    queued = [line.split("\t")[0].removeprefix("results/") for line in _queue("ablations.tsv")]
+    queued = queued_sets("ablations.tsv")
     out = []
     for entry in json.loads(path.read_text()) if path.is_file() else []:
         post, switch, n, engine = entry["post"], entry["switch"], entry["seeds_per_arm"], entry["engine"]
