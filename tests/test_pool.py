@@ -301,3 +301,41 @@ def test_the_pools_progress_counts_episodes_from_the_seeds_files(tmp_path):
     bar.job_done(jobs[0])
     assert bar.done == 1 and "1/2" in str(bar.bar.postfix)
     bar.close()
+
+
+def test_a_broken_pools_surviving_workers_are_killed_before_its_jobs_start_again():
+    """CPython ends a broken pool's other workers with SIGTERM, which a worker's training loop
+    takes as "stop after this episode": ``_kill_survivors`` kills them, so no survivor writes a
+    seed folder that the job's retry is writing. Two workers that ignore SIGTERM, each asleep in
+    a job; one is killed: the other outlives the pool's SIGTERM, then not ``_kill_survivors``."""
+    import functools
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
+    from keras_rl.runs.pool_backend import _kill_survivors
+
+    pool = ProcessPoolExecutor(
+        2,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=functools.partial(signal.signal, signal.SIGTERM, signal.SIG_IGN),
+    )
+    try:
+        futures = [pool.submit(time.sleep, 300) for _ in range(2)]
+        deadline = time.monotonic() + 120
+        while not (all(f.running() for f in futures) and pool._call_queue.empty()):  # both asleep in a job
+            assert time.monotonic() < deadline, "the pool's workers did not take their jobs"
+            time.sleep(0.1)
+        time.sleep(0.5)
+        first, second = list(pool._processes.values())
+        os.kill(first.pid, signal.SIGKILL)
+        done, _ = wait(futures, timeout=120)
+        assert len(done) == 2 and all(isinstance(f.exception(), BrokenProcessPool) for f in futures)
+        time.sleep(1)
+        assert second.is_alive()  # the pool's SIGTERM did not end it
+        _kill_survivors(pool)
+        assert not second.is_alive()
+    finally:
+        for process in list((pool._processes or {}).values()):
+            process.kill()
+        pool.shutdown(wait=True, cancel_futures=True)

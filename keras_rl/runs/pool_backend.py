@@ -8,7 +8,8 @@ that running seeds poll at their next episode end, and waits for them: their sum
 process group), so the flag is the one way they stop. A job that raises is named on the console
 and the others go on. A worker that dies (``kill -9``, out of memory) breaks the pool: its jobs,
 and the others that were running, start again in a new pool from the beginning (or from their
-checkpoint, for a resumed job), at most ``MAX_RETRIES`` times each; the seeds are functions of
+checkpoint, for a resumed job), at most ``MAX_RETRIES`` times each, once the broken pool's other
+workers are killed (``_kill_survivors``); the seeds are functions of
 their seed, so they write the same ``episodes.csv``. Ray (``pip install 'keras-rl-repro[ray]'``)
 is for ``--address``, a cluster.
 """
@@ -111,7 +112,8 @@ class ProcessPool:
                             bar.poll()
                         if collect(wait(list(running), timeout=0.5, return_when=FIRST_COMPLETED).done):
                             collect(wait(list(running)).done)  # the pool is gone: every job it ran with it
-                            pool.shutdown(wait=False, cancel_futures=True)
+                            _kill_survivors(pool)
+                            pool.shutdown(wait=True, cancel_futures=True)
                             pool = new_pool()
                 except KeyboardInterrupt:
                     interrupted = True
@@ -132,6 +134,20 @@ class ProcessPool:
             if bar is not None:
                 bar.close()
         return interrupted
+
+
+def _kill_survivors(pool: ProcessPoolExecutor) -> None:
+    """SIGKILL the workers a broken pool still has, before its jobs start again in a new one.
+    CPython ends them with SIGTERM, which a worker's training loop takes as "stop after this
+    episode" (``runs/signals.py``): a survivor would go on to write its seed's folder as
+    interrupted while the job's retry writes the same folder, and the broken pool's shutdown
+    waits for it (the likely cause of a run of ``tests/test_pool.py``'s killed-worker test whose
+    command printed its last line and never exited). Python 3.11's executor names its workers
+    only in ``_processes``; 3.14 adds ``kill_workers()``."""
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        if process.is_alive():
+            process.kill()
+            process.join(timeout=30)
 
 
 def _seeds(job) -> str:
