@@ -156,8 +156,7 @@ def main() -> None:
         + ".",
         "",
     ]
-    disclosed = plans.disclosure_at(args.write)
-    text = "\n".join(lines) + (f"\n{disclosed}" if disclosed else "")
+    text = plans.disclosed("\n".join(lines), plans.report_path(args.write))
     print(text)
     if args.write:
         atomic_write_text(args.write, text)

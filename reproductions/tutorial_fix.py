@@ -188,8 +188,7 @@ def main() -> None:
     )
     first_look = None if first_seeds is None else (arm(arms[0], first_seeds), arm(arms[1], first_seeds))
     text = report(arm(arms[0], seeds), arm(arms[1], seeds), (labels[0], labels[1]), command, first_look)
-    disclosed = plans.disclosure_at(args.write)  # a deviation of a plan this reading touches
-    text = text.rstrip("\n") + f"\n\n{disclosed}" if disclosed else text
+    text = plans.disclosed(text, plans.report_path(args.write))  # a deviation of a plan it touches
     if args.write:
         atomic_write_text(args.write, text)
         print(f"wrote {args.write}")

@@ -124,3 +124,17 @@ def test_each_deviation_is_printed_in_its_reports_and_marks_its_forest_rows():
         for verdict in d.verdicts:
             group, label = verdict.split(": ", 1)
             assert f"| {group} | {label}{mark(verdict)} |" in readme, verdict
+
+
+def test_a_report_gets_the_section_of_the_deviations_it_touches_and_no_other():
+    """``disclosed`` appends the section for a report a deviation names, after one blank line,
+    and leaves any other report's text (or a report written outside the checkout) as it is."""
+    from keras_rl.report.plans import disclosed, notes, report_path
+
+    (d,) = [d for d in DEVIATIONS if "results/engines/mountaincar/report.md" in d.reports]
+    made = disclosed("# A report\n\nits lines\n\n", "results/engines/mountaincar/report.md")
+    assert made == "# A report\n\nits lines\n\n## Deviations from the plan\n\n" + notes([d])[0] + "\n"
+    assert disclosed("# A report\n", "results/engines/pendulum/report.md") == "# A report\n"
+    assert disclosed("# A report\n", None) == "# A report\n"
+    assert report_path(ROOT / "results" / "x" / ".." / "README.md") == "results/README.md"
+    assert report_path(Path("/tmp/report.md")) is None and report_path(None) is None

@@ -178,7 +178,10 @@ DEVIATIONS: tuple[Deviation, ...] = (
                 for values in ("#3080's", "PR #3384's")
             ),
         ),
-        ("results/cartpole/vectorised-torch/report.md",),
+        (
+            "results/cartpole/vectorised-torch/report.md",
+            "results/cartpole/tutorial-fix/report-issue-3080-vectorised.md",
+        ),
     ),
 )
 
@@ -218,11 +221,18 @@ def disclosure(report: str) -> str:
     return "\n".join(["## Deviations from the plan", "", *notes(touching), ""])
 
 
-def disclosure_at(written: Path | None) -> str:
-    """``disclosure`` for a report a script writes to ``written`` (None, or a path outside the
-    checkout: "")."""
+def report_path(written: Path | None) -> str | None:
+    """A report's path under the repository root, as ``Deviation.reports`` names it (None for no
+    file, or a file outside the checkout)."""
     from keras_rl.checkout import ROOT
 
     if written is None or not written.resolve().is_relative_to(ROOT):
-        return ""
-    return disclosure(written.resolve().relative_to(ROOT).as_posix())
+        return None
+    return written.resolve().relative_to(ROOT).as_posix()
+
+
+def disclosed(text: str, report: str | None) -> str:
+    """A report's ``text`` with ``disclosure(report)`` after it, one blank line between (``text``
+    as it is if the report touches no deviation)."""
+    section = disclosure(report) if report else ""
+    return f"{text.rstrip(chr(10))}\n\n{section}" if section else text
