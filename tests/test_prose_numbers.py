@@ -147,6 +147,38 @@ def compare_001(matched: bool) -> dict:
 
 
 @cache
+def fix_and_published(variant: str, fw: str, seeds: int) -> tuple[int, int]:
+    """Successes on seeds 0 to ``seeds`` - 1 of a tutorial-fix proposal's arm, then of the arm as
+    published that it is read against (``keras_rl/report/tutorial_fix.py``)."""
+    from keras_rl.report.tutorial_fix import PUBLISHED, TUTORIAL_FIXES
+
+    (fix,) = [f for f in TUTORIAL_FIXES if f.variant == variant]
+    proposal, published = arm((fix.folder(fw),)), arm(PUBLISHED[fw])
+    return tuple(sum(a[s]["success"] for s in range(seeds)) for a in (proposal, published))  # type: ignore[return-value]
+
+
+@cache
+def fix_report(name: str) -> dict[str, tuple[str, ...]]:
+    """A report of ``reproductions/tutorial_fix.py`` under ``results/cartpole/tutorial-fix/``
+    (``tests/test_tutorial_fix.py`` remakes each from the runs), as the findings quote it: per arm
+    (the table's first column) its success count, Wilson interval, median episode, a CPU reader's
+    mean duration and its IQR, and the median longest episode; per reading of the planned seeds
+    ("success", "ratio") its estimate and 90% interval."""
+    text = (RESULTS / "cartpole" / "tutorial-fix" / name).read_text()
+    cells: dict[str, tuple[str, ...]] = {}
+    for line in text.splitlines():
+        row = [c.strip() for c in line.split("|")[1:-1]]
+        if len(row) == 7 and re.fullmatch(r"\d+/\d+ \(.*\)", row[3]):
+            won, wilson = re.fullmatch(r"(\S+) \((.*)\)", row[3]).groups()  # type: ignore[union-attr]
+            mean, iqr = re.fullmatch(r"(\S+) \((.*)\)", row[5]).groups()  # type: ignore[union-attr]
+            cells[row[0]] = (won, wilson, row[4], mean, iqr, f"{float(row[6].split()[0]):g}")
+    for key, what in (("success", "success rate difference"), ("ratio", "median episodes to threshold, ratio")):
+        found = re.search(rf"- {what}: \*\*[^*]+\*\* \(([^;]+); 90% interval (\S+) to (\S+),", text)
+        assert found, (name, what)
+        cells[key] = found.groups()
+    return cells
+
+
 def thousand_seeds() -> dict:
     """The H200 run of ``benchmarks/thousand_seeds.py`` (issue 53 item 4): its report, its chunks'
     full-batch time per step, and the seeds whose 100-episode mean of steps reaches 475."""
@@ -396,6 +428,118 @@ CLAIMS: list[Claim] = [
         lambda: (
             signed(ablation("actor_gradient=dpg_intended")["median_difference"]),
             signed(ablation("actor_gradient=dpg_intended")["before_issue_52"]["median_difference"]),
+        ),
+    ),
+    (
+        "README.md",
+        "#3080's values, {}/100 against {}/100 as published on 100 Keras seeds",
+        lambda: fix_and_published("issue-3080", "keras", 100),
+    ),
+    (
+        "README.md",
+        "{}/30 against {}/30 in the tutorial's own PyTorch code",
+        lambda: fix_and_published("issue-3080", "torch", 30),
+    ),
+    (
+        "README.md",
+        "and {}/100 against {}/100 in PyTorch on the vectorised engine",
+        lambda: fix_and_published("issue-3080", "vectorised", 100),
+    ),
+    (
+        "README.md",
+        "the values PR #3384 merged into the tutorial, {}/100 (**different**)",
+        lambda: fix_and_published("pr-3384", "keras", 100)[:1],
+    ),
+    (
+        "README.md",
+        "at the 100 seeds planned for a second look, {}/100 against {}/100",
+        lambda: fix_and_published("pr-3384", "torch", 100),
+    ),
+    (
+        "docs/findings.md",
+        "within 600 episodes in **{} (90% Wilson {})**, the values of pytorch/tutorials #3080 in **{} ({})**: "
+        "a difference of {} (90% interval {} to {}),",
+        lambda: (
+            (*fix_report("report.md")["published"][:2], *fix_report("report.md")["issue-3080"][:2])
+            + fix_report("report.md")["success"]
+        ),
+    ),
+    (
+        "docs/findings.md",
+        "median episode {} against {} (a seed that never gets there counting as 601), ratio {} (90% interval {} to {})",
+        lambda: (
+            (fix_report("report.md")["issue-3080"][2], fix_report("report.md")["published"][2])
+            + fix_report("report.md")["ratio"]
+        ),
+    ),
+    (
+        "docs/findings.md",
+        "mean duration {} (IQR {}) as published and {} ({}) with the values of pytorch/tutorials #3080, "
+        "the longest episode {} against {}",
+        lambda: (
+            *fix_report("report.md")["published"][3:5],
+            *fix_report("report.md")["issue-3080"][3:5],
+            fix_report("report.md")["published"][5],
+            fix_report("report.md")["issue-3080"][5],
+        ),
+    ),
+    (
+        "docs/findings.md",
+        "**{} ({}) against {} ({})** as published, a difference of {} (90% interval {} to {}), **different**; "
+        "median episode {} against {}, ratio {} ({} to {}), **different**; a CPU reader's 50 episodes: "
+        "mean duration {} (IQR {}) against {} ({})",
+        lambda: (
+            *fix_report("report-torch.md")["issue-3080"][:2],
+            *fix_report("report-torch.md")["published"][:2],
+            *fix_report("report-torch.md")["success"],
+            fix_report("report-torch.md")["issue-3080"][2],
+            fix_report("report-torch.md")["published"][2],
+            *fix_report("report-torch.md")["ratio"],
+            *fix_report("report-torch.md")["issue-3080"][3:5],
+            *fix_report("report-torch.md")["published"][3:5],
+        ),
+    ),
+    *(
+        (
+            "docs/findings.md",
+            "**{} ({}) against {}**, a difference of {} (90% interval {} to {}), **{}**; median episode {} against "
+            "{}, ratio {} ({} to {}), **different**; a CPU reader's 50 episodes: mean duration {} (IQR {}) against {}",
+            lambda name=name, verdict=verdict: (
+                *fix_report(name)["pr-3384"][:2],
+                fix_report(name)["published"][0],
+                *fix_report(name)["success"],
+                verdict,
+                fix_report(name)["pr-3384"][2],
+                fix_report(name)["published"][2],
+                *fix_report(name)["ratio"],
+                *fix_report(name)["pr-3384"][3:5],
+                fix_report(name)["published"][3],
+            ),
+        )
+        for name, verdict in (
+            ("report-pr-3384.md", "different"),
+            ("report-pr-3384-torch.md", "inconclusive at 30 seeds"),
+        )
+    ),
+    (
+        "docs/findings.md",
+        "longest episode {} against {}. In the tutorial's own PyTorch code",
+        lambda: (fix_report("report-pr-3384.md")["pr-3384"][5], fix_report("report-pr-3384.md")["published"][5]),
+    ),
+    (
+        "docs/findings.md",
+        "**{} ({}) against {} ({})**, a difference of {} (90% interval {} to {}), **different**; median episode {} "
+        "against {}, ratio {} ({} to {}), **different**; a CPU reader's 50 episodes: mean duration {} (IQR {}) "
+        "against {}",
+        lambda: (
+            *fix_report("report-pr-3384-torch-100.md")["pr-3384"][:2],
+            *fix_report("report-pr-3384-torch-100.md")["published"][:2],
+            *fix_report("report-pr-3384-torch-100.md")["success"],
+            fix_report("report-pr-3384-torch-100.md")["pr-3384"][2],
+            fix_report("report-pr-3384-torch-100.md")["published"][2],
+            *fix_report("report-pr-3384-torch-100.md")["ratio"],
+            *fix_report("report-pr-3384-torch-100.md")["pr-3384"][3:5],
+            fix_report("report-pr-3384-torch-100.md")["published"][3],
         ),
     ),
 ]
