@@ -179,6 +179,13 @@ def fix_report(name: str) -> dict[str, tuple[str, ...]]:
     return cells
 
 
+def engine_check() -> dict:
+    """The tutorial-fix plan's check of the vectorised engine on PR #3384's values (the forest's row)."""
+    return forest(
+        "vectorised PyTorch engine vs the tutorial's own code", "cartpole, pytorch/tutorials PR #3384's values"
+    )
+
+
 def thousand_seeds() -> dict:
     """The H200 run of ``benchmarks/thousand_seeds.py`` (issue 53 item 4): its report, its chunks'
     full-batch time per step, and the seeds whose 100-episode mean of steps reaches 475."""
@@ -456,6 +463,11 @@ CLAIMS: list[Claim] = [
         lambda: fix_and_published("pr-3384", "torch", 100),
     ),
     (
+        "README.md",
+        "against 62/100, and {}/100 against {}/100 on the vectorised engine, more often and sooner (all **different**)",
+        lambda: fix_and_published("pr-3384", "vectorised", 100),
+    ),
+    (
         "docs/findings.md",
         "within 600 episodes in **{} (90% Wilson {})**, the values of pytorch/tutorials #3080 in **{} ({})**: "
         "a difference of {} (90% interval {} to {}),",
@@ -540,6 +552,38 @@ CLAIMS: list[Claim] = [
             *fix_report("report-pr-3384-torch-100.md")["ratio"],
             *fix_report("report-pr-3384-torch-100.md")["pr-3384"][3:5],
             fix_report("report-pr-3384-torch-100.md")["published"][3],
+        ),
+    ),
+    *(
+        (
+            "docs/findings.md",
+            "values **{} ({}) against {}" + more + "**, a difference of {} (90% interval {} to {}), **different**; "
+            "median episode {} against {}, ratio {} ({} to {}), **different**",
+            lambda name=name, label=label, n=n: (
+                *fix_report(name)[label][:2],
+                *fix_report(name)["published"][:n],
+                *fix_report(name)["success"],
+                fix_report(name)[label][2],
+                fix_report(name)["published"][2],
+                *fix_report(name)["ratio"],
+            ),
+        )
+        for name, label, more, n in (
+            ("report-issue-3080-vectorised.md", "issue-3080", " ({})", 2),
+            ("report-pr-3384-vectorised.md", "pr-3384", "", 1),
+        )
+    ),
+    (
+        "docs/findings.md",
+        "readings: success {}/100 against {}/100, a difference of {} (90% interval {} to {}); "
+        "median episodes ratio {} ({} to {})",
+        lambda: (
+            *(
+                sum(arm((f"cartpole/tutorial-fix/pr-3384{suffix}",))[s]["success"] for s in range(100))
+                for suffix in ("-vectorised", "-torch")
+            ),
+            *interval(engine_check()["success"]),
+            *interval(engine_check()["speed"]),
         ),
     ),
 ]
