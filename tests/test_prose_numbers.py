@@ -179,6 +179,18 @@ def fix_report(name: str) -> dict[str, tuple[str, ...]]:
     return cells
 
 
+def quoted(name: str, label: str, *, published: int, cpu: int = 0) -> tuple[str, ...]:
+    """A tutorial-fix report's reading in the order the findings quote it: the proposal's (``label``)
+    success and Wilson interval; the published arm's success, with its interval if ``published``
+    is 2; the success difference and its 90% interval; both medians; the ratio and its interval;
+    then, if ``cpu``, a CPU reader's mean duration: the proposal's with its IQR, and the published
+    arm's (with its IQR if ``cpu`` is 2)."""
+    cells = fix_report(name)
+    fix, base = cells[label], cells["published"]
+    said = (*fix[:2], *base[:published], *cells["success"], fix[2], base[2], *cells["ratio"])
+    return said + ((*fix[3:5], *base[3 : 3 + cpu]) if cpu else ())
+
+
 def engine_check() -> dict:
     """The tutorial-fix plan's check of the vectorised engine on PR #3384's values (the forest's row)."""
     return forest(
@@ -500,33 +512,15 @@ CLAIMS: list[Claim] = [
         "**{} ({}) against {} ({})** as published, a difference of {} (90% interval {} to {}), **different**; "
         "median episode {} against {}, ratio {} ({} to {}), **different**; a CPU reader's 50 episodes: "
         "mean duration {} (IQR {}) against {} ({})",
-        lambda: (
-            *fix_report("report-torch.md")["issue-3080"][:2],
-            *fix_report("report-torch.md")["published"][:2],
-            *fix_report("report-torch.md")["success"],
-            fix_report("report-torch.md")["issue-3080"][2],
-            fix_report("report-torch.md")["published"][2],
-            *fix_report("report-torch.md")["ratio"],
-            *fix_report("report-torch.md")["issue-3080"][3:5],
-            *fix_report("report-torch.md")["published"][3:5],
-        ),
+        lambda: quoted("report-torch.md", "issue-3080", published=2, cpu=2),
     ),
     *(
         (
             "docs/findings.md",
-            "**{} ({}) against {}**, a difference of {} (90% interval {} to {}), **{}**; median episode {} against "
-            "{}, ratio {} ({} to {}), **different**; a CPU reader's 50 episodes: mean duration {} (IQR {}) against {}",
-            lambda name=name, verdict=verdict: (
-                *fix_report(name)["pr-3384"][:2],
-                fix_report(name)["published"][0],
-                *fix_report(name)["success"],
-                verdict,
-                fix_report(name)["pr-3384"][2],
-                fix_report(name)["published"][2],
-                *fix_report(name)["ratio"],
-                *fix_report(name)["pr-3384"][3:5],
-                fix_report(name)["published"][3],
-            ),
+            "**{} ({}) against {}**, a difference of {} (90% interval {} to {}), **" + verdict + "**; median "
+            "episode {} against {}, ratio {} ({} to {}), **different**; a CPU reader's 50 episodes: mean duration "
+            "{} (IQR {}) against {}",
+            lambda name=name: quoted(name, "pr-3384", published=1, cpu=1),
         )
         for name, verdict in (
             ("report-pr-3384.md", "different"),
@@ -543,30 +537,14 @@ CLAIMS: list[Claim] = [
         "**{} ({}) against {} ({})**, a difference of {} (90% interval {} to {}), **different**; median episode {} "
         "against {}, ratio {} ({} to {}), **different**; a CPU reader's 50 episodes: mean duration {} (IQR {}) "
         "against {}",
-        lambda: (
-            *fix_report("report-pr-3384-torch-100.md")["pr-3384"][:2],
-            *fix_report("report-pr-3384-torch-100.md")["published"][:2],
-            *fix_report("report-pr-3384-torch-100.md")["success"],
-            fix_report("report-pr-3384-torch-100.md")["pr-3384"][2],
-            fix_report("report-pr-3384-torch-100.md")["published"][2],
-            *fix_report("report-pr-3384-torch-100.md")["ratio"],
-            *fix_report("report-pr-3384-torch-100.md")["pr-3384"][3:5],
-            fix_report("report-pr-3384-torch-100.md")["published"][3],
-        ),
+        lambda: quoted("report-pr-3384-torch-100.md", "pr-3384", published=2, cpu=1),
     ),
     *(
         (
             "docs/findings.md",
             "values **{} ({}) against {}" + more + "**, a difference of {} (90% interval {} to {}), **different**; "
             "median episode {} against {}, ratio {} ({} to {}), **different**",
-            lambda name=name, label=label, n=n: (
-                *fix_report(name)[label][:2],
-                *fix_report(name)["published"][:n],
-                *fix_report(name)["success"],
-                fix_report(name)[label][2],
-                fix_report(name)["published"][2],
-                *fix_report(name)["ratio"],
-            ),
+            lambda name=name, label=label, n=n: quoted(name, label, published=n),
         )
         for name, label, more, n in (
             ("report-issue-3080-vectorised.md", "issue-3080", " ({})", 2),

@@ -236,4 +236,4 @@ def disclosed(text: str, report: str | None) -> str:
     """A report's ``text`` with ``disclosure(report)`` after it, one blank line between (``text``
     as it is if the report touches no deviation)."""
     section = disclosure(report) if report else ""
-    return f"{text.rstrip(chr(10))}\n\n{section}" if section else text
+    return text.rstrip("\n") + "\n\n" + section if section else text
