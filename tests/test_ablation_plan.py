@@ -64,6 +64,37 @@ def test_the_second_look_runs_what_its_plan_says_under_a_registered_plan():
             assert set(entry["ablation_sets"]) <= set(ablation_sets)
 
 
+def merged(runs: list[str]) -> list[str]:
+    """A queue's runs with each set that runs in parts (``<name>-seeds-A-B`` beside
+    ``<name>-seeds-(B+1)-C``, the same arguments but ``--seeds``) joined back into one."""
+    out: list[tuple[str, int, int, str]] = []
+    for run in runs:
+        folder, args = run.split("\t")
+        name, _, span = folder.rpartition("-seeds-")
+        first, last = (int(x) for x in span.split("-"))
+        assert f"--seeds {first}-{last} " in args, run
+        rest = args.replace(f"--seeds {first}-{last} ", "--seeds {} ")
+        if out and out[-1][0] == name and out[-1][3] == rest and out[-1][2] + 1 == first:
+            first = out.pop()[1]
+        out.append((name, first, last, rest))
+    return [f"{name}-seeds-{a}-{b}\t{rest.format(f'{a}-{b}')}" for name, a, b, rest in out]
+
+
+def test_the_first_plans_queue_runs_its_sets_whole_or_in_parts_along_their_seeds():
+    """The queue holds the runs the committed plan lists (its ``commands_of``), where a long set
+    may run as consecutive sets of its seeds with the same arguments, each landing on its own."""
+    plan = reproduction("ablation_plan")
+    first = json.loads((RESULTS / "ablation_plan.json").read_text())
+    queue = (ROOT / "maintainers" / "queues" / "ablations.tsv").read_text().splitlines()
+    runs = [line for line in queue if line and not line.startswith("#")]
+    assert merged(runs) == [c for entry in first for c in plan.commands_of(entry)]
+    assert len(runs) > len(merged(runs))  # popping_buffer=false's 600 seeds run in parts
+    assert merged(["f/x-seeds-0-9\treproduce p --seeds 0-9 --a", "f/x-seeds-11-19\treproduce p --seeds 11-19 --a"]) == [
+        "f/x-seeds-0-9\treproduce p --seeds 0-9 --a",
+        "f/x-seeds-11-19\treproduce p --seeds 11-19 --a",
+    ]  # a gap is not joined
+
+
 def test_a_committed_plan_is_never_rewritten_by_accident(monkeypatch, tmp_path):
     """Drawn again after its runs a plan reads other data (the second look now finds nothing
     unsettled), so ``--write`` refuses a plan that exists, and writes one that does not."""
