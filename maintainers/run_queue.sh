@@ -11,6 +11,8 @@
 # an unfinished one resumes where it stopped. Refuses a dirty worktree (its seeds would record it).
 # The seeds' weights and pictures, which git ignores, are moved to $RUN_QUEUE_EXTRAS
 # (../run-queue-extras by default) before packing.
+# Size a queue's sets to land within one working session: a session's worktree, and the seeds of
+# a set that has not landed, do not outlive it (a long set runs as consecutive sets of its seeds).
 set -euo pipefail
 queue=${1:?usage: maintainers/run_queue.sh QUEUE_FILE}
 extras=${RUN_QUEUE_EXTRAS:-../run-queue-extras}
