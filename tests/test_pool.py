@@ -310,6 +310,7 @@ def test_a_broken_pools_surviving_workers_are_killed_before_its_jobs_start_again
     a job; one is killed: the other outlives the pool's SIGTERM, then not ``_kill_survivors``."""
     import functools
     import multiprocessing
+    import multiprocessing.connection
     from concurrent.futures import ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
