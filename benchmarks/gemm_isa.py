@@ -70,8 +70,8 @@ def cpu_vendor() -> str:
         lines = open("/proc/cpuinfo").read().splitlines()
     except OSError:
         return platform.processor() or "unknown"
-    fields = dict(line.split(":", 1) for line in lines if ":" in line)
-    return ", ".join(fields.get(k, "").strip() for k in ("vendor_id\t", "model name\t")).strip(", ")
+    fields = {key.strip(): value.strip() for key, _, value in (line.partition(":") for line in lines if ":" in line)}
+    return ", ".join(fields.get(k, "") for k in ("vendor_id", "model name")).strip(", ")
 
 
 def main() -> None:
