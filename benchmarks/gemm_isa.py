@@ -21,6 +21,7 @@ import os
 import platform
 import subprocess
 import sys
+from pathlib import Path
 
 ROWS = (
     ("torch.bmm (MKL), as the engine calls it", "torch", {}),
@@ -67,7 +68,7 @@ def mkl_dispatch() -> str:
 def cpu_vendor() -> str:
     """``vendor_id`` and ``model name`` from /proc/cpuinfo, where there is one."""
     try:
-        lines = open("/proc/cpuinfo").read().splitlines()
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
     except OSError:
         return platform.processor() or "unknown"
     fields = {key.strip(): value.strip() for key, _, value in (line.partition(":") for line in lines if ":" in line)}

@@ -229,6 +229,13 @@ def markdown_rows(text: str) -> dict[str, list[str]]:
     return {k: [c.strip() for c in r[1:]] for k, r in zip(keys, rows)}
 
 
+def best_ratio(rows: dict[str, list[str]]) -> str:
+    """The best ratio to the tutorial's code over a ``benchmarks/torch_vectorised.py`` table's vectorised
+    arms, as printed (bold marks dropped)."""
+    ratios = [cells[1].strip("*") for arm, cells in rows.items() if arm.startswith("vectorised")]
+    return max(ratios, key=lambda r: float(r.rstrip("x")))
+
+
 def epyc() -> dict[str, str]:
     """The AMD EPYC's figures for issue 53 item 3, from ``docs/performance.md``'s own section on the
     vectorised engine: its two tables and the S=8, S=16 run quoted in its prose."""
@@ -247,9 +254,7 @@ def epyc() -> dict[str, str]:
         "s8": steps["vectorised, S=8, compiled"][0],
         "s8_quoted": quoted[2],
         "s1_ratio": steps["vectorised, S=1, compiled"][1],
-        "best": max(
-            (c[1] for a, c in steps.items() if a.startswith("vectorised")), key=lambda r: float(r.strip("*x"))
-        ).strip("*"),
+        "best": best_ratio(steps),
         "lowest_best": quoted[3],
         "bmm": products["torch.bmm (MKL), as the engine calls it"][0],
     }
@@ -287,10 +292,19 @@ def xeon_row(arm: str) -> tuple[str, ...]:
 
 
 def xeon_best(name: str) -> str:
-    """The best ratio to the tutorial's code over the vectorised arms of one run."""
-    return max(
-        (cells[1] for arm, cells in xeon(name).items() if arm.startswith("vectorised")), key=lambda r: float(r[:-1])
-    )
+    """The best ratio to the tutorial's code over the vectorised arms of one run on the Xeon."""
+    return best_ratio(xeon(name))
+
+
+def xeon_bmm(forced: bool) -> list[str]:
+    """The Xeon's ``bmm`` row of ``gemm_isa.txt`` (ms, GFLOP/s): MKL's own kernels, or AVX-512 forced."""
+    label = "MKL_ENABLE_INSTRUCTIONS=AVX512" if forced else "as the engine calls it"
+    return xeon("gemm_isa.txt")[f"torch.bmm (MKL), {label}"]
+
+
+def forced_step(kernels: str) -> str:
+    """Run 3's compiled S=8 step on the Xeon, ms, under MKL's ``default`` kernels or ``AVX512`` forced."""
+    return mkl_pair()[kernels]["vectorised, S=8, compiled"][0]
 
 
 Claim = tuple[str, str, Callable[[], tuple]]
@@ -543,12 +557,12 @@ CLAIMS: list[Claim] = [
     (
         "results/cartpole/vectorised-torch/xeon-cpu/README.md",
         "takes {} ms for 8 products of 128x128 by 128x128 ({} GFLOP/s), against {} ms on the AMD EPYC",
-        lambda: (*xeon("gemm_isa.txt")["torch.bmm (MKL), as the engine calls it"], epyc()["bmm"]),
+        lambda: (*xeon_bmm(forced=False), epyc()["bmm"]),
     ),
     (
         "results/cartpole/vectorised-torch/xeon-cpu/README.md",
         "set, `bmm` takes {} ms.",
-        lambda: (xeon("gemm_isa.txt")["torch.bmm (MKL), MKL_ENABLE_INSTRUCTIONS=AVX512"][0],),
+        lambda: (xeon_bmm(forced=True)[0],),
     ),
     (
         "results/cartpole/vectorised-torch/xeon-cpu/README.md",
@@ -585,7 +599,7 @@ CLAIMS: list[Claim] = [
         lambda: (
             xeon_best("torch_vectorised.txt"),
             xeon_best("torch_vectorised_r5.txt"),
-            xeon("gemm_isa.txt")["torch.bmm (MKL), as the engine calls it"][0],
+            xeon_bmm(forced=False)[0],
             epyc()["bmm"],
             *xeon_row("vectorised, S=8, compiled")[::2],
             epyc()["s8_quoted"],
@@ -598,7 +612,7 @@ CLAIMS: list[Claim] = [
     (
         "docs/performance.md",
         "`MKL_ENABLE_INSTRUCTIONS=AVX512` there made `bmm` alone faster ({} ms)",
-        lambda: (xeon("gemm_isa.txt")["torch.bmm (MKL), MKL_ENABLE_INSTRUCTIONS=AVX512"][0],),
+        lambda: (xeon_bmm(forced=True)[0],),
     ),
     (
         "results/cartpole/vectorised-torch/xeon-cpu/README.md",
@@ -617,19 +631,19 @@ CLAIMS: list[Claim] = [
         "The forced kernel made `bmm` alone {} faster in run 1, but the compiled step only {} faster here",
         lambda: (
             faster(
-                xeon("gemm_isa.txt")["torch.bmm (MKL), as the engine calls it"][0],
-                xeon("gemm_isa.txt")["torch.bmm (MKL), MKL_ENABLE_INSTRUCTIONS=AVX512"][0],
+                xeon_bmm(forced=False)[0],
+                xeon_bmm(forced=True)[0],
             ),
-            faster(*(mkl_pair()[k]["vectorised, S=8, compiled"][0] for k in ("default", "AVX512"))),
+            faster(forced_step("default"), forced_step("AVX512")),
         ),
     ),
     (
         "docs/performance.md",
         "but the compiled step at S=8 only {} faster ({} against {} ms, one pair of runs)",
         lambda: (
-            faster(*(mkl_pair()[k]["vectorised, S=8, compiled"][0] for k in ("default", "AVX512"))),
-            mkl_pair()["AVX512"]["vectorised, S=8, compiled"][0],
-            mkl_pair()["default"]["vectorised, S=8, compiled"][0],
+            faster(forced_step("default"), forced_step("AVX512")),
+            forced_step("AVX512"),
+            forced_step("default"),
         ),
     ),
     # post 001's ablations (results/mountaincar/ablations/sweep.json, the FIDELITY table's rows)
