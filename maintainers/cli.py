@@ -176,6 +176,11 @@ def add_parser(sub) -> None:
     p.add_argument("--per-set", type=int, default=1, metavar="K", help="seeds (batches) drawn from each set")
     p.add_argument("--draw-seed", type=int, default=52, help="the random seed that draws them (default 52)")
     p.add_argument("--sets", nargs="+", metavar="SET", help="only the sets matching these patterns (fnmatch)")
+    p.add_argument(
+        "--again",
+        action="store_true",
+        help="with --write: rerun every set, not only those the committed report lacks",
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -4,6 +4,7 @@ lists only users' commands."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -46,6 +47,7 @@ def test_tables_print_without_writing(capsys, monkeypatch):
         (["audit"], "audit needs --out"),
         (["audit", "--out", "results/audit"], "--out must not be inside results/"),
         (["audit", "--sets", "no/such/set", "--out", "/tmp/keras-rl-audit"], "no committed set matches"),
+        (["audit", "--again", "--out", "/tmp/keras-rl-audit"], "--again reruns the sets the committed report holds"),
     ],
 )
 def test_bad_input_exits_2_naming_it(argv, message, capsys):
@@ -139,8 +141,44 @@ def test_an_audit_reruns_its_drawn_seeds_to_the_committed_bits_and_resumes_from_
     assert main(argv) == 0
     report = (tmp_path / "audit" / "audit.md").read_text()
     assert "2 of 2 sets audited: 2 seed(s) the same bits" in report and "**0 mismatch(es)**" in report
-    assert "| `checks/pendulum/mutants/tau_x10` |" in report and "| HEAD | same bits |" in report
+    assert "| `checks/pendulum/mutants/tau_x10` |" in report
+    assert re.search(r"\| HEAD [0-9a-f]{8}( \+ changes)? \| same bits \|", report)  # the commit it ran at
     assert "random seed 52" in report and "--draw-seed 52" in report
     capsys.readouterr()
     assert main(argv) == 0  # resumed: each set's result is read back from audit.json, nothing reruns
     assert "tau_x10: seeds" not in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_a_written_audit_extends_the_committed_report_and_reruns_only_the_sets_it_lacks(tmp_path, capsys, monkeypatch):
+    """--write keeps the committed report's results for this draw (here one set's, marked so that
+    a rerun would show) and reruns only the set it lacks; the report covers every committed set."""
+    import json
+
+    import maintainers.audit as audit
+    from maintainers.manifest import manifest
+
+    old, new = "checks/pendulum/mutants/tau_x10", "checks/pendulum/mutants/gamma_0.9"
+    batches = audit.draw(manifest(), 1, 52)[old]
+    result = {
+        "set": old,
+        "seeds": [batches[0][0]],
+        "batches": batches,
+        "at": "HEAD 0123abcd",
+        "by_seed": {str(batches[0][0]): {"verdict": "same bits", "why": None, "divergence": None}},
+        "mismatches": 0,
+    }
+    record, report = tmp_path / "AUDIT.json", tmp_path / "AUDIT.md"
+    record.write_text(json.dumps({"draw_seed": 52, "per_set": 1, "results": [result]}))
+    monkeypatch.setattr(audit, "RECORD", record)
+    monkeypatch.setattr(audit, "REPORT", report)
+    argv = ["audit", "--sets", old, new, "--write", "--out", str(tmp_path / "audit")]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "gamma_0.9: seeds" in printed and "tau_x10: seeds" not in printed
+    text = report.read_text()
+    assert f"2 of {len(manifest())} sets audited" in text and "| HEAD 0123abcd | same bits |" in text
+    assert [r["set"] for r in json.loads(record.read_text())["results"]] == [new, old]  # the manifest's order
+    other_draw = ["audit", "--sets", old, "--draw-seed", "7", "--write", "--out", str(tmp_path / "audit-7")]
+    assert main(other_draw) == 0  # another draw keeps nothing: the set reruns
+    assert "tau_x10: seeds" in capsys.readouterr().out
