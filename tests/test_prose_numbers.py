@@ -135,6 +135,30 @@ def ablation(point: str) -> dict:
     return next(r for r in rows if r["point"] == point)
 
 
+POP_600 = "mountaincar ablation vs faithful, the planned seeds"
+POP_ARMS = (
+    tuple(f"mountaincar/ablations-gymnasium/popping_buffer=false-seeds-{a}-{a + 49}" for a in range(0, 600, 50)),
+    ("checks/mountaincar/baseline", "mountaincar/faithful-seeds-100-199", "mountaincar/faithful-seeds-200-599"),
+)
+
+
+def popping_600() -> tuple[int, int]:
+    """Seeds that end converged of 0-599, the ablation's arm and the faithful one."""
+    return tuple(sum(r["success"] for s, r in arm(sets).items() if s < 600) for sets in POP_ARMS)  # type: ignore[return-value]
+
+
+def popping_600_medians() -> tuple[float, float]:
+    """Each arm's median first passing episode over seeds 0-599 (101 for a seed that never passed)."""
+    return tuple(  # type: ignore[return-value]
+        float(
+            np.median(
+                [101 if e is None else e for e in Arm.of([r for s, r in arm(sets).items() if s < 600]).episodes()]
+            )
+        )
+        for sets in POP_ARMS
+    )
+
+
 def signed(d: dict) -> str:
     """A median difference as the FIDELITY table writes it: +18 [+15, +23]."""
     return f"{d['estimate']:+g} [{d['low']:+g}, {d['high']:+g}]"
@@ -385,6 +409,34 @@ CLAIMS: list[Claim] = [
         "docs/findings.md",
         "the ratio is inconclusive, {} (90% interval {} to {})",
         lambda: interval(compiled_001()["speed_converged_at_end"]),
+    ),
+    (
+        "reproductions/FIDELITY.md",
+        "equivalent ({}/200 against {}/200), and so is the median-episodes ratio read as the plan defines it, by "
+        "each seed's first passing episode: {} (90% interval {} to {})",
+        lambda: (
+            sum(r["success"] for r in arm(("engines/mountaincar/compiled",)).values()),
+            sum(
+                r["success"]
+                for r in arm(("checks/mountaincar/baseline", "mountaincar/faithful-seeds-100-199")).values()
+            ),
+            *interval(compiled_001()["speed"]),
+        ),
+    ),
+    (
+        "reproductions/FIDELITY.md",
+        "converged at the end) the ratio is inconclusive, {} ({} to {})",
+        lambda: interval(compiled_001()["speed_converged_at_end"]),
+    ),
+    (
+        "reproductions/FIDELITY.md",
+        "Seed by seed, {} of the {} seeds first meet the threshold at the same episode on both engines ({} of them "
+        "also agree on success)",
+        lambda: (
+            engines_001()["first"],
+            len(table_pairs("engines/mountaincar/report.md")),
+            engines_001()["and_success"],
+        ),
     ),
     (
         "README.md",
@@ -644,6 +696,19 @@ CLAIMS: list[Claim] = [
             faster(forced_step("default"), forced_step("AVX512")),
             forced_step("AVX512"),
             forced_step("default"),
+        ),
+    ),
+    # post 001's popping buffer at its 600 planned seeds (issue 52 item 5)
+    (
+        "reproductions/FIDELITY.md",
+        "`popping_buffer=false`), {}/600 seeds end converged against {}/600 with the post's popping buffer: a "
+        "difference of {} (90% interval {} to {}). But they first meet the threshold later, median episode {:g} "
+        "against {:g}: a ratio of {} ({} to {})",
+        lambda: (
+            *popping_600(),
+            *interval(forest(POP_600, "popping_buffer=false (600 planned)")["success"])[:3],
+            *popping_600_medians(),
+            *interval(forest(POP_600, "popping_buffer=false (600 planned)")["speed"]),
         ),
     ),
     # post 001's ablations (results/mountaincar/ablations/sweep.json, the FIDELITY table's rows)

@@ -246,8 +246,8 @@ def short_table() -> str:
     row whose queue is still running is left out, as in ``table``)."""
 
     lines = [
-        "| post | variant | framework | seeds | success (95% Wilson interval) | median episodes to threshold "
-        "| the post |",
+        "| post | variant | framework | seeds | success (95% Wilson interval) "
+        "| median episodes to threshold, over the seeds that succeeded | the post |",
         "|---|---|---|---|---|---|---|",
     ]
     for post, exp, variant, fw, matched, _criterion, theirs in ROWS:
