@@ -88,6 +88,18 @@ PLANS: tuple[Plan, ...] = (
             for arm in ("issue-3080", "issue-3080-torch", "pr-3384", "pr-3384-torch")
         },
     ),
+    Plan(  # its addenda, each before its own runs: they govern from their own commits on
+        "results/cartpole/tutorial-fix/plan.md",
+        {"cartpole/tutorial-fix/pr-3384": None, "cartpole/tutorial-fix/pr-3384-torch": range(30)},
+        section="PR #3384's values read, and its arms",
+        commit="56448599",
+    ),
+    Plan(
+        "results/cartpole/tutorial-fix/plan.md",
+        {"cartpole/tutorial-fix/pr-3384-torch": range(30, 100)},
+        section="PR #3384's PyTorch arm to 100 seeds",
+        commit="2e611217",
+    ),
     Plan("results/checks/sensitive_plan.md", {"checks/pendulum/baseline": range(100, 200)}),
     # sized from the compiled engine's first 100 seeds of post 003, which it names
     Plan("results/checks/sensitive_plan_cartpole.md", {"checks/cartpole/baseline": range(100, 200)}),
