@@ -135,6 +135,15 @@ def ablation(point: str) -> dict:
     return next(r for r in rows if r["point"] == point)
 
 
+def audit_counts() -> tuple[int, int, int, int]:
+    """results/AUDIT.json: sets audited, committed sets, seeds rerun to the same bits, mismatches."""
+    from maintainers.manifest import manifest
+
+    results = json.loads((RESULTS / "AUDIT.json").read_text())["results"]
+    same = sum(v["verdict"] == "same bits" for r in results for v in r["by_seed"].values())
+    return len(results), len(manifest()), same, sum(r["mismatches"] for r in results)
+
+
 POP_600 = "mountaincar ablation vs faithful, the planned seeds"
 POP_ARMS = (
     tuple(f"mountaincar/ablations-gymnasium/popping_buffer=false-seeds-{a}-{a + 49}" for a in range(0, 600, 50)),
@@ -697,6 +706,12 @@ CLAIMS: list[Claim] = [
             forced_step("AVX512"),
             forced_step("default"),
         ),
+    ),
+    # the sampled audit (issue 52 item 6)
+    (
+        "results/README.md",
+        "{} of the {} committed sets, {} seeds the same bits, {} mismatches",
+        audit_counts,
     ),
     # post 001's popping buffer at its 600 planned seeds (issue 52 item 5)
     (
