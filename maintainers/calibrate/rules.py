@@ -358,7 +358,7 @@ def real_block() -> str:
     from maintainers.calibrate.real import BEGIN, END, HEADING, OUT, render
 
     text = (
-        render(json.loads(OUT.read_text()), json.loads(SENSITIVE_RATES.read_text())["posts"])
+        render(json.loads(OUT.read_text()), json.loads(SENSITIVE_RATES.read_text()))
         if OUT.is_file() and SENSITIVE_RATES.is_file()
         else "Not computed yet: run python -m maintainers calibrate real --write"
     )
