@@ -127,6 +127,12 @@ PLANS: tuple[Plan, ...] = (
         section="Post 001 and post 003",
         commit="0b012ef9",
     ),
+    Plan(
+        "results/checks/real_checks_plan.md",
+        {folder: None for folder in queued_sets("issue52-post003.tsv")},
+        section="Post 003",
+        commit="5cc6d9d3",
+    ),
     Plan("results/cartpole/vectorised-torch/plan.md", {"cartpole/vectorised-torch/seeds-0-199": None}),
     Plan(  # issue 53 item 5: the proposals on the vectorised engine, once it is certified
         "results/cartpole/tutorial-fix/plan.md",
