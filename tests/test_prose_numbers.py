@@ -179,6 +179,17 @@ def popping_600_medians() -> tuple[float, float]:
     )
 
 
+def real_003() -> dict:
+    """Post 003's sensitive tier on real runs (``results/checks/real_checks.json``)."""
+    return json.loads((RESULTS / "checks" / "real_checks.json").read_text())["posts"]["cartpole"]
+
+
+def real_003_sizes() -> tuple[str, str, str]:
+    rows = {r["n"]: r for r in real_003()["sizes"]}
+    best = max(max(r["x0.90"], r["x1.10"]) for r in rows.values())
+    return f"{rows[40]['x0.90']:.2f}", f"{rows[40]['x1.10']:.2f}", f"{best:.2f}"
+
+
 def signed(d: dict) -> str:
     """A median difference as the FIDELITY table writes it: +18 [+15, +23]."""
     return f"{d['estimate']:+g} [{d['low']:+g}, {d['high']:+g}]"
@@ -354,6 +365,32 @@ def forced_step(kernels: str) -> str:
 Claim = tuple[str, str, Callable[[], tuple]]
 
 CLAIMS: list[Claim] = [
+    # issue 52 item 4: post 003 on real runs
+    (
+        "docs/check.md",
+        "{} no-change checks of 40 compiled seeds that no baseline holds ({}-{}) flagged {} "
+        "(Clopper-Pearson upper bound {:.0%})",
+        lambda: (
+            real_003()["no_change"][0]["holm_first"]["checks"],
+            *real_003()["pool_seeds"],
+            "none" if real_003()["no_change"][0]["alpha"]["flagged"] == 0 else "some",
+            real_003()["no_change"][0]["holm_first"]["ci95"][1],
+        ),
+    ),
+    (
+        "docs/check.md",
+        "`batch_64` was flagged in {} (x{:.3f} in the median), the other three in 0 of {}",
+        lambda: (
+            real_003()["mutants"]["batch_64"]["checks"][0]["holm_first"]["flagged"],
+            real_003()["mutants"]["batch_64"]["shift"]["ratio"],
+            real_003()["mutants"]["grad_clip_1"]["checks"][0]["holm_first"]["checks"],
+        ),
+    ),
+    (
+        "docs/check.md",
+        "40 fresh seeds see a 10% move of the median either way with power {} / {}, and no size up to 100 gets past {}",
+        real_003_sizes,
+    ),
     # item 3's five numbers, as rewritten
     (
         "docs/findings.md",
