@@ -6,7 +6,9 @@ checkout as ``python -m maintainers ...`` (this folder is not part of the instal
 - ``python -m maintainers tables findings|ablations|compat|forest|check-figure|runs``: the generated Markdown tables
   (``maintainers/tables/``), each spliced between its markers (``report/markdown.py``);
 - ``python -m maintainers manifest``: ``results/MANIFEST``, and ``--regenerate`` to rerun sets and compare;
-- ``python -m maintainers audit``: rerun K drawn seeds of every set and compare (``results/AUDIT.md``).
+- ``python -m maintainers audit``: rerun K drawn seeds of every set and compare (``results/AUDIT.md``);
+- ``python -m maintainers replay-references``: the replay tests' references for another instruction
+  set, made and checked under an emulated CPU (``tests/replay_references/``).
 
 Each reads the checkout's ``results/`` (``keras_rl/checkout.py``). The arguments are declared
 here and each module's ``run(args)`` is imported only when its command runs.
@@ -181,6 +183,24 @@ def add_parser(sub) -> None:
         action="store_true",
         help="with --write: rerun every set, not only those the committed report lacks",
     )
+
+    p = sub.add_parser(
+        "replay-references",
+        help="make or check the replay tests' references for another instruction set under an emulated CPU",
+    )
+    p.set_defaults(module="maintainers.replay_references")
+    p.add_argument(
+        "action",
+        choices=("check", "make", "probe"),
+        help="check: rerun the real host's references; make: the missing; probe: a case native and emulated",
+    )
+    p.add_argument("--emulate", required=True, metavar="CPU", help="the CPU model qemu-x86_64 -cpu gives (EPYC-Rome)")
+    p.add_argument("--set", default="avx2", help="the reference set under tests/replay_references (default avx2)")
+    p.add_argument("--cases", nargs="+", metavar="ID", help="only these cases (default: every case)")
+    p.add_argument("--episodes", type=int, default=10, help="check, probe: episodes to compare per case (default 10)")
+    p.add_argument("--env", nargs="+", metavar="KEY=VALUE", help="probe: set on both runs")
+    p.add_argument("--native-env", nargs="+", metavar="KEY=VALUE", help="probe: set on the native run only")
+    p.add_argument("--write", action="store_true", help="check: save the report as <set>/emulation.md")
 
 
 def run(args: argparse.Namespace) -> int:

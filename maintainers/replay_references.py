@@ -1,0 +1,315 @@
+"""The replay tests' cases, and their references for hosts of another instruction set (issue 52 item 7).
+
+    python -m maintainers replay-references check --emulate EPYC-Rome --episodes 10 [--write]
+    python -m maintainers replay-references make --emulate EPYC-Rome [--cases ID ...]
+    python -m maintainers replay-references probe --emulate EPYC-Rome --cases ID --episodes 6 \
+        [--env K=V ...] [--native-env K=V ...]
+
+The committed runs were made on AVX-512 hosts. On an AVX2 host TensorFlow's kernels round
+differently (oneDNN's blocking, XLA's code), and capping the instruction set does not make the
+bits travel (``docs/performance.md``). So a host of another instruction set replays against
+references made on such a host: ``tests/replay_references/<set>/<committed seed folder>/episodes.csv``,
+the host in ``<set>/host.json`` (``tests/test_committed_runs_replay.py``).
+
+An AVX2 host is not always at hand. QEMU's user-mode emulator (``qemu-x86_64``, Debian's
+``qemu-user``) runs a process on this host with the CPUID of another x86 model, and every library
+here chooses its kernels from CPUID (oneDNN, MKL, XLA's LLVM, NumPy, PyTorch's ATen): with
+``-cpu EPYC-Rome`` (AMD, AVX2 and FMA, no AVX-512) they take their AVX2 paths. ``check`` reruns
+the cases whose references were made on a real AVX2 host under the emulator and compares them,
+every column but wall time; ``make`` makes the missing references under it and records how in
+``host.json``. ``probe`` runs a case both natively (with ``--native-env`` set, a cap say) and
+under the emulator (``--env`` is set on both) and compares the two with each other and with the
+committed run. The emulator is no test dependency: the tests read the references only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from keras_rl.checkout import ROOT
+
+REFERENCES = ROOT / "tests" / "replay_references"
+EMULATOR = "qemu-x86_64"
+VALIDATED = ("keras",)
+"""The frameworks whose runs ``check`` found the emulator to reproduce as a real AVX2 host does.
+Under ``-cpu EPYC-Rome`` PyTorch's post 000 parts at episode 5 from a run on this host with its
+kernels capped to AVX2 (``ATEN_CPU_CAPABILITY=avx2``, ``MKL_ENABLE_INSTRUCTIONS=AVX2``, which gives
+the committed bits), and also with MKL's reproducible mode (``MKL_CBWR=AVX2``) on both; with no
+PyTorch run made on a real AVX2 host to settle which is right, no PyTorch reference is made."""
+VALIDATED_WHY = "PyTorch under the emulator is not checked against a real AVX2 host (VALIDATED)"
+
+
+@dataclass(frozen=True)
+class Case:
+    """One replay test: a committed run set's seeds rerun in one process, as their command made them."""
+
+    id: str
+    folder: str
+    """The committed set under ``results/``."""
+    experiment: str
+    seeds: tuple[int, ...]
+    episodes: int | None
+    """Episodes to rerun; None: the whole run."""
+    kind: str = "seed"
+    """``seed`` (one seed, its recorded command), ``batch`` (one ``--seed-batch`` batch) or
+    ``compiled`` (the compiled engine's seeds in one process, every seed after the first on the
+    first one's kept program)."""
+    extra: tuple[str, ...] = ()
+
+    @property
+    def framework(self) -> str:
+        return self.extra[self.extra.index("--framework") + 1] if "--framework" in self.extra else "keras"
+
+    def seed_folders(self) -> list[str]:
+        return [f"{self.folder}/seed_{s}" for s in self.seeds]
+
+    def command(self, out: Path, episodes: int | None = None, prefix: tuple[str, ...] = ()) -> list[str]:
+        """The rerun's command (``episodes`` overrides the case's budget), after ``prefix``."""
+        budget = self.episodes if episodes is None else episodes
+        if self.kind == "seed":
+            from keras_rl.runs.replay import plan_replay
+
+            replay = plan_replay(ROOT / "results" / self.seed_folders()[0], self.experiment, budget)
+            return [*prefix, *replay.command(out, *self.extra)]
+        seeds = f"{self.seeds[0]}-{self.seeds[-1]}"
+        head = [*prefix, sys.executable, "-m", "keras_rl", "reproduce", self.experiment, "--seeds", seeds]
+        tail = ["--no-progress", "--min-success-rate", "0", "--out", str(out)]
+        tail = ([] if budget is None else ["--episodes", str(budget)]) + tail
+        if self.kind == "batch":
+            return [*head, "--seed-batch", str(len(self.seeds)), *tail]
+        return [*head, "--engine", "compiled", "--workers", "1", *tail]
+
+
+CASES = (
+    Case("post000-faithful-seed0", "pendulum/faithful", "pendulum", (0,), None),
+    Case("post001-faithful-seed0", "mountaincar/faithful", "mountaincar", (0,), None),
+    Case(
+        "post000-torch-seed0-first12", "pendulum/faithful-torch", "pendulum", (0,), 12, extra=("--framework", "torch")
+    ),
+    Case("post003-seed0-first60", "cartpole/faithful", "cartpole", (0,), 60),
+    # 200 episodes: 12,176 steps, past the tutorial's memory of 10,000, so its eviction is replayed too
+    Case(
+        "post003-torch-seed0-first200", "cartpole/faithful-torch", "cartpole", (0,), 200, extra=("--framework", "torch")
+    ),
+    # (posts 000 and 003's batched sets were regenerated on the compiled engine when issue 34
+    # retired their stacked learners: their compiled seeds are replayed below)
+    Case("post001-batch-of-10-first3", "mountaincar/seed-batch/batch10", "mountaincar", tuple(range(10)), 3, "batch"),
+    Case("post000-compiled-seeds0-2", "engines/pendulum/compiled", "pendulum", (0, 1, 2), None, "compiled"),
+    Case("post003-compiled-seeds0-1-first120", "engines/cartpole/compiled", "cartpole", (0, 1), 120, "compiled"),
+)
+
+
+def host_file(reference_set: str) -> Path:
+    return REFERENCES / reference_set / "host.json"
+
+
+def reference_rows(reference_set: str, seed_folder: str) -> Path:
+    return REFERENCES / reference_set / seed_folder / "episodes.csv"
+
+
+def emulated(cpu: str) -> tuple[str, ...]:
+    """The prefix that runs a command on ``cpu``'s CPUID; a clear error where the emulator is missing."""
+    from keras_rl.errors import KerasRLError
+
+    if shutil.which(EMULATOR) is None:
+        raise KerasRLError(f"{EMULATOR} is not installed (Debian: apt-get install qemu-user)")
+    return (EMULATOR, "-cpu", cpu)
+
+
+def emulator_version() -> str:
+    out = subprocess.run([EMULATOR, "--version"], capture_output=True, text=True, check=True).stdout
+    return out.splitlines()[0].strip()
+
+
+def rerun(
+    case: Case, prefix: tuple[str, ...], episodes: int | None, work: Path, env: dict[str, str] | None = None
+) -> tuple[Path, float]:
+    """Run ``case`` under ``prefix`` (and ``env`` added to this one's) into ``work``; its output
+    folder and the seconds it took."""
+    import os
+
+    out = work / case.id
+    start = time.monotonic()
+    proc = subprocess.run(
+        case.command(out, episodes, prefix), capture_output=True, text=True, env={**os.environ, **(env or {})}
+    )
+    if proc.returncode not in (0, 1):  # 1: a run that fails its criterion still wrote its rows
+        tail = "\n".join(line for line in proc.stderr.splitlines() if "TCG doesn't support" not in line)
+        raise RuntimeError(f"{case.id}: exit {proc.returncode}\n{tail[-2000:]}")
+    return out, time.monotonic() - start
+
+
+def _first_difference(expected: list[dict[str, str]], got: list[dict[str, str]]) -> str:
+    from keras_rl.runs.replay import first_divergence
+
+    d = first_divergence(expected, got)
+    if d.identical and len(got) == len(expected):
+        return f"the same bits, {len(expected)} episodes"
+    if d.identical:
+        return f"{len(got)} episodes against {len(expected)}"
+    if not d.columns:
+        return f"ends before episode {d.first_episode}"
+    return f"differs at episode {d.first_episode} ({', '.join(d.columns)})"
+
+
+def check(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[str]:
+    """Rerun under the emulator every case whose references a real host made; compare."""
+    from keras_rl.runs.replay import seed_rows
+    from keras_rl.runs.run_set import RunSet
+
+    host = json.loads(host_file(args.set).read_text())
+    made_here = set(host.get("emulated", {}).get("references", []))
+    lines = [
+        f"`python -m maintainers replay-references check --emulate {args.emulate} --episodes {args.episodes}` "
+        f"({emulator_version()}, `-cpu {args.emulate}`), on a host with {', '.join(_isa())}:",
+        "",
+        f"| case | seed | episodes | against the {args.set} host's reference | against the committed run |",
+        "|---|---|---|---|---|",
+    ]
+    for case in _chosen(args):
+        folders = [f for f in case.seed_folders() if reference_rows(args.set, f).is_file() and f not in made_here]
+        if not folders:
+            continue
+        out, seconds = rerun(case, prefix, args.episodes, work)
+        print(f"{case.id}: {seconds:.0f} s under the emulator", file=sys.stderr)
+        for folder in folders:
+            got = seed_rows(out / Path(folder).name / "episodes.csv")
+            ours = seed_rows(reference_rows(args.set, folder))[: len(got)]
+            committed = RunSet.seed_at(ROOT / "results" / folder).text_rows()[: len(got)]
+            lines.append(
+                f"| {case.id} | {Path(folder).name} | {len(got)} | {_first_difference(ours, got)} | "
+                f"{_first_difference(committed, got)} |"
+            )
+    return lines
+
+
+def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[str]:
+    """Make the references the chosen cases lack, under the emulator; record them in host.json."""
+    from keras_rl.runs.files import atomic_write_json
+    from keras_rl.runs.replay import seed_rows
+    from keras_rl.runs.run_set import RunSet
+
+    path = host_file(args.set)
+    host = json.loads(path.read_text())
+    made_at = f"{time.strftime('%Y-%m-%d')} at commit {_head()}"  # the code the runs import, read once
+    lines = ["| case | seed | episodes | against the committed run |", "|---|---|---|---|"]
+    for case in _chosen(args):
+        missing = [f for f in case.seed_folders() if not reference_rows(args.set, f).is_file()]
+        if not missing:
+            continue
+        if case.framework not in VALIDATED:
+            lines.append(f"| {case.id} | - | - | not made: {VALIDATED_WHY} |")
+            continue
+        out, seconds = rerun(case, prefix, None, work)
+        print(f"{case.id}: {seconds:.0f} s under the emulator", file=sys.stderr)
+        for folder in missing:
+            made = out / Path(folder).name
+            target = reference_rows(args.set, folder).parent
+            target.mkdir(parents=True, exist_ok=True)
+            for name in ("episodes.csv", "config.json"):
+                shutil.copyfile(made / name, target / name)
+            got = seed_rows(made / "episodes.csv")
+            committed = RunSet.seed_at(ROOT / "results" / folder).text_rows()[: len(got)]
+            lines.append(f"| {case.id} | {made.name} | {len(got)} | {_first_difference(committed, got)} |")
+            entry = host.setdefault("emulated", {})
+            entry.update(
+                {
+                    "how": f"{emulator_version()}, -cpu {args.emulate}, on a host with {' '.join(_isa())}",
+                    "command": f"python -m maintainers replay-references make --emulate {args.emulate}",
+                    "made": made_at,
+                }
+            )
+            entry["references"] = sorted({*entry.get("references", []), folder})
+            atomic_write_json(path, host)
+    return lines
+
+
+def _settings(pairs: list[str] | None) -> dict[str, str]:
+    from keras_rl.errors import KerasRLError
+
+    bad = [p for p in pairs or () if "=" not in p or not p.split("=", 1)[0]]
+    if bad:
+        raise KerasRLError(f"an environment setting is KEY=VALUE, not {', '.join(map(repr, bad))}")
+    return dict(p.split("=", 1) for p in pairs or ())
+
+
+def probe(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[str]:
+    """Each chosen case natively (``--env`` and ``--native-env``) and emulated (``--env``), compared."""
+    from keras_rl.runs.replay import seed_rows
+    from keras_rl.runs.run_set import RunSet
+
+    both, native = _settings(args.env), _settings(args.native_env)
+    shown = " ".join(f"{k}={v}" for k, v in both.items()) or "none"
+    capped = " ".join(f"{k}={v}" for k, v in native.items()) or "none"
+    lines = [
+        f"Set on both: {shown}; natively only: {capped}; `-cpu {args.emulate}` ({emulator_version()}).",
+        "",
+        "| case | seed | episodes | emulated against native | emulated against committed | native against committed |",
+        "|---|---|---|---|---|---|",
+    ]
+    for case in _chosen(args):
+        ran, _ = rerun(case, (), args.episodes, work / "native", {**both, **native})
+        emulated_out, seconds = rerun(case, prefix, args.episodes, work / "emulated", both)
+        print(f"{case.id}: {seconds:.0f} s under the emulator", file=sys.stderr)
+        for folder in case.seed_folders():
+            name = Path(folder).name
+            here, there = seed_rows(ran / name / "episodes.csv"), seed_rows(emulated_out / name / "episodes.csv")
+            committed = RunSet.seed_at(ROOT / "results" / folder).text_rows()[: len(here)]
+            lines.append(
+                f"| {case.id} | {name} | {len(here)} | {_first_difference(here, there)} | "
+                f"{_first_difference(committed, there)} | {_first_difference(committed, here)} |"
+            )
+    return lines
+
+
+def _isa() -> list[str]:
+    from keras_rl.runs.provenance import cpu_isa
+
+    return cpu_isa()
+
+
+def _head() -> str:
+    return subprocess.run(
+        ["git", "-C", str(ROOT), "rev-parse", "--short=8", "HEAD"], capture_output=True, text=True, check=True
+    ).stdout.strip()
+
+
+def _chosen(args: argparse.Namespace) -> list[Case]:
+    from keras_rl.errors import KerasRLError
+
+    known = {c.id for c in CASES}
+    unknown = sorted(set(args.cases or ()) - known)
+    if unknown:
+        raise KerasRLError(f"no replay case {', '.join(unknown)}; the cases are {', '.join(sorted(known))}")
+    return [c for c in CASES if not args.cases or c.id in args.cases]
+
+
+def run(args: argparse.Namespace) -> int:
+    from keras_rl.errors import KerasRLError
+
+    if not host_file(args.set).is_file():
+        raise KerasRLError(f"no reference set {args.set!r}: {host_file(args.set)} is missing")
+    if args.action != "check" and args.write:
+        raise KerasRLError(f"--write saves check's report; {args.action} writes none")
+    if args.action == "probe" and not args.cases:
+        raise KerasRLError("probe runs the cases named by --cases, natively and emulated")
+    prefix = emulated(args.emulate)
+    with tempfile.TemporaryDirectory(prefix="replay-references-") as work:
+        lines = {"check": check, "make": make, "probe": probe}[args.action](args, prefix, Path(work))
+    text = "\n".join(lines)
+    print(text)
+    if args.action == "check" and args.write:
+        from keras_rl.runs.files import atomic_write_text
+
+        report = REFERENCES / args.set / "emulation.md"
+        atomic_write_text(report, f"# The emulator against the {args.set} host\n\n{text}\n")
+        print(f"wrote {report}")
+    return 0

@@ -1,0 +1,81 @@
+"""``python -m maintainers replay-references``: the replay cases' commands, and its bad input (exit 2,
+nothing written). The emulated runs themselves are slow and need qemu; their results are committed
+(``tests/replay_references/avx2/emulation.md``, ``host.json``) and replayed by
+``tests/test_committed_runs_replay.py``."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+from maintainers import replay_references as rr
+from maintainers.cli import main
+
+
+def by_id(case_id: str) -> rr.Case:
+    return next(c for c in rr.CASES if c.id == case_id)
+
+
+def test_each_kind_reruns_its_seeds_as_their_command_made_them(tmp_path):
+    batch = by_id("post001-batch-of-10-first3").command(tmp_path, prefix=("qemu-x86_64", "-cpu", "EPYC-Rome"))
+    assert batch[:4] == ["qemu-x86_64", "-cpu", "EPYC-Rome", sys.executable]
+    assert batch[batch.index("--seeds") + 1] == "0-9" and batch[batch.index("--seed-batch") + 1] == "10"
+    assert batch[batch.index("--episodes") + 1] == "3"
+    compiled = by_id("post000-compiled-seeds0-2").command(tmp_path)
+    assert compiled[compiled.index("--engine") + 1] == "compiled" and "--episodes" not in compiled  # whole runs
+    assert compiled[compiled.index("--workers") + 1] == "1"
+    torch = by_id("post003-torch-seed0-first200").command(tmp_path, episodes=7)
+    assert torch[torch.index("--episodes") + 1] == "7" and torch[-2:] == ["--framework", "torch"]
+    assert {c.framework for c in rr.CASES} == {"keras", "torch"}
+    assert len({c.id for c in rr.CASES}) == len(rr.CASES)
+
+
+def test_every_case_names_committed_seeds():
+    results = Path(rr.ROOT) / "results"
+    from keras_rl.runs.run_set import RunSet
+
+    for case in rr.CASES:
+        for folder in case.seed_folders():
+            assert RunSet.seed_at(results / folder).config()["seed"] == int(folder.rsplit("_", 1)[1]), folder
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["check", "--emulate", "EPYC-Rome", "--cases", "nope"], "no replay case nope"),
+        (["make", "--emulate", "EPYC-Rome", "--write"], "--write saves check's report"),
+        (["probe", "--emulate", "EPYC-Rome"], "probe runs the cases named by --cases"),
+        (["check", "--emulate", "EPYC-Rome", "--set", "avx1"], "no reference set 'avx1'"),
+    ],
+)
+def test_bad_input_exits_2_with_the_problem_named(capsys, argv, message):
+    host = rr.host_file("avx2")
+    before = host.read_bytes()
+    assert main(["replay-references", *argv]) == 2
+    assert message in capsys.readouterr().err
+    assert host.read_bytes() == before
+
+
+def test_a_missing_emulator_or_a_bad_setting_is_named(monkeypatch):
+    from keras_rl.errors import KerasRLError
+
+    monkeypatch.setattr(rr.shutil, "which", lambda name: None)
+    with pytest.raises(KerasRLError, match="qemu-x86_64 is not installed"):
+        rr.emulated("EPYC-Rome")
+    with pytest.raises(KerasRLError, match="KEY=VALUE, not 'MKL'"):
+        rr._settings(["MKL"])
+    assert rr._settings(["A=b=c"]) == {"A": "b=c"}
+
+
+def test_the_emulated_references_are_recorded_with_how_they_were_made():
+    host = json.loads(rr.host_file("avx2").read_text())
+    emulated = host["emulated"]
+    assert emulated["command"].startswith("python -m maintainers replay-references make --emulate ")
+    made = {f for c in rr.CASES if c.framework in rr.VALIDATED for f in c.seed_folders()}
+    for folder in emulated["references"]:
+        assert folder in made and rr.reference_rows("avx2", folder).is_file()
+    checked = (rr.REFERENCES / "avx2" / "emulation.md").read_text()
+    assert checked.count("the same bits") == 3 and "differs" in checked  # the emulator is the AVX2 host
