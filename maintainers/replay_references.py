@@ -141,7 +141,8 @@ def rerun(
     proc = subprocess.run(
         case.command(out, episodes, prefix), capture_output=True, text=True, env={**os.environ, **(env or {})}
     )
-    if proc.returncode not in (0, 1):  # 1: a run that fails its criterion still wrote its rows
+    # 1: a run that fails its criterion, rows whole; a crash also exits 1, with a traceback
+    if proc.returncode not in (0, 1) or "Traceback (most recent call last)" in proc.stderr:
         tail = "\n".join(line for line in proc.stderr.splitlines() if "TCG doesn't support" not in line)
         raise RuntimeError(f"{case.id}: exit {proc.returncode}\n{tail[-2000:]}")
     return out, time.monotonic() - start
@@ -166,7 +167,7 @@ def check(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list
     from keras_rl.runs.run_set import RunSet
 
     host = json.loads(host_file(args.set).read_text())
-    made_here = set(host.get("emulated", {}).get("references", []))
+    made_here = set(host.get("emulated", {}).get("references", {}))
     lines = [
         f"`python -m maintainers replay-references check --emulate {args.emulate} --episodes {args.episodes}` "
         f"({emulator_version()}, `-cpu {args.emulate}`), on a host with {', '.join(_isa())}:",
@@ -193,13 +194,19 @@ def check(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list
 
 def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[str]:
     """Make the references the chosen cases lack, under the emulator; record them in host.json."""
-    from keras_rl.runs.files import atomic_write_json
+    from keras_rl.runs.files import atomic_write_json, atomic_write_text
     from keras_rl.runs.replay import seed_rows
     from keras_rl.runs.run_set import RunSet
 
     path = host_file(args.set)
     host = json.loads(path.read_text())
-    made_at = f"{time.strftime('%Y-%m-%d')} at commit {_head()}"  # the code the runs import, read once
+    made = {
+        "made": f"{time.strftime('%Y-%m-%d')} at {_code()}",  # the code the runs import, read once
+        "how": f"{emulator_version()}, -cpu {args.emulate}, on a host with {' '.join(_isa())}",
+        "command": "python -m maintainers replay-references make --emulate "
+        + args.emulate
+        + (f" --cases {' '.join(args.cases)}" if args.cases else ""),
+    }
     lines = ["| case | seed | episodes | against the committed run |", "|---|---|---|---|"]
     for case in _chosen(args):
         missing = [f for f in case.seed_folders() if not reference_rows(args.set, f).is_file()]
@@ -211,24 +218,18 @@ def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[
         out, seconds = rerun(case, prefix, None, work)
         print(f"{case.id}: {seconds:.0f} s under the emulator", file=sys.stderr)
         for folder in missing:
-            made = out / Path(folder).name
+            ran = out / Path(folder).name
+            got = seed_rows(ran / "episodes.csv")
+            committed = RunSet.seed_at(ROOT / "results" / folder).text_rows()[: len(got)]
+            lines.append(f"| {case.id} | {ran.name} | {len(got)} | {_first_difference(committed, got)} |")
+            # recorded before the files land: an interrupted make leaves a listed reference without
+            # its rows (the tests fail on it), never rows that pass for a real host's
+            host.setdefault("emulated", {}).setdefault("references", {})[folder] = made
+            atomic_write_json(path, host)
             target = reference_rows(args.set, folder).parent
             target.mkdir(parents=True, exist_ok=True)
             for name in ("episodes.csv", "config.json"):
-                shutil.copyfile(made / name, target / name)
-            got = seed_rows(made / "episodes.csv")
-            committed = RunSet.seed_at(ROOT / "results" / folder).text_rows()[: len(got)]
-            lines.append(f"| {case.id} | {made.name} | {len(got)} | {_first_difference(committed, got)} |")
-            entry = host.setdefault("emulated", {})
-            entry.update(
-                {
-                    "how": f"{emulator_version()}, -cpu {args.emulate}, on a host with {' '.join(_isa())}",
-                    "command": f"python -m maintainers replay-references make --emulate {args.emulate}",
-                    "made": made_at,
-                }
-            )
-            entry["references"] = sorted({*entry.get("references", []), folder})
-            atomic_write_json(path, host)
+                atomic_write_text(target / name, (ran / name).read_text())
     return lines
 
 
@@ -276,10 +277,13 @@ def _isa() -> list[str]:
     return cpu_isa()
 
 
-def _head() -> str:
-    return subprocess.run(
-        ["git", "-C", str(ROOT), "rev-parse", "--short=8", "HEAD"], capture_output=True, text=True, check=True
-    ).stdout.strip()
+def _code() -> str:
+    """The commit and the package's own tree the runs import, marked where it has uncommitted changes."""
+    from keras_rl.runs.provenance import git_state
+
+    state = git_state()
+    dirty = f"+dirty.{str(state['diff_sha256'])[:12]}" if state["dirty"] else ""
+    return f"commit {str(state['commit'])[:8]} (keras_rl tree {str(state['code_tree'])[:12]}{dirty})"
 
 
 def _chosen(args: argparse.Namespace) -> list[Case]:
@@ -301,11 +305,24 @@ def run(args: argparse.Namespace) -> int:
         raise KerasRLError(f"--write saves check's report; {args.action} writes none")
     if args.action == "probe" and not args.cases:
         raise KerasRLError("probe runs the cases named by --cases, natively and emulated")
+    if args.action == "check" and args.write and args.cases:
+        raise KerasRLError("--write saves check's report over every case; leave out --cases")
+    if args.episodes < 1:
+        raise KerasRLError(f"--episodes must be at least 1, not {args.episodes}")
+    if args.action != "probe" and (args.env or args.native_env):
+        raise KerasRLError(f"--env and --native-env are probe's; {args.action} runs as the tests do")
+    _chosen(args)  # bad input is named before anything runs
+    _settings(args.env)
+    _settings(args.native_env)
     prefix = emulated(args.emulate)
     with tempfile.TemporaryDirectory(prefix="replay-references-") as work:
         lines = {"check": check, "make": make, "probe": probe}[args.action](args, prefix, Path(work))
     text = "\n".join(lines)
     print(text)
+    if args.action == "check" and args.write and not lines[-1].startswith("| "):
+        raise KerasRLError(
+            f"no case has a reference a real {args.set} host made: {REFERENCES / args.set} kept as it is"
+        )
     if args.action == "check" and args.write:
         from keras_rl.runs.files import atomic_write_text
 

@@ -49,14 +49,27 @@ def test_every_case_names_committed_seeds():
         (["make", "--emulate", "EPYC-Rome", "--write"], "--write saves check's report"),
         (["probe", "--emulate", "EPYC-Rome"], "probe runs the cases named by --cases"),
         (["check", "--emulate", "EPYC-Rome", "--set", "avx1"], "no reference set 'avx1'"),
+        (["check", "--emulate", "EPYC-Rome", "--episodes", "0"], "--episodes must be at least 1, not 0"),
+        (["make", "--emulate", "EPYC-Rome", "--env", "A=1"], "--env and --native-env are probe's"),
+        (
+            ["check", "--emulate", "EPYC-Rome", "--write", "--cases", "post003-seed0-first60"],
+            "--write saves check's report over every case",
+        ),
+        (
+            ["probe", "--emulate", "EPYC-Rome", "--cases", "post003-seed0-first60", "--native-env", "MKL"],
+            "KEY=VALUE, not 'MKL'",
+        ),
     ],
 )
-def test_bad_input_exits_2_with_the_problem_named(capsys, argv, message):
-    host = rr.host_file("avx2")
-    before = host.read_bytes()
+def test_bad_input_exits_2_with_the_problem_named_before_the_emulator_is_sought(monkeypatch, capsys, argv, message):
+    """Named before anything runs, with no emulator installed, and nothing under the references changes."""
+    tree = {p: p.read_bytes() for p in rr.REFERENCES.rglob("*") if p.is_file()}
+    sought = []
+    monkeypatch.setattr(rr.shutil, "which", lambda name: sought.append(name))
     assert main(["replay-references", *argv]) == 2
     assert message in capsys.readouterr().err
-    assert host.read_bytes() == before
+    assert not sought
+    assert {p: p.read_bytes() for p in rr.REFERENCES.rglob("*") if p.is_file()} == tree
 
 
 def test_a_missing_emulator_or_a_bad_setting_is_named(monkeypatch):
@@ -72,10 +85,10 @@ def test_a_missing_emulator_or_a_bad_setting_is_named(monkeypatch):
 
 def test_the_emulated_references_are_recorded_with_how_they_were_made():
     host = json.loads(rr.host_file("avx2").read_text())
-    emulated = host["emulated"]
-    assert emulated["command"].startswith("python -m maintainers replay-references make --emulate ")
     made = {f for c in rr.CASES if c.framework in rr.VALIDATED for f in c.seed_folders()}
-    for folder in emulated["references"]:
+    for folder, record in host["emulated"]["references"].items():
         assert folder in made and rr.reference_rows("avx2", folder).is_file()
+        assert record["command"].startswith("python -m maintainers replay-references make --emulate ")
+        assert "-cpu " in record["how"] and " at commit " in record["made"] and "keras_rl tree" in record["made"]
     checked = (rr.REFERENCES / "avx2" / "emulation.md").read_text()
     assert checked.count("the same bits") == 3 and "differs" in checked  # the emulator is the AVX2 host
