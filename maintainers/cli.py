@@ -187,6 +187,7 @@ def add_parser(sub) -> None:
     p = sub.add_parser(
         "replay-references",
         help="make or check the replay tests' references for another instruction set under an emulated CPU",
+        parents=[shared_flags("replay-references", "--episodes", "--write")],
     )
     p.set_defaults(module="maintainers.replay_references")
     p.add_argument(
@@ -195,12 +196,12 @@ def add_parser(sub) -> None:
         help="check: rerun the real host's references; make: the missing; probe: a case native and emulated",
     )
     p.add_argument("--emulate", required=True, metavar="CPU", help="the CPU model qemu-x86_64 -cpu gives (EPYC-Rome)")
-    p.add_argument("--set", default="avx2", help="the reference set under tests/replay_references (default avx2)")
+    p.add_argument(
+        "--reference-set", default="avx2", help="the reference set under tests/replay_references (default avx2)"
+    )
     p.add_argument("--cases", nargs="+", metavar="ID", help="only these cases (default: every case)")
-    p.add_argument("--episodes", type=int, default=10, help="check, probe: episodes to compare per case (default 10)")
     p.add_argument("--env", nargs="+", metavar="KEY=VALUE", help="probe: set on both runs")
     p.add_argument("--native-env", nargs="+", metavar="KEY=VALUE", help="probe: set on the native run only")
-    p.add_argument("--write", action="store_true", help="check: save the report as <set>/emulation.md")
 
 
 def run(args: argparse.Namespace) -> int:

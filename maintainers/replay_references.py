@@ -37,6 +37,8 @@ from pathlib import Path
 from keras_rl.checkout import ROOT
 
 REFERENCES = ROOT / "tests" / "replay_references"
+DEFAULT_EPISODES = 10
+"""``check`` and ``probe``: the episodes of each case rerun and compared, where ``--episodes`` is not given."""
 EMULATOR = "qemu-x86_64"
 VALIDATED = ("keras",)
 """The frameworks whose runs ``check`` found the emulator to reproduce as a real AVX2 host does.
@@ -166,24 +168,26 @@ def check(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list
     from keras_rl.runs.replay import seed_rows
     from keras_rl.runs.run_set import RunSet
 
-    host = json.loads(host_file(args.set).read_text())
+    host = json.loads(host_file(args.reference_set).read_text())
     made_here = set(host.get("emulated", {}).get("references", {}))
     lines = [
         f"`python -m maintainers replay-references check --emulate {args.emulate} --episodes {args.episodes}` "
         f"({emulator_version()}, `-cpu {args.emulate}`), on a host with {', '.join(_isa())}:",
         "",
-        f"| case | seed | episodes | against the {args.set} host's reference | against the committed run |",
+        f"| case | seed | episodes | against the {args.reference_set} host's reference | against the committed run |",
         "|---|---|---|---|---|",
     ]
     for case in _chosen(args):
-        folders = [f for f in case.seed_folders() if reference_rows(args.set, f).is_file() and f not in made_here]
+        folders = [
+            f for f in case.seed_folders() if reference_rows(args.reference_set, f).is_file() and f not in made_here
+        ]
         if not folders:
             continue
         out, seconds = rerun(case, prefix, args.episodes, work)
         print(f"{case.id}: {seconds:.0f} s under the emulator", file=sys.stderr)
         for folder in folders:
             got = seed_rows(out / Path(folder).name / "episodes.csv")
-            ours = seed_rows(reference_rows(args.set, folder))[: len(got)]
+            ours = seed_rows(reference_rows(args.reference_set, folder))[: len(got)]
             committed = RunSet.seed_at(ROOT / "results" / folder).text_rows()[: len(got)]
             lines.append(
                 f"| {case.id} | {Path(folder).name} | {len(got)} | {_first_difference(ours, got)} | "
@@ -198,7 +202,7 @@ def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[
     from keras_rl.runs.replay import seed_rows
     from keras_rl.runs.run_set import RunSet
 
-    path = host_file(args.set)
+    path = host_file(args.reference_set)
     host = json.loads(path.read_text())
     made = {
         "made": f"{time.strftime('%Y-%m-%d')} at {_code()}",  # the code the runs import, read once
@@ -209,7 +213,7 @@ def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[
     }
     lines = ["| case | seed | episodes | against the committed run |", "|---|---|---|---|"]
     for case in _chosen(args):
-        missing = [f for f in case.seed_folders() if not reference_rows(args.set, f).is_file()]
+        missing = [f for f in case.seed_folders() if not reference_rows(args.reference_set, f).is_file()]
         if not missing:
             continue
         if case.framework not in VALIDATED:
@@ -226,7 +230,7 @@ def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[
             # its rows (the tests fail on it), never rows that pass for a real host's
             host.setdefault("emulated", {}).setdefault("references", {})[folder] = made
             atomic_write_json(path, host)
-            target = reference_rows(args.set, folder).parent
+            target = reference_rows(args.reference_set, folder).parent
             target.mkdir(parents=True, exist_ok=True)
             for name in ("episodes.csv", "config.json"):
                 atomic_write_text(target / name, (ran / name).read_text())
@@ -299,14 +303,18 @@ def _chosen(args: argparse.Namespace) -> list[Case]:
 def run(args: argparse.Namespace) -> int:
     from keras_rl.errors import KerasRLError
 
-    if not host_file(args.set).is_file():
-        raise KerasRLError(f"no reference set {args.set!r}: {host_file(args.set)} is missing")
+    if not host_file(args.reference_set).is_file():
+        raise KerasRLError(f"no reference set {args.reference_set!r}: {host_file(args.reference_set)} is missing")
     if args.action != "check" and args.write:
         raise KerasRLError(f"--write saves check's report; {args.action} writes none")
     if args.action == "probe" and not args.cases:
         raise KerasRLError("probe runs the cases named by --cases, natively and emulated")
     if args.action == "check" and args.write and args.cases:
         raise KerasRLError("--write saves check's report over every case; leave out --cases")
+    if args.action == "make" and args.episodes is not None:
+        raise KerasRLError("make reruns each case as long as the case does; --episodes is check's and probe's")
+    if args.episodes is None:
+        args.episodes = DEFAULT_EPISODES
     if args.episodes < 1:
         raise KerasRLError(f"--episodes must be at least 1, not {args.episodes}")
     if args.action != "probe" and (args.env or args.native_env):
@@ -321,12 +329,13 @@ def run(args: argparse.Namespace) -> int:
     print(text)
     if args.action == "check" and args.write and not lines[-1].startswith("| "):
         raise KerasRLError(
-            f"no case has a reference a real {args.set} host made: {REFERENCES / args.set} kept as it is"
+            f"no case has a reference a real {args.reference_set} host made: "
+            f"{REFERENCES / args.reference_set} kept as it is"
         )
     if args.action == "check" and args.write:
         from keras_rl.runs.files import atomic_write_text
 
-        report = REFERENCES / args.set / "emulation.md"
-        atomic_write_text(report, f"# The emulator against the {args.set} host\n\n{text}\n")
+        report = REFERENCES / args.reference_set / "emulation.md"
+        atomic_write_text(report, f"# The emulator against the {args.reference_set} host\n\n{text}\n")
         print(f"wrote {report}")
     return 0

@@ -48,9 +48,10 @@ def test_every_case_names_committed_seeds():
         (["check", "--emulate", "EPYC-Rome", "--cases", "nope"], "no replay case nope"),
         (["make", "--emulate", "EPYC-Rome", "--write"], "--write saves check's report"),
         (["probe", "--emulate", "EPYC-Rome"], "probe runs the cases named by --cases"),
-        (["check", "--emulate", "EPYC-Rome", "--set", "avx1"], "no reference set 'avx1'"),
+        (["check", "--emulate", "EPYC-Rome", "--reference-set", "avx1"], "no reference set 'avx1'"),
         (["check", "--emulate", "EPYC-Rome", "--episodes", "0"], "--episodes must be at least 1, not 0"),
         (["make", "--emulate", "EPYC-Rome", "--env", "A=1"], "--env and --native-env are probe's"),
+        (["make", "--emulate", "EPYC-Rome", "--episodes", "3"], "--episodes is check's and probe's"),
         (
             ["check", "--emulate", "EPYC-Rome", "--write", "--cases", "post003-seed0-first60"],
             "--write saves check's report over every case",

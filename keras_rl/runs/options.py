@@ -307,6 +307,10 @@ COMMAND_HELP: dict[str, dict[str, str]] = {
         "--episodes": "greedy episodes to play (default 5)",
         "--overwrite": "replace an evaluation.json of more episodes than this plays",
     },
+    "replay-references": {
+        "--episodes": "the episodes of each case rerun against its reference or natively (default 10; not with make)",
+        "--write": "save the report of the references rerun as <set>/emulation.md (default: print it)",
+    },
 }
 """What a shared flag means in one command, where that is more than ``FLAGS`` says."""
 
