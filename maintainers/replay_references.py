@@ -150,6 +150,13 @@ def rerun(
     return out, time.monotonic() - start
 
 
+def committed_rows(folder: str, episodes: int) -> list[dict[str, str]]:
+    """The first ``episodes`` rows of committed seed ``folder`` (under ``results/``), without wall time."""
+    from keras_rl.runs.run_set import RunSet
+
+    return RunSet.seed_at(ROOT / "results" / folder).text_rows()[:episodes]
+
+
 def _first_difference(expected: list[dict[str, str]], got: list[dict[str, str]]) -> str:
     from keras_rl.runs.replay import first_divergence
 
@@ -166,7 +173,6 @@ def _first_difference(expected: list[dict[str, str]], got: list[dict[str, str]])
 def check(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[str]:
     """Rerun under the emulator every case whose references a real host made; compare."""
     from keras_rl.runs.replay import seed_rows
-    from keras_rl.runs.run_set import RunSet
 
     host = json.loads(host_file(args.reference_set).read_text())
     made_here = set(host.get("emulated", {}).get("references", {}))
@@ -188,7 +194,7 @@ def check(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list
         for folder in folders:
             got = seed_rows(out / Path(folder).name / "episodes.csv")
             ours = seed_rows(reference_rows(args.reference_set, folder))[: len(got)]
-            committed = RunSet.seed_at(ROOT / "results" / folder).text_rows()[: len(got)]
+            committed = committed_rows(folder, len(got))
             lines.append(
                 f"| {case.id} | {Path(folder).name} | {len(got)} | {_first_difference(ours, got)} | "
                 f"{_first_difference(committed, got)} |"
@@ -200,7 +206,6 @@ def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[
     """Make the references the chosen cases lack, under the emulator; record them in host.json."""
     from keras_rl.runs.files import atomic_write_json, atomic_write_text
     from keras_rl.runs.replay import seed_rows
-    from keras_rl.runs.run_set import RunSet
 
     path = host_file(args.reference_set)
     host = json.loads(path.read_text())
@@ -224,7 +229,7 @@ def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[
         for folder in missing:
             ran = out / Path(folder).name
             got = seed_rows(ran / "episodes.csv")
-            committed = RunSet.seed_at(ROOT / "results" / folder).text_rows()[: len(got)]
+            committed = committed_rows(folder, len(got))
             lines.append(f"| {case.id} | {ran.name} | {len(got)} | {_first_difference(committed, got)} |")
             # recorded before the files land: an interrupted make leaves a listed reference without
             # its rows (the tests fail on it), never rows that pass for a real host's
@@ -249,7 +254,6 @@ def _settings(pairs: list[str] | None) -> dict[str, str]:
 def probe(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[str]:
     """Each chosen case natively (``--env`` and ``--native-env``) and emulated (``--env``), compared."""
     from keras_rl.runs.replay import seed_rows
-    from keras_rl.runs.run_set import RunSet
 
     both, native = _settings(args.env), _settings(args.native_env)
     shown = " ".join(f"{k}={v}" for k, v in both.items()) or "none"
@@ -267,7 +271,7 @@ def probe(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list
         for folder in case.seed_folders():
             name = Path(folder).name
             here, there = seed_rows(ran / name / "episodes.csv"), seed_rows(emulated_out / name / "episodes.csv")
-            committed = RunSet.seed_at(ROOT / "results" / folder).text_rows()[: len(here)]
+            committed = committed_rows(folder, len(here))
             lines.append(
                 f"| {case.id} | {name} | {len(here)} | {_first_difference(here, there)} | "
                 f"{_first_difference(committed, there)} | {_first_difference(committed, here)} |"
