@@ -195,7 +195,11 @@ def add_parser(sub) -> None:
         choices=("check", "make", "probe"),
         help="check: rerun the real host's references; make: the missing; probe: a case native and emulated",
     )
-    p.add_argument("--emulate", required=True, metavar="CPU", help="the CPU model qemu-x86_64 -cpu gives (EPYC-Rome)")
+    p.add_argument(
+        "--emulate",
+        metavar="CPU",
+        help="the CPU model qemu-x86_64 -cpu gives (EPYC-Rome); make without it: a set for this host, made here",
+    )
     p.add_argument(
         "--reference-set", default="avx2", help="the reference set under tests/replay_references (default avx2)"
     )

@@ -203,43 +203,75 @@ def check(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list
 
 
 def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[str]:
-    """Make the references the chosen cases lack, under the emulator; record them in host.json."""
+    """Make the references the chosen cases lack, under the emulator or natively (no ``--emulate``:
+    a set for this host's CPU, made here); record each in host.json."""
     from keras_rl.runs.files import atomic_write_json, atomic_write_text
     from keras_rl.runs.replay import seed_rows
 
     path = host_file(args.reference_set)
-    host = json.loads(path.read_text())
+    host = json.loads(path.read_text()) if path.is_file() else this_host()
+    command = "python -m maintainers replay-references make" + (
+        f" --emulate {args.emulate}" if args.emulate else f" --reference-set {args.reference_set}"
+    )
     made = {
         "made": f"{time.strftime('%Y-%m-%d')} at {_code()}",  # the code the runs import, read once
-        "how": f"{emulator_version()}, -cpu {args.emulate}, on a host with {' '.join(_isa())}",
-        "command": "python -m maintainers replay-references make --emulate "
-        + args.emulate
-        + (f" --cases {' '.join(args.cases)}" if args.cases else ""),
+        "how": f"{emulator_version()}, -cpu {args.emulate}, on a host with {' '.join(_isa())}"
+        if args.emulate
+        else f"natively, on {host['cpu_model']} with {' '.join(host['cpu_isa'])}; {_versions()}",
+        "command": command + (f" --cases {' '.join(args.cases)}" if args.cases else ""),
     }
+    where = "under the emulator" if args.emulate else "here"
     lines = ["| case | seed | episodes | against the committed run |", "|---|---|---|---|"]
     for case in _chosen(args):
         missing = [f for f in case.seed_folders() if not reference_rows(args.reference_set, f).is_file()]
         if not missing:
             continue
-        if case.framework not in VALIDATED:
+        if args.emulate and case.framework not in VALIDATED:
             lines.append(f"| {case.id} | - | - | not made: {VALIDATED_WHY} |")
             continue
         out, seconds = rerun(case, prefix, None, work)
-        print(f"{case.id}: {seconds:.0f} s under the emulator", file=sys.stderr)
+        print(f"{case.id}: {seconds:.0f} s {where}", file=sys.stderr)
         for folder in missing:
             ran = out / Path(folder).name
             got = seed_rows(ran / "episodes.csv")
             committed = committed_rows(folder, len(got))
             lines.append(f"| {case.id} | {ran.name} | {len(got)} | {_first_difference(committed, got)} |")
+            if got == committed and len(got) == len(committed_rows(folder, case.episodes or 10**9)):
+                lines[-1] = lines[-1][:-2] + ": none kept, the committed run is this host's |"
+                continue
             # recorded before the files land: an interrupted make leaves a listed reference without
-            # its rows (the tests fail on it), never rows that pass for a real host's
-            host.setdefault("emulated", {}).setdefault("references", {})[folder] = made
+            # its rows (the tests fail on it), never rows that pass for a host's own
+            kept = (
+                host.setdefault("emulated", {}).setdefault("references", {})
+                if args.emulate
+                else host.setdefault("references", {})
+            )
+            kept[folder] = made
             atomic_write_json(path, host)
             target = reference_rows(args.reference_set, folder).parent
             target.mkdir(parents=True, exist_ok=True)
             for name in ("episodes.csv", "config.json"):
                 atomic_write_text(target / name, (ran / name).read_text())
     return lines
+
+
+def this_host() -> dict:
+    """A new reference set's host.json: this machine's CPU, and the references made on it."""
+    from keras_rl.runs.provenance import cpu_model
+
+    return {"cpu_model": cpu_model(), "cpu_isa": _isa(), "references": {}}
+
+
+def _versions() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    def one(name: str) -> str:
+        try:
+            return f"{name} {version(name)}"
+        except PackageNotFoundError:
+            return f"no {name}"
+
+    return ", ".join(one(n) for n in ("tensorflow", "keras", "torch", "gymnasium", "numpy"))
 
 
 def _settings(pairs: list[str] | None) -> dict[str, str]:
@@ -307,8 +339,19 @@ def _chosen(args: argparse.Namespace) -> list[Case]:
 def run(args: argparse.Namespace) -> int:
     from keras_rl.errors import KerasRLError
 
-    if not host_file(args.reference_set).is_file():
+    native = args.action == "make" and args.emulate is None
+    if args.emulate is None and not native:
+        raise KerasRLError(f"{args.action} compares a run under the emulator: name its CPU with --emulate")
+    if not host_file(args.reference_set).is_file() and not native:
         raise KerasRLError(f"no reference set {args.reference_set!r}: {host_file(args.reference_set)} is missing")
+    if native and host_file(args.reference_set).is_file():
+        made_on = json.loads(host_file(args.reference_set).read_text())
+        if (made_on["cpu_model"], made_on["cpu_isa"]) != (this_host()["cpu_model"], _isa()):
+            raise KerasRLError(
+                f"reference set {args.reference_set!r} is not this host's ({made_on['cpu_model']}; "
+                f"{', '.join(made_on['cpu_isa'])}): make it natively in a set of its own (--reference-set NAME), "
+                "or under the emulator with --emulate"
+            )
     if args.action != "check" and args.write:
         raise KerasRLError(f"--write saves check's report; {args.action} writes none")
     if args.action == "probe" and not args.cases:
@@ -326,7 +369,7 @@ def run(args: argparse.Namespace) -> int:
     _chosen(args)  # bad input is named before anything runs
     _settings(args.env)
     _settings(args.native_env)
-    prefix = emulated(args.emulate)
+    prefix = emulated(args.emulate) if args.emulate else ()
     with tempfile.TemporaryDirectory(prefix="replay-references-") as work:
         lines = {"check": check, "make": make, "probe": probe}[args.action](args, prefix, Path(work))
     text = "\n".join(lines)

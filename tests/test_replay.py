@@ -76,3 +76,29 @@ def test_a_machine_listed_as_not_bit_exact_or_another_isa_is_named(tmp_path, mon
         json.dumps({"not_bit_exact": [{"cpu_model": "AMD EPYC", "cpu_isa": ["avx2", "fma"], "measured": "x"}]})
     )
     assert "measured not to" in why_not_bit_exact({"cpu_model": "AMD EPYC"}, listed)
+
+
+def test_a_cpu_of_another_model_measured_to_give_a_frameworks_bits_replays_that_framework_exactly(
+    tmp_path, monkeypatch
+):
+    """``bit_exact``: a CPU of another model name, measured to give the committed bits of one
+    framework's runs (TensorFlow's follow the instruction set), is exact for that framework only,
+    for runs made on the model it names, and only with the instruction set it was measured with."""
+    import json
+
+    from keras_rl.runs import provenance
+    from keras_rl.runs.replay import why_not_bit_exact
+
+    isa = ["avx2", "fma", "avx512f"]
+    monkeypatch.setattr(provenance, "cpu_model", lambda: "Intel Xeon")
+    monkeypatch.setattr(provenance, "cpu_isa", lambda: isa)
+    listed = tmp_path / "PLATFORMS.json"
+    entry = {"cpu_model": "Intel Xeon", "cpu_isa": isa, "same_as": "AMD EPYC", "frameworks": ["keras"], "measured": "x"}
+    listed.write_text(json.dumps({"not_bit_exact": [], "bit_exact": [entry]}))
+    assert why_not_bit_exact({"cpu_model": "AMD EPYC"}, listed) is None
+    assert why_not_bit_exact({"cpu_model": "AMD EPYC", "cpu_isa": isa}, listed, framework="keras") is None
+    assert "made on 'AMD EPYC'" in why_not_bit_exact({"cpu_model": "AMD EPYC"}, listed, framework="torch")
+    assert "made on 'Other'" in why_not_bit_exact({"cpu_model": "Other"}, listed)
+    assert "this one has" in why_not_bit_exact({"cpu_model": "AMD EPYC", "cpu_isa": ["avx2", "fma"]}, listed)
+    monkeypatch.setattr(provenance, "cpu_isa", lambda: ["avx2", "fma"])  # the same model name, no AVX-512
+    assert "made on 'AMD EPYC'" in why_not_bit_exact({"cpu_model": "AMD EPYC"}, listed)

@@ -60,6 +60,9 @@ def test_every_case_names_committed_seeds():
             ["probe", "--emulate", "EPYC-Rome", "--cases", "post003-seed0-first60", "--native-env", "MKL"],
             "KEY=VALUE, not 'MKL'",
         ),
+        (["check"], "check compares a run under the emulator: name its CPU with --emulate"),
+        (["probe", "--cases", "post003-seed0-first60"], "name its CPU with --emulate"),
+        (["make"], "reference set 'avx2' is not this host's"),  # made natively on a CPU of its own
     ],
 )
 def test_bad_input_exits_2_with_the_problem_named_before_the_emulator_is_sought(monkeypatch, capsys, argv, message):
@@ -67,6 +70,7 @@ def test_bad_input_exits_2_with_the_problem_named_before_the_emulator_is_sought(
     tree = {p: p.read_bytes() for p in rr.REFERENCES.rglob("*") if p.is_file()}
     sought = []
     monkeypatch.setattr(rr.shutil, "which", lambda name: sought.append(name))
+    monkeypatch.setattr(rr, "_isa", lambda: ["sse2"])  # no reference set is this host's
     assert main(["replay-references", *argv]) == 2
     assert message in capsys.readouterr().err
     assert not sought

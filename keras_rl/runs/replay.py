@@ -114,23 +114,33 @@ def plan_replay(folder: Path, experiment: str, episodes: int | None = None) -> R
 
 
 PLATFORMS = Path(__file__).resolve().parents[2] / "results" / "PLATFORMS.json"
-"""Machines measured not to reproduce the committed runs' bits (``not_bit_exact``), with the
-evidence: a CPU of the same model name but another instruction set rounds differently."""
+"""Machines measured against the committed runs' bits, with the evidence: ``not_bit_exact``, those
+measured not to reproduce them (a CPU of the same model name but another instruction set rounds
+differently); ``bit_exact``, CPUs of another model name measured to reproduce the runs of one
+framework made on ``same_as`` (TensorFlow's kernels follow the instruction set; PyTorch's matrix
+products, MKL's, also follow the CPU's vendor)."""
 
 
-def why_not_bit_exact(recorded: dict, platforms: Path = PLATFORMS) -> str | None:
-    """None where this machine is expected to rerun a run with provenance ``recorded`` bit for
-    bit; else why not: another CPU model, another instruction set (runs record ``cpu_isa``
-    from 2026-11-24 on), or this machine is listed in ``platforms`` as measured not to."""
+def why_not_bit_exact(recorded: dict, platforms: Path = PLATFORMS, framework: str = "keras") -> str | None:
+    """None where this machine is expected to rerun a ``framework`` run with provenance
+    ``recorded`` bit for bit; else why not: another CPU model (unless ``platforms`` lists this
+    machine as measured to give that model's bits for ``framework``), another instruction set
+    (runs record ``cpu_isa`` from 2026-11-24 on), or this machine is listed in ``platforms`` as
+    measured not to."""
     from keras_rl.runs.provenance import cpu_isa, cpu_model
 
+    listed = json.loads(platforms.read_text()) if platforms.is_file() else {}
+    here = (cpu_model(), cpu_isa())
     theirs = recorded.get("cpu_model")
-    if theirs is not None and theirs != cpu_model():
-        return f"made on {theirs!r}, this is {cpu_model()!r}"
     if recorded.get("cpu_isa") is not None and recorded["cpu_isa"] != cpu_isa():
         return f"made on a CPU with {', '.join(recorded['cpu_isa'])}; this one has {', '.join(cpu_isa())}"
-    known = json.loads(platforms.read_text())["not_bit_exact"] if platforms.is_file() else []
-    for entry in known:
-        if entry["cpu_model"] == cpu_model() and entry["cpu_isa"] == cpu_isa():
+    for entry in listed.get("bit_exact", []):
+        if (entry["cpu_model"], entry["cpu_isa"]) == here and entry["same_as"] == theirs:
+            if framework in entry["frameworks"]:
+                return None
+    if theirs is not None and theirs != cpu_model():
+        return f"made on {theirs!r}, this is {cpu_model()!r}"
+    for entry in listed.get("not_bit_exact", []):
+        if (entry["cpu_model"], entry["cpu_isa"]) == here:
             return f"this machine ({cpu_model()}; {', '.join(cpu_isa())}) is measured not to: {entry['measured']}"
     return None
