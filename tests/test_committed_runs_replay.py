@@ -14,9 +14,12 @@ travel (issue 52 item 7, measured: ``docs/performance.md``), so a host of anothe
 replays against references made on such a host (``tests/replay_references/<set>/``, with the
 host in its ``host.json``; some made on a real AVX2 host, the rest under an emulated one,
 ``maintainers/replay_references.py``, which also lists the cases): the whole case, bit for bit.
-Where this machine differs and no reference of its own is kept (``replay.why_not_bit_exact``;
-on an AVX2 host, the PyTorch cases), the test says why and compares the first 5 episodes only,
-to float rounding (``agree``): counts exactly, every other number within a relative 1e-4.
+A CPU of another model name measured to give one framework's committed bits is listed under
+``bit_exact`` in ``PLATFORMS.json`` (an Intel Xeon with AVX-512 for Keras) and replays those runs
+against the committed ones. Where this machine differs and no reference of its own is kept
+(``replay.why_not_bit_exact``, per framework; on an AVX2 host, the PyTorch cases), the test says why
+and compares the first 5 episodes only, to float rounding (``agree``): counts exactly, every other
+number within a relative 1e-4.
 """
 
 from __future__ import annotations
@@ -97,7 +100,7 @@ def test_committed_runs_reproduce_bit_for_bit(tmp_path, case: Case):
         assert summary["provenance"]["seed_batch"] == list(case.seeds)
     if case.kind == "compiled":
         assert summary["provenance"]["engine"] == "compiled" and "--workers 1" in summary["command"]
-    why = why_not_bit_exact(summary.get("provenance", {}))
+    why = why_not_bit_exact(summary.get("provenance", {}), framework=case.framework)
     references = [host_reference(folder) if why is not None else None for folder in case.seed_folders()]
     episodes = case.episodes
     if why is not None and None in references:
@@ -158,3 +161,39 @@ def test_a_host_without_avx512_replays_every_keras_case_against_its_own_referenc
     assert emulated <= {folder for case in CASES for folder in case.seed_folders()}
     monkeypatch.setattr(here, "cpu_isa", lambda: [*made_on["cpu_isa"], "avx512f"])
     assert host_reference("pendulum/faithful/seed_0") is None
+
+
+def test_an_intel_xeon_with_avx512_replays_keras_as_committed_and_pytorch_against_its_own_references(monkeypatch):
+    """Measured on an Intel Xeon with the committed AMD EPYC's instruction set: every Keras case
+    gives the committed bits whole (TensorFlow's kernels follow the instruction set), so
+    ``PLATFORMS.json`` lists it as exact for Keras and no Keras reference is kept; PyTorch's differ
+    (MKL's products follow the vendor), so each PyTorch case has a reference for every seed, as long
+    as the case reruns, made on that host with the committed config, and different from the
+    committed run."""
+    made_on = json.loads((REFERENCES / "intel-xeon-avx512" / "host.json").read_text())
+    here = sys.modules[__name__]
+    monkeypatch.setattr(here, "cpu_model", lambda: made_on["cpu_model"])
+    monkeypatch.setattr(here, "cpu_isa", lambda: made_on["cpu_isa"])
+    from keras_rl.runs import provenance
+
+    monkeypatch.setattr(provenance, "cpu_model", lambda: made_on["cpu_model"])
+    monkeypatch.setattr(provenance, "cpu_isa", lambda: made_on["cpu_isa"])
+    for case in CASES:
+        recorded = committed_summary(RESULTS / case.seed_folders()[0])["provenance"]
+        why = why_not_bit_exact(recorded, framework=case.framework)
+        if case.framework == "keras":
+            assert why is None, case.id
+            assert all(host_reference(folder) is None for folder in case.seed_folders()), case.id
+            continue
+        assert why is not None, case.id
+        for folder in case.seed_folders():
+            reference = host_reference(folder)
+            assert reference is not None and folder in made_on["references"], folder
+            rows = read_rows(reference)
+            assert len(rows) == case.episodes, folder
+            assert rows != committed_rows(RESULTS / folder)[: len(rows)], folder
+            ours = json.loads((reference.parent / "config.json").read_text())
+            theirs = RunSet.seed_at(RESULTS / folder).config()
+            assert {k: v for k, v in ours.items() if k != "episodes"} == {
+                k: v for k, v in theirs.items() if k != "episodes"
+            }, folder
