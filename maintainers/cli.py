@@ -204,8 +204,10 @@ def add_parser(sub) -> None:
         "--reference-set", default="avx2", help="the reference set under tests/replay_references (default avx2)"
     )
     p.add_argument("--cases", nargs="+", metavar="ID", help="only these cases (default: every case)")
-    p.add_argument("--env", nargs="+", metavar="KEY=VALUE", help="probe: set on both runs")
-    p.add_argument("--native-env", nargs="+", metavar="KEY=VALUE", help="probe: set on the native run only")
+    p.add_argument("--env", nargs="+", action="extend", metavar="KEY=VALUE", help="probe: set on both runs")
+    p.add_argument(
+        "--native-env", nargs="+", action="extend", metavar="KEY=VALUE", help="probe: set on the native run only"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -97,3 +97,13 @@ def test_the_emulated_references_are_recorded_with_how_they_were_made():
         assert "-cpu " in record["how"] and " at commit " in record["made"] and "keras_rl tree" in record["made"]
     checked = (rr.REFERENCES / "avx2" / "emulation.md").read_text()
     assert checked.count("the same bits") == 3 and "differs" in checked  # the emulator is the AVX2 host
+
+
+def test_settings_given_over_several_flags_add_up(monkeypatch):
+    """``--native-env A=1 --native-env B=2`` sets both: a second flag replaced the first once, and a
+    probe ran with only its last cap, silently."""
+    seen = []
+    monkeypatch.setattr(rr, "run", lambda args: seen.append(args) or 0)
+    argv = ["replay-references", "probe", "--emulate", "Haswell", "--cases", "post003-seed0-first60"]
+    assert main([*argv, "--native-env", "A=1", "--native-env", "B=2 C", "--env", "D=4", "--env", "E=5"]) == 0
+    assert seen[0].native_env == ["A=1", "B=2 C"] and seen[0].env == ["D=4", "E=5"]
