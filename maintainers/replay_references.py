@@ -42,10 +42,14 @@ DEFAULT_EPISODES = 10
 EMULATOR = "qemu-x86_64"
 VALIDATED = ("keras",)
 """The frameworks whose runs ``check`` found the emulator to reproduce as a real AVX2 host does.
-Under ``-cpu EPYC-Rome`` PyTorch's post 000 parts at episode 5 from a run on this host with its
+Under ``-cpu EPYC-Rome`` PyTorch's post 000 parts at episode 5 from a run on an AMD EPYC with its
 kernels capped to AVX2 (``ATEN_CPU_CAPABILITY=avx2``, ``MKL_ENABLE_INSTRUCTIONS=AVX2``, which gives
-the committed bits), and also with MKL's reproducible mode (``MKL_CBWR=AVX2``) on both; with no
-PyTorch run made on a real AVX2 host to settle which is right, no PyTorch reference is made."""
+the committed bits), and also with MKL's reproducible mode (``MKL_CBWR=AVX2``) on both. Under
+``-cpu Haswell`` on an Intel Xeon both PyTorch cases give the bits of a native run capped to AVX2,
+so the emulator computes PyTorch's kernels as silicon does; what parts on AMD reads more than the
+instruction set (MKL's generic class there, likely). With no PyTorch run made on a real AMD AVX2
+host to check against, no PyTorch reference is made under the emulator; ``make`` without
+``--emulate`` on such a host makes them."""
 VALIDATED_WHY = "PyTorch under the emulator is not checked against a real AVX2 host (VALIDATED)"
 
 

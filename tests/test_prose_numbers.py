@@ -274,6 +274,8 @@ def thousand_seeds() -> dict:
 
 
 XEON = RESULTS / "cartpole" / "vectorised-torch" / "xeon-cpu"
+PINNED = RESULTS / "cartpole" / "vectorised-torch" / "xeon-pinned"
+"""The project's own machine as that Xeon's model, with the pinned torch (2026-11-28)."""
 
 
 def markdown_rows(text: str) -> dict[str, list[str]]:
@@ -320,10 +322,10 @@ def xeon(name: str) -> dict[str, list[str]]:
     return markdown_rows((XEON / name).read_text())
 
 
-def mkl_header() -> str:
-    """The instruction set MKL's verbose header named on the Xeon (``benchmarks/gemm_isa.py``'s last line)."""
+def mkl_header(folder: Path = XEON) -> str:
+    """The instruction set MKL's verbose header named on a Xeon (``benchmarks/gemm_isa.py``'s last line)."""
     named = re.search(
-        r"MKL dispatched for: Intel\(R\) 64 architecture (.*)\.$", (XEON / "gemm_isa.txt").read_text(), re.M
+        r"MKL dispatched for: Intel\(R\) 64 architecture (.*)\.$", (folder / "gemm_isa.txt").read_text(), re.M
     )
     assert named, "gemm_isa.txt names no MKL dispatch"
     return named[1]
@@ -344,6 +346,11 @@ def xeon_row(arm: str) -> tuple[str, ...]:
     """One arm's ms and ratio in both runs of ``benchmarks/torch_vectorised.py`` on the Xeon."""
     one, two = xeon("torch_vectorised.txt")[arm], xeon("torch_vectorised_r5.txt")[arm]
     return one[0], one[1], two[0], two[1]
+
+
+def pinned(name: str, arm: str) -> list[str]:
+    """One row of a table the project's Xeon printed with the pinned torch (``xeon-pinned/``)."""
+    return markdown_rows((PINNED / name).read_text())[arm]
 
 
 def xeon_best(name: str) -> str:
@@ -643,6 +650,82 @@ CLAIMS: list[Claim] = [
         "results/cartpole/vectorised-torch/h200/README.md",
         "**{} of 1,000 ({:.3f},",
         lambda: (thousand_seeds()["reached"], thousand_seeds()["reached"] / 1000),
+    ),
+    # issue 53 item 3 on the project's machine when it was an Intel Xeon, with the pinned torch
+    *[
+        (
+            "results/cartpole/vectorised-torch/xeon-pinned/README.md",
+            f"| {arm} | {{}} | {{}} |",
+            lambda arm=arm: tuple(pinned("torch_vectorised.txt", arm)[:2]),
+        )
+        for arm in (
+            "the tutorial's code (gathered)",
+            "vectorised, S=1, compiled",
+            "vectorised, S=8, compiled",
+            "vectorised, S=32, compiled",
+        )
+    ],
+    (
+        "results/cartpole/vectorised-torch/xeon-pinned/README.md",
+        "The best S gives **{}**",
+        lambda: (best_ratio(markdown_rows((PINNED / "torch_vectorised.txt").read_text())),),
+    ),
+    (
+        "results/cartpole/vectorised-torch/xeon-pinned/README.md",
+        "On the AMD EPYC the same benchmark gives {} to {}",
+        lambda: (epyc()["lowest_best"], epyc()["best"]),
+    ),
+    (
+        "results/cartpole/vectorised-torch/xeon-pinned/README.md",
+        "At S=8 it takes {} ms, against {} to {} ms on the",
+        lambda: (pinned("torch_vectorised.txt", "vectorised, S=8, compiled")[0], epyc()["s8_quoted"], epyc()["s8"]),
+    ),
+    (
+        "results/cartpole/vectorised-torch/xeon-pinned/README.md",
+        'MKL names "{}"',
+        lambda: (mkl_header(PINNED),),
+    ),
+    (
+        "results/cartpole/vectorised-torch/xeon-pinned/README.md",
+        "`bmm` takes {} ms for the 8 products of 128x128 by 128x128 ({} GFLOP/s), against {} ms there.",
+        lambda: (*pinned("gemm_isa.txt", "torch.bmm (MKL), as the engine calls it"), epyc()["bmm"]),
+    ),
+    (
+        "results/cartpole/vectorised-torch/xeon-pinned/README.md",
+        "**The tutorial's code is much slower here**: {} ms, against {} to {} ms on the AMD EPYC.",
+        lambda: (
+            pinned("torch_vectorised.txt", "the tutorial's code (gathered)")[0],
+            epyc()["tutorial_quoted"],
+            epyc()["tutorial"],
+        ),
+    ),
+    (
+        "docs/performance.md",
+        "The tutorial's code took {} ms a seed-env-step, the compiled step {} ms at S=8 and {} ms at S=32: **{}** at "
+        "the best S, **over 4x in one run**. MKL named its AVX-512 path there, and `bmm` took {} ms",
+        lambda: (
+            pinned("torch_vectorised.txt", "the tutorial's code (gathered)")[0],
+            pinned("torch_vectorised.txt", "vectorised, S=8, compiled")[0],
+            pinned("torch_vectorised.txt", "vectorised, S=32, compiled")[0],
+            best_ratio(markdown_rows((PINNED / "torch_vectorised.txt").read_text())),
+            pinned("gemm_isa.txt", "torch.bmm (MKL), as the engine calls it")[0],
+        ),
+    ),
+    (
+        "README.md",
+        "| the tutorial's code: {} on the AMD EPYC; {} on the project's machine when it was an Intel Xeon with AVX-512 "
+        "| {}; {} at S=32",
+        lambda: (
+            epyc()["tutorial_quoted"],
+            pinned("torch_vectorised.txt", "the tutorial's code (gathered)")[0],
+            epyc()["s8_quoted"],
+            pinned("torch_vectorised.txt", "vectorised, S=32, compiled")[0],
+        ),
+    ),
+    (
+        "README.md",
+        "| {}; **{}** |",
+        lambda: (epyc()["lowest_best"], best_ratio(markdown_rows((PINNED / "torch_vectorised.txt").read_text()))),
     ),
     # issue 53 item 3 on an Intel AVX-512 CPU (the device machine's, 2026-11-28)
     (
