@@ -128,7 +128,7 @@ def audit_set(entry: dict, batches: list[list[int]], out: Path, workers: int, ad
     result["by_seed"] = {}
     for seed, divergence in diverged.items():
         provenance = committed.run(seed).summary_record().get("provenance", {})
-        host = why_not_bit_exact(provenance)
+        host = why_not_bit_exact(provenance, framework=entry["framework"])
         if divergence is not None and divergence["first_episode"] is None:
             verdict, why = "same bits", None
         elif divergence is None:

@@ -257,9 +257,12 @@ def rerun_set(entry: dict, out: Path, workers: int, address: str | None = None) 
         subprocess.run(reproduce_command(entry, batch, out, workers, address), cwd=ROOT).returncode
         for batch in entry["batches"]
     ]
-    from keras_rl.runs.provenance import cpu_model, library_versions
+    from keras_rl.runs.provenance import library_versions
+    from keras_rl.runs.replay import why_not_bit_exact
 
-    same_machine = entry["cpu_models"] == [cpu_model()]
+    same_machine = all(
+        why_not_bit_exact({"cpu_model": m}, framework=entry["framework"]) is None for m in entry["cpu_models"]
+    )
     mine = library_versions(entry["framework"])
     same_versions = all(mine.get(k) == v for k, v in entry["versions"].items() if k not in ("keras_rl", "torch"))
     by_seed = compare_seeds(committed, target, entry["seeds"])
