@@ -2,6 +2,7 @@
 
     python -m maintainers replay-references check --emulate EPYC-Rome --episodes 10 [--write]
     python -m maintainers replay-references make --emulate EPYC-Rome [--cases ID ...]
+    python -m maintainers replay-references make --reference-set NAME [--cases ID ...]   # natively, here
     python -m maintainers replay-references probe --emulate EPYC-Rome --cases ID --episodes 6 \
         [--env K=V ...] [--native-env K=V ...]
 
@@ -9,7 +10,10 @@ The committed runs were made on AVX-512 hosts. On an AVX2 host TensorFlow's kern
 differently (oneDNN's blocking, XLA's code), and capping the instruction set does not make the
 bits travel (``docs/performance.md``). So a host of another instruction set replays against
 references made on such a host: ``tests/replay_references/<set>/<committed seed folder>/episodes.csv``,
-the host in ``<set>/host.json`` (``tests/test_committed_runs_replay.py``).
+the host in ``<set>/host.json`` (``tests/test_committed_runs_replay.py``). PyTorch's bits also
+follow the CPU's vendor (MKL's kernels), so an Intel Xeon with the committed AMD EPYC's instruction
+set keeps PyTorch references of its own (``intel-xeon-avx512``, made natively: ``make`` without
+``--emulate`` reruns each case here and keeps a reference only where the bits differ).
 
 An AVX2 host is not always at hand. QEMU's user-mode emulator (``qemu-x86_64``, Debian's
 ``qemu-user``) runs a process on this host with the CPUID of another x86 model, and every library
