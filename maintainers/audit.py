@@ -21,8 +21,8 @@ it lands. With ``--write`` the committed report grows: a set that ``results/AUDI
 this draw (the same draw seed, K and batches) keeps its result and its "rerun at" commit, and only
 the sets added since rerun (``--again`` reruns them all); the report covers every committed set.
 A seed that differs is explained where the host explains it (another CPU model or instruction set
-than the run recorded: ``replay.why_not_bit_exact``); any other is a mismatch,
-and the command exits 1.
+than the run recorded, unless ``results/PLATFORMS.json`` lists this CPU as measured to give that
+framework's bits: ``replay.why_not_bit_exact``); any other is a mismatch, and the command exits 1.
 """
 
 from __future__ import annotations

@@ -7,8 +7,9 @@ checkout as ``python -m maintainers ...`` (this folder is not part of the instal
   (``maintainers/tables/``), each spliced between its markers (``report/markdown.py``);
 - ``python -m maintainers manifest``: ``results/MANIFEST``, and ``--regenerate`` to rerun sets and compare;
 - ``python -m maintainers audit``: rerun K drawn seeds of every set and compare (``results/AUDIT.md``);
-- ``python -m maintainers replay-references``: the replay tests' references for another instruction
-  set, made and checked under an emulated CPU (``tests/replay_references/``).
+- ``python -m maintainers replay-references``: the replay tests' references for a host of another
+  instruction set or vendor, made natively there or under an emulated CPU, and checked
+  (``tests/replay_references/``).
 
 Each reads the checkout's ``results/`` (``keras_rl/checkout.py``). The arguments are declared
 here and each module's ``run(args)`` is imported only when its command runs.
@@ -186,7 +187,7 @@ def add_parser(sub) -> None:
 
     p = sub.add_parser(
         "replay-references",
-        help="make or check the replay tests' references for another instruction set under an emulated CPU",
+        help="make the replay tests' references for another host (natively, or under an emulated CPU), or check them",
         parents=[shared_flags("replay-references", "--episodes", "--write")],
     )
     p.set_defaults(module="maintainers.replay_references")

@@ -260,7 +260,7 @@ def rerun_set(entry: dict, out: Path, workers: int, address: str | None = None) 
     from keras_rl.runs.provenance import library_versions
     from keras_rl.runs.replay import why_not_bit_exact
 
-    same_machine = all(
+    same_machine = bool(entry["cpu_models"]) and all(
         why_not_bit_exact({"cpu_model": m}, framework=entry["framework"]) is None for m in entry["cpu_models"]
     )
     mine = library_versions(entry["framework"])

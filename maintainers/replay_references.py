@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -244,8 +245,14 @@ def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[
             got = seed_rows(ran / "episodes.csv")
             committed = committed_rows(folder, len(got))
             lines.append(f"| {case.id} | {ran.name} | {len(got)} | {_first_difference(committed, got)} |")
-            if got == committed and len(got) == len(committed_rows(folder, case.episodes or 10**9)):
-                lines[-1] = lines[-1][:-2] + ": none kept, the committed run is this host's |"
+            if _committed_is_this_hosts(folder, case, native=not args.emulate):
+                # the replay test reads the committed run here: a reference would never be read
+                same = got == committed and len(got) == len(committed_rows(folder, case.episodes or 10**9))
+                lines[-1] = lines[-1][:-2] + (
+                    ": none kept, the committed run is this host's |"
+                    if same
+                    else ": none kept; MISMATCH, this host is expected to give the committed bits |"
+                )
                 continue
             # recorded before the files land: an interrupted make leaves a listed reference without
             # its rows (the tests fail on it), never rows that pass for a host's own
@@ -258,9 +265,19 @@ def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[
             atomic_write_json(path, host)
             target = reference_rows(args.reference_set, folder).parent
             target.mkdir(parents=True, exist_ok=True)
-            for name in ("episodes.csv", "config.json"):
+            for name in ("config.json", "episodes.csv"):  # the rows last: a seed is missing until they land
                 atomic_write_text(target / name, (ran / name).read_text())
     return lines
+
+
+def _committed_is_this_hosts(folder: str, case: Case, native: bool) -> bool:
+    """Whether the replay test compares ``folder`` with its committed run on the host the references
+    are made for (``replay.why_not_bit_exact``): only a native make can be that host."""
+    from keras_rl.runs.replay import why_not_bit_exact
+    from keras_rl.runs.run_set import RunSet
+
+    provenance = RunSet.seed_at(ROOT / "results" / folder).summary_record().get("provenance", {})
+    return native and why_not_bit_exact(provenance, framework=case.framework) is None
 
 
 def this_host() -> dict:
@@ -347,6 +364,8 @@ def _chosen(args: argparse.Namespace) -> list[Case]:
 def run(args: argparse.Namespace) -> int:
     from keras_rl.errors import KerasRLError
 
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", args.reference_set):
+        raise KerasRLError(f"--reference-set names one folder under {REFERENCES}, not {args.reference_set!r}")
     native = args.action == "make" and args.emulate is None
     if args.emulate is None and not native:
         raise KerasRLError(f"{args.action} compares a run under the emulator: name its CPU with --emulate")

@@ -143,8 +143,12 @@ def test_a_host_without_avx512_replays_every_keras_case_against_its_own_referenc
         **{f"engines/pendulum/compiled/seed_{s}": n for s, n in ((0, 115), (1, 117), (2, 153))},
     }
     for case in CASES:
-        if case.framework not in VALIDATED:  # no reference: 5 episodes, to rounding
-            assert all(host_reference(folder) is None for folder in case.seed_folders()), case.id
+        if case.framework not in VALIDATED:  # none made under the emulator: 5 episodes, to rounding,
+            # until a real AVX2 host makes its own natively (listed under "references")
+            assert all(
+                host_reference(folder) is None or folder in made_on.get("references", {})
+                for folder in case.seed_folders()
+            ), case.id
             continue
         for folder in case.seed_folders():
             reference = host_reference(folder)

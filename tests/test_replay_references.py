@@ -61,6 +61,7 @@ def test_every_case_names_committed_seeds():
             "KEY=VALUE, not 'MKL'",
         ),
         (["check"], "check compares a run under the emulator: name its CPU with --emulate"),
+        (["make", "--reference-set", "../elsewhere"], "--reference-set names one folder under"),
         (["probe", "--cases", "post003-seed0-first60"], "name its CPU with --emulate"),
         (["make"], "reference set 'avx2' is not this host's"),  # made natively on a CPU of its own
     ],
@@ -107,3 +108,53 @@ def test_settings_given_over_several_flags_add_up(monkeypatch):
     argv = ["replay-references", "probe", "--emulate", "Haswell", "--cases", "post003-seed0-first60"]
     assert main([*argv, "--native-env", "A=1", "--native-env", "B=2 C", "--env", "D=4", "--env", "E=5"]) == 0
     assert seen[0].native_env == ["A=1", "B=2 C"] and seen[0].env == ["D=4", "E=5"]
+
+
+@pytest.mark.parametrize(
+    "committed_is_this_hosts, differs", [(False, True), (False, False), (True, False), (True, True)]
+)
+def test_a_native_make_keeps_a_reference_only_where_the_replay_test_would_read_it(
+    tmp_path, monkeypatch, committed_is_this_hosts, differs
+):
+    """Where the replay test reads the committed run on this host (``why_not_bit_exact`` is None), make
+    keeps nothing, and names a rerun that differs a mismatch; elsewhere it keeps every seed's rows and
+    config, the same bits or not, listed in the new set's host.json."""
+    import argparse
+    import csv
+
+    from keras_rl.runs.run_set import RunSet
+
+    case = next(c for c in rr.CASES if c.id == "post003-torch-seed0-first200")
+    folder = case.seed_folders()[0]
+    committed = RunSet.seed_at(rr.ROOT / "results" / folder)
+
+    def fake_rerun(case, prefix, episodes, work, env=None):
+        seed = work / case.id / "seed_0"
+        seed.mkdir(parents=True)
+        rows = committed.text_rows()[: case.episodes]
+        if differs:
+            rows[-1] = {**rows[-1], "loss": "0.125"}
+        with open(seed / "episodes.csv", "w", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+        (seed / "config.json").write_text(json.dumps(committed.config()))
+        return work / case.id, 0.0
+
+    monkeypatch.setattr(rr, "REFERENCES", tmp_path)
+    monkeypatch.setattr(rr, "rerun", fake_rerun)
+    monkeypatch.setattr(rr, "_committed_is_this_hosts", lambda folder, case, native: committed_is_this_hosts)
+    args = argparse.Namespace(reference_set="here", emulate=None, cases=[case.id])
+    lines = rr.make(args, (), tmp_path / "work")
+    kept = rr.reference_rows("here", folder)
+    host = json.loads(rr.host_file("here").read_text()) if rr.host_file("here").is_file() else {}
+    if committed_is_this_hosts:
+        assert not kept.exists() and folder not in host.get("references", {})
+        assert ("MISMATCH" in lines[-1]) == differs and "none kept" in lines[-1]
+    else:
+        assert kept.is_file() and (kept.parent / "config.json").is_file()
+        assert (
+            host["references"][folder]["command"]
+            == f"python -m maintainers replay-references make --reference-set here --cases {case.id}"
+        )
+        assert (host["cpu_model"], host["cpu_isa"]) == (rr.this_host()["cpu_model"], rr._isa())
