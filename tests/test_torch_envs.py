@@ -1,11 +1,19 @@
 """The PyTorch envs (``keras_rl/torch/envs.py``) against the installed Gymnasium, as
 ``tests/test_tf_envs.py`` measures the TensorFlow ones: one step from 1,000 random states and
 actions, and 200-step trajectories under recorded actions (a terminated episode resets to the
-state Gymnasium's own reset draws). Measured on this CPU: the state, the float32 observation, the
-reward and the flag are Gymnasium's bit for bit (PyTorch's float64 ``sin``/``cos`` round as the C
-library's here), so that is what is asserted."""
+state Gymnasium's own reset draws).
+
+The tolerance is stated per step: where PyTorch's float64 ``cos`` and ``sin`` of the pole's angle
+round as the C library's ``math.cos``/``math.sin`` do, the state, the float32 observation, the
+reward and the flag must be Gymnasium's bit for bit; where either rounds otherwise, the state must
+agree within a relative 1e-14 and the observation within float32's rounding, and the trajectory
+goes on from Gymnasium's state. Measured: on the AMD EPYC every step was bit for bit; on an Intel
+Xeon (2026-11-28) PyTorch's ``cos``/``sin`` round otherwise for about 4 in 1,000 angles of this
+range, and a trajectory parted in the last bit at step 132 before this rule."""
 
 from __future__ import annotations
+
+import math
 
 import gymnasium as gym
 import numpy as np
@@ -14,6 +22,23 @@ import pytest
 torch = pytest.importorskip("torch", reason="needs the torch extra")
 
 from keras_rl.torch.envs import MAX_STEPS, CartPole  # noqa: E402
+
+
+def libm_rounds_otherwise(theta: torch.Tensor) -> np.ndarray:
+    """Where PyTorch's float64 ``cos`` or ``sin`` of ``theta`` (computed as the env computes them, on
+    the whole tensor) is not the C library's."""
+    cos, sin = torch.cos(theta).numpy(), torch.sin(theta).numpy()
+    angles = theta.numpy()
+    return np.array([c != math.cos(a) or s != math.sin(a) for a, c, s in zip(angles, cos, sin)], bool)
+
+
+def agree(mine_state, theirs_state, mine_obs, theirs_obs, exact: bool) -> bool:
+    """Bit for bit; or, where ``cos``/``sin`` rounded otherwise, within that rounding grown by one step."""
+    if exact:
+        return np.array_equal(mine_state, theirs_state) and np.array_equal(mine_obs, theirs_obs)
+    return np.allclose(mine_state, theirs_state, rtol=1e-14, atol=1e-16) and np.allclose(
+        mine_obs, theirs_obs, rtol=2**-23, atol=0
+    )
 
 
 def _gymnasium_step(env, state, action):
@@ -33,7 +58,10 @@ def test_one_step_is_gymnasiums_bit_for_bit():
     ref = [np.array(column) for column in zip(*(_gymnasium_step(env, s, a) for s, a in zip(states, actions)))]
     ours = [t.numpy() for t in CartPole().step(torch.tensor(states), torch.tensor(actions))]
     assert ours[1].dtype == np.float32 and ours[0].dtype == np.float64
-    for mine, theirs in zip(ours, ref):
+    rounded = libm_rounds_otherwise(torch.tensor(states[:, 2]))
+    for i in range(len(states)):
+        assert agree(ours[0][i], ref[0][i], ours[1][i], ref[1][i], exact=not rounded[i]), i
+    for mine, theirs in zip(ours[2:], ref[2:]):  # reward and flag: exactly
         np.testing.assert_array_equal(mine, theirs)
     assert 0 < ref[3].sum() < 1000  # both kinds of step were among them
 
@@ -50,11 +78,13 @@ def test_200_step_trajectories_on_a_seed_axis_are_gymnasiums():
     ended = 0
     for t in range(steps):
         new, obs, reward, terminated = CartPole().step(state, torch.tensor(actions[t]))
+        rounded = libm_rounds_otherwise(state[:, 2])
         for i, env in enumerate(envs):
             their_obs, their_reward, their_terminated, _, _ = env.step(int(actions[t, i]))
-            assert np.array_equal(obs[i].numpy(), their_obs), (t, i)
-            assert np.array_equal(new[i].numpy(), np.asarray(env.unwrapped.state, np.float64)), (t, i)
+            theirs = np.asarray(env.unwrapped.state, np.float64)
+            assert agree(new[i].numpy(), theirs, obs[i].numpy(), their_obs, exact=not rounded[i]), (t, i)
             assert (reward[i].item(), bool(terminated[i])) == (their_reward, their_terminated)
+            new[i] = torch.tensor(theirs, dtype=torch.float64)  # on from Gymnasium's state, bits and all
             if their_terminated:
                 ended += 1
                 env.reset()

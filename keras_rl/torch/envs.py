@@ -8,9 +8,10 @@ alike (as ``keras_rl/tf_envs.py`` does for TensorFlow, whose CartPole this follo
 for operation). Time limits are the engine's to count (``MAX_STEPS``).
 
 ``tests/test_torch_envs.py`` measures the agreement with the installed Gymnasium on the CPU: the
-state, observation, reward and flag are bit for bit (PyTorch's float64 ``sin``/``cos`` round as
-the C library's ``math.sin``/``math.cos`` do there). A GPU's ``sin``/``cos`` need not; its
-agreement is to be measured where one is lent (issue 53).
+state, observation, reward and flag are bit for bit wherever PyTorch's float64 ``sin``/``cos``
+round as the C library's ``math.sin``/``math.cos`` do (every step on the AMD EPYC; on an Intel
+Xeon about 4 angles in 1,000 round otherwise, and those steps agree within a relative 1e-14). A
+GPU's ``sin``/``cos`` need not; its agreement is to be measured where one is lent (issue 53).
 """
 
 from __future__ import annotations
