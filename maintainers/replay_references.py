@@ -288,15 +288,14 @@ def this_host() -> dict:
 
 
 def _versions() -> str:
-    from importlib.metadata import PackageNotFoundError, version
+    """The library versions a run records (``provenance.library_versions``), torch's among them."""
+    from keras_rl.runs.provenance import library_versions
 
-    def one(name: str) -> str:
-        try:
-            return f"{name} {version(name)}"
-        except PackageNotFoundError:
-            return f"no {name}"
-
-    return ", ".join(one(n) for n in ("tensorflow", "keras", "torch", "gymnasium", "numpy"))
+    try:
+        import torch  # noqa: F401  (library_versions names torch once it is imported)
+    except ImportError:
+        pass
+    return ", ".join(f"{name} {version}" for name, version in library_versions("torch").items())
 
 
 def _settings(pairs: list[str] | None) -> dict[str, str]:
@@ -372,8 +371,8 @@ def run(args: argparse.Namespace) -> int:
     if not host_file(args.reference_set).is_file() and not native:
         raise KerasRLError(f"no reference set {args.reference_set!r}: {host_file(args.reference_set)} is missing")
     if native and host_file(args.reference_set).is_file():
-        made_on = json.loads(host_file(args.reference_set).read_text())
-        if (made_on["cpu_model"], made_on["cpu_isa"]) != (this_host()["cpu_model"], _isa()):
+        made_on, here = json.loads(host_file(args.reference_set).read_text()), this_host()
+        if (made_on["cpu_model"], made_on["cpu_isa"]) != (here["cpu_model"], here["cpu_isa"]):
             raise KerasRLError(
                 f"reference set {args.reference_set!r} is not this host's ({made_on['cpu_model']}; "
                 f"{', '.join(made_on['cpu_isa'])}): make it natively in a set of its own (--reference-set NAME), "

@@ -68,6 +68,19 @@ def committed_summary(seed_path: Path) -> dict:
     return RunSet.seed_at(seed_path).summary_record()
 
 
+def assert_a_kept_reference(folder: str, reference: Path, episodes: int) -> None:
+    """A host's reference for committed seed ``folder``: ``episodes`` rows, made with the committed
+    run's config but the budget, and different from the committed run (why it is kept)."""
+    rows = read_rows(reference)
+    assert len(rows) == episodes, folder
+    assert rows != committed_rows(RESULTS / folder)[: len(rows)], folder
+    ours = json.loads((reference.parent / "config.json").read_text())
+    theirs = RunSet.seed_at(RESULTS / folder).config()
+    assert {k: v for k, v in ours.items() if k != "episodes"} == {k: v for k, v in theirs.items() if k != "episodes"}, (
+        folder
+    )
+
+
 def agree(want: dict[str, str], have: dict[str, str], exact: bool) -> bool:
     """Bit for bit; or, on a machine that rounds differently (``exact`` False), every count
     equal and every other number within float32 rounding grown over a few updates (relative
@@ -153,15 +166,8 @@ def test_a_host_without_avx512_replays_every_keras_case_against_its_own_referenc
         for folder in case.seed_folders():
             reference = host_reference(folder)
             assert reference is not None, folder
-            rows = read_rows(reference)
-            assert len(rows) == (case.episodes or whole_run[folder]), folder
             # the instruction set changes the bits: why a reference is kept
-            assert rows != committed_rows(RESULTS / folder)[: len(rows)], folder
-            ours = json.loads((reference.parent / "config.json").read_text())
-            theirs = RunSet.seed_at(RESULTS / folder).config()
-            assert {k: v for k, v in ours.items() if k != "episodes"} == {
-                k: v for k, v in theirs.items() if k != "episodes"
-            }, folder
+            assert_a_kept_reference(folder, reference, case.episodes or whole_run[folder])
     assert emulated <= {folder for case in CASES for folder in case.seed_folders()}
     monkeypatch.setattr(here, "cpu_isa", lambda: [*made_on["cpu_isa"], "avx512f"])
     assert host_reference("pendulum/faithful/seed_0") is None
@@ -193,11 +199,5 @@ def test_an_intel_xeon_with_avx512_replays_keras_as_committed_and_pytorch_agains
         for folder in case.seed_folders():
             reference = host_reference(folder)
             assert reference is not None and folder in made_on["references"], folder
-            rows = read_rows(reference)
-            assert len(rows) == case.episodes, folder
-            assert rows != committed_rows(RESULTS / folder)[: len(rows)], folder
-            ours = json.loads((reference.parent / "config.json").read_text())
-            theirs = RunSet.seed_at(RESULTS / folder).config()
-            assert {k: v for k, v in ours.items() if k != "episodes"} == {
-                k: v for k, v in theirs.items() if k != "episodes"
-            }, folder
+            assert case.episodes is not None, case.id
+            assert_a_kept_reference(folder, reference, case.episodes)
