@@ -202,7 +202,16 @@ def add_parser(sub) -> None:
         help="the CPU model qemu-x86_64 -cpu gives (EPYC-Rome); make without it: a set for this host, made here",
     )
     p.add_argument(
-        "--reference-set", default="avx2", help="the reference set under tests/replay_references (default avx2)"
+        "--reference-set",
+        default="avx2",
+        help="the reference set under tests/replay_references (default avx2; portable-torch: made under "
+        "KERAS_RL_PORTABLE_TORCH=1, natively, for every host)",
+    )
+    p.add_argument(
+        "--trace",
+        action="store_true",
+        help="check: count the approximate instructions (rcp, rsqrt, x87 transcendentals) each rerun executes "
+        "under the emulator, which QEMU computes exactly and silicon does not",
     )
     p.add_argument("--cases", nargs="+", metavar="ID", help="only these cases (default: every case)")
     p.add_argument("--env", nargs="+", action="extend", metavar="KEY=VALUE", help="probe: set on both runs")

@@ -5,6 +5,9 @@
     python -m maintainers replay-references make --reference-set NAME [--cases ID ...]   # natively, here
     python -m maintainers replay-references probe --emulate EPYC-Rome --cases ID --episodes 6 \
         [--env K=V ...] [--native-env K=V ...]
+    python -m maintainers replay-references make --reference-set portable-torch   # natively, any host
+    python -m maintainers replay-references check --emulate Haswell --reference-set portable-torch \
+        --episodes 12 --trace --write
 
 The committed runs were made on AVX-512 hosts. On an AVX2 host TensorFlow's kernels round
 differently (oneDNN's blocking, XLA's code), and capping the instruction set does not make the
@@ -24,17 +27,29 @@ every column but wall time; ``make`` makes the missing references under it and r
 ``host.json``. ``probe`` runs a case both natively (with ``--native-env`` set, a cap say) and
 under the emulator (``--env`` is set on both) and compares the two with each other and with the
 committed run. The emulator is no test dependency: the tests read the references only.
+
+The emulator computes every instruction as silicon does but the few whose bits the x86 manuals leave
+to the chip (``APPROXIMATE``: the approximate reciprocal and reciprocal square root, x87's
+transcendentals), which it computes exactly. ``check --trace`` counts those a rerun executes. PyTorch's
+float32 square root (MKL's vector math, in Adam's denominator) refines ``rsqrtps``, so no PyTorch
+reference is made under the emulator. The PyTorch cases keep one set for every host instead,
+``portable-torch``, made natively under PyTorch's portable arithmetic (``KERAS_RL_PORTABLE_TORCH=1``,
+``keras_rl.torch.portable_arithmetic``), whose runs execute none of them, and checked under an
+emulated Intel and AMD CPU.
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
 import json
+import os
 import re
 import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,14 +63,25 @@ EMULATOR = "qemu-x86_64"
 VALIDATED = ("keras",)
 """The frameworks whose runs ``check`` found the emulator to reproduce as a real AVX2 host does.
 Under ``-cpu EPYC-Rome`` PyTorch's post 000 parts at episode 5 from a run on an AMD EPYC with its
-kernels capped to AVX2 (``ATEN_CPU_CAPABILITY=avx2``, ``MKL_ENABLE_INSTRUCTIONS=AVX2``, which gives
-the committed bits), and also with MKL's reproducible mode (``MKL_CBWR=AVX2``) on both. Under
-``-cpu Haswell`` on an Intel Xeon both PyTorch cases give the bits of a native run capped to AVX2,
-so the emulator computes PyTorch's kernels as silicon does; what parts on AMD reads more than the
-instruction set (MKL's generic class there, likely). With no PyTorch run made on a real AMD AVX2
-host to check against, no PyTorch reference is made under the emulator; ``make`` without
-``--emulate`` on such a host makes them."""
+kernels capped to AVX2 (which gives the committed bits). The cause, traced on an Intel Xeon
+(``check --trace``): torch's float32 ``sqrt`` is MKL's vector math, which refines the approximate
+``rsqrtps``; QEMU computes that exactly, and each vendor's silicon its own way. So no PyTorch
+reference is made under the emulator; the PyTorch cases replay whole under the portable arithmetic
+(``PORTABLE_SET``), and ``make`` without ``--emulate`` on an AMD AVX2 host would make their native ones."""
 VALIDATED_WHY = "PyTorch under the emulator is not checked against a real AVX2 host (VALIDATED)"
+PORTABLE_SET = "portable-torch"
+"""The PyTorch cases' references made under PyTorch's portable arithmetic
+(``keras_rl.torch.portable_arithmetic``, ``KERAS_RL_PORTABLE_TORCH=1``): one set for every host
+with AVX2, made natively here and checked under the emulator, Intel's and AMD's, with ``--trace``
+(``<set>/emulation-<CPU>.md``)."""
+APPROXIMATE = re.compile(
+    rb"\b(v?rcp(?:14|28)?[ps]s|v?rsqrt(?:14|28)?[ps]s|fsin|fcos|fsincos|fptan|fpatan|f2xm1|fyl2x|fyl2xp1)\b"
+)
+"""Instructions whose bits the x86 manuals leave to the silicon: the approximate reciprocal and
+reciprocal square root, and x87's transcendentals. QEMU computes them exactly (``rsqrtps`` of 2 gives
+0.707106769 under it, 0.70690918 on the Intel Xeon of 2026-11-28), so a run that executes one under
+the emulator is not what that CPU computes; a run that executes none computes there as silicon does
+(every other instruction is IEEE arithmetic, exactly rounded)."""
 
 
 @dataclass(frozen=True)
@@ -141,22 +167,72 @@ def emulator_version() -> str:
 
 
 def rerun(
-    case: Case, prefix: tuple[str, ...], episodes: int | None, work: Path, env: dict[str, str] | None = None
+    case: Case,
+    prefix: tuple[str, ...],
+    episodes: int | None,
+    work: Path,
+    env: dict[str, str] | None = None,
+    approximate: collections.Counter | None = None,
 ) -> tuple[Path, float]:
     """Run ``case`` under ``prefix`` (and ``env`` added to this one's) into ``work``; its output
-    folder and the seconds it took."""
-    import os
-
+    folder and the seconds it took. With ``approximate`` (under the emulator), the instructions of
+    ``APPROXIMATE`` in the code the run executed are counted into it, once per block QEMU translated
+    (its ``-d in_asm`` log, read through a pipe as it is written)."""
     out = work / case.id
+    work.mkdir(parents=True, exist_ok=True)
+    reader = None
+    if approximate is not None:
+        log = work / f"{case.id}.in_asm"
+        os.mkfifo(log)
+        prefix = (*prefix, "-d", "in_asm", "-D", str(log))
+        reader = threading.Thread(target=_count_approximate, args=(log, approximate))
+        reader.start()
     start = time.monotonic()
-    proc = subprocess.run(
-        case.command(out, episodes, prefix), capture_output=True, text=True, env={**os.environ, **(env or {})}
-    )
+    try:
+        proc = subprocess.run(
+            case.command(out, episodes, prefix), capture_output=True, text=True, env={**os.environ, **(env or {})}
+        )
+    finally:
+        if reader is not None:
+            _release(work / f"{case.id}.in_asm")
+            reader.join()
     # 1: a run that fails its criterion, rows whole; a crash also exits 1, with a traceback
     if proc.returncode not in (0, 1) or "Traceback (most recent call last)" in proc.stderr:
         tail = "\n".join(line for line in proc.stderr.splitlines() if "TCG doesn't support" not in line)
         raise RuntimeError(f"{case.id}: exit {proc.returncode}\n{tail[-2000:]}")
     return out, time.monotonic() - start
+
+
+def _count_approximate(log: Path, counts: collections.Counter) -> None:
+    """Count ``APPROXIMATE``'s instructions in QEMU's instruction log at ``log`` (a pipe) until it closes."""
+    tail = b""
+    with open(log, "rb") as fh:
+        while chunk := fh.read(1 << 20):
+            text, _, tail = (tail + chunk).rpartition(b"\n")  # an instruction is never split across reads
+            counts.update(m.decode() for m in APPROXIMATE.findall(text))
+    counts.update(m.decode() for m in APPROXIMATE.findall(tail))
+
+
+def _release(log: Path) -> None:
+    """Let the reader of ``log`` end where the run never opened it (a crash before QEMU's log)."""
+    try:
+        os.close(os.open(log, os.O_WRONLY | os.O_NONBLOCK))
+    except OSError:  # no reader waits: it has read to the end already
+        pass
+
+
+def approximate_shown(counts: collections.Counter) -> str:
+    """``counts`` as a report cell: ``none``, or each instruction and its blocks."""
+    if not counts:
+        return "none"
+    return ", ".join(f"`{name}` in {n} block{'s' * (n != 1)}" for name, n in sorted(counts.items()))
+
+
+def set_env(reference_set: str) -> dict[str, str]:
+    """What a rerun of ``reference_set``'s cases sets: PyTorch's portable arithmetic for its set."""
+    from keras_rl.torch import PORTABLE_SWITCH
+
+    return {PORTABLE_SWITCH: "1"} if reference_set == PORTABLE_SET else {}
 
 
 def committed_rows(folder: str, episodes: int) -> list[dict[str, str]]:
@@ -185,12 +261,16 @@ def check(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list
 
     host = json.loads(host_file(args.reference_set).read_text())
     made_here = set(host.get("emulated", {}).get("references", {}))
+    traced = " --trace" if args.trace else ""
+    settings = set_env(args.reference_set)
     lines = [
-        f"`python -m maintainers replay-references check --emulate {args.emulate} --episodes {args.episodes}` "
-        f"({emulator_version()}, `-cpu {args.emulate}`), on a host with {', '.join(_isa())}:",
+        f"`python -m maintainers replay-references check --emulate {args.emulate} --reference-set "
+        f"{args.reference_set} --episodes {args.episodes}{traced}` ({emulator_version()}, `-cpu {args.emulate}`), "
+        f"on a host with {', '.join(_isa())}" + (f"; set on every run: {_shown(settings)}" if settings else "") + ":",
         "",
-        f"| case | seed | episodes | against the {args.reference_set} host's reference | against the committed run |",
-        "|---|---|---|---|---|",
+        f"| case | seed | episodes | against the {args.reference_set} reference | against the committed run |"
+        + (" approximate instructions executed (`APPROXIMATE`) |" if args.trace else ""),
+        "|---|---|---|---|---|" + ("---|" if args.trace else ""),
     ]
     for case in _chosen(args):
         folders = [
@@ -198,7 +278,8 @@ def check(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list
         ]
         if not folders:
             continue
-        out, seconds = rerun(case, prefix, args.episodes, work)
+        counts: collections.Counter | None = collections.Counter() if args.trace else None
+        out, seconds = rerun(case, prefix, args.episodes, work, settings, counts)
         print(f"{case.id}: {seconds:.0f} s under the emulator", file=sys.stderr)
         for folder in folders:
             got = seed_rows(out / Path(folder).name / "episodes.csv")
@@ -207,8 +288,13 @@ def check(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list
             lines.append(
                 f"| {case.id} | {Path(folder).name} | {len(got)} | {_first_difference(ours, got)} | "
                 f"{_first_difference(committed, got)} |"
+                + (f" {approximate_shown(counts)} |" if counts is not None else "")
             )
     return lines
+
+
+def _shown(settings: dict[str, str]) -> str:
+    return " ".join(f"{k}={v}" for k, v in settings.items()) or "none"
 
 
 def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[str]:
@@ -218,7 +304,8 @@ def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[
     from keras_rl.runs.replay import seed_rows
 
     path = host_file(args.reference_set)
-    host = json.loads(path.read_text()) if path.is_file() else this_host()
+    portable = args.reference_set == PORTABLE_SET
+    host = json.loads(path.read_text()) if path.is_file() else (portable_host() if portable else this_host())
     command = "python -m maintainers replay-references make" + (
         f" --emulate {args.emulate}" if args.emulate else f" --reference-set {args.reference_set}"
     )
@@ -226,7 +313,8 @@ def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[
         "made": f"{time.strftime('%Y-%m-%d')} at {_code()}",  # the code the runs import, read once
         "how": f"{emulator_version()}, -cpu {args.emulate}, on a host with {' '.join(_isa())}"
         if args.emulate
-        else f"natively, on {host['cpu_model']} with {' '.join(host['cpu_isa'])}; {_versions()}",
+        else f"natively, on {this_host()['cpu_model']} with {' '.join(_isa())}; {_versions()}"
+        + (f"; {_shown(set_env(args.reference_set))}" if portable else ""),
         "command": command + (f" --cases {' '.join(args.cases)}" if args.cases else ""),
     }
     where = "under the emulator" if args.emulate else "here"
@@ -238,14 +326,16 @@ def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[
         if args.emulate and case.framework not in VALIDATED:
             lines.append(f"| {case.id} | - | - | not made: {VALIDATED_WHY} |")
             continue
-        out, seconds = rerun(case, prefix, None, work)
+        if portable and case.framework != "torch":
+            continue  # the portable arithmetic is PyTorch's; TensorFlow's runs keep per-host references
+        out, seconds = rerun(case, prefix, None, work, set_env(args.reference_set))
         print(f"{case.id}: {seconds:.0f} s {where}", file=sys.stderr)
         for folder in missing:
             ran = out / Path(folder).name
             got = seed_rows(ran / "episodes.csv")
             committed = committed_rows(folder, len(got))
             lines.append(f"| {case.id} | {ran.name} | {len(got)} | {_first_difference(committed, got)} |")
-            if _committed_is_this_hosts(folder, case, native=not args.emulate):
+            if not portable and _committed_is_this_hosts(folder, case, native=not args.emulate):
                 # the replay test reads the committed run here: a reference would never be read
                 same = got == committed and len(got) == len(committed_rows(folder, case.episodes or 10**9))
                 lines[-1] = lines[-1][:-2] + (
@@ -287,6 +377,16 @@ def this_host() -> dict:
     return {"cpu_model": cpu_model(), "cpu_isa": _isa(), "references": {}}
 
 
+def portable_host() -> dict:
+    """The portable set's host.json: no CPU of its own, the arithmetic it was made under, its references."""
+    from keras_rl.torch import PORTABLE_CAPS, PORTABLE_SWITCH
+
+    return {
+        "portable": {"switch": f"{PORTABLE_SWITCH}=1", "sets": PORTABLE_CAPS, "optimizer_step": "fused"},
+        "references": {},
+    }
+
+
 def _versions() -> str:
     """The library versions a run records (``provenance.library_versions``), torch's among them."""
     from keras_rl.runs.provenance import library_versions
@@ -312,10 +412,8 @@ def probe(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list
     from keras_rl.runs.replay import seed_rows
 
     both, native = _settings(args.env), _settings(args.native_env)
-    shown = " ".join(f"{k}={v}" for k, v in both.items()) or "none"
-    capped = " ".join(f"{k}={v}" for k, v in native.items()) or "none"
     lines = [
-        f"Set on both: {shown}; natively only: {capped}; `-cpu {args.emulate}` ({emulator_version()}).",
+        f"Set on both: {_shown(both)}; natively only: {_shown(native)}; `-cpu {args.emulate}` ({emulator_version()}).",
         "",
         "| case | seed | episodes | emulated against native | emulated against committed | native against committed |",
         "|---|---|---|---|---|---|",
@@ -365,12 +463,16 @@ def run(args: argparse.Namespace) -> int:
 
     if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", args.reference_set):
         raise KerasRLError(f"--reference-set names one folder under {REFERENCES}, not {args.reference_set!r}")
+    if args.reference_set == PORTABLE_SET and args.action == "make" and args.emulate:
+        raise KerasRLError(f"the {PORTABLE_SET} set is made natively (one set for every host); check it with --emulate")
+    if args.trace and (args.action != "check" or args.emulate is None):
+        raise KerasRLError("--trace counts the instructions a run executes under the emulator: check --emulate's")
     native = args.action == "make" and args.emulate is None
     if args.emulate is None and not native:
         raise KerasRLError(f"{args.action} compares a run under the emulator: name its CPU with --emulate")
     if not host_file(args.reference_set).is_file() and not native:
         raise KerasRLError(f"no reference set {args.reference_set!r}: {host_file(args.reference_set)} is missing")
-    if native and host_file(args.reference_set).is_file():
+    if native and args.reference_set != PORTABLE_SET and host_file(args.reference_set).is_file():
         made_on, here = json.loads(host_file(args.reference_set).read_text()), this_host()
         if (made_on["cpu_model"], made_on["cpu_isa"]) != (here["cpu_model"], here["cpu_isa"]):
             raise KerasRLError(
@@ -408,7 +510,9 @@ def run(args: argparse.Namespace) -> int:
     if args.action == "check" and args.write:
         from keras_rl.runs.files import atomic_write_text
 
-        report = REFERENCES / args.reference_set / "emulation.md"
-        atomic_write_text(report, f"# The emulator against the {args.reference_set} host\n\n{text}\n")
+        report = REFERENCES / args.reference_set / f"emulation-{args.emulate}.md"
+        atomic_write_text(
+            report, f"# The emulator ({args.emulate}) against the {args.reference_set} references\n\n{text}\n"
+        )
         print(f"wrote {report}")
     return 0

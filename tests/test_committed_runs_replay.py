@@ -20,12 +20,19 @@ against the committed ones. Where this machine differs and no reference of its o
 (``replay.why_not_bit_exact``, per framework; on an AVX2 host, the PyTorch cases), the test says why
 and compares the first 5 episodes only, to float rounding (``agree``): counts exactly, every other
 number within a relative 1e-4.
+
+PyTorch's own bits follow the CPU's vendor too, and the emulator cannot make them (it computes the
+approximate square-root reciprocal that MKL's square root refines exactly). So every host also
+reruns the PyTorch cases under PyTorch's portable arithmetic (``KERAS_RL_PORTABLE_TORCH=1``) against
+one set of references made under it (``tests/replay_references/portable-torch``): whole and bit for
+bit, on any CPU with AVX2, an AVX2 host's full PyTorch replay.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 import warnings
@@ -36,12 +43,13 @@ import pytest
 from keras_rl.runs.provenance import cpu_isa, cpu_model
 from keras_rl.runs.replay import seed_rows, why_not_bit_exact
 from keras_rl.runs.run_set import RunSet
-from maintainers.replay_references import CASES, REFERENCES, VALIDATED, Case
+from maintainers.replay_references import CASES, PORTABLE_SET, REFERENCES, VALIDATED, Case, reference_rows, set_env
 
 pytestmark = pytest.mark.slow  # every test here trains whole runs
 
 RESULTS = Path(__file__).resolve().parent.parent / "results"
 CASE_PARAMS = [pytest.param(case, id=case.id) for case in CASES]
+TORCH_CASES = [pytest.param(case, id=case.id) for case in CASES if case.framework == "torch"]
 
 
 def host_reference(folder: str) -> Path | None:
@@ -50,7 +58,7 @@ def host_reference(folder: str) -> Path | None:
     for host in sorted(REFERENCES.glob("*/host.json")):
         made_on = json.loads(host.read_text())
         rows = host.parent / folder / "episodes.csv"
-        if (made_on["cpu_model"], made_on["cpu_isa"]) == (cpu_model(), cpu_isa()) and rows.is_file():
+        if (made_on.get("cpu_model"), made_on.get("cpu_isa")) == (cpu_model(), cpu_isa()) and rows.is_file():
             return rows
     return None
 
@@ -119,7 +127,12 @@ def test_committed_runs_reproduce_bit_for_bit(tmp_path, case: Case):
     if why is not None and None in references:
         warnings.warn(
             f"{case.folder} was {why} and no reference of this host is kept: TensorFlow does not promise "
-            "bit-exactness across CPUs, so only the first 5 episodes are compared, to float rounding",
+            "bit-exactness across CPUs, so only the first 5 episodes are compared, to float rounding"
+            + (
+                " (whole and bit for bit under the portable arithmetic: the test after this one)"
+                if case.framework == "torch"
+                else ""
+            ),
             stacklevel=2,
         )
         episodes, references = 5, [None] * len(references)
@@ -136,6 +149,30 @@ def test_committed_runs_reproduce_bit_for_bit(tmp_path, case: Case):
         exact = why is None or reference is not None
         for want, have in zip(expected, got):
             assert agree(want, have, exact), f"{folder}: first difference at episode {want['episode']}"
+
+
+@pytest.mark.parametrize("case", TORCH_CASES)
+def test_pytorch_cases_replay_whole_and_bit_for_bit_under_the_portable_arithmetic_on_every_host(tmp_path, case: Case):
+    """Each PyTorch case rerun under ``KERAS_RL_PORTABLE_TORCH=1`` (MKL's reproducible branch, ATen's
+    AVX2 kernels, torch.optim's fused steps: ``keras_rl.torch.portable_arithmetic``) gives the references
+    made under it (``tests/replay_references/portable-torch``), whole and bit for bit, on any CPU with
+    AVX2. Its run executes no instruction whose bits are the silicon's own under an emulated Intel or
+    AMD CPU, and gives those bits there too (``emulation-<CPU>.md``); so an AVX2 host, which keeps no
+    PyTorch reference of its own, replays PyTorch whole here, and every other host checks that the
+    arithmetic still travels."""
+    pytest.importorskip("torch", reason="needs the torch extra")
+    out = tmp_path / "run"
+    env = {**os.environ, **set_env(PORTABLE_SET)}
+    proc = subprocess.run(case.command(out), capture_output=True, text=True, timeout=900, env=env)
+    assert proc.returncode in (0, 1), proc.stderr
+    for folder in case.seed_folders():
+        expected = read_rows(reference_rows(PORTABLE_SET, folder))
+        got = read_rows(out / Path(folder).name / "episodes.csv")
+        assert len(got) == len(expected) == case.episodes, folder
+        for want, have in zip(expected, got):
+            assert have == want, f"{folder}: first difference at episode {want['episode']}"
+        summary = json.loads((out / Path(folder).name / "summary.json").read_text())
+        assert summary["provenance"]["portable_torch"]["optimizer_step"] == "fused"
 
 
 def test_a_host_without_avx512_replays_every_keras_case_against_its_own_references_in_full(monkeypatch):

@@ -1,6 +1,6 @@
 """``python -m maintainers replay-references``: the replay cases' commands, and its bad input (exit 2,
 nothing written). The emulated runs themselves are slow and need qemu; their results are committed
-(``tests/replay_references/avx2/emulation.md``, ``host.json``) and replayed by
+(``tests/replay_references/avx2/emulation-EPYC-Rome.md``, ``host.json``) and replayed by
 ``tests/test_committed_runs_replay.py``."""
 
 from __future__ import annotations
@@ -64,6 +64,9 @@ def test_every_case_names_committed_seeds():
         (["make", "--reference-set", "../elsewhere"], "--reference-set names one folder under"),
         (["probe", "--cases", "post003-seed0-first60"], "name its CPU with --emulate"),
         (["make"], "reference set 'avx2' is not this host's"),  # made natively on a CPU of its own
+        (["make", "--emulate", "Haswell", "--reference-set", "portable-torch"], "set is made natively"),
+        (["make", "--reference-set", "portable-torch", "--trace"], "--trace counts the instructions"),
+        (["probe", "--emulate", "Haswell", "--cases", "post003-seed0-first60", "--trace"], "check --emulate's"),
     ],
 )
 def test_bad_input_exits_2_with_the_problem_named_before_the_emulator_is_sought(monkeypatch, capsys, argv, message):
@@ -96,7 +99,7 @@ def test_the_emulated_references_are_recorded_with_how_they_were_made():
         assert folder in made and rr.reference_rows("avx2", folder).is_file()
         assert record["command"].startswith("python -m maintainers replay-references make --emulate ")
         assert "-cpu " in record["how"] and " at commit " in record["made"] and "keras_rl tree" in record["made"]
-    checked = (rr.REFERENCES / "avx2" / "emulation.md").read_text()
+    checked = (rr.REFERENCES / "avx2" / "emulation-EPYC-Rome.md").read_text()
     assert checked.count("the same bits") == 3 and "differs" in checked  # the emulator is the AVX2 host
 
 
@@ -158,3 +161,32 @@ def test_a_native_make_keeps_a_reference_only_where_the_replay_test_would_read_i
             == f"python -m maintainers replay-references make --reference-set here --cases {case.id}"
         )
         assert (host["cpu_model"], host["cpu_isa"]) == (rr.this_host()["cpu_model"], rr._isa())
+
+
+def test_the_trace_counts_the_approximate_instructions_a_run_executes(tmp_path, monkeypatch):
+    """QEMU's ``-d in_asm`` log, read through a pipe as it is written, over more than one read; and a
+    run that dies before opening its log does not leave the reader waiting."""
+    import collections
+
+    lines = ["0x4011c0:  vrsqrtps %ymm1, %ymm0", "0x4011c4:  vmulps %ymm0, %ymm1, %ymm2", "0x4011c8:  frsqrtx"]
+    lines += ["0x4011d0:  rcpss %xmm0, %xmm1", "0x4011d4:  fsincos", "0x4011d8:  vfmadd231ps %ymm1, %ymm2, %ymm3"]
+    writer = (
+        "import sys; log = open(sys.argv[1], 'w'); "
+        "[log.write('0x%x:  vsqrtps %%ymm0, %%ymm1\\n0x%x:  rsqrtss %%xmm0, %%xmm1\\n' % (i, i)) "
+        "for i in range(60000)]; "
+        f"log.write({chr(10).join(lines)!r}); log.close()"
+    )
+
+    def command(self, out, episodes=None, prefix=()):
+        return [sys.executable, "-c", writer, prefix[prefix.index("-D") + 1]]
+
+    monkeypatch.setattr(rr.Case, "command", command)
+    case = by_id("post003-torch-seed0-first200")
+    counts: collections.Counter = collections.Counter()
+    rr.rerun(case, ("qemu-x86_64",), 1, tmp_path / "logged", None, counts)
+    assert counts == {"rsqrtss": 60000, "vrsqrtps": 1, "rcpss": 1, "fsincos": 1}
+    assert rr.approximate_shown(collections.Counter(fsincos=1, rcpss=2)) == "`fsincos` in 1 block, `rcpss` in 2 blocks"
+    monkeypatch.setattr(rr.Case, "command", lambda self, out, episodes=None, prefix=(): [sys.executable, "-c", ""])
+    quiet: collections.Counter = collections.Counter()
+    rr.rerun(case, ("qemu-x86_64",), 1, tmp_path / "silent", None, quiet)
+    assert rr.approximate_shown(quiet) == "none"

@@ -309,7 +309,7 @@ COMMAND_HELP: dict[str, dict[str, str]] = {
     },
     "replay-references": {
         "--episodes": "the episodes of each case rerun against its reference or natively (default 10; not with make)",
-        "--write": "save the report of the references rerun as <set>/emulation.md (default: print it)",
+        "--write": "save the report of the references rerun as <set>/emulation-<CPU>.md (default: print it)",
     },
 }
 """What a shared flag means in one command, where that is more than ``FLAGS`` says."""

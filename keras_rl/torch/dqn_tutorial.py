@@ -33,7 +33,8 @@ import numpy as np
 
 from keras_rl.agents.skeleton import EpisodeStats, LossTally
 from keras_rl.envs import EnvSpec
-from keras_rl.torch import load_state, require_torch, save_state, single_threaded
+from keras_rl.torch import load_state, portable_arithmetic, require_torch, save_state, single_threaded
+from keras_rl.torch.optimizers import load_optimizer_state
 
 require_torch()  # a clear error, naming the extra, when torch is missing
 import torch  # noqa: E402
@@ -238,7 +239,8 @@ class TutorialDQNAgent:
             amsgrad=c.amsgrad,
             weight_decay=c.weight_decay,
             eps=c.adam_eps,
-            foreach=None if as_written else True,
+            foreach=None if as_written or portable_arithmetic() else True,
+            fused=portable_arithmetic() or None,
         )
         self._targets = list(self.target_net.parameters())
         self._policies = list(self.policy_net.parameters())
@@ -352,7 +354,7 @@ class TutorialDQNAgent:
     def load_state_dict(self, state: dict) -> None:
         self.policy_net.load_state_dict(state["policy_net"])
         self.target_net.load_state_dict(state["target_net"])
-        self.optimizer.load_state_dict(state["optimizer"])
+        load_optimizer_state(self.optimizer, state["optimizer"])
         self.random.setstate(state["random"])
         self.memory.restore(state["memory"])
         self.steps_done, self.tally.total_updates = int(state["steps_done"]), int(state["total_updates"])

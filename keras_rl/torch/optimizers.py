@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import math
 
-from keras_rl.torch import require_torch
+from keras_rl.errors import ConfigError
+from keras_rl.torch import PORTABLE_SWITCH, portable_arithmetic, require_torch
 
 require_torch()  # a clear error, naming the extra, when torch is missing
 import torch  # noqa: E402
@@ -27,7 +28,7 @@ class KerasAdam(torch.optim.Adam):
     def __init__(self, params, lr: float, epsilon: float = 1e-7, betas=(0.9, 0.999)):
         if not lr > 0:
             raise ValueError(f"learning rate must be positive, got {lr}")
-        super().__init__(params, lr=lr, betas=betas, eps=epsilon)
+        super().__init__(params, lr=lr, betas=betas, eps=epsilon, fused=portable_arithmetic() or None)
         self.epsilon = float(epsilon)
         self.iterations = 0
 
@@ -37,6 +38,30 @@ class KerasAdam(torch.optim.Adam):
         for group in self.param_groups:
             group["eps"] = self.epsilon / math.sqrt(1.0 - group["betas"][1] ** self.iterations)
         return super().step(closure)
+
+
+def load_optimizer_state(optimizer, state: dict) -> None:
+    """``optimizer.load_state_dict(state)``, refused (a ConfigError, the optimizer untouched) where
+    the checkpoint's step and this process's arithmetic differ: a run resumed across
+    ``KERAS_RL_PORTABLE_TORCH`` would mix the two (``portable_arithmetic``)."""
+    fused = {bool(group.get("fused")) for group in state["param_groups"]}
+    if fused != {portable_arithmetic()}:
+        made = "with" if True in fused else "without"
+        raise ConfigError(
+            f"this checkpoint was made {made} the portable arithmetic ({PORTABLE_SWITCH}=1): "
+            f"resume it {made} {PORTABLE_SWITCH}=1"
+        )
+    optimizer.load_state_dict(state)
+
+
+def not_portable(engine: str) -> None:
+    """A ConfigError where ``KERAS_RL_PORTABLE_TORCH=1`` asks ``engine`` (whose hand-written
+    optimizer steps take torch's square root) for the portable arithmetic it does not have."""
+    if portable_arithmetic():
+        raise ConfigError(
+            f"{PORTABLE_SWITCH}=1 covers the Gymnasium loop's torch.optim steps; the {engine} writes its "
+            f"own optimizer step, whose square root follows the CPU: unset {PORTABLE_SWITCH}"
+        )
 
 
 def keep_where(mask, like):

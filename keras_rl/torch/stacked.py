@@ -25,7 +25,7 @@ from keras_rl.envs import EnvSpec
 from keras_rl.errors import ConfigError
 from keras_rl.torch import require_torch, save_state
 from keras_rl.torch.ddpg import TorchDDPGLearner, post000_learner, post001_learner
-from keras_rl.torch.optimizers import SeedKerasAdam, keep_where
+from keras_rl.torch.optimizers import SeedKerasAdam, keep_where, not_portable
 
 require_torch()  # a clear error, naming the extra, when torch is missing
 import torch  # noqa: E402
@@ -66,6 +66,7 @@ class StackedTorchDDPGLearner(TorchDDPGLearner):
     """``train(rows, mask)``: the loop may train some seeds and not others on one call."""
 
     def __init__(self, solos: Sequence[tuple], *, actor_lr: float, critic_lr: float, **kwargs):
+        not_portable("seed-batched PyTorch DDPG")
         self.seeds = len(solos)
         nets = [Vmapped([s[i] for s in solos]) for i in range(4)]
         super().__init__(*nets, actor_lr=actor_lr, critic_lr=critic_lr, **kwargs)

@@ -40,6 +40,7 @@ from torch.func import functional_call, grad_and_value, stack_module_state, vmap
 from keras_rl.torch import save_state
 from keras_rl.torch.dqn_tutorial import DQN
 from keras_rl.torch.envs import MAX_STEPS, CartPole
+from keras_rl.torch.optimizers import not_portable
 
 F = nn.functional
 
@@ -199,6 +200,7 @@ class VectorisedDQN:
         cuda_graph: bool = False,
         chunk: int = 1,
     ):
+        not_portable("vectorised engine")
         c = self.config = configs[0]
         others = {k: v for k, v in c.to_dict().items() if k != "seed"}
         for other in configs[1:]:

@@ -47,6 +47,11 @@ class SeedRecords:
             "started_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         }
         self.versions = library_versions(config.framework)
+        if config.framework == "torch":
+            from keras_rl.torch import PORTABLE_CAPS, portable_arithmetic
+
+            if portable_arithmetic():  # what the replay tests use where a host has no reference of its own
+                self.provenance["portable_torch"] = {**PORTABLE_CAPS, "optimizer_step": "fused"}
         self.reached_at: int | None = None
         self.total_steps = 0
 
