@@ -210,7 +210,7 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--trace",
         action="store_true",
-        help="check: count the approximate instructions (rcp, rsqrt, x87 transcendentals) each rerun executes "
+        help="check, probe: count the approximate instructions (rcp, rsqrt, x87 transcendentals) each rerun executes "
         "under the emulator, which QEMU computes exactly and silicon does not",
     )
     p.add_argument("--cases", nargs="+", metavar="ID", help="only these cases (default: every case)")

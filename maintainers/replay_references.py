@@ -415,12 +415,14 @@ def probe(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list
     lines = [
         f"Set on both: {_shown(both)}; natively only: {_shown(native)}; `-cpu {args.emulate}` ({emulator_version()}).",
         "",
-        "| case | seed | episodes | emulated against native | emulated against committed | native against committed |",
-        "|---|---|---|---|---|---|",
+        "| case | seed | episodes | emulated against native | emulated against committed | native against committed |"
+        + (" approximate instructions executed under the emulator |" if args.trace else ""),
+        "|---|---|---|---|---|---|" + ("---|" if args.trace else ""),
     ]
     for case in _chosen(args):
         ran, _ = rerun(case, (), args.episodes, work / "native", {**both, **native})
-        emulated_out, seconds = rerun(case, prefix, args.episodes, work / "emulated", both)
+        counts: collections.Counter | None = collections.Counter() if args.trace else None
+        emulated_out, seconds = rerun(case, prefix, args.episodes, work / "emulated", both, counts)
         print(f"{case.id}: {seconds:.0f} s under the emulator", file=sys.stderr)
         for folder in case.seed_folders():
             name = Path(folder).name
@@ -429,6 +431,7 @@ def probe(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list
             lines.append(
                 f"| {case.id} | {name} | {len(here)} | {_first_difference(here, there)} | "
                 f"{_first_difference(committed, there)} | {_first_difference(committed, here)} |"
+                + (f" {approximate_shown(counts)} |" if counts is not None else "")
             )
     return lines
 
@@ -465,8 +468,8 @@ def run(args: argparse.Namespace) -> int:
         raise KerasRLError(f"--reference-set names one folder under {REFERENCES}, not {args.reference_set!r}")
     if args.reference_set == PORTABLE_SET and args.action == "make" and args.emulate:
         raise KerasRLError(f"the {PORTABLE_SET} set is made natively (one set for every host); check it with --emulate")
-    if args.trace and (args.action != "check" or args.emulate is None):
-        raise KerasRLError("--trace counts the instructions a run executes under the emulator: check --emulate's")
+    if args.trace and (args.action == "make" or args.emulate is None):
+        raise KerasRLError("--trace counts the instructions a run executes under the emulator: check's and probe's")
     native = args.action == "make" and args.emulate is None
     if args.emulate is None and not native:
         raise KerasRLError(f"{args.action} compares a run under the emulator: name its CPU with --emulate")

@@ -238,3 +238,27 @@ def test_an_intel_xeon_with_avx512_replays_keras_as_committed_and_pytorch_agains
             assert reference is not None and folder in made_on["references"], folder
             assert case.episodes is not None, case.id
             assert_a_kept_reference(folder, reference, case.episodes)
+
+
+def test_the_portable_set_holds_every_pytorch_case_whole_checked_under_an_emulated_intel_and_amd_cpu():
+    """``tests/replay_references/portable-torch``: made under the switch's caps, a reference for every
+    seed of every PyTorch case, as long as the case reruns, with the committed config, different from
+    the committed run (another arithmetic); and each emulated CPU's report (``check --trace``) gives
+    those bits for every case while its runs execute no instruction whose bits are the silicon's own."""
+    from keras_rl.torch import PORTABLE_CAPS, PORTABLE_SWITCH
+
+    host = json.loads((REFERENCES / PORTABLE_SET / "host.json").read_text())
+    assert host["portable"] == {"switch": f"{PORTABLE_SWITCH}=1", "sets": PORTABLE_CAPS, "optimizer_step": "fused"}
+    torch_cases = [case for case in CASES if case.framework == "torch"]
+    folders = {folder for case in torch_cases for folder in case.seed_folders()}
+    assert set(host["references"]) == folders
+    for case in torch_cases:
+        assert case.episodes is not None, case.id
+        for folder in case.seed_folders():
+            assert_a_kept_reference(folder, reference_rows(PORTABLE_SET, folder), case.episodes)
+    for cpu, vendor in (("Haswell", "Intel"), ("EPYC-Rome", "AMD")):
+        report = (REFERENCES / PORTABLE_SET / f"emulation-{cpu}.md").read_text()
+        rows = [line.split(" | ") for line in report.splitlines() if line.startswith("| post")]
+        assert len(rows) == len(folders), (cpu, vendor)
+        for row in rows:
+            assert row[3].startswith("the same bits") and row[-1] == "none |", (cpu, row)

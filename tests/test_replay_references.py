@@ -66,7 +66,7 @@ def test_every_case_names_committed_seeds():
         (["make"], "reference set 'avx2' is not this host's"),  # made natively on a CPU of its own
         (["make", "--emulate", "Haswell", "--reference-set", "portable-torch"], "set is made natively"),
         (["make", "--reference-set", "portable-torch", "--trace"], "--trace counts the instructions"),
-        (["probe", "--emulate", "Haswell", "--cases", "post003-seed0-first60", "--trace"], "check --emulate's"),
+        (["make", "--emulate", "Haswell", "--trace"], "check's and probe's"),
     ],
 )
 def test_bad_input_exits_2_with_the_problem_named_before_the_emulator_is_sought(monkeypatch, capsys, argv, message):
