@@ -1019,3 +1019,25 @@ def test_a_claim_fails_when_its_number_is_wrong():
     where, fragment, values = CLAIMS[0]
     wrong = [v + 1 if isinstance(v, int) else v for v in values()]
     assert fragment.format(*wrong) not in page(where)
+
+
+def test_the_tables_on_bits_that_are_the_chips_are_rows_their_commands_printed():
+    """``docs/performance.md``'s tables on torch's square root, the traces and the portable references
+    are rows printed by ``benchmarks/approximate_bits.py`` and ``python -m maintainers replay-references``
+    (``check --trace``, ``probe --trace``), as committed under ``tests/replay_references``; a table with
+    a CPU column names the report (``emulation-<CPU>.md``) its row comes from."""
+    text = (ROOT / "docs" / "performance.md").read_text()
+    start = text.index("### Why: an instruction whose bits are the chip's")
+    section = text[start : text.index("\n## ", start)]
+    references = ROOT / "tests" / "replay_references"
+    printed = "\n".join(p.read_text() for p in sorted(references.glob("*/*.md")))
+    rows = [line for line in section.splitlines() if line.startswith("| ") and "---" not in line]
+    rows = [row for row in rows if not row.startswith(("| vendor |", "| case |", "| CPU |"))]
+    assert len(rows) >= 10
+    for row in rows:
+        cpu, _, rest = row[2:].partition(" | ")
+        report = references / "portable-torch" / f"emulation-{cpu}.md"
+        if report.is_file():
+            assert f"| {rest}" in report.read_text().splitlines(), row
+        else:
+            assert row in printed.splitlines(), row
