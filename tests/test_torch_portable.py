@@ -114,17 +114,24 @@ def test_the_tutorials_adamw_takes_the_fused_step_under_the_switch(monkeypatch):
 
 @pytest.mark.parametrize("made_fused", [False, True])
 def test_a_checkpoint_resumes_only_under_the_arithmetic_it_was_made_with(monkeypatch, made_fused):
-    """A run resumed across the switch would mix two arithmetics: refused, the optimizer untouched."""
-    monkeypatch.setattr(optimizers, "portable_arithmetic", lambda: made_fused)
-    net = torch.nn.Linear(2, 2)
-    state = optimizers.KerasAdam(net.parameters(), lr=1e-3).state_dict()
-    optimizers.load_optimizer_state(optimizers.KerasAdam(net.parameters(), lr=1e-3), state)  # the same: fine
-    monkeypatch.setattr(optimizers, "portable_arithmetic", lambda: not made_fused)
-    resumed = optimizers.KerasAdam(net.parameters(), lr=2e-3)
+    """A run resumed across the switch would mix two arithmetics: refused before the learner loads
+    anything (its network keeps its weights)."""
+    spec_env = gym.make("CartPole-v1")
+    spec = discrete_spec(spec_env, "post 003")
+
+    def agent(portable: bool, seed: int):
+        for module in (dqn_tutorial, optimizers):
+            monkeypatch.setattr(module, "portable_arithmetic", lambda: portable)
+        return dqn_tutorial.TutorialDQNAgent(CartPoleDQNConfig(seed=seed), spec, None)
+
+    state = agent(made_fused, 0).state_dict()
+    agent(made_fused, 1).load_state_dict(state)  # the same arithmetic: fine
+    resumed = agent(not made_fused, 1)
+    before = [p.detach().clone() for p in resumed.policy_net.parameters()]
     made = "with" if made_fused else "without"
     with pytest.raises(ConfigError, match=f"made {made} the portable arithmetic"):
-        optimizers.load_optimizer_state(resumed, state)
-    assert resumed.param_groups[0]["lr"] == 2e-3
+        resumed.load_state_dict(state)
+    assert all(torch.equal(a, b) for a, b in zip(before, resumed.policy_net.parameters(), strict=True))
 
 
 def test_engines_that_write_their_own_step_refuse_the_switch(monkeypatch):

@@ -35,7 +35,7 @@ from keras_rl.envs import EnvSpec
 from keras_rl.learners.protocol import ActorGradient, check_actor_gradient, four_networks
 from keras_rl.torch import load_state, require_torch, save_state, single_threaded
 from keras_rl.torch.networks import Actor, Critic, MountainCarActor, MountainCarCritic
-from keras_rl.torch.optimizers import KerasAdam, SeedKerasAdam, load_optimizer_state
+from keras_rl.torch.optimizers import KerasAdam, SeedKerasAdam, check_same_arithmetic
 from keras_rl.torch.weights import hard_copy, match_keras, soft_update, variables
 
 require_torch()  # a clear error, naming the extra, when torch is missing
@@ -113,10 +113,11 @@ class TorchDDPGLearner:
         }
 
     def load_state_dict(self, state: dict) -> None:
+        check_same_arithmetic(*state["optimizers"].values())
         for name, values in state["nets"].items():
             getattr(self, name).load_state_dict(values)
         for name, values in state["optimizers"].items():
-            load_optimizer_state(getattr(self, name), values)
+            getattr(self, name).load_state_dict(values)
             getattr(self, name).iterations = int(state["iterations"][name])
         torch.set_rng_state(state["torch_rng"])
 

@@ -34,7 +34,7 @@ import numpy as np
 from keras_rl.agents.skeleton import EpisodeStats, LossTally
 from keras_rl.envs import EnvSpec
 from keras_rl.torch import load_state, portable_arithmetic, require_torch, save_state, single_threaded
-from keras_rl.torch.optimizers import load_optimizer_state
+from keras_rl.torch.optimizers import check_same_arithmetic
 
 require_torch()  # a clear error, naming the extra, when torch is missing
 import torch  # noqa: E402
@@ -352,9 +352,10 @@ class TutorialDQNAgent:
         }
 
     def load_state_dict(self, state: dict) -> None:
+        check_same_arithmetic(state["optimizer"])
         self.policy_net.load_state_dict(state["policy_net"])
         self.target_net.load_state_dict(state["target_net"])
-        load_optimizer_state(self.optimizer, state["optimizer"])
+        self.optimizer.load_state_dict(state["optimizer"])
         self.random.setstate(state["random"])
         self.memory.restore(state["memory"])
         self.steps_done, self.tally.total_updates = int(state["steps_done"]), int(state["total_updates"])

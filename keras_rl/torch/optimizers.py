@@ -40,18 +40,17 @@ class KerasAdam(torch.optim.Adam):
         return super().step(closure)
 
 
-def load_optimizer_state(optimizer, state: dict) -> None:
-    """``optimizer.load_state_dict(state)``, refused (a ConfigError, the optimizer untouched) where
-    the checkpoint's step and this process's arithmetic differ: a run resumed across
-    ``KERAS_RL_PORTABLE_TORCH`` would mix the two (``portable_arithmetic``)."""
-    fused = {bool(group.get("fused")) for group in state["param_groups"]}
+def check_same_arithmetic(*states: dict) -> None:
+    """A ConfigError where a checkpoint's optimizer ``states`` were made under another arithmetic than
+    this process's: a run resumed across ``KERAS_RL_PORTABLE_TORCH`` would mix the two
+    (``portable_arithmetic``). A learner asks before it loads anything."""
+    fused = {bool(group.get("fused")) for state in states for group in state["param_groups"]}
     if fused != {portable_arithmetic()}:
         made = "with" if True in fused else "without"
         raise ConfigError(
             f"this checkpoint was made {made} the portable arithmetic ({PORTABLE_SWITCH}=1): "
             f"resume it {made} {PORTABLE_SWITCH}=1"
         )
-    optimizer.load_state_dict(state)
 
 
 def not_portable(engine: str) -> None:
