@@ -30,7 +30,8 @@ committed run. The emulator is no test dependency: the tests read the references
 
 The emulator computes every instruction as silicon does but the few whose bits the x86 manuals leave
 to the chip (``APPROXIMATE``: the approximate reciprocal and reciprocal square root, x87's
-transcendentals), which it computes exactly. ``check --trace`` counts those a rerun executes. PyTorch's
+transcendentals), which it computes exactly. ``check --trace`` and ``probe --trace`` count those a rerun
+executes (``avx2/traced.md``). PyTorch's
 float32 square root (MKL's vector math, in Adam's denominator) refines ``rsqrtps``, so no PyTorch
 reference is made under the emulator. The PyTorch cases keep one set for every host instead,
 ``portable-torch``, made natively under PyTorch's portable arithmetic (``KERAS_RL_PORTABLE_TORCH=1``,
@@ -64,7 +65,7 @@ VALIDATED = ("keras",)
 """The frameworks whose runs ``check`` found the emulator to reproduce as a real AVX2 host does.
 Under ``-cpu EPYC-Rome`` PyTorch's post 000 parts at episode 5 from a run on an AMD EPYC with its
 kernels capped to AVX2 (which gives the committed bits). The cause, traced on an Intel Xeon
-(``check --trace``): torch's float32 ``sqrt`` is MKL's vector math, which refines the approximate
+(``probe --trace``, ``avx2/traced.md``): torch's float32 ``sqrt`` is MKL's vector math, which refines the approximate
 ``rsqrtps``; QEMU computes that exactly, and each vendor's silicon its own way. So no PyTorch
 reference is made under the emulator; the PyTorch cases replay whole under the portable arithmetic
 (``PORTABLE_SET``), and ``make`` without ``--emulate`` on an AMD AVX2 host would make their native ones."""
