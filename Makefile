@@ -18,9 +18,10 @@ install: $(BIN)/python
 install-test: $(BIN)/python
 	$(BIN)/pip install --quiet -c constraints.txt -e ".[test,torch,ray]"
 
-## The main reproduction: post 000's faithful DDPG on Pendulum-v1 to EMA > -300.
+## The main reproduction: post 000's faithful DDPG on Pendulum-v1 to EMA > -300. It writes under runs/
+## (gitignored), never results/: results/ holds only committed evidence, which the suite reads.
 reproduce: install
-	$(BIN)/keras-rl reproduce pendulum --variant faithful --seeds $(SEED) --out results/make-reproduce --overwrite
+	$(BIN)/keras-rl reproduce pendulum --variant faithful --seeds $(SEED) --out runs/make-reproduce --overwrite
 
 ## The whole suite: lint, then every test (slow training checks included) in two processes.
 test: install-test lint

@@ -91,6 +91,14 @@ def add_parser(sub) -> None:
     )
     p = _what(
         inner,
+        "twins",
+        "maintainers.calibrate.twins",
+        "the twin check: post 000's n chosen on the tuning mutants, false alarms on real arithmetic changes and "
+        "power against held-out mutants on twin seeds (keras_rl/check/twins.json, results/checks/twins.md)",
+        "--write",
+    )
+    p = _what(
+        inner,
         "real",
         "maintainers.calibrate.real",
         "the sensitive tier on real runs no baseline holds: false alarms and power over disjoint real checks, "

@@ -35,16 +35,34 @@ from keras_rl.errors import ConfigError
 from keras_rl.runs.run_set import RunSet, SeedRun
 
 RESULTS = ROOT / "results"
-NOT_COMMITTED = ("make-reproduce",)  # `make reproduce` writes here; .gitignore keeps it out of results/
+
+
+def tracked_folders(results: Path = RESULTS) -> set[Path]:
+    """Every folder under ``results`` that holds a file git tracks: the committed evidence. A run
+    someone left there (live seed folders of their own) is not evidence, and is never read as it."""
+    listed = subprocess.run(
+        ["git", "ls-files", "-z", "--", "."], cwd=results, capture_output=True, text=True, check=False
+    )
+    if listed.returncode != 0:
+        raise ConfigError(
+            f"{results} is not in a git checkout ({listed.stderr.strip()}): committed sets are what git tracks"
+        )
+    return {(results / name).parent for name in listed.stdout.split("\0") if name}
+
+
+def committed_sets(results: Path = RESULTS) -> list[RunSet]:
+    """The run sets under ``results`` that git tracks (packed, or seed folders committed as such)."""
+    folders = tracked_folders(results)
+    return [
+        run_set
+        for run_set in RunSet.find(results)
+        if run_set.folder in folders or any(seed in folders for seed in run_set.seed_dirs())
+    ]
 
 
 def find_sets(results: Path = RESULTS) -> dict[str, list[SeedRun]]:
-    """Set (its path under results/) -> its seeds, in seed order."""
-    sets = {
-        run_set.folder.relative_to(results).as_posix(): run_set.runs()
-        for run_set in RunSet.find(results)
-        if run_set.folder.relative_to(results).parts[0] not in NOT_COMMITTED
-    }
+    """Set (its path under results/) -> its seeds, in seed order: the sets git tracks."""
+    sets = {run_set.folder.relative_to(results).as_posix(): run_set.runs() for run_set in committed_sets(results)}
     return dict(sorted(sets.items()))
 
 

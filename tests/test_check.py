@@ -100,7 +100,11 @@ def test_every_rule_is_well_formed_and_every_post_has_five_mutants_some_gross():
     for (name, _tier), rule in RULES.items():
         experiment = get_experiment(name)
         assert rule.statistic in rule.candidates and rule.alpha in (0.01, 0.005)
-        assert not set(rule.seed_list()) & set(range(30)), "fresh seeds must not be the baseline's"
+        if rule.twins:  # twins are the baseline's own seeds; its unpaired fallback's never are
+            assert rule.seed_list() == list(range(rule.seeds)) and rule.bits_seeds < rule.seeds
+            assert not set(rule.unpaired().seed_list()) & set(range(200))
+        else:
+            assert not set(rule.seed_list()) & set(range(30)), "fresh seeds must not be the baseline's"
         experiment.config_cls.for_variant("faithful", episodes=rule.episodes)  # a valid budget
     for name, mutants in MUTANTS.items():
         assert len(mutants) >= 5 and any(m.gross for m in mutants) and any(not m.gross for m in mutants)
@@ -712,10 +716,12 @@ def test_the_smallest_delay_is_searched_only_where_the_delayed_metric_is_defined
 def test_the_packaged_baselines_are_the_committed_ones():
     """The check's baselines travel as package data (``keras_rl/check/baselines``): byte for
     byte the committed packed sets, so an installed package checks against what a checkout does."""
+    from keras_rl.check.rules import RULES
+
     root = Path(__file__).resolve().parents[1]
-    for post in ("pendulum", "cartpole", "mountaincar"):
-        packaged = command.PACKAGED_BASELINES / post / "baseline" / "runs.parquet"
-        committed = root / "results" / "checks" / post / "baseline" / "runs.parquet"
+    for post, folder in sorted({(rule.experiment, rule.baseline) for rule in RULES.values()}):
+        packaged = command.PACKAGED_BASELINES / post / folder / "runs.parquet"
+        committed = root / "results" / "checks" / post / folder / "runs.parquet"
         assert packaged.read_bytes() == committed.read_bytes(), (
             f"{packaged} is stale: cp {committed.relative_to(root)} {packaged.relative_to(root)}"
         )
@@ -829,9 +835,9 @@ def test_a_consistent_verdict_says_what_its_tier_can_see_and_which_tier_sees_sma
     smoke = what_it_sees(rule_for("pendulum", "smoke"))
     power = error_rates(rule_for("pendulum", "smoke"))["power_all"]
     assert smoke.startswith(f"the smoke tier sees gross breakage (power {power:.0%} over the mutants")
-    shift = json.loads(command.SENSITIVE_RATES.read_text())["posts"]["pendulum"]["rates"]["shift_power"]
-    power = f"power {shift['x0.90']:.0%} / {shift['x1.10']:.0%} against a median 10% lower / higher"
-    assert f"is the sensitive tier's (--tier sensitive; {power}" in smoke
+    twins = error_rates(rule_for("pendulum", "sensitive"))
+    assert twins is not None and "false_alarms" in twins  # the sensitive tier's twins.json entry
+    assert "is the sensitive tier's (--tier sensitive; twins" in smoke and smoke.endswith("(twins.json))")
     assert "--tier sensitive" not in what_it_sees(rule_for("pendulum", "sensitive"))
 
 

@@ -125,8 +125,42 @@ def test_a_packed_seed_is_never_rewritten_and_the_command_says_so(tmp_path, caps
 
 
 def test_every_committed_set_is_packed():
-    """results/ commits run sets packed; live seed folders stay out of it."""
-    sets = list(RunSet.find(RESULTS))
+    """results/ commits run sets packed; live seed folders stay out of it. Committed means what git
+    tracks: a run someone left under results/ is theirs, not evidence (issue 72 item 1)."""
+    from maintainers.manifest import committed_sets
+
+    sets = committed_sets(RESULTS)
     assert len(sets) > 90
     assert [s.folder for s in sets if s.seed_dirs()] == []
     assert all(s.packed() is not None for s in sets)
+
+
+def test_committed_sets_are_what_git_tracks(tmp_path):
+    """A live set beside the committed ones (``make reproduce``'s, before issue 72 moved it to runs/)
+    is not read as committed; a committed set is, packed or as seed folders."""
+    import subprocess
+
+    from maintainers.manifest import committed_sets
+
+    results = tmp_path / "results"
+    copy_seeds(RESULTS / "pendulum/faithful", results / "committed-folders", lambda s: s == 0)
+    pack_source = copy_seeds(RESULTS / "pendulum/faithful", results / "committed-packed", lambda s: s in (0, 1))
+    pack(pack_source)
+    copy_seeds(RESULTS / "pendulum/faithful", results / "live", lambda s: s == 2)
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(tmp_path)]
+    subprocess.run([*git, "init", "-q"], check=True)
+    subprocess.run([*git, "add", "results/committed-folders", "results/committed-packed"], check=True)
+    subprocess.run([*git, "commit", "-qm", "sets"], check=True)
+    found = sorted(s.folder.name for s in committed_sets(results))
+    assert found == ["committed-folders", "committed-packed"]
+
+
+def test_make_reproduce_writes_outside_results():
+    """The README's first command must not leave a live set where the suite reads committed evidence
+    (``make reproduce && make test`` failed on results/make-reproduce/, issue 72 item 1)."""
+    import subprocess
+
+    plan = subprocess.run(["make", "-n", "reproduce"], cwd=RESULTS.parent, capture_output=True, text=True, check=True)
+    line = next(line for line in plan.stdout.splitlines() if "keras-rl reproduce" in line)
+    out = Path(line.split("--out", 1)[1].split()[0])
+    assert out.parts[0] != "results", line

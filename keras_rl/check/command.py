@@ -37,6 +37,7 @@ from keras_rl.check.statistics import (
     Decision,
     command_false_alarm_rate,
     decide,
+    decide_paired,
     family_false_alarm_rate,
     holm_adjusted,
     seed_statistic,
@@ -52,6 +53,8 @@ CALIBRATION = Path(__file__).with_name("calibration.json")
 """The measured error rates of every rule: package data, so an installed ``keras_rl`` has them."""
 SENSITIVE_RATES = Path(__file__).with_name("sensitive.json")
 """The sensitive tier's measured false-alarm rates and power (package data)."""
+TWIN_RATES = Path(__file__).with_name("twins.json")
+"""The twin rules' size and error rates on real changes (package data; ``python -m maintainers calibrate twins``)."""
 SEQUENTIAL = Path(__file__).with_name("sequential.json")
 """Each post's calibrated sequential design and its measured rates (package data)."""
 BASELINES = Path(__file__).resolve().parents[2] / "results" / "checks"
@@ -93,6 +96,50 @@ def default_baselines() -> Path:
 MARKER = "check.json"
 
 
+@dataclass(frozen=True)
+class TwinReading:
+    """What the twins' bits say: of the ``compared`` twins, ``identical`` reproduced their baseline
+    seed row for row (every episode's score, metric and losses; wall time aside); ``parted`` gives
+    each other twin's first differing episode."""
+
+    compared: int
+    identical: int
+    parted: dict[int, int]
+
+    @property
+    def same_bits(self) -> bool:
+        return self.compared > 0 and self.identical == self.compared
+
+    def text(self) -> str:
+        if self.same_bits:
+            return f"the same bits as the baseline for {self.identical} of {self.compared} seeds"
+        where = ", ".join(f"seed {s} at episode {e}" for s, e in sorted(self.parted.items())[:3])
+        more = "" if len(self.parted) <= 3 else f" and {len(self.parted) - 3} more"
+        return (
+            f"the same bits as the baseline for {self.identical} of {self.compared} seeds; the others part "
+            f"({where}{more}), so the paired test decides"
+        )
+
+
+def first_difference(baseline_rows: list[dict[str, Any]], new_rows: list[dict[str, Any]]) -> int | None:
+    """The first episode (from 1) where a rerun's row differs from its baseline seed's in anything but
+    wall time, compared exactly (NaN equal to NaN); None when every row is the same bits."""
+    for i in range(max(len(baseline_rows), len(new_rows))):
+        if i >= len(baseline_rows) or i >= len(new_rows):
+            return i + 1
+        a, b = baseline_rows[i], new_rows[i]
+        for key in (set(a) | set(b)) - {k for k in (*a, *b) if k.startswith("wall")}:
+            x, y = a.get(key), b.get(key)
+            if x != y and not (isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y)):
+                return i + 1
+    return None
+
+
+def read_twins(baseline_rows: dict[int, list], new_rows: dict[int, list], seeds: list[int]) -> TwinReading:
+    parted = {s: e for s in seeds if (e := first_difference(baseline_rows[s], new_rows[s])) is not None}
+    return TwinReading(len(seeds), len(seeds) - len(parted), parted)
+
+
 @dataclass
 class CheckResult:
     experiment: str
@@ -113,6 +160,15 @@ class CheckResult:
     config_changes: tuple[str, ...] = ()
     """Fields of the code's faithful config that differ from the baseline's recorded one
     (``field: was -> now``): a changed default, reported beside the verdict."""
+    twins: TwinReading | None = None
+    """Twin checks: how many twins gave their baseline seed's bits, and where the others parted;
+    None for an unpaired check."""
+    fallback: str | None = None
+    """Why a twin rule ran unpaired (a baseline that does not hold its twin seeds)."""
+    environment: dict[str, Any] | None = None
+    """What differs between the baseline's machine and libraries and the fresh runs' (``environment_changes``)."""
+    baseline_note: str | None = None
+    """Why the rule's measured error rates do not apply (a baseline other than the committed one)."""
 
     @property
     def verdict(self) -> str:
@@ -202,6 +258,74 @@ def check_baseline_size(name: str, statistic: str, n_baseline: int, n_new: int, 
     )
 
 
+def twin_seeds(
+    name: str, rule: CheckRule, wanted: list[int], baseline: dict[int, float], chosen: bool
+) -> tuple[CheckRule, list[int], str | None]:
+    """A twin rule's seeds: ``wanted`` where the baseline holds every one of them; else the rule
+    unpaired, on fresh seeds, with the reason for the report (a baseline of the user's own that
+    does not hold the twins). Seeds the user chose (``chosen``) must be all the baseline's or none."""
+    held = [s for s in wanted if s in baseline]
+    if len(held) == len(wanted):
+        return rule, wanted, None
+    if chosen and held:
+        raise ConfigError(
+            f"{name}: seeds {held[:5]} are the baseline's and {[s for s in wanted if s not in baseline][:5]} are not; "
+            "a twin check reruns the baseline's seeds, an unpaired one runs seeds the baseline does not hold: "
+            "give one kind or the other"
+        )
+    unpaired = rule.unpaired()
+    fresh = wanted if chosen else unpaired.seed_list()
+    reason = (
+        f"the baseline holds seeds {min(baseline)}-{max(baseline)} ({len(baseline)}), not the twins "
+        f"{rule.first_seed}-{rule.first_seed + rule.seeds - 1} this rule reruns"
+        if not chosen
+        else "the seeds given are not the baseline's"
+    )
+    return unpaired, fresh, f"unpaired against fresh seeds: {reason}"
+
+
+def committed_baseline(folder: Path, rule: CheckRule) -> bool:
+    """Whether ``folder`` is the committed baseline the rule's error rates were measured on, byte for
+    byte (a checkout's or the package's copy)."""
+    mine, theirs = folder / "runs.parquet", PACKAGED_BASELINES / rule.experiment / rule.baseline / "runs.parquet"
+    return mine.is_file() and theirs.is_file() and mine.read_bytes() == theirs.read_bytes()
+
+
+def measured_for(folder: Path, result: CheckResult) -> dict[str, Any]:
+    """``CheckResult`` fields for a baseline other than the committed one: its error rates were never
+    measured on it, so none is claimed; the note says what can be said (issue 72 item 6)."""
+    if result.twins is not None and result.twins.same_bits or committed_baseline(folder, result.rule):
+        return {}
+    from keras_rl.check.statistics import smallest_p
+
+    n = len(result.new)
+    if result.twins is not None:
+        floor = 2.0 / 2**n
+        how = f"the smallest p its paired test allows with {n} twins is {floor:.3g}"
+    else:
+        floor = smallest_p(result.rule.statistic, len(result.baseline), n)
+        how = f"the smallest p its test allows with {n} fresh seeds against {len(result.baseline)} is {floor:.3g}"
+    return {
+        "error_rates": None,
+        "baseline_note": (
+            f"this baseline ({folder}, {len(result.baseline)} seeds) is not the committed one the rule's error rates "
+            f"were measured on, so its false alarms and power are not measured; {how}"
+        ),
+    }
+
+
+def check_twin_count(name: str, statistic: str, n: int, alpha: float) -> None:
+    """A ConfigError when n twins could never give p < alpha: the paired test's smallest p
+    (every twin moved one way) is ``2 / 2**n``."""
+    if 2.0 / 2**n < alpha:
+        return
+    need = next(k for k in range(1, 64) if 2.0 / 2**k < alpha)
+    raise ConfigError(
+        f"{name}: {n} twin(s) cannot flag anything at alpha {alpha:.3g} (the paired test's smallest p is "
+        f"{2.0 / 2**n:.3g}); it needs at least {need}"
+    )
+
+
 def _statistic(experiment, rule: CheckRule, rows: list[dict[str, Any]]) -> float:
     config = experiment.config_cls.for_variant("faithful")
     metric = experiment.make_metric(config)
@@ -210,22 +334,34 @@ def _statistic(experiment, rule: CheckRule, rows: list[dict[str, Any]]) -> float
     )
 
 
-def describe_plan(rule: CheckRule, fresh: list[int], baseline: int, design) -> str:
+def rates_source(rule: CheckRule) -> str:
+    """The package-data file a rule's error rates come from."""
+    return (TWIN_RATES if rule.twins else SENSITIVE_RATES if rule.tier == "sensitive" else CALIBRATION).name
+
+
+def describe_plan(rule: CheckRule, fresh: list[int], baseline: int, design, fallback: str | None = None) -> str:
     """One post's plan, as ``check --dry-run`` prints it."""
     rates = error_rates(rule)
-    measured = (
-        f"measured false-alarm rate {rates['false_alarm_rate']:.3g}, power "
-        f"{power_text(rates, source=(SENSITIVE_RATES if rule.tier == 'sensitive' else CALIBRATION).name)}"
-        if rates
-        else "error rates not calibrated for this rule"
-    )
+    if rates and rule.twins:
+        measured = power_text(rates, source=rates_source(rule))
+    elif rates:
+        power = power_text(rates, source=rates_source(rule))
+        measured = f"measured false-alarm rate {rates['false_alarm_rate']:.3g}, power {power}"
+    else:
+        measured = "error rates not calibrated for this rule"
     if design is not None:  # the fixed rule's measured rates are not the design's
         measured = f"false alarms at most {design[1]:.3g} by its design (sequential.json)"
     how = f"sequential, looks up to {design[0].stages[-1]} seeds" if design else f"alpha {rule.alpha}"
     engine = "" if rule.engine == "gymnasium" else f" on the {rule.engine} engine"
+    seeds = (
+        f"twin seeds {fresh[0]}-{fresh[-1]} ({len(fresh)}; the first {rule.bits_seeds} run first, "
+        "and the same bits stop it there)"
+        if rule.twins
+        else f"fresh seeds {fresh[0]}-{fresh[-1]} ({len(fresh)})"
+    )
     return (
         f"{rule.experiment} ({rule.tier}): {rule.statistic} over {rule.episodes} episodes, {how}; "
-        f"fresh seeds {fresh[0]}-{fresh[-1]} ({len(fresh)}){engine} against a baseline of {baseline}; {measured}"
+        f"{seeds}{engine} against a baseline of {baseline}; {measured}" + (f" [{fallback}]" if fallback else "")
     )
 
 
@@ -236,13 +372,16 @@ def what_it_sees(rule: CheckRule) -> str:
     from keras_rl.check.rules import RULES
 
     rates = error_rates(rule)
-    source = (SENSITIVE_RATES if rule.tier == "sensitive" else CALIBRATION).name
-    seen = f"power {power_text(rates, source=source)}" if rates else "power not calibrated"
+    source = rates_source(rule)
+    if rule.twins:
+        seen = power_text(rates, source=source) if rates else "error rates not measured (twins.json)"
+    else:
+        seen = f"power {power_text(rates, source=source)}" if rates else "power not calibrated"
     text = f"the {rule.tier} tier sees gross breakage ({seen})" if rule.tier != "sensitive" else f"{seen}"
     finer = RULES.get((rule.experiment, "sensitive"))
     if finer is not None and rule.tier != "sensitive":
         fine = error_rates(finer)
-        how = f"; power {power_text(fine, source=SENSITIVE_RATES.name)}" if fine else ""
+        how = f"; {power_text(fine, source=rates_source(finer))}" if fine else ""
         text += (
             f"; a smaller change, such as 10-20% of one hyperparameter, is the sensitive tier's (--tier sensitive{how})"
         )
@@ -253,6 +392,21 @@ def power_text(rates: dict[str, Any], short: bool = False, source: str = "calibr
     """A rule's measured power in words: against the tuning mutants (gross / all), or for the
     sensitive tier against a 10% move of the median and the held-out mutants; ``source``: the
     file it was read from, named in the long form."""
+    if "rule" in rates and ("power" in rates or "not_measured" in rates):  # twins.json
+        if "not_measured" in rates:
+            return "not measured" if short else f"error rates not measured: {rates['not_measured']}"
+        big = {n: r for n, r in rates["power"].items() if abs(math.log(r["true_shift"])) >= math.log(1.1) - 1e-12}
+        seen = ", ".join(f"{n} (x{r['true_shift']:.2f}) {r['resampled_holm_first']:.0%}" for n, r in big.items())
+        if short:
+            return f"{min(r['resampled_holm_first'] for r in big.values()):.0%} (least)" if big else "-"
+        false = twin_false_alarm(rates, 3)
+        alarms = f"; false alarms on real arithmetic changes {false:.1%} at 0.01 / 3" if false is not None else ""
+        text = (
+            f"twins at 0.01 / 3 against the held-out mutants that move the median 10% or more: {seen}{alarms}"
+            if big
+            else f"twins: no held-out mutant that moves the median 10% or more has landed{alarms}"
+        )
+        return f"{text} ({source})"
     if "shift_power" in rates:
         moved = rates["shift_power"]
         text = f"{moved['x0.90']:.0%} / {moved['x1.10']:.0%} against a median 10% lower / higher"
@@ -268,6 +422,8 @@ def power_text(rates: dict[str, Any], short: bool = False, source: str = "calibr
 def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, Any] | None:
     """The calibrated error rates of exactly this rule, or None if it was never measured
     (the sensitive tier's are in ``SENSITIVE_RATES``, by ``python -m maintainers calibrate sensitive``)."""
+    if rule.twins:
+        return twin_rates(rule)
     if rule.tier == "sensitive":
         return sensitive_rates(rule)
     if not calibration.is_file():
@@ -287,6 +443,26 @@ def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, A
         None,
     )
     return measured
+
+
+def twin_rates(rule: CheckRule, path: Path = TWIN_RATES) -> dict[str, Any] | None:
+    """A twin rule's size and rates on real changes (``twins.json``), or None where the rule
+    measured there is not this one."""
+    if not path.is_file():
+        return None
+    entry = json.loads(path.read_text())["posts"].get(rule.experiment)
+    if not entry or (entry["rule"]["seeds"], entry["rule"]["statistic"]) != (rule.seeds, rule.statistic):
+        return None
+    return entry
+
+
+def twin_false_alarm(rates: dict[str, Any] | None, posts: int) -> float | None:
+    """A twin rule's highest measured false-alarm rate over the real arithmetic changes, at Holm's
+    first level for a three-post command, else at alpha (an upper bound for two posts); None where
+    none was measured."""
+    key = "resampled_holm_first" if posts == 3 else "resampled_alpha"
+    measured = [r[key] for r in (rates or {}).get("false_alarms", {}).values() if r[key] == r[key]]
+    return max(measured) if measured else None
 
 
 def sensitive_rates(rule: CheckRule, path: Path = SENSITIVE_RATES) -> dict[str, Any] | None:
@@ -359,6 +535,7 @@ def run_check(
     prepare_out(out)  # a folder of someone else's files is named before anything else
     plan = []
     designs: dict[str, tuple[SequentialDesign, float]] = {}
+    fallbacks: dict[str, str | None] = {}
     for name in names:
         experiment = get_experiment(name)
         rule = rule_for(name, tier)
@@ -371,7 +548,9 @@ def run_check(
         else:
             fresh = seeds if seeds is not None else rule.seed_list()
         baseline, baseline_rows = baseline_values(experiment, rule, Path(against) / name / rule.baseline)
-        clash = sorted(set(fresh) & set(baseline))
+        if rule.twins:
+            rule, fresh, fallbacks[name] = twin_seeds(name, rule, fresh, baseline, seeds is not None)
+        clash = [] if rule.twins else sorted(set(fresh) & set(baseline))
         if clash:
             raise ConfigError(
                 f"{name}: seeds {clash} are the baseline's own; check runs fresh seeds "
@@ -380,14 +559,19 @@ def run_check(
         if len(fresh) < 2:
             raise ConfigError(f"{name}: a check needs at least 2 fresh seeds, got {len(fresh)}")
         level = designs[name][0].efficacy if sequential else rule.alpha
-        check_baseline_size(name, rule.statistic, len(baseline), len(fresh), level)
+        if rule.twins:
+            check_twin_count(name, rule.statistic, len(fresh), level)
+        else:
+            check_baseline_size(name, rule.statistic, len(baseline), len(fresh), level)
         config = experiment.config_cls.for_variant("faithful", episodes=rule.episodes).with_text_overrides(
             options.overrides
         )
         plan.append((experiment, rule, fresh, config, baseline, baseline_rows))
     if dry_run:
         for experiment, rule, fresh, _config, baseline, _rows in plan:
-            print(describe_plan(rule, fresh, len(baseline), designs.get(experiment.name)))
+            print(
+                describe_plan(rule, fresh, len(baseline), designs.get(experiment.name), fallbacks.get(experiment.name))
+            )
         return []
     for experiment, *_ in plan:
         if (out / experiment.name).exists():
@@ -396,12 +580,56 @@ def run_check(
     results: list[CheckResult] = []
     plots: list[tuple] = []
     if not sequential:
-        _run_seeds(out, [(experiment, rule, config, fresh) for experiment, rule, fresh, config, *_ in plan], options)
+        # twins: their first bits_seeds run first (beside every unpaired post's seeds); a post whose
+        # twins all give their baseline seed's bits stops there, the others run the rest
+        first = {
+            experiment.name: fresh[: rule.bits_seeds] if rule.twins else fresh for experiment, rule, fresh, *_ in plan
+        }
+        _run_seeds(
+            out,
+            [(experiment, rule, config, first[experiment.name]) for experiment, rule, _f, config, *_ in plan],
+            options,
+        )
+        readings: dict[str, TwinReading] = {}
+        for experiment, rule, _fresh, _config, _baseline, baseline_rows in plan:
+            if rule.twins:
+                _new, rows = _read_new(out / experiment.name, experiment, rule, first[experiment.name])
+                readings[experiment.name] = read_twins(baseline_rows, rows, first[experiment.name])
+        rest = [
+            (experiment, rule, config, fresh[rule.bits_seeds :])
+            for experiment, rule, fresh, config, *_ in plan
+            if rule.twins and not readings[experiment.name].same_bits
+        ]
+        if rest:
+            _run_seeds(out, rest, options)
         for experiment, rule, fresh, _config, baseline, baseline_rows in plan:
-            new, new_rows = _read_new(out / experiment.name, experiment, rule, fresh)
-            decision = decide(list(baseline.values()), list(new.values()), rule.statistic, rule.alpha)
+            reading = readings.get(experiment.name)
+            if reading is not None and reading.same_bits:
+                ran = first[experiment.name]
+                new, new_rows = _read_new(out / experiment.name, experiment, rule, ran)
+                decision = Decision(1.0, False, "the same bits as the baseline", float(len(ran)))
+                baseline_of = {s: baseline[s] for s in ran}
+            elif reading is not None:
+                new, new_rows = _read_new(out / experiment.name, experiment, rule, fresh)
+                reading = read_twins(baseline_rows, new_rows, fresh)
+                baseline_of = {s: baseline[s] for s in fresh}
+                decision = decide_paired(
+                    [baseline[s] for s in fresh], [new[s] for s in fresh], rule.statistic, rule.alpha
+                )
+            else:
+                new, new_rows = _read_new(out / experiment.name, experiment, rule, fresh)
+                baseline_of = baseline
+                decision = decide(list(baseline.values()), list(new.values()), rule.statistic, rule.alpha)
             result = CheckResult(
-                experiment.name, rule, baseline, new, decision, list(options.overrides), error_rates(rule)
+                experiment.name,
+                rule,
+                baseline_of,
+                new,
+                decision,
+                list(options.overrides),
+                error_rates(rule),
+                twins=reading,
+                fallback=fallbacks.get(experiment.name),
             )
             results.append(result)
             plots.append((out / experiment.name / "check.png", experiment, result, baseline_rows, new_rows))
@@ -460,7 +688,15 @@ def run_check(
         experiment.name: tuple(config_changes(experiment, Path(against) / experiment.name / rule.baseline))
         for experiment, rule, *_ in plan
     }
-    results = [replace(r, config_changes=changes[r.experiment]) for r in results]
+    results = [
+        replace(
+            r,
+            config_changes=changes[r.experiment],
+            environment=fresh_environment(Path(against) / r.experiment / r.rule.baseline, out / r.experiment, r),
+            **measured_for(Path(against) / r.experiment / r.rule.baseline, r),
+        )
+        for r in results
+    ]
     for args in plots:
         _plot(*args)
     write_report(out, results, tier)
@@ -531,12 +767,20 @@ def command_false_alarm(results: list[CheckResult]) -> dict[str, Any]:
     number of fresh seeds against its whole baseline, combined as independent tests."""
     alpha = family_alpha(results)
     level = alpha / len(results)
-    rates = {
-        r.experiment: command_false_alarm_rate(list(r.baseline.values()), len(r.new), r.rule.statistic, level)
-        for r in results
-    }
-    posts = {name: asdict(fa) for name, fa in rates.items()}
-    family = family_false_alarm_rate([fa.rate for fa in rates.values()])
+    posts: dict[str, dict[str, Any]] = {}
+    for r in results:
+        if r.twins is not None and r.twins.same_bits:
+            posts[r.experiment] = {"rate": 0.0, "method": "the same bits: no twin moved"}
+        elif r.twins is not None:
+            rate = twin_false_alarm(r.error_rates, len(results))
+            how = "measured on real arithmetic changes (twins.json)" if rate is not None else "not measured"
+            posts[r.experiment] = {"rate": rate, "method": how}
+        else:
+            posts[r.experiment] = asdict(
+                command_false_alarm_rate(list(r.baseline.values()), len(r.new), r.rule.statistic, level)
+            )
+    rates = [p["rate"] for p in posts.values()]
+    family = None if None in rates else family_false_alarm_rate(rates)
     return {"alpha": alpha, "posts": len(results), "level_per_post": level, "per_post": posts, "family_wise": family}
 
 
@@ -569,7 +813,8 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
             fa, pw = f"{r.design['false_alarm_rate']:.2%} (sequential)", "results/checks/sequential.md"
         else:  # the figure the sentence below combines: this post at the level it was tested at
             assert family is not None
-            fa = f"{family['per_post'][r.experiment]['rate']:.2%} at {family['level_per_post']:.3g}"
+            rate = family["per_post"][r.experiment]["rate"]
+            fa = "not measured" if rate is None else f"{rate:.2%} at {family['level_per_post']:.3g}"
         alpha = r.rule.alpha if r.design is None else f"{r.design['efficacy']:.3g} (sequential)"
         lines.append(
             f"| {r.experiment} | {r.rule.statistic} (first {r.rule.episodes} episodes) | "
@@ -602,6 +847,14 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
             f"False alarms of this command as a whole: at most **{family['family_wise']:.2%}** when nothing "
             f"changed ({how}). No Holm step: the split is in the designs.",
         ]
+    elif family is not None and family["family_wise"] is None:
+        missing = [name for name, p in family["per_post"].items() if p["rate"] is None]
+        lines += [
+            "",
+            f"False alarms of this command as a whole: **not measured**: {', '.join(missing)} ran twins whose bits "
+            "differ from the baseline's, and their rate on real arithmetic changes is not measured yet "
+            "(results/checks/twins.md).",
+        ]
     elif family is not None:
         methods = sorted({p["method"] for p in family["per_post"].values()})
         level = "alpha" if family["posts"] == 1 else f"alpha / {family['posts']}"
@@ -626,6 +879,14 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
             "The power column is the rule's, measured against the mutants (results/checks/calibration.md).",
         ]
     for r in results:
+        if r.twins is not None:
+            lines += ["", f"{r.experiment}: twins (the baseline's own seeds, rerun): {r.twins.text()}."]
+        if r.fallback is not None:
+            lines += ["", f"{r.experiment}: {r.fallback}."]
+        if r.error_rates is None and r.rule.tier == "sensitive" or r.baseline_note:
+            lines += ["", f"{r.experiment}: {r.baseline_note or 'error rates not measured for this rule'}."]
+    lines += environment_lines(results)
+    for r in results:
         if r.config_changes:
             lines += [
                 "",
@@ -637,7 +898,8 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         lines += ["", "New runs with: " + ", ".join(f"`--set {o}`" for o in results[0].overrides)]
     lines += [
         "",
-        "The fresh seeds are never the baseline's; `changed` means p < alpha in either direction "
+        "Unpaired fresh seeds are never the baseline's; twins are its own seeds, rerun. "
+        "`changed` means p < alpha in either direction "
         "(learning faster is a change in fidelity too). Error rates: "
         "`python -m maintainers calibrate rules` (results/checks/calibration.md).",
         "",
@@ -664,11 +926,98 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
                 "looks": r.looks,
                 "design": r.design,
                 "config_changes": list(r.config_changes),
+                "pairing": "twins" if r.twins is not None else "unpaired",
+                "twins": None if r.twins is None else {**asdict(r.twins), "same_bits": r.twins.same_bits},
+                "fallback": r.fallback,
+                "baseline_note": r.baseline_note,
+                "environment": r.environment,
             }
             for r in results
         ],
     }
     atomic_write_json(out / MARKER, payload)
+
+
+LIBRARIES = ("tensorflow", "keras", "numpy", "gymnasium", "torch", "python", "keras_rl")
+"""The versions a run records (``provenance.library_versions``) that a check compares."""
+MODULE_OF = {"tensorflow": "tensorflow", "keras": "keras", "numpy": "numpy", "gymnasium": "gymnasium", "torch": "torch"}
+"""Which import each library is: the distribution that provides it now is named where it is not the
+library's own (``keras`` provided by ``keras-nightly``, ``tensorflow`` by ``tf-nightly``)."""
+
+
+def providers() -> dict[str, str]:
+    """Library -> the installed distribution that provides its import, where that is another one."""
+    from importlib.metadata import packages_distributions
+
+    found = packages_distributions()
+    out = {}
+    for library, module in MODULE_OF.items():
+        names = found.get(module, [])
+        if names and library not in {n.lower().replace("_", "-") for n in names}:
+            out[library] = names[0]
+    return out
+
+
+def environment_changes(baseline_summary: dict[str, Any], new_summary: dict[str, Any]) -> dict[str, Any]:
+    """What the fresh runs' machine and libraries change from the baseline's, as the two summaries
+    recorded them: each library whose version differs (``was -> now``), each import now provided by
+    another distribution than the one of its name (the baseline's recorded no provider: made with the
+    project's pins, each was its own), and the CPU model and instruction set of both."""
+    was, now = baseline_summary.get("versions", {}), new_summary.get("versions", {})
+    versions = {
+        k: {"was": was.get(k), "now": now.get(k)}
+        for k in LIBRARIES
+        if (k in was or k in now) and was.get(k) != now.get(k)
+    }
+    bp, np_ = baseline_summary.get("provenance", {}), new_summary.get("provenance", {})
+    cpu = {
+        "baseline": {"model": bp.get("cpu_model"), "isa": bp.get("cpu_isa")},
+        "new": {"model": np_.get("cpu_model"), "isa": np_.get("cpu_isa")},
+    }
+    return {"versions": versions, "replaced": providers(), "cpu": cpu, "same_cpu": cpu["baseline"] == cpu["new"]}
+
+
+def _isa(isa: list[str] | None) -> str:
+    """An instruction-set list, as its widest vector extension."""
+    if not isa:
+        return "instruction set not recorded"
+    return "AVX-512" if "avx512f" in isa else "AVX2" if "avx2" in isa else isa[-1]
+
+
+def fresh_environment(baseline: Path, fresh: Path, result: CheckResult) -> dict[str, Any] | None:
+    """``environment_changes`` between the baseline's first seed and the first fresh seed's summary
+    (None where no fresh seed left one)."""
+    summary = fresh / f"seed_{min(result.new)}" / "summary.json"
+    if not summary.is_file():
+        return None
+    return environment_changes(RunSet(baseline).runs()[0].summary_record(), json.loads(summary.read_text()))
+
+
+def environment_lines(results: list[CheckResult]) -> list[str]:
+    """The report's lines on what changed around the code: versions, replaced packages, the CPU."""
+    lines: list[str] = []
+    for r in results:
+        env = r.environment
+        if env is None:
+            continue
+        if env["versions"]:
+            changed = "; ".join(f"`{k} {v['was']} -> {v['now']}`" for k, v in env["versions"].items())
+        else:
+            changed = "none: every library the baseline recorded has its version"
+        replaced = "; ".join(f"`{k}` is provided by `{d}`" for k, d in env["replaced"].items())
+        b, n = env["cpu"]["baseline"], env["cpu"]["new"]
+        lines += [
+            "",
+            f"{r.experiment}: versions that differ from the baseline's: {changed}."
+            + (
+                f" Replaced: {replaced} (the baseline was made with `{'`, `'.join(env['replaced'])}` itself)."
+                if replaced
+                else ""
+            )
+            + f" CPU: {n['model']} ({_isa(n['isa'])}) against the baseline's {b['model']} ({_isa(b['isa'])})"
+            + ("." if env["same_cpu"] else ": another CPU, and bits follow the host."),
+        ]
+    return lines
 
 
 def _adjusted(result: CheckResult) -> str:

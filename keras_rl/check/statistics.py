@@ -92,6 +92,61 @@ def decide(
     return Decision(p, p < alpha, "Mann-Whitney U (two-sided)", u)
 
 
+PAIRED_TEST = "Wilcoxon signed-rank on twins (two-sided)"
+
+
+def paired_differences(
+    baseline: Sequence[float] | np.ndarray, new: Sequence[float] | np.ndarray, statistic: str
+) -> np.ndarray:
+    """Each twin's difference ``new - baseline``: of the logs for episodes to threshold (a change
+    of learning speed is a ratio: 10% slower is the same step for a fast seed and a slow one), of
+    the values for the other statistics. Shape ``[..., n]``, twins in the last axis."""
+    base, fresh = np.asarray(baseline, float), np.asarray(new, float)
+    if base.shape != fresh.shape:
+        raise ValueError(f"twins pair one to one: {base.shape} baseline values against {fresh.shape} new")
+    if statistic == "episodes_to_threshold":
+        return np.log(fresh) - np.log(base)
+    return fresh - base
+
+
+def decide_paired(
+    baseline: Sequence[float] | np.ndarray, new: Sequence[float] | np.ndarray, statistic: str, alpha: float
+) -> Decision:
+    """Two-sided test of twins, ``new[i]`` the rerun of the seed of ``baseline[i]``: Wilcoxon's
+    signed-rank test on ``paired_differences``, zero differences dropped (a twin whose statistic did
+    not move says nothing about the direction); no non-zero difference gives p = 1. For
+    ``success``, the signs of the discordant twins (McNemar's exact test, the same test for 0/1
+    differences). Changed when p < alpha."""
+    d = paired_differences(baseline, new, statistic)
+    if len(d) == 0:
+        raise ValueError("a paired test needs at least one twin")
+    if np.isnan(d).any():  # a run that blew up is a change in itself
+        return Decision(0.0, True, PAIRED_TEST, float("nan"))
+    moved = d[d != 0]
+    if len(moved) == 0:
+        return Decision(1.0, False, PAIRED_TEST, 0.0)
+    if statistic == "success":
+        up = int((moved > 0).sum())
+        p = float(stats.binomtest(up, len(moved), 0.5).pvalue)
+        return Decision(p, p < alpha, "McNemar's exact test on twins (two-sided)", float(up))
+    result = stats.wilcoxon(moved, zero_method="wilcox")
+    p = float(result.pvalue)
+    return Decision(p, p < alpha, PAIRED_TEST, float(result.statistic))
+
+
+def paired_changed_many(differences: np.ndarray, alpha: float) -> np.ndarray:
+    """``decide_paired(...).changed`` for every row of twin differences at once (the calibration's
+    thousands of resampled checks); rows of all-zero differences are never changed."""
+    d = np.atleast_2d(np.asarray(differences, float))
+    changed = np.isnan(d).any(axis=1)
+    live = ~changed & (d != 0).any(axis=1)
+    if live.any():
+        with np.errstate(invalid="ignore", divide="ignore"):
+            p = stats.wilcoxon(d[live], zero_method="wilcox", axis=1).pvalue
+        changed[live] = np.nan_to_num(p, nan=1.0) < alpha
+    return changed
+
+
 def changed_many(
     baselines: Sequence[Sequence[float]] | np.ndarray,
     news: Sequence[Sequence[float]] | np.ndarray,

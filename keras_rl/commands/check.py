@@ -72,12 +72,23 @@ def check(args: argparse.Namespace) -> int:
             f"{r.experiment}: {r.verdict} ({r.rule.statistic}, {r.decision.test}, p = {r.decision.p:.3g}, "
             f"{level}; baseline {len(r.baseline)} seeds, new {len(r.new)})"
         )
-        if not r.decision.changed:
+        if r.twins is not None:
+            print(f"  twins: {r.twins.text()}")
+        if r.fallback is not None:
+            print(f"  {r.fallback}")
+        if r.baseline_note is not None:
+            print(f"  {r.baseline_note}")
+        elif not r.decision.changed:
             from keras_rl.check.command import what_it_sees
 
             print(f"  what it can see: {what_it_sees(r.rule)}")
         if r.config_changes:
             print(f"  {r.experiment}: the faithful config differs from the baseline's: {'; '.join(r.config_changes)}")
+    from keras_rl.check.command import environment_lines
+
+    for line in environment_lines(results):
+        if line:
+            print(f"  {line}".replace("`", ""))
     print(f"report: {args.out / 'check.md'}")
     return EXIT_CRITERION if any(r.decision.changed for r in results) else EXIT_OK
 

@@ -1,0 +1,275 @@
+"""The twin check's size and error rates, measured on real changes only (issue 70).
+
+    python -m maintainers calibrate twins            # print the report
+    python -m maintainers calibrate twins --write    # keras_rl/check/twins.json and results/checks/twins.md
+
+The plan was committed before its runs (``results/checks/twin_plan.md``; the runs are the lines of
+``maintainers/queues/twins-000*.tsv``). A twin is a seed the baseline holds, rerun: the paired
+difference of its statistic (``statistics.paired_differences``) removes the spread between seeds
+that comparing strangers keeps.
+
+- **n** (post 000): the tuning mutants' paired differences on seeds 0-29, each centred on its median
+  and pooled, n drawn with replacement and a 10% move added either way; the smallest size of
+  ``SIZES`` that sees both moves at least 90% of the time at 0.01 / 3.
+- **False alarms**: real changes of arithmetic that keep the algorithm (the engine swap, oneDNN
+  off), against the baseline seed by seed: n twins drawn without replacement, 10,000 times, and the
+  twins cut in seed order into disjoint real checks with their Clopper-Pearson interval.
+- **Power**: held-out mutants on twin seeds that chose nothing, the same two ways; each mutant's true
+  shift is its median over the baseline's on all its twins.
+
+A set the plan names that has not landed is reported as missing, never estimated.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+from keras_rl.check.rules import RULES
+from keras_rl.check.statistics import paired_changed_many, paired_differences
+from keras_rl.runs.run_set import RunSet
+from maintainers.calibrate.runs import CHECKS, HOLM_LEVEL, clopper_pearson, load, values
+
+TIER = "sensitive"
+PLAN = CHECKS / "twin_plan.md"
+REPORT = CHECKS / "twins.md"
+SIZES = (20, 30, 40, 50, 60, 80)
+CHOICE_POWER, MOVE = 0.90, np.log(1.10)
+CHOICE_DRAWS, DRAWS = 4_000, 10_000
+TUNING = {"pendulum": ("actor_lr_x0.3", "gamma_0.9", "broadcast_target_off", "tau_x10")}
+"""The subtle tuning mutants whose seeds 0-29 choose post 000's n (the plan's list)."""
+TUNING_SEEDS = range(0, 30)
+ENGINES = CHECKS.parent / "engines"
+REAL_CHANGES: dict[str, dict[str, Path]] = {
+    "pendulum": {
+        "engine swap (the Gymnasium loop)": ENGINES / "pendulum" / "gymnasium",
+        "oneDNN off (TF_ENABLE_ONEDNN_OPTS=0)": CHECKS / "pendulum" / "twins" / "onednn-off",
+    },
+    "cartpole": {"engine swap (the Gymnasium loop)": ENGINES / "cartpole" / "gymnasium"},
+}
+"""Real changes of arithmetic that keep the algorithm, each a set of twins of the baseline's seeds."""
+HELD_OUT: dict[str, dict[str, list[Path]]] = {
+    "pendulum": {
+        name: [CHECKS / "pendulum" / "twins" / "held-out" / name]
+        for name in ("critic_lr_x0.7", "batch_16", "noise_sigma_x0.5", "actor_hidden_32", "batch_32", "noise_sigma_x2")
+    },
+    "cartpole": {
+        name: [CHECKS / "cartpole" / "held-out" / name, CHECKS / "cartpole" / "held-out-seeds-30-79" / name]
+        for name in ("eps_decay_x0.5", "batch_64", "buffer_x0.3", "grad_clip_1")
+    },
+}
+"""Held-out mutants on twin seeds: post 000's written down in the plan before their runs, post 003's
+the committed ``HELD_OUT`` (seeds 0-79)."""
+POWER_SEEDS = {"pendulum": range(30, 200), "cartpole": range(0, 80)}
+"""The twins power is read on: post 000's seeds 0-29 chose n; nothing chose post 003's 40."""
+NOT_MEASURED = {
+    "mountaincar": "its twins run on the compiled engine (results/engines/mountaincar/compiled), where no set holds "
+    "a real arithmetic change or a mutant yet"
+}
+
+
+def twin_statistics(post: str, folders: list[Path]) -> dict[int, float]:
+    """Seed -> the tier's statistic, over every seed of ``folders``."""
+    rule = RULES[(post, TIER)]
+    out: dict[int, float] = {}
+    for folder in folders:
+        seeds = RunSet(folder).seeds
+        out.update(zip(seeds, values(post, rule.statistic, rule.episodes, load(folder)).tolist()))
+    return out
+
+
+def baseline_statistics(post: str) -> dict[int, float]:
+    return twin_statistics(post, [CHECKS / post / RULES[(post, TIER)].baseline])
+
+
+def differences(post: str, baseline: dict[int, float], twins: dict[int, float], seeds=None) -> np.ndarray:
+    """The paired differences of the twins both hold (only ``seeds``, if given), in seed order."""
+    common = sorted(set(baseline) & set(twins) & (set(seeds) if seeds is not None else set(twins)))
+    statistic = RULES[(post, TIER)].statistic
+    return paired_differences([baseline[s] for s in common], [twins[s] for s in common], statistic)
+
+
+def resampled(d: np.ndarray, n: int, alpha: float, rng: np.random.Generator, replace: bool = False) -> float:
+    """How often n twins drawn from ``d`` are called changed at ``alpha``."""
+    if not replace and n > len(d):
+        return float("nan")
+    picks = (
+        rng.integers(0, len(d), (DRAWS, n))
+        if replace
+        else np.argsort(rng.random((DRAWS, len(d))), axis=1)[:, :n]  # n distinct twins per draw
+    )
+    return float(paired_changed_many(d[picks], alpha).mean())
+
+
+def disjoint(d: np.ndarray, n: int, alpha: float) -> dict | None:
+    """The twins cut in seed order into disjoint real checks of n: flagged, of all, Clopper-Pearson 95%."""
+    checks = len(d) // n
+    if not checks:
+        return None
+    flagged = int(paired_changed_many(d[: checks * n].reshape(checks, n), alpha).sum())
+    return {"checks": checks, "flagged": flagged, "ci95": clopper_pearson(flagged, checks)}
+
+
+def rates(post: str, baseline: dict[int, float], twins: dict[int, float], n: int, seeds=None) -> dict:
+    """One set of twins against the baseline at the rule's n: resampled and disjoint, at alpha and
+    alpha / 3, with the medians, the true shift and Spearman's rho of the pairs."""
+    alpha = RULES[(post, TIER)].alpha
+    d = differences(post, baseline, twins, seeds)
+    common = sorted(set(baseline) & set(twins) & (set(seeds) if seeds is not None else set(twins)))
+    b, t = np.array([baseline[s] for s in common]), np.array([twins[s] for s in common])
+    everyone = sorted(set(baseline) & set(twins))
+    whole_b, whole_t = np.array([baseline[s] for s in everyone]), np.array([twins[s] for s in everyone])
+    rng = np.random.default_rng(70)
+    return {
+        "twins": len(d),
+        "seeds": f"{common[0]}-{common[-1]}" if common else "-",
+        "same_statistic": int((d == 0).sum()),
+        "spearman": float(stats.spearmanr(b, t)[0]) if len(d) > 2 else None,
+        "median_baseline": float(np.median(whole_b)),
+        "median_twins": float(np.median(whole_t)),
+        "true_shift": float(np.median(whole_t) / np.median(whole_b)),
+        "all_twins": len(everyone),
+        "resampled_alpha": resampled(d, n, alpha, rng),
+        "resampled_holm_first": resampled(d, n, alpha / HOLM_LEVEL, rng),
+        "disjoint_alpha": disjoint(d, n, alpha),
+        "disjoint_holm_first": disjoint(d, n, alpha / HOLM_LEVEL),
+    }
+
+
+def choose_n(post: str, baseline: dict[int, float]) -> dict:
+    """The plan's choice of n on the tuning mutants' centred paired noise, seeds 0-29 only."""
+    pooled = []
+    for name in TUNING[post]:
+        twins = twin_statistics(post, [CHECKS / post / "mutants" / name])
+        d = differences(post, baseline, twins, TUNING_SEEDS)
+        pooled.append(d - np.median(d))
+    noise = np.concatenate(pooled)
+    rng = np.random.default_rng(2026)
+    level = RULES[(post, TIER)].alpha / HOLM_LEVEL
+    rows = []
+    for n in SIZES:
+        draws = noise[rng.integers(0, len(noise), (CHOICE_DRAWS, n))]
+        slower = float(paired_changed_many(draws + MOVE, level).mean())
+        faster = float(paired_changed_many(draws - MOVE, level).mean())
+        rows.append({"n": n, "x1.10": slower, "x0.90": faster})
+    chosen = next((r["n"] for r in rows if min(r["x1.10"], r["x0.90"]) >= CHOICE_POWER), SIZES[-1])
+    return {"pooled_twins": len(noise), "rows": rows, "chosen": chosen, "tuning": list(TUNING[post])}
+
+
+def compute() -> dict:
+    posts: dict = {}
+    for post in ("pendulum", "cartpole", "mountaincar"):
+        rule = RULES[(post, TIER)]
+        if post in NOT_MEASURED:
+            posts[post] = {
+                "rule": {"seeds": rule.seeds, "statistic": rule.statistic},
+                "not_measured": NOT_MEASURED[post],
+            }
+            continue
+        baseline = baseline_statistics(post)
+        entry: dict = {"rule": {"seeds": rule.seeds, "statistic": rule.statistic, "episodes": rule.episodes}}
+        if post in TUNING:
+            entry["choice"] = choose_n(post, baseline)
+        n = rule.seeds
+        entry["false_alarms"], entry["missing"] = {}, []
+        for name, folder in REAL_CHANGES.get(post, {}).items():
+            if not (folder / "runs.parquet").is_file():
+                entry["missing"].append(str(folder.relative_to(CHECKS.parent.parent)))
+                continue
+            entry["false_alarms"][name] = rates(post, baseline, twin_statistics(post, [folder]), n)
+        entry["power"] = {}
+        for name, folders in HELD_OUT.get(post, {}).items():
+            if not all((f / "runs.parquet").is_file() for f in folders):
+                entry["missing"] += [str(f.relative_to(CHECKS.parent.parent)) for f in folders]
+                continue
+            entry["power"][name] = rates(post, baseline, twin_statistics(post, folders), n, POWER_SEEDS[post])
+        posts[post] = entry
+    return {"tier": TIER, "plan": str(PLAN.relative_to(CHECKS.parent.parent)), "posts": posts}
+
+
+def _pct(x: float | None) -> str:
+    return "-" if x is None or x != x else f"{x:.1%}"
+
+
+def _checks(d: dict | None) -> str:
+    return "none (n > twins)" if d is None else f"{d['flagged']}/{d['checks']} [{d['ci95'][0]:.0%}, {d['ci95'][1]:.0%}]"
+
+
+def render(data: dict) -> str:
+    lines = [
+        "# The twin check: its size and error rates on real changes",
+        "",
+        f"Generated by `python -m maintainers calibrate twins --write` from the committed sets, as planned in "
+        f"`{data['plan']}` before the runs. Twins rerun seeds the baseline holds; the test is Wilcoxon's signed-rank "
+        "on each twin's paired difference (of log episodes to threshold), two-sided, at 0.01 and at 0.01 / 3 "
+        "(Holm's first level in the three-post command). Resampled: n twins drawn without replacement, "
+        f"{DRAWS:,} times. Disjoint: the twins cut in seed order into real checks of n, with their "
+        "Clopper-Pearson 95% interval.",
+    ]
+    for post, entry in data["posts"].items():
+        lines += ["", f"## {post} ({entry['rule']['statistic']}, {entry['rule']['seeds']} twins)", ""]
+        if "not_measured" in entry:
+            lines += [f"Not measured: {entry['not_measured']}."]
+            continue
+        choice = entry.get("choice")
+        if choice:
+            lines += [
+                f"**n**, chosen on the tuning mutants' seeds 0-29 ({', '.join(choice['tuning'])}; "
+                f"{choice['pooled_twins']} paired differences, each centred on its median, pooled): power at 0.01 / 3 "
+                f"against a 10% move added to that noise, {CHOICE_DRAWS:,} draws with replacement. The rule takes the "
+                f"smallest n at {CHOICE_POWER:.0%} both ways: **{choice['chosen']}**.",
+                "",
+                "| n | x0.90 | x1.10 |",
+                "|---|---|---|",
+                *(f"| {r['n']} | {_pct(r['x0.90'])} | {_pct(r['x1.10'])} |" for r in choice["rows"]),
+                "",
+            ]
+        header = (
+            "| {what} | twins (seeds) | same statistic | Spearman | median baseline -> twins (all twins) "
+            "| resampled at 0.01 | at 0.01 / 3 | disjoint checks at 0.01 | at 0.01 / 3 |"
+        )
+        for title, key, what in (
+            ("False alarms on real changes of arithmetic", "false_alarms", "change"),
+            ("Power against held-out mutants on twin seeds that chose nothing", "power", "mutant"),
+        ):
+            rows = entry[key]
+            lines += [f"**{title}**", ""]
+            if not rows:
+                lines += ["None landed yet.", ""]
+                continue
+            lines += [header.format(what=what), "|---|---|---|---|---|---|---|---|---|"]
+            for name, r in rows.items():
+                rho = "-" if r["spearman"] is None else f"{r['spearman']:.2f}"
+                lines.append(
+                    f"| {name} | {r['twins']} ({r['seeds']}) | {r['same_statistic']} | {rho} | "
+                    f"{r['median_baseline']:.4g} -> {r['median_twins']:.4g} "
+                    f"(x{r['true_shift']:.3f}, {r['all_twins']}) | "
+                    f"{_pct(r['resampled_alpha'])} | {_pct(r['resampled_holm_first'])} | "
+                    f"{_checks(r['disjoint_alpha'])} | {_checks(r['disjoint_holm_first'])} |"
+                )
+            lines.append("")
+        if entry["missing"]:
+            lines += ["Planned and not landed yet: " + ", ".join(f"`{m}`" for m in entry["missing"]) + ".", ""]
+    return "\n".join(lines).rstrip("\n") + "\n"
+
+
+def run(args: argparse.Namespace) -> int:
+    from keras_rl.check.command import TWIN_RATES
+    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+
+    data = compute()
+    text = render(data)
+    if not args.write:
+        print(text)
+        return 0
+    atomic_write_json(TWIN_RATES, data)
+    atomic_write_text(REPORT, text)
+    print(f"updated {TWIN_RATES} and {REPORT}")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(run(argparse.Namespace(write=False)))
