@@ -47,6 +47,7 @@ REAL_CHANGES: dict[str, dict[str, Path]] = {
     "pendulum": {
         "engine swap (the Gymnasium loop)": ENGINES / "pendulum" / "gymnasium",
         "oneDNN off (TF_ENABLE_ONEDNN_OPTS=0)": CHECKS / "pendulum" / "twins" / "onednn-off",
+        "XLA fast math (--xla_cpu_enable_fast_math=true)": CHECKS / "pendulum" / "twins" / "xla-fast-math",
     },
     "cartpole": {"engine swap (the Gymnasium loop)": ENGINES / "cartpole" / "gymnasium"},
 }
