@@ -191,7 +191,10 @@ def test_an_unchanged_install_says_the_same_bits_and_a_change_runs_every_twin(tm
     report = json.loads((tmp_path / "same" / "check.json").read_text())
     (entry,) = report["experiments"]
     assert entry["pairing"] == "twins" and entry["twins"]["same_bits"] and sorted(entry["new"]) == ["0", "1"]
-    assert "the same bits as the baseline for 2 of 2 seeds" in (tmp_path / "same" / "check.md").read_text()
+    report_md = (tmp_path / "same" / "check.md").read_text()
+    assert "the same bits as the baseline for 2 of 2 seeds" in report_md
+    # issue 72 item 7: an installed check points to what ships, never a checkout's files
+    assert "python -m maintainers" not in report_md and "results/checks" not in report_md
     # a baseline made here is not the committed one: no measured rate is claimed for it
     assert entry["error_rates"] is None or entry["twins"]["same_bits"]
 

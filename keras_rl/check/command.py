@@ -467,7 +467,9 @@ def twin_false_alarm(rates: dict[str, Any] | None, posts: int) -> float | None:
 
 def sensitive_rates(rule: CheckRule, path: Path = SENSITIVE_RATES) -> dict[str, Any] | None:
     """The sensitive tier's measured rates of exactly this rule, or None."""
-    if not path.is_file():
+    from keras_rl.check.rules import UNPAIRED_SENSITIVE
+
+    if not path.is_file() or UNPAIRED_SENSITIVE.get(rule.experiment) != rule:
         return None
     entry = json.loads(path.read_text()).get("posts", {}).get(rule.experiment)
     if not entry:
@@ -810,7 +812,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         rates = r.error_rates
         pw = power_text(rates, short=True) if rates else "not calibrated"
         if r.design is not None:  # the fixed rule's rates are not this design's
-            fa, pw = f"{r.design['false_alarm_rate']:.2%} (sequential)", "results/checks/sequential.md"
+            fa, pw = f"{r.design['false_alarm_rate']:.2%} (sequential)", "sequential.json"
         else:  # the figure the sentence below combines: this post at the level it was tested at
             assert family is not None
             rate = family["per_post"][r.experiment]["rate"]
@@ -840,7 +842,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         else:
             how = (
                 "each post's design calibrated on its own baseline to 1% / 3, futility stops included; "
-                f"measured: {per_post}; results/checks/sequential.md"
+                f"measured: {per_post}; sequential.json"
             )
         lines += [
             "",
@@ -853,7 +855,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
             "",
             f"False alarms of this command as a whole: **not measured**: {', '.join(missing)} ran twins whose bits "
             "differ from the baseline's, and their rate on real arithmetic changes is not measured yet "
-            "(results/checks/twins.md).",
+            "(twins.json).",
         ]
     elif family is not None:
         methods = sorted({p["method"] for p in family["per_post"].values()})
@@ -864,7 +866,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
             f"False alarms of this command as a whole: **{family['family_wise']:.2%}** when nothing changed "
             f"(alpha {family['alpha']} for the family of {family['posts']} post(s), Holm: each post's figure in "
             f"the table, at {level} against its whole baseline, {'; '.join(methods)}, "
-            "combined as independent tests; the same computation as results/checks/family.json)."
+            "combined as independent tests)."
             + (
                 " **Above alpha**: on this baseline the test is not exact at this level ("
                 + (
@@ -876,7 +878,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
                 if above
                 else ""
             ),
-            "The power column is the rule's, measured against the mutants (results/checks/calibration.md).",
+            "The power column is the rule's, measured against the mutants (calibration.json).",
         ]
     for r in results:
         if r.twins is not None:
@@ -900,8 +902,9 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         "",
         "Unpaired fresh seeds are never the baseline's; twins are its own seeds, rerun. "
         "`changed` means p < alpha in either direction "
-        "(learning faster is a change in fidelity too). Error rates: "
-        "`python -m maintainers calibrate rules` (results/checks/calibration.md).",
+        "(learning faster is a change in fidelity too). The error rates quoted here ship with the package "
+        f"({', '.join(f'keras_rl/check/{f.name}' for f in (CALIBRATION, SENSITIVE_RATES, TWIN_RATES, SEQUENTIAL))}); "
+        "how each was measured: docs/check.md in the project's repository.",
         "",
     ]
     atomic_write_text(out / "check.md", "\n".join(lines))

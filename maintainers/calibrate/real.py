@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from keras_rl.check.rules import HELD_OUT, RULES
+from keras_rl.check.rules import HELD_OUT, UNPAIRED_SENSITIVE
 from keras_rl.check.statistics import changed_many
 from keras_rl.runs.run_set import RunSet
 from maintainers.calibrate.runs import CHECKS, HOLM_LEVEL, clopper_pearson, load, shifted, values
@@ -136,13 +136,13 @@ def sizes(baseline: np.ndarray, pool: np.ndarray, budget: int, alpha: float, see
 
 def pool_values(post: str) -> np.ndarray | None:
     """Each unchanged seed's statistic (the post's sensitive rule's) from its no-change pool, or None."""
-    rule = RULES[(post, TIER)]
+    rule = UNPAIRED_SENSITIVE[post]
     folders = folders_under(CHECKS / post / "no-change")
     return values(post, rule.statistic, rule.episodes, runs_of(folders)[0]) if folders else None
 
 
 def post_entry(post: str) -> dict:
-    rule = RULES[(post, TIER)]
+    rule = UNPAIRED_SENSITIVE[post]
     base = values(post, rule.statistic, rule.episodes, load(CHECKS / post / rule.baseline))
     _, pool_seeds, pool_walls = runs_of(folders_under(CHECKS / post / "no-change"))
     entry: dict = {

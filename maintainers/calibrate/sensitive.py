@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from keras_rl.check.rules import HELD_OUT, MUTANTS, RULES
+from keras_rl.check.rules import HELD_OUT, MUTANTS, UNPAIRED_SENSITIVE
 from keras_rl.check.statistics import changed_many, check_false_alarm_rate, family_false_alarm_rate, power
 from keras_rl.checkout import ROOT
 from maintainers.calibrate import real
@@ -74,7 +74,7 @@ def shift_power(baseline: np.ndarray, n: int, budget: int, shift: float, alpha: 
 
 
 def post_entry(post: str) -> dict:
-    rule = RULES[(post, TIER)]
+    rule = UNPAIRED_SENSITIVE[post]
     baseline_runs = load(CHECKS / post / rule.baseline)
     entry: dict = {
         "rule": {
