@@ -88,3 +88,30 @@ def test_a_seed_folder_that_cannot_be_written_is_named_with_exit_2(pendulum_set,
     finally:
         seed.chmod(0o755)
     assert code == 2 and "is not a writable folder" in capsys.readouterr().err
+
+
+def test_pack_keep_folders_works_where_its_refusal_recommends_it(pendulum_set, capsys):
+    """Item 3: ``pack --keep-folders`` on a set whose folders hold weights exited 2 recommending
+    ``--keep-folders``. Now the folders stay with their weights, and the packed set holds the rest."""
+    for seed in (0, 1):
+        (pendulum_set / f"seed_{seed}" / "actor.weights.h5").write_bytes(b"\0" * 64)
+    assert main(["pack", str(pendulum_set)]) == 2
+    assert "pack with --keep-folders" in capsys.readouterr().err
+    assert not (pendulum_set / "runs.parquet").exists()
+    assert main(["pack", str(pendulum_set), "--keep-folders"]) == 0
+    assert (pendulum_set / "runs.parquet").is_file() and (pendulum_set / "seed_0" / "actor.weights.h5").is_file()
+    from keras_rl.runs.packed import open_packed
+
+    packed = open_packed(pendulum_set / "runs.parquet")
+    assert packed.seeds == [0, 1] and "actor.weights.h5" not in packed.record(0).files
+
+
+def test_a_torch_study_in_a_keras_set_names_the_framework_not_an_engine(pendulum_set):
+    """Item 5: ``reproduce("pendulum", framework="torch", resume=True, out=<a Keras set>)`` said
+    "--engine compiled: it runs the Keras learner", though no engine was given."""
+    pytest.importorskip("torch")
+    with pytest.raises(ConfigError) as caught:
+        api.reproduce("pendulum", framework="torch", resume=True, seeds=[0], out=pendulum_set)
+    said = str(caught.value)
+    assert "holds runs of pendulum (faithful, keras)" in said and "this is pendulum (faithful, torch)" in said
+    assert "--engine" not in said
