@@ -1,5 +1,6 @@
-"""Issue 72, items 2-5 and 8-10: what a new user found, each refused by name before anything is
-written (exit 2 on the command line, a ConfigError in the API)."""
+"""A set holds one kind of run, a config checks its fields at construction, and the API's switches
+and seeds are what they say: what a new user found (issue 72, items 2-5 and 8-10), each refused by
+name before anything is written (exit 2 on the command line, a ConfigError in the API)."""
 
 from __future__ import annotations
 
@@ -115,3 +116,36 @@ def test_a_torch_study_in_a_keras_set_names_the_framework_not_an_engine(pendulum
     said = str(caught.value)
     assert "holds runs of pendulum (faithful, keras)" in said and "this is pendulum (faithful, torch)" in said
     assert "--engine" not in said
+
+
+@pytest.mark.parametrize(
+    "fields, words",
+    [
+        ({"tau": "0.005"}, "tau must be a number, got '0.005'"),
+        ({"tau": float("nan")}, "tau must be finite"),
+        ({"episodes": 2.5}, "episodes must be a whole number, got 2.5"),
+        ({"bogus": 1}, "unknown pendulum config field(s): bogus"),
+        ({"env_id": 3}, "env_id must be a string, got 3"),
+    ],
+)
+def test_a_config_checks_its_fields_at_construction(fields, words):
+    """Item 8: these all constructed, and an unknown field raised a plain TypeError."""
+    from keras_rl.posts.pendulum import PendulumDDPGConfig
+
+    with pytest.raises(ConfigError) as caught:
+        PendulumDDPGConfig(**fields)
+    assert words in str(caught.value)
+
+
+def test_a_config_takes_fields_by_name_and_holds_them_as_their_types():
+    """Item 8: ``PendulumDDPGConfig(0.1)`` set ``variant``; a list of widths stayed a list and a NumPy
+    whole number stayed NumPy."""
+    import numpy as np
+
+    from keras_rl.posts.pendulum import PendulumDDPGConfig
+
+    with pytest.raises(ConfigError, match="takes its fields by name"):
+        PendulumDDPGConfig(0.1)
+    config = PendulumDDPGConfig(actor_hidden_units=[32, 32], batch_size=np.int64(32))
+    assert config.actor_hidden_units == (32, 32) and type(config.batch_size) is int
+    assert config == PendulumDDPGConfig.for_variant("faithful", actor_hidden_units=(32, 32), batch_size=32)
