@@ -138,7 +138,7 @@ def test_the_report_names_each_version_that_differs_a_replaced_package_and_the_c
         "versions": {"tensorflow": "2.22.0rc0", "keras": "3.16.0.dev2026102704", "numpy": "2.4.0", "python": "3.11.7"},
         "provenance": {"cpu_model": "Intel Xeon", "cpu_isa": ["avx2"]},
     }
-    monkeypatch.setattr(command, "providers", lambda: {"keras": "keras-nightly"})
+    monkeypatch.setattr(command, "providers", lambda versions: {"keras": "keras-nightly"})
     env = command.environment_changes(baseline, new)
     assert env["versions"] == {
         "tensorflow": {"was": "2.21.0", "now": "2.22.0rc0"},
@@ -155,15 +155,27 @@ def test_the_report_names_each_version_that_differs_a_replaced_package_and_the_c
     assert same["versions"] == {} and same["same_cpu"]
 
 
-def test_providers_name_only_imports_another_distribution_provides(monkeypatch):
+def test_providers_name_the_distribution_whose_version_the_import_reports(monkeypatch):
+    """TensorFlow 2.22.0rc0 installs keras-nightly beside keras: both hold the ``keras`` import's
+    files, and the import is keras-nightly's (its version). ``tf.__version__`` spells an rc
+    ``2.22.0-rc0``."""
     import importlib.metadata
 
     monkeypatch.setattr(
         importlib.metadata,
         "packages_distributions",
-        lambda: {"keras": ["keras-nightly"], "tensorflow": ["tensorflow"], "numpy": ["numpy"]},
+        lambda: {"keras": ["keras", "keras-nightly"], "tensorflow": ["tensorflow"], "numpy": ["numpy"]},
     )
-    assert command.providers() == {"keras": "keras-nightly"}
+    installed = {
+        "keras": "3.15.1",
+        "keras-nightly": "3.16.0.dev2026102704",
+        "tensorflow": "2.22.0rc0",
+        "numpy": "2.4.6",
+    }
+    monkeypatch.setattr(importlib.metadata, "version", installed.__getitem__)
+    now = {"keras": "3.16.0.dev2026102704", "tensorflow": "2.22.0-rc0", "numpy": "2.4.6"}
+    assert command.providers(now) == {"keras": "keras-nightly"}
+    assert command.providers({**now, "keras": "3.15.1"}) == {}
 
 
 @pytest.mark.slow

@@ -948,17 +948,34 @@ MODULE_OF = {"tensorflow": "tensorflow", "keras": "keras", "numpy": "numpy", "gy
 library's own (``keras`` provided by ``keras-nightly``, ``tensorflow`` by ``tf-nightly``)."""
 
 
-def providers() -> dict[str, str]:
-    """Library -> the installed distribution that provides its import, where that is another one."""
-    from importlib.metadata import packages_distributions
+def providers(versions: dict[str, str]) -> dict[str, str]:
+    """Library -> the installed distribution that provides its import, where that is another one
+    than the library's own: of the distributions that install the import's files (``keras`` and
+    ``keras-nightly`` both do, once TensorFlow 2.22.0rc0 pulls the second in beside the first), the
+    one whose version is the version the import reports (``versions``, as a run records them)."""
+    from importlib.metadata import packages_distributions, version
 
     found = packages_distributions()
     out = {}
     for library, module in MODULE_OF.items():
-        names = found.get(module, [])
-        if names and library not in {n.lower().replace("_", "-") for n in names}:
-            out[library] = names[0]
+        names = list(dict.fromkeys(found.get(module, [])))
+        imported = versions.get(library)
+        owner = next((n for n in names if imported is not None and _same_version(version(n), imported)), None)
+        if owner is None and len(names) == 1:
+            owner = names[0]
+        if owner is not None and owner.lower().replace("_", "-") != library:
+            out[library] = owner
     return out
+
+
+def _same_version(a: str, b: str) -> bool:
+    """``2.22.0rc0`` (a distribution's) and ``2.22.0-rc0`` (``tf.__version__``) are one version."""
+    from packaging.version import InvalidVersion, Version
+
+    try:
+        return Version(a) == Version(b)
+    except InvalidVersion:
+        return a == b
 
 
 def environment_changes(baseline_summary: dict[str, Any], new_summary: dict[str, Any]) -> dict[str, Any]:
@@ -977,7 +994,7 @@ def environment_changes(baseline_summary: dict[str, Any], new_summary: dict[str,
         "baseline": {"model": bp.get("cpu_model"), "isa": bp.get("cpu_isa")},
         "new": {"model": np_.get("cpu_model"), "isa": np_.get("cpu_isa")},
     }
-    return {"versions": versions, "replaced": providers(), "cpu": cpu, "same_cpu": cpu["baseline"] == cpu["new"]}
+    return {"versions": versions, "replaced": providers(now), "cpu": cpu, "same_cpu": cpu["baseline"] == cpu["new"]}
 
 
 def _isa(isa: list[str] | None) -> str:
