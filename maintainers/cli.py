@@ -94,7 +94,7 @@ def add_parser(sub) -> None:
         "twins",
         "maintainers.calibrate.twins",
         "the twin check: post 000's n chosen on the tuning mutants, false alarms on real arithmetic changes and "
-        "power against held-out mutants on twin seeds (keras_rl/check/twins.json, results/checks/twins.md)",
+        "power against held-out mutants on twin seeds (keras_rl/check/twins.json, calibration.md's block)",
         "--write",
     )
     p = _what(

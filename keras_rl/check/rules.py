@@ -251,14 +251,15 @@ def _twin_sensitive(experiment: str, statistic: str, seeds: int, episodes: int, 
 RULES.update(
     {
         # Twins since issue 70 (results/checks/twin_plan.md, committed before its runs; measured by
-        # python -m maintainers calibrate twins: results/checks/twins.md). n was chosen on the tuning
+        # python -m maintainers calibrate twins: "The twin check" in results/checks/calibration.md). n was
+        # chosen on the tuning
         # mutants' paired noise (seeds 0-29) as the plan said: no size up to 80 saw a 10% move both
         # ways 90% of the time, so the rule takes 80. Before: 80 fresh seeds from 4000, unpaired
         # (sized in results/checks/real_checks_plan.md), which saw batch_32 in 0 of 6 real checks.
         ("pendulum", "sensitive"): _twin_sensitive("pendulum", "episodes_to_threshold", 80, 1000, "baseline"),
         # The present size and statistic, now twins of the 200-seed compiled baseline: censored at 600
         # episodes (92 of 200 seeds never reach 475), post 003's twins keep Spearman 0.13-0.25 under
-        # its held-out mutants, so pairing buys it little (twins.md).
+        # its held-out mutants, so pairing buys it little (calibration.md).
         ("cartpole", "sensitive"): _twin_sensitive("cartpole", "episodes_to_threshold", 40, 600, "baseline"),
         # Post 001's twins run on its compiled engine (certified since issue 52; 0.39x a batched
         # Gymnasium seed's cost), against the compiled engine's 200 seeds
