@@ -252,8 +252,7 @@ RULES.update(
     {
         # Twins since issue 70 (results/checks/twin_plan.md, committed before its runs; measured by
         # python -m maintainers calibrate twins: "The twin check" in results/checks/calibration.md). n was
-        # chosen on the tuning
-        # mutants' paired noise (seeds 0-29) as the plan said: no size up to 80 saw a 10% move both
+        # chosen on the tuning mutants' paired noise (seeds 0-29) as the plan said: no size up to 80 saw a 10% move both
         # ways 90% of the time, so the rule takes 80. Before: 80 fresh seeds from 4000, unpaired
         # (sized in results/checks/real_checks_plan.md), which saw batch_32 in 0 of 6 real checks.
         ("pendulum", "sensitive"): _twin_sensitive("pendulum", "episodes_to_threshold", 80, 1000, "baseline"),
