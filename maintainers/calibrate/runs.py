@@ -86,6 +86,20 @@ def halved(folders: list[Path]) -> bool:
     return all(seed_count(f) >= len(TUNE) + len(REPORT) for f in folders)
 
 
+def splice_calibration(heading: str, begin: str, end: str, text: str) -> Path:
+    """``text`` between ``begin`` and ``end`` in ``results/checks/calibration.md``; a block the page
+    lacks is added at its end, under ``heading``. Returns the page."""
+    from keras_rl.report.markdown import replace_block
+    from keras_rl.runs.files import atomic_write_text
+
+    page = CHECKS / "calibration.md"
+    current = page.read_text()
+    if begin not in current:
+        current = current.rstrip("\n") + f"\n\n{heading}\n\n{begin}\n{end}\n"
+    atomic_write_text(page, replace_block(current, begin, end, text))
+    return page
+
+
 def clopper_pearson(k: int, n: int) -> tuple[float, float]:
     from scipy.stats import binomtest
 

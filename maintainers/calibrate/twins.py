@@ -31,11 +31,10 @@ from scipy import stats
 from keras_rl.check.rules import RULES
 from keras_rl.check.statistics import paired_changed_many, paired_differences
 from keras_rl.runs.run_set import RunSet
-from maintainers.calibrate.runs import CHECKS, HOLM_LEVEL, clopper_pearson, load, values
+from maintainers.calibrate.runs import CHECKS, HOLM_LEVEL, clopper_pearson, load, splice_calibration, values
 
 TIER = "sensitive"
 PLAN = CHECKS / "twin_plan.md"
-PAGE = CHECKS / "calibration.md"
 BEGIN, END = "<!-- twins:begin -->", "<!-- twins:end -->"
 HEADING = "## The twin check (issue 70): its size and error rates on real changes"
 SIZES = (20, 30, 40, 50, 60, 80)
@@ -263,8 +262,7 @@ def render(data: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from keras_rl.check.command import TWIN_RATES
-    from keras_rl.report.markdown import replace_block
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+    from keras_rl.runs.files import atomic_write_json
 
     data = compute()
     text = render(data)
@@ -272,11 +270,7 @@ def run(args: argparse.Namespace) -> int:
         print(text)
         return 0
     atomic_write_json(TWIN_RATES, data)
-    current = PAGE.read_text()
-    if BEGIN not in current:
-        current = current.rstrip("\n") + f"\n\n{HEADING}\n\n{BEGIN}\n{END}\n"
-    atomic_write_text(PAGE, replace_block(current, BEGIN, END, text))
-    print(f"updated {TWIN_RATES} and {PAGE}")
+    print(f"updated {TWIN_RATES} and {splice_calibration(HEADING, BEGIN, END, text)}")
     return 0
 
 
