@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from keras_rl.checkout import results_dir
-from keras_rl.runs.options import shared_flags
+from keras_rl.commands.flags import shared_flags
 
 
 def _what(inner, name: str, module: str, help: str, *flags: str) -> argparse.ArgumentParser:
@@ -236,8 +236,8 @@ def run(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse, run, and turn the package's errors into exit codes as ``keras-rl`` does."""
     from keras_rl.cli import EXIT_CRITERION, EXIT_USAGE
+    from keras_rl.commands.flags import resolve_defaults
     from keras_rl.errors import KerasRLError
-    from keras_rl.runs.options import resolve_defaults
 
     args = resolve_defaults(build_parser().parse_args(argv))
     try:
