@@ -49,6 +49,7 @@ REAL_CHANGES: dict[str, dict[str, Path]] = {
         "engine swap (the Gymnasium loop)": ENGINES / "pendulum" / "gymnasium",
         "oneDNN off (TF_ENABLE_ONEDNN_OPTS=0)": CHECKS / "pendulum" / "twins" / "onednn-off",
         "XLA fast math (--xla_cpu_enable_fast_math=true)": CHECKS / "pendulum" / "twins" / "xla-fast-math",
+        "TensorFlow 2.22.0rc0 with keras-nightly (added after its run)": CHECKS / "pendulum" / "twins" / "tf2.22.0rc0",
     },
     "cartpole": {"engine swap (the Gymnasium loop)": ENGINES / "cartpole" / "gymnasium"},
     "mountaincar": {
