@@ -152,7 +152,26 @@ def test_the_report_names_each_version_that_differs_a_replaced_package_and_the_c
     assert "`keras` is provided by `keras-nightly`" in line
     assert "Intel Xeon (AVX2) against the baseline's AMD EPYC (AVX-512): another CPU" in line
     same = command.environment_changes(baseline, baseline)
-    assert same["versions"] == {} and same["same_cpu"]
+    assert same["versions"] == {} and same["same_cpu"] and same["arithmetic"] is None
+    fast = {
+        **baseline,
+        "provenance": {**baseline["provenance"], "environment": {"XLA_FLAGS": "--xla_cpu_enable_fast_math=true"}},
+    }
+    moved = command.environment_changes(baseline, fast)
+    assert moved["arithmetic"] == {"baseline": {}, "new": {"XLA_FLAGS": "--xla_cpu_enable_fast_math=true"}}
+    result = replace(result, environment=moved)
+    (line,) = [line for line in command.environment_lines([result]) if line]
+    assert "The arithmetic's environment differs: `{'XLA_FLAGS': '--xla_cpu_enable_fast_math=true'}`" in line
+
+
+def test_a_run_records_the_environment_that_changes_its_arithmetic_only_where_set(monkeypatch):
+    from keras_rl.runs.provenance import provenance
+
+    for name in ("XLA_FLAGS", "TF_XLA_FLAGS", "TF_ENABLE_ONEDNN_OPTS"):
+        monkeypatch.delenv(name, raising=False)
+    assert "environment" not in provenance()  # the committed runs' summaries: nothing new in them
+    monkeypatch.setenv("TF_ENABLE_ONEDNN_OPTS", "0")
+    assert provenance()["environment"] == {"TF_ENABLE_ONEDNN_OPTS": "0"}
 
 
 def test_providers_name_the_distribution_whose_version_the_import_reports(monkeypatch):

@@ -994,7 +994,14 @@ def environment_changes(baseline_summary: dict[str, Any], new_summary: dict[str,
         "baseline": {"model": bp.get("cpu_model"), "isa": bp.get("cpu_isa")},
         "new": {"model": np_.get("cpu_model"), "isa": np_.get("cpu_isa")},
     }
-    return {"versions": versions, "replaced": providers(now), "cpu": cpu, "same_cpu": cpu["baseline"] == cpu["new"]}
+    arithmetic = {"baseline": bp.get("environment", {}), "new": np_.get("environment", {})}
+    return {
+        "versions": versions,
+        "replaced": providers(now),
+        "cpu": cpu,
+        "same_cpu": cpu["baseline"] == cpu["new"],
+        "arithmetic": arithmetic if arithmetic["baseline"] != arithmetic["new"] else None,
+    }
 
 
 def _isa(isa: list[str] | None) -> str:
@@ -1035,7 +1042,13 @@ def environment_lines(results: list[CheckResult]) -> list[str]:
                 else ""
             )
             + f" CPU: {n['model']} ({_isa(n['isa'])}) against the baseline's {b['model']} ({_isa(b['isa'])})"
-            + ("." if env["same_cpu"] else ": another CPU, and bits follow the host."),
+            + ("." if env["same_cpu"] else ": another CPU, and bits follow the host.")
+            + (
+                f" The arithmetic's environment differs: `{env['arithmetic']['new'] or 'none set'}` against the "
+                f"baseline's `{env['arithmetic']['baseline'] or 'none set'}`."
+                if env.get("arithmetic")
+                else ""
+            ),
         ]
     return lines
 
