@@ -1,5 +1,6 @@
 """The options every training command shares (``runs/options.py``, its flags in
-``commands/flags.py``) and the one ``FIELD=VALUE`` parser (``ExperimentConfig.parse_assignments``): declared once, checked once, named once."""
+``commands/flags.py``) and the one ``FIELD=VALUE`` parser (``ExperimentConfig.parse_assignments``):
+declared once, checked once, named once."""
 
 from __future__ import annotations
 
