@@ -95,6 +95,8 @@ def reproduce(
         changes["episodes"] = episodes
     config = config.replace(**changes)  # typed and checked, a config built directly too
     rate = check_success_rate(min_success_rate, "min_success_rate")
+    for name, value in (("resume", resume), ("overwrite", overwrite), ("progress", progress)):
+        _flag(value, name)
     if config.framework == "torch":  # type: ignore[attr-defined]
         from keras_rl.torch import check_torch
 
@@ -125,6 +127,13 @@ def _overrides(overrides: object) -> dict[str, object]:
         if name in RUN_PARAMETERS:
             raise ConfigError(f"overrides cannot set {name}; pass {RUN_PARAMETERS[name]}=")
     return dict(overrides)
+
+
+def _flag(value: object, name: str) -> bool:
+    """``True`` or ``False``, or a ConfigError: ``resume="yes"`` and ``overwrite=1`` are not switches."""
+    if not isinstance(value, bool):
+        raise ConfigError(f"{name} must be True or False, got {value!r}")
+    return value
 
 
 def _whole(value: Any) -> Any:
@@ -160,8 +169,8 @@ def compare(
         RunOptions.checked(workers=_whole(workers), progress=False),
         runs=_path(runs, "runs"),
         out=_path(out, "out"),
-        matched_init=matched_init,
-        reuse_only=reuse_only,
+        matched_init=_flag(matched_init, "matched_init"),
+        reuse_only=_flag(reuse_only, "reuse_only"),
     )
 
 

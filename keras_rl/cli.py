@@ -22,8 +22,8 @@ from keras_rl.commands import aggregate, bisect, check, compare, evaluate, pack,
 from keras_rl.commands.check import check_results
 from keras_rl.commands.common import EXIT_CRITERION, EXIT_NO_VERDICT, EXIT_OK, EXIT_USAGE, MAX_SEEDS, parse_seeds
 from keras_rl.commands.compare import compare_result
+from keras_rl.commands.flags import resolve_defaults
 from keras_rl.errors import KerasRLError
-from keras_rl.runs.options import resolve_defaults
 
 __all__ = [
     "COMMANDS",

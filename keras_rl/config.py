@@ -17,6 +17,7 @@ maps each old field to the new ones.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
 import typing
@@ -29,8 +30,31 @@ import numpy as np
 from keras_rl.errors import ConfigError
 from keras_rl.learners.table import frameworks
 
+_C = typing.TypeVar("_C", bound=type)
 
-@dataclass(frozen=True)
+
+def named_fields(cls: _C) -> _C:
+    """A post's config class (a ``dataclass(frozen=True, kw_only=True)``) whose fields are given by
+    name only (``PendulumDDPGConfig(0.1)`` set ``variant`` before) and whose unknown field is a
+    ConfigError naming it, not a TypeError; its ``__post_init__`` types and checks every field."""
+    made = cls.__init__  # type: ignore[misc]
+
+    @functools.wraps(made)
+    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
+        if args:
+            raise ConfigError(
+                f"{cls.__name__} takes its fields by name ({cls.__name__}(tau=0.005)), got {len(args)} positional "
+                f"value(s): {', '.join(map(repr, args[:3]))}"
+            )
+        type(self).typed(kwargs)  # an unknown field, named as a ConfigError
+        made(self, **kwargs)
+
+    cls.__init__ = __init__  # type: ignore[misc]
+    return cls
+
+
+@named_fields
+@dataclass(frozen=True, kw_only=True)
 class ExperimentConfig:
     """Fields every experiment has, plus validation, overrides and (de)serialisation."""
 
@@ -69,6 +93,18 @@ class ExperimentConfig:
     False: each framework initialises its networks its own default way."""
 
     # -- construction -------------------------------------------------------------------
+    def __post_init__(self) -> None:
+        """Every field as its type holds it (``typed``: a list of widths as a tuple, NumPy's numbers
+        as Python's), then checked (``validate``): a config built directly is as checked as one
+        read back or overridden (issue 72 item 8)."""
+        hints = _hints(type(self))
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            converted = _as_field_type(f.name, hints[f.name], value)
+            if converted is not value:
+                object.__setattr__(self, f.name, converted)
+        self.validate()
+
     @classmethod
     def for_variant(cls, variant: str, **overrides: Any) -> ExperimentConfig:
         """The config of a named variant, with further field overrides on top."""
@@ -208,6 +244,8 @@ class ExperimentConfig:
                     raise ConfigError(f"{f.name} must be finite, got {value!r}")
             if hints[f.name] is bool and not isinstance(value, bool):
                 raise ConfigError(f"{f.name} must be true or false, got {value!r}")
+            if hints[f.name] is str and not isinstance(value, str):
+                raise ConfigError(f"{f.name} must be a string, got {value!r}")
             kind = f.metadata.get("check")
             if kind is None:
                 continue
@@ -336,6 +374,16 @@ def fraction(default: Any) -> Any:
 
 def widths(default: tuple[int, ...]) -> Any:
     return field(default=default, metadata={"check": "widths"})
+
+
+_HINTS: dict[type, dict[str, Any]] = {}
+
+
+def _hints(cls: type) -> dict[str, Any]:
+    """``typing.get_type_hints`` of a config class, read once per class."""
+    if cls not in _HINTS:
+        _HINTS[cls] = typing.get_type_hints(cls)
+    return _HINTS[cls]
 
 
 def _as_field_type(name: str, hint: Any, value: Any) -> Any:

@@ -36,6 +36,15 @@ def make_env(env_id: str, render_mode: str | None = None, **kwargs) -> gym.Env:
         raise ConfigError(f"environment {env_id!r} rejected its arguments {kwargs}: {exc}") from None
 
 
+def check_env_id(env_id: str) -> None:
+    """A ConfigError naming an environment Gymnasium does not know, without making it (so a study
+    refuses it before anything is written)."""
+    try:
+        gym.spec(env_id)
+    except gym.error.Error as exc:
+        raise ConfigError(f"unknown environment {env_id!r}: {exc}") from None
+
+
 def _env_id(env: gym.Env) -> str:
     return env.spec.id if env.spec else type(env.unwrapped).__name__
 

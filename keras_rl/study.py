@@ -16,7 +16,7 @@ from __future__ import annotations
 import numbers
 import os
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -40,6 +40,8 @@ def checked_seeds(seeds: int | Iterable[int]) -> tuple[int, ...]:
     """Whole numbers in [0, 2**32), distinct, at most ``MAX_SEEDS``: as given (``3``, ``range(10)``,
     ``[0, 5]``, NumPy integers too), or a ConfigError that names the one that is not."""
     items: object = [seeds] if isinstance(seeds, numbers.Integral) and not isinstance(seeds, bool) else seeds
+    if isinstance(items, Mapping):  # its keys would pass for seeds
+        raise ConfigError(f"seeds must be a whole number or several (a list, a range), not a mapping: got {seeds!r}")
     if isinstance(items, (str, bytes)) or not isinstance(items, Iterable):
         raise ConfigError(f"seeds must be a whole number or several, got {seeds!r}")
     out: list[int] = []
@@ -129,12 +131,19 @@ def plan(study: Study) -> StudyPlan:
     from keras_rl.runs.packed import refuse_packed
 
     experiment, config = study.experiment, study.config
+    from keras_rl.envs import check_env_id
+
+    check_env_id(config.env_id)  # type: ignore[attr-defined]  # a bad id is named before any folder is made
     check_not_inside_a_run(study.out)
     check_writable_dir(study.out, "--out")
+    for seed_dir in study.seed_dirs():  # a seed folder that cannot be written, named before TensorFlow loads
+        if seed_dir.is_dir():
+            check_writable_dir(seed_dir, "--out")
     if study.tensorboard is not None:
         check_writable_dir(study.tensorboard, "--tensorboard")
     for seed_dir in study.seed_dirs():
         refuse_packed(seed_dir)
+    check_one_kind(study)
     if not study.overwrite:
         from keras_rl.runs.reuse import made_by_experiment
 
@@ -155,6 +164,27 @@ def plan(study: Study) -> StudyPlan:
     check_keepable(config, [(s, d) for s, d, m in triples if m == "keep"])
     check_resumable([(s, d) for s, d, m in triples if m == "resume"], engine)
     return StudyPlan(modes, engine, why)
+
+
+def check_one_kind(study: Study) -> None:
+    """A set holds one experiment, variant and framework (``aggregate`` refuses a folder that mixes
+    them, and its ``summary.md`` would name only one): a ConfigError, before anything is written,
+    where ``out`` already holds runs of another kind, whichever seeds they are (issue 72 item 2)."""
+    from keras_rl.runs.run_set import RunSet
+
+    if not study.out.is_dir():
+        return
+    c = study.config
+    mine = (c.experiment, c.variant, c.framework)  # type: ignore[attr-defined]
+    others = {k: seeds for k, seeds in RunSet(study.out).kinds().items() if k != mine}
+    if others:
+        (experiment, variant, framework), seeds = next(iter(others.items()))
+        shown = ", ".join(map(str, seeds[:5])) + (f" and {len(seeds) - 5} more" if len(seeds) > 5 else "")
+        raise ConfigError(
+            f"{study.out} holds runs of {experiment} ({variant}, {framework}), seeds {shown}; this is "
+            f"{mine[0]} ({mine[1]}, {mine[2]}), and a set holds one experiment, variant and framework: "
+            "pass --out for another folder"
+        )
 
 
 def choose_engine(study: Study, modes: list[str]) -> tuple[str, str]:

@@ -48,6 +48,32 @@ from maintainers.manifest import RESULTS, compare_seeds, manifest, reproduce_com
 AT_RECORDED_COMMIT: dict[str, str] = {}
 """Set -> why HEAD no longer makes its bits by design; such a set reruns at its recorded commit.
 Empty until an audit finds one (each entry needs the commit that changed the bits)."""
+MADE_UNDER: dict[str, dict[str, str]] = {
+    "checks/pendulum/twins/xla-fast-math": {"XLA_FLAGS": "--xla_cpu_enable_fast_math=true"},
+}
+"""Set -> the arithmetic's environment its queue set (``maintainers/queues/<queue>.tsv``) for a set made
+before runs recorded it in their provenance (``provenance.arithmetic_environment``); a rerun sets it."""
+
+
+def rerun_environment(set_name: str, provenance: dict) -> dict[str, str]:
+    """The environment a rerun of a seed needs: the arithmetic's environment it was made under."""
+    return {**MADE_UNDER.get(set_name, {}), **provenance.get("environment", {})}
+
+
+def other_versions(summary: dict) -> str | None:
+    """Why a seed cannot rerun here to its bits: the libraries it recorded are not this environment's
+    (a set made under another TensorFlow, as a real change the twin check measures); else None."""
+    from keras_rl.runs.provenance import library_versions
+
+    here, theirs = library_versions(summary.get("framework", "keras")), summary.get("versions", {})
+    differ = [
+        f"{k} {theirs[k]} (here {here[k]})"
+        for k in ("tensorflow", "keras", "torch")
+        if k in theirs and k in here and theirs[k] != here[k]
+    ]
+    return f"made with {', '.join(differ)}" if differ else None
+
+
 REPORT = RESULTS / "AUDIT.md"
 RECORD = RESULTS / "AUDIT.json"
 """The committed report's results, set by set, as ``audit.json`` keeps them: what ``--write`` extends."""
@@ -90,7 +116,7 @@ _GIT = threading.Lock()
 """``git worktree`` edits the repository's worktree list: one at a time across ``--workers`` threads."""
 
 
-def _at_commit(commit: str, command: list[str]) -> int:
+def _at_commit(commit: str, command: list[str], env: dict[str, str] | None = None) -> int:
     """Run ``command`` (a ``python -m keras_rl`` line, its paths absolute) with ``commit``'s own
     keras_rl: from a temporary worktree at that commit (``python -m`` puts the working folder
     first on the path, as ``keras-rl bisect`` relies on), removed afterwards."""
@@ -99,7 +125,7 @@ def _at_commit(commit: str, command: list[str]) -> int:
     with _GIT:
         subprocess.run(["git", "worktree", "add", "--detach", str(worktree), commit], cwd=ROOT, check=True)
     try:
-        env = {**os.environ, "PYTHONPATH": str(worktree)}
+        env = {**(env if env is not None else os.environ), "PYTHONPATH": str(worktree)}
         return subprocess.run(command, cwd=worktree, env=env).returncode
     finally:
         with _GIT:
@@ -116,19 +142,21 @@ def audit_set(entry: dict, batches: list[list[int]], out: Path, workers: int, ad
     codes = []
     for batch in batches:
         command = reproduce_command(entry, batch, out, workers, address)
+        record = committed.run(batch[0]).summary_record()
+        env = {**os.environ, **rerun_environment(entry["set"], record.get("provenance", {}))}
         if entry["set"] in AT_RECORDED_COMMIT:
-            commit = committed.run(batch[0]).summary_record()["provenance"]["commit"]
+            commit = record["provenance"]["commit"]
             where = f"recorded commit {commit[:8]} ({AT_RECORDED_COMMIT[entry['set']]})"
-            codes.append(_at_commit(commit, command))
+            codes.append(_at_commit(commit, command, env))
         else:
-            codes.append(subprocess.run(command, cwd=ROOT).returncode)
+            codes.append(subprocess.run(command, cwd=ROOT, env=env).returncode)
     seeds = [batch[0] for batch in batches]
     diverged = compare_seeds(committed, target, seeds)
     result: dict = {"set": entry["set"], "seeds": seeds, "batches": batches, "at": where, "exit_codes": codes}
     result["by_seed"] = {}
     for seed, divergence in diverged.items():
-        provenance = committed.run(seed).summary_record().get("provenance", {})
-        host = why_not_bit_exact(provenance, framework=entry["framework"])
+        summary = committed.run(seed).summary_record()
+        host = why_not_bit_exact(summary.get("provenance", {}), framework=entry["framework"]) or other_versions(summary)
         if divergence is not None and divergence["first_episode"] is None:
             verdict, why = "same bits", None
         elif divergence is None:

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from keras_rl.checkout import results_dir
-from keras_rl.runs.options import shared_flags
+from keras_rl.commands.flags import shared_flags
 
 
 def _what(inner, name: str, module: str, help: str, *flags: str) -> argparse.ArgumentParser:
@@ -94,7 +94,7 @@ def add_parser(sub) -> None:
         "twins",
         "maintainers.calibrate.twins",
         "the twin check: post 000's n chosen on the tuning mutants, false alarms on real arithmetic changes and "
-        "power against held-out mutants on twin seeds (keras_rl/check/twins.json, results/checks/twins.md)",
+        "power against held-out mutants on twin seeds (keras_rl/check/twins.json, calibration.md's block)",
         "--write",
     )
     p = _what(
@@ -236,8 +236,8 @@ def run(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse, run, and turn the package's errors into exit codes as ``keras-rl`` does."""
     from keras_rl.cli import EXIT_CRITERION, EXIT_USAGE
+    from keras_rl.commands.flags import resolve_defaults
     from keras_rl.errors import KerasRLError
-    from keras_rl.runs.options import resolve_defaults
 
     args = resolve_defaults(build_parser().parse_args(argv))
     try:

@@ -190,7 +190,7 @@ def test_resuming_into_another_posts_folder_names_the_post(capsys, tmp_path):
     _exit_2(
         ["reproduce", "cartpole", "--resume", "--dry-run", "--out", str(tmp_path / "runs")],
         capsys,
-        "holds a run made by pendulum, not cartpole",
+        "holds runs of pendulum (faithful, keras), seeds 0; this is cartpole",
     )
 
 

@@ -1,5 +1,6 @@
-"""The options every training command shares (``runs/options.py``) and the one ``FIELD=VALUE``
-parser (``ExperimentConfig.parse_assignments``): declared once, checked once, named once."""
+"""The options every training command shares (``runs/options.py``, its flags in
+``commands/flags.py``) and the one ``FIELD=VALUE`` parser (``ExperimentConfig.parse_assignments``):
+declared once, checked once, named once."""
 
 from __future__ import annotations
 
@@ -12,9 +13,9 @@ import pytest
 from committed import committed_seed
 
 from keras_rl.cli import build_parser, main, parse_args
+from keras_rl.commands.flags import COMMAND_DEFAULTS, FLAGS, RUN_FLAGS, help_for, options_from_args, shared_flags
 from keras_rl.errors import ConfigError
 from keras_rl.posts.pendulum import PendulumDDPGConfig as PendulumConfig
-from keras_rl.runs.options import COMMAND_DEFAULTS, FLAGS, RUN_FLAGS, RunOptions, help_for, shared_flags
 from keras_rl.runs.sweep import parse_grid
 
 REPO = Path(__file__).resolve().parent.parent
@@ -56,7 +57,7 @@ def test_each_shared_flag_has_one_default_everywhere_and_each_commands_help_spea
     assert {"calibrate rules", "tables findings", "manifest"}.isdisjoint(_subparsers())  # the maintainers' own
     commands = ("reproduce", "compare", "sweep", "check", "bisect", "evaluate", "aggregate")
     for spelling, uses in shared.items():
-        assert spelling in FLAGS, f"{spelling} ({', '.join(uses)}) is not declared in runs/options.FLAGS"
+        assert spelling in FLAGS, f"{spelling} ({', '.join(uses)}) is not declared in commands/flags.FLAGS"
         for what in ("default", "type", "dest", "choices"):
             values = {name: getattr(action, what) for name, action in uses.items()}
             assert len({repr(v) for v in values.values()}) == 1, f"{spelling}'s {what} differs: {values}"
@@ -93,23 +94,23 @@ def test_sweep_without_out_exits_2_naming_it(capsys):
 def test_run_options_are_checked_with_the_flag_named(capsys):
     parent = shared_flags("reproduce", *RUN_FLAGS)
     with pytest.raises(ConfigError, match="--episodes must be positive"):
-        RunOptions.from_args(parent.parse_args(["--episodes", "0"]))
+        options_from_args(parent.parse_args(["--episodes", "0"]))
     with pytest.raises(ConfigError, match="--seed-batch must be at least 1 or auto"):
-        RunOptions.from_args(parent.parse_args(["--seed-batch", "0"]))
-    assert RunOptions.from_args(parent.parse_args(["--seed-batch", "auto"])).seed_batch == "auto"
+        options_from_args(parent.parse_args(["--seed-batch", "0"]))
+    assert options_from_args(parent.parse_args(["--seed-batch", "auto"])).seed_batch == "auto"
     with pytest.raises(SystemExit) as exit_:  # argparse: usage and exit 2
         parent.parse_args(["--seed-batch", "many"])
     assert exit_.value.code == 2 and "expected a whole number or auto, got 'many'" in capsys.readouterr().err
     with pytest.raises(ConfigError, match="--workers must be at least 1"):
-        RunOptions.from_args(parent.parse_args(["--workers", "0"]))
-    options = RunOptions.from_args(parent.parse_args(["--workers", "1000", "--set", "tau=0.1", "--no-progress"]))
+        options_from_args(parent.parse_args(["--workers", "0"]))
+    options = options_from_args(parent.parse_args(["--workers", "1000", "--set", "tau=0.1", "--no-progress"]))
     assert options.workers == os.cpu_count() and "more than this machine's" in capsys.readouterr().err
     assert options.overrides == ("tau=0.1",) and options.progress is False and options.config_changes() == {}
     with pytest.raises(ValueError, match="unknown shared flags"):
         shared_flags("reproduce", "--wrokers")
     with pytest.raises(ConfigError, match="--engine compiled runs one seed per program"):
-        RunOptions.from_args(parent.parse_args(["--engine", "compiled", "--seed-batch", "2"]))
-    assert RunOptions.from_args(parent.parse_args(["--engine", "compiled"])).engine == "compiled"
+        options_from_args(parent.parse_args(["--engine", "compiled", "--seed-batch", "2"]))
+    assert options_from_args(parent.parse_args(["--engine", "compiled"])).engine == "compiled"
     with pytest.raises(SystemExit):  # argparse names the choices
         parent.parse_args(["--engine", "jax"])
     assert "invalid choice: 'jax'" in capsys.readouterr().err
@@ -117,10 +118,10 @@ def test_run_options_are_checked_with_the_flag_named(capsys):
 
 def test_the_address_falls_back_to_ray_address(monkeypatch):
     monkeypatch.setenv("RAY_ADDRESS", "127.0.0.1:1")
-    options = RunOptions.from_args(shared_flags("reproduce", *RUN_FLAGS).parse_args([]))
+    options = options_from_args(shared_flags("reproduce", *RUN_FLAGS).parse_args([]))
     assert options.address == "127.0.0.1:1"
     monkeypatch.delenv("RAY_ADDRESS")
-    assert RunOptions.from_args(shared_flags("reproduce", *RUN_FLAGS).parse_args([])).address is None
+    assert options_from_args(shared_flags("reproduce", *RUN_FLAGS).parse_args([])).address is None
 
 
 def test_one_parser_reads_set_and_grid_by_the_fields_type():

@@ -91,6 +91,17 @@ def test_only_the_torch_folder_imports_torch():
     assert offenders == []
 
 
+def test_only_the_command_line_imports_argparse():
+    """The library takes typed objects; argparse's flags live in ``cli.py`` and ``commands/`` (issue 71)."""
+    offenders = sorted(
+        name
+        for name, path in MODULES.items()
+        if not (name == "keras_rl.cli" or name.startswith("keras_rl.commands"))
+        and any(t == "argparse" or t.startswith("argparse.") for t in imports_of(path))
+    )
+    assert offenders == []
+
+
 def test_keras_learners_never_import_the_torch_side():
     learners = [n for n in MODULES if n.startswith("keras_rl.learners")]
     assert learners and not [n for n in learners if any(m.startswith("keras_rl.torch") for m in reachable(n))]

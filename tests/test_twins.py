@@ -138,7 +138,7 @@ def test_the_report_names_each_version_that_differs_a_replaced_package_and_the_c
         "versions": {"tensorflow": "2.22.0rc0", "keras": "3.16.0.dev2026102704", "numpy": "2.4.0", "python": "3.11.7"},
         "provenance": {"cpu_model": "Intel Xeon", "cpu_isa": ["avx2"]},
     }
-    monkeypatch.setattr(command, "providers", lambda: {"keras": "keras-nightly"})
+    monkeypatch.setattr(command, "providers", lambda versions: {"keras": "keras-nightly"})
     env = command.environment_changes(baseline, new)
     assert env["versions"] == {
         "tensorflow": {"was": "2.21.0", "now": "2.22.0rc0"},
@@ -152,18 +152,49 @@ def test_the_report_names_each_version_that_differs_a_replaced_package_and_the_c
     assert "`keras` is provided by `keras-nightly`" in line
     assert "Intel Xeon (AVX2) against the baseline's AMD EPYC (AVX-512): another CPU" in line
     same = command.environment_changes(baseline, baseline)
-    assert same["versions"] == {} and same["same_cpu"]
+    assert same["versions"] == {} and same["same_cpu"] and same["arithmetic"] is None
+    fast = {
+        **baseline,
+        "provenance": {**baseline["provenance"], "environment": {"XLA_FLAGS": "--xla_cpu_enable_fast_math=true"}},
+    }
+    moved = command.environment_changes(baseline, fast)
+    assert moved["arithmetic"] == {"baseline": {}, "new": {"XLA_FLAGS": "--xla_cpu_enable_fast_math=true"}}
+    result = replace(result, environment=moved)
+    (line,) = [line for line in command.environment_lines([result]) if line]
+    assert "The arithmetic's environment differs: `{'XLA_FLAGS': '--xla_cpu_enable_fast_math=true'}`" in line
 
 
-def test_providers_name_only_imports_another_distribution_provides(monkeypatch):
+def test_a_run_records_the_environment_that_changes_its_arithmetic_only_where_set(monkeypatch):
+    from keras_rl.runs.provenance import provenance
+
+    for name in ("XLA_FLAGS", "TF_XLA_FLAGS", "TF_ENABLE_ONEDNN_OPTS"):
+        monkeypatch.delenv(name, raising=False)
+    assert "environment" not in provenance()  # the committed runs' summaries: nothing new in them
+    monkeypatch.setenv("TF_ENABLE_ONEDNN_OPTS", "0")
+    assert provenance()["environment"] == {"TF_ENABLE_ONEDNN_OPTS": "0"}
+
+
+def test_providers_name_the_distribution_whose_version_the_import_reports(monkeypatch):
+    """TensorFlow 2.22.0rc0 installs keras-nightly beside keras: both hold the ``keras`` import's
+    files, and the import is keras-nightly's (its version). ``tf.__version__`` spells an rc
+    ``2.22.0-rc0``."""
     import importlib.metadata
 
     monkeypatch.setattr(
         importlib.metadata,
         "packages_distributions",
-        lambda: {"keras": ["keras-nightly"], "tensorflow": ["tensorflow"], "numpy": ["numpy"]},
+        lambda: {"keras": ["keras", "keras-nightly"], "tensorflow": ["tensorflow"], "numpy": ["numpy"]},
     )
-    assert command.providers() == {"keras": "keras-nightly"}
+    installed = {
+        "keras": "3.15.1",
+        "keras-nightly": "3.16.0.dev2026102704",
+        "tensorflow": "2.22.0rc0",
+        "numpy": "2.4.6",
+    }
+    monkeypatch.setattr(importlib.metadata, "version", installed.__getitem__)
+    now = {"keras": "3.16.0.dev2026102704", "tensorflow": "2.22.0-rc0", "numpy": "2.4.6"}
+    assert command.providers(now) == {"keras": "keras-nightly"}
+    assert command.providers({**now, "keras": "3.15.1"}) == {}
 
 
 @pytest.mark.slow
@@ -191,7 +222,10 @@ def test_an_unchanged_install_says_the_same_bits_and_a_change_runs_every_twin(tm
     report = json.loads((tmp_path / "same" / "check.json").read_text())
     (entry,) = report["experiments"]
     assert entry["pairing"] == "twins" and entry["twins"]["same_bits"] and sorted(entry["new"]) == ["0", "1"]
-    assert "the same bits as the baseline for 2 of 2 seeds" in (tmp_path / "same" / "check.md").read_text()
+    report_md = (tmp_path / "same" / "check.md").read_text()
+    assert "the same bits as the baseline for 2 of 2 seeds" in report_md
+    # issue 72 item 7: an installed check points to what ships, never a checkout's files
+    assert "python -m maintainers" not in report_md and "results/checks" not in report_md
     # a baseline made here is not the committed one: no measured rate is claimed for it
     assert entry["error_rates"] is None or entry["twins"]["same_bits"]
 

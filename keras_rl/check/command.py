@@ -467,7 +467,9 @@ def twin_false_alarm(rates: dict[str, Any] | None, posts: int) -> float | None:
 
 def sensitive_rates(rule: CheckRule, path: Path = SENSITIVE_RATES) -> dict[str, Any] | None:
     """The sensitive tier's measured rates of exactly this rule, or None."""
-    if not path.is_file():
+    from keras_rl.check.rules import UNPAIRED_SENSITIVE
+
+    if not path.is_file() or UNPAIRED_SENSITIVE.get(rule.experiment) != rule:
         return None
     entry = json.loads(path.read_text()).get("posts", {}).get(rule.experiment)
     if not entry:
@@ -810,7 +812,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         rates = r.error_rates
         pw = power_text(rates, short=True) if rates else "not calibrated"
         if r.design is not None:  # the fixed rule's rates are not this design's
-            fa, pw = f"{r.design['false_alarm_rate']:.2%} (sequential)", "results/checks/sequential.md"
+            fa, pw = f"{r.design['false_alarm_rate']:.2%} (sequential)", "sequential.json"
         else:  # the figure the sentence below combines: this post at the level it was tested at
             assert family is not None
             rate = family["per_post"][r.experiment]["rate"]
@@ -840,7 +842,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         else:
             how = (
                 "each post's design calibrated on its own baseline to 1% / 3, futility stops included; "
-                f"measured: {per_post}; results/checks/sequential.md"
+                f"measured: {per_post}; sequential.json"
             )
         lines += [
             "",
@@ -853,7 +855,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
             "",
             f"False alarms of this command as a whole: **not measured**: {', '.join(missing)} ran twins whose bits "
             "differ from the baseline's, and their rate on real arithmetic changes is not measured yet "
-            "(results/checks/twins.md).",
+            "(twins.json).",
         ]
     elif family is not None:
         methods = sorted({p["method"] for p in family["per_post"].values()})
@@ -864,7 +866,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
             f"False alarms of this command as a whole: **{family['family_wise']:.2%}** when nothing changed "
             f"(alpha {family['alpha']} for the family of {family['posts']} post(s), Holm: each post's figure in "
             f"the table, at {level} against its whole baseline, {'; '.join(methods)}, "
-            "combined as independent tests; the same computation as results/checks/family.json)."
+            "combined as independent tests)."
             + (
                 " **Above alpha**: on this baseline the test is not exact at this level ("
                 + (
@@ -876,7 +878,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
                 if above
                 else ""
             ),
-            "The power column is the rule's, measured against the mutants (results/checks/calibration.md).",
+            "The power column is the rule's, measured against the mutants (calibration.json).",
         ]
     for r in results:
         if r.twins is not None:
@@ -900,8 +902,9 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         "",
         "Unpaired fresh seeds are never the baseline's; twins are its own seeds, rerun. "
         "`changed` means p < alpha in either direction "
-        "(learning faster is a change in fidelity too). Error rates: "
-        "`python -m maintainers calibrate rules` (results/checks/calibration.md).",
+        "(learning faster is a change in fidelity too). The error rates quoted here ship with the package "
+        f"({', '.join(f'keras_rl/check/{f.name}' for f in (CALIBRATION, SENSITIVE_RATES, TWIN_RATES, SEQUENTIAL))}); "
+        "how each was measured: docs/check.md in the project's repository.",
         "",
     ]
     atomic_write_text(out / "check.md", "\n".join(lines))
@@ -945,17 +948,34 @@ MODULE_OF = {"tensorflow": "tensorflow", "keras": "keras", "numpy": "numpy", "gy
 library's own (``keras`` provided by ``keras-nightly``, ``tensorflow`` by ``tf-nightly``)."""
 
 
-def providers() -> dict[str, str]:
-    """Library -> the installed distribution that provides its import, where that is another one."""
-    from importlib.metadata import packages_distributions
+def providers(versions: dict[str, str]) -> dict[str, str]:
+    """Library -> the installed distribution that provides its import, where that is another one
+    than the library's own: of the distributions that install the import's files (``keras`` and
+    ``keras-nightly`` both do, once TensorFlow 2.22.0rc0 pulls the second in beside the first), the
+    one whose version is the version the import reports (``versions``, as a run records them)."""
+    from importlib.metadata import packages_distributions, version
 
     found = packages_distributions()
     out = {}
     for library, module in MODULE_OF.items():
-        names = found.get(module, [])
-        if names and library not in {n.lower().replace("_", "-") for n in names}:
-            out[library] = names[0]
+        names = list(dict.fromkeys(found.get(module, [])))
+        imported = versions.get(library)
+        owner = next((n for n in names if imported is not None and _same_version(version(n), imported)), None)
+        if owner is None and len(names) == 1:
+            owner = names[0]
+        if owner is not None and owner.lower().replace("_", "-") != library:
+            out[library] = owner
     return out
+
+
+def _same_version(a: str, b: str) -> bool:
+    """``2.22.0rc0`` (a distribution's) and ``2.22.0-rc0`` (``tf.__version__``) are one version."""
+    from packaging.version import InvalidVersion, Version
+
+    try:
+        return Version(a) == Version(b)
+    except InvalidVersion:
+        return a == b
 
 
 def environment_changes(baseline_summary: dict[str, Any], new_summary: dict[str, Any]) -> dict[str, Any]:
@@ -974,7 +994,14 @@ def environment_changes(baseline_summary: dict[str, Any], new_summary: dict[str,
         "baseline": {"model": bp.get("cpu_model"), "isa": bp.get("cpu_isa")},
         "new": {"model": np_.get("cpu_model"), "isa": np_.get("cpu_isa")},
     }
-    return {"versions": versions, "replaced": providers(), "cpu": cpu, "same_cpu": cpu["baseline"] == cpu["new"]}
+    arithmetic = {"baseline": bp.get("environment", {}), "new": np_.get("environment", {})}
+    return {
+        "versions": versions,
+        "replaced": providers(now),
+        "cpu": cpu,
+        "same_cpu": cpu["baseline"] == cpu["new"],
+        "arithmetic": arithmetic if arithmetic["baseline"] != arithmetic["new"] else None,
+    }
 
 
 def _isa(isa: list[str] | None) -> str:
@@ -1015,7 +1042,13 @@ def environment_lines(results: list[CheckResult]) -> list[str]:
                 else ""
             )
             + f" CPU: {n['model']} ({_isa(n['isa'])}) against the baseline's {b['model']} ({_isa(b['isa'])})"
-            + ("." if env["same_cpu"] else ": another CPU, and bits follow the host."),
+            + ("." if env["same_cpu"] else ": another CPU, and bits follow the host.")
+            + (
+                f" The arithmetic's environment differs: `{env['arithmetic']['new'] or 'none set'}` against the "
+                f"baseline's `{env['arithmetic']['baseline'] or 'none set'}`."
+                if env.get("arithmetic")
+                else ""
+            ),
         ]
     return lines
 

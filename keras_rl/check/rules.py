@@ -184,6 +184,51 @@ RULES: dict[tuple[str, str], CheckRule] = {
 SENSITIVE_FIRST_SEED = 4000
 
 
+def _compiled_sensitive(experiment: str, seeds: int, episodes: int) -> CheckRule:
+    """An unpaired sensitive rule on the compiled engine: fresh seeds from 4000, solo, against the
+    post's committed compiled baseline."""
+    return CheckRule(
+        experiment,
+        "sensitive",
+        "episodes_to_threshold",
+        0.01,
+        seeds=seeds,
+        episodes=episodes,
+        first_seed=SENSITIVE_FIRST_SEED,
+        seed_batch=1,
+        candidates=("episodes_to_threshold",),
+        engine="compiled",
+    )
+
+
+UNPAIRED_SENSITIVE: dict[str, CheckRule] = {
+    # results/checks/sensitive_plan.md sized 40, measured 50 on the baseline's own seeds, and 80 on
+    # 1,000 held-back seeds (results/checks/real_checks_plan.md): 1.00 / 0.85 against x0.90 / x1.10.
+    "pendulum": _compiled_sensitive("pendulum", 80, 1000),
+    # results/checks/sensitive_plan_cartpole.md: 40 fresh compiled seeds against 200.
+    "cartpole": _compiled_sensitive("cartpole", 40, 600),
+    # The Gymnasium loop's seeds, batched by 10, against the 100-seed loop baseline; the final metric
+    # chosen by the rules' criterion on the tuning mutants' seeds 0-14.
+    "mountaincar": CheckRule(
+        "mountaincar",
+        "sensitive",
+        "final_metric",
+        0.01,
+        seeds=40,
+        episodes=100,
+        first_seed=SENSITIVE_FIRST_SEED,
+        seed_batch=10,
+        candidates=("success", "auc", "final_metric", "median_score"),
+    ),
+}
+"""The sensitive tier's unpaired rules of issues 35 and 52 (fresh seeds against the whole
+baseline), which ``sensitive.json`` and ``real_checks.json`` measured (``python -m maintainers
+calibrate sensitive|real``). Since issue 70 the tier runs twins (``RULES``); these stay as the rules
+those committed rates belong to. Posts 000's and 003's are also their twins' fallback
+(``CheckRule.unpaired``) for a baseline that holds no twins, so their rates apply there, on the
+committed baseline only."""
+
+
 def _twin_sensitive(experiment: str, statistic: str, seeds: int, episodes: int, baseline: str) -> CheckRule:
     """A sensitive rule of twins on the compiled engine: the baseline's seeds ``0 .. seeds-1`` rerun
     solo, bits first, then the paired test."""
@@ -206,14 +251,14 @@ def _twin_sensitive(experiment: str, statistic: str, seeds: int, episodes: int, 
 RULES.update(
     {
         # Twins since issue 70 (results/checks/twin_plan.md, committed before its runs; measured by
-        # python -m maintainers calibrate twins: results/checks/twins.md). n was chosen on the tuning
-        # mutants' paired noise (seeds 0-29) as the plan said: no size up to 80 saw a 10% move both
+        # python -m maintainers calibrate twins: "The twin check" in results/checks/calibration.md). n was
+        # chosen on the tuning mutants' paired noise (seeds 0-29) as the plan said: no size up to 80 saw a 10% move both
         # ways 90% of the time, so the rule takes 80. Before: 80 fresh seeds from 4000, unpaired
         # (sized in results/checks/real_checks_plan.md), which saw batch_32 in 0 of 6 real checks.
         ("pendulum", "sensitive"): _twin_sensitive("pendulum", "episodes_to_threshold", 80, 1000, "baseline"),
         # The present size and statistic, now twins of the 200-seed compiled baseline: censored at 600
         # episodes (92 of 200 seeds never reach 475), post 003's twins keep Spearman 0.13-0.25 under
-        # its held-out mutants, so pairing buys it little (twins.md).
+        # its held-out mutants, so pairing buys it little (calibration.md).
         ("cartpole", "sensitive"): _twin_sensitive("cartpole", "episodes_to_threshold", 40, 600, "baseline"),
         # Post 001's twins run on its compiled engine (certified since issue 52; 0.39x a batched
         # Gymnasium seed's cost), against the compiled engine's 200 seeds

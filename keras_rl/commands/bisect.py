@@ -12,8 +12,8 @@ from keras_rl.commands.common import (
     EXIT_OK,
     _stopped,
 )
+from keras_rl.commands.flags import shared_flags
 from keras_rl.errors import ConfigError
-from keras_rl.runs.options import shared_flags
 from keras_rl.study import check_writable_dir
 
 

@@ -12,8 +12,8 @@ from keras_rl.commands.common import (
     _stopped,
     parse_seeds,
 )
+from keras_rl.commands.flags import options_from_args, shared_flags
 from keras_rl.errors import ConfigError, KerasRLError, NoVerdictError
-from keras_rl.runs.options import RunOptions, shared_flags
 from keras_rl.study import check_writable_dir
 
 
@@ -114,7 +114,7 @@ def check_results(args: argparse.Namespace) -> list:
     if args.alpha is not None and not 0 < args.alpha < 1:
         raise ConfigError(f"--alpha must lie in (0, 1), got {args.alpha}")
     seeds = parse_seeds(args.seeds) if args.seeds is not None else None
-    options = RunOptions.from_args(args)
+    options = options_from_args(args)
     check_writable_dir(args.out, "--out")  # bad input (exit 2), found before any training
     options.check_address()
     from keras_rl.check.command import default_baselines, run_check

@@ -11,7 +11,7 @@ from keras_rl.commands.common import (
     _stopped,
     parse_seeds,
 )
-from keras_rl.runs.options import RunOptions, shared_flags
+from keras_rl.commands.flags import options_from_args, shared_flags
 
 
 def add_parser(sub) -> None:
@@ -59,7 +59,7 @@ def compare_result(args: argparse.Namespace):
     its ``CompareResult``. KeyboardInterrupt when a signal stopped the runs."""
     from keras_rl.study import compare_frameworks
 
-    options = RunOptions.from_args(args)
+    options = options_from_args(args)
     return compare_frameworks(
         args.experiment,
         parse_seeds(args.seeds),

@@ -11,8 +11,8 @@ from keras_rl.commands.common import (
     _check_writable_file,
     _stopped,
 )
+from keras_rl.commands.flags import path_arg, shared_flags
 from keras_rl.errors import ConfigError
-from keras_rl.runs.options import path_arg, shared_flags
 
 
 def add_parser(sub) -> None:

@@ -11,8 +11,8 @@ from keras_rl.commands.common import (
     _recorded_config,
     parse_seeds,
 )
+from keras_rl.commands.flags import RUN_FLAGS, options_from_args, path_arg, shared_flags
 from keras_rl.errors import ConfigError
-from keras_rl.runs.options import RUN_FLAGS, RunOptions, path_arg, shared_flags
 from keras_rl.study import MIN_SUCCESS_RATE
 
 
@@ -132,7 +132,7 @@ def study_from_args(args: argparse.Namespace):
     variant = recorded.variant if recorded else args.variant or "faithful"
     framework = recorded.framework if recorded else args.framework or "keras"
     matched_init = recorded.matched_init if recorded else args.matched_init
-    options = RunOptions.from_args(args)
+    options = options_from_args(args)
     if args.eval_every < 0:
         raise ConfigError(f"--eval-every must be zero (no evaluations) or more, got {args.eval_every}")
     if args.eval_episodes is not None and not args.eval_every:

@@ -12,8 +12,8 @@ from keras_rl.commands.common import (
     _stopped,
     parse_seeds,
 )
+from keras_rl.commands.flags import options_from_args, shared_flags
 from keras_rl.errors import ConfigError
-from keras_rl.runs.options import RunOptions, shared_flags
 from keras_rl.study import check_seed_batch, check_writable_dir
 
 
@@ -68,7 +68,7 @@ def sweep(args: argparse.Namespace) -> int:
         raise ConfigError("sweep needs --out FOLDER: the sweep's folder (<grid point>/seed_<n>/, sweep.md)")
     experiment = get_experiment(args.experiment)
     seeds = parse_seeds(args.seeds)
-    options = RunOptions.from_args(args)
+    options = options_from_args(args)
     base = experiment.config_cls.for_variant(args.variant, framework=args.framework, **options.config_changes())
     base = base.with_text_overrides(options.overrides)
     if args.ablate and args.grid:

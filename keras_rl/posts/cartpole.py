@@ -18,13 +18,14 @@ from keras_rl.agents.schedules import EveryStep
 from keras_rl.agents.skeleton import Agent
 from keras_rl.agents.transitions import TransitionRule
 from keras_rl.buffers import Layout, ReplayBuffer
-from keras_rl.config import ExperimentConfig, fraction, non_negative, positive, unit, widths
+from keras_rl.config import ExperimentConfig, fraction, named_fields, non_negative, positive, unit, widths
 from keras_rl.envs import EnvSpec, discrete_spec, make_env
 from keras_rl.experiment import Experiment
 from keras_rl.metrics import RollingMean
 
 
-@dataclass(frozen=True)
+@named_fields
+@dataclass(frozen=True, kw_only=True)
 class CartPoleDQNConfig(ExperimentConfig):
     """Post 003's hyperparameters, as the tutorial sets them (or leaves them at torch's defaults)."""
 

@@ -29,7 +29,7 @@ from keras_rl.agents.schedules import Bursts, EveryStep
 from keras_rl.agents.skeleton import Agent
 from keras_rl.agents.transitions import TransitionRule
 from keras_rl.buffers import Layout, PoppingBuffer, ReplayBuffer
-from keras_rl.config import ExperimentConfig, non_negative, positive, unit, widths
+from keras_rl.config import ExperimentConfig, named_fields, non_negative, positive, unit, widths
 from keras_rl.envs import EnvSpec, box_spec, make_env
 from keras_rl.errors import ConfigError
 from keras_rl.experiment import Experiment
@@ -37,7 +37,8 @@ from keras_rl.learners.protocol import ActorGradient
 from keras_rl.metrics import GoalShare, ReturnSpread
 
 
-@dataclass(frozen=True)
+@named_fields
+@dataclass(frozen=True, kw_only=True)
 class MountainCarDDPGConfig(ExperimentConfig):
     """Post 001's hyperparameters and quirk switches."""
 

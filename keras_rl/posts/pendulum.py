@@ -19,13 +19,14 @@ from keras_rl.agents.schedules import EveryStep
 from keras_rl.agents.skeleton import Agent
 from keras_rl.agents.transitions import TransitionRule
 from keras_rl.buffers import Layout, ReplayBuffer
-from keras_rl.config import ExperimentConfig, fraction, non_negative, positive, unit, widths
+from keras_rl.config import ExperimentConfig, fraction, named_fields, non_negative, positive, unit, widths
 from keras_rl.envs import EnvSpec, box_spec, make_env
 from keras_rl.experiment import Experiment
 from keras_rl.metrics import PostEMA
 
 
-@dataclass(frozen=True)
+@named_fields
+@dataclass(frozen=True, kw_only=True)
 class PendulumDDPGConfig(ExperimentConfig):
     """Post 000's hyperparameters and quirk switches."""
 

@@ -132,7 +132,7 @@ def rebuild(parent: Path, x_axis: str = "episode") -> dict[str, Any]:
         raise RunFolderError(f"{parent} holds no seed_*/ run folders and no runs.parquet")
     summaries = [r.summary() for r in runs]
     configs = [r.config() for r in runs]
-    keys = {(c["experiment"], c["variant"], c.get("framework", "keras")) for c in configs}
+    keys = RunSet(parent).kinds()
     if len(keys) != 1:
         raise RunFolderError(f"{parent} mixes runs of different experiments/variants/frameworks: {sorted(keys)}")
     ((name, variant, framework),) = keys

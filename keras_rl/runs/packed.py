@@ -229,9 +229,13 @@ def refuse_packed(run_dir: Path) -> None:
 # -- packing ---------------------------------------------------------------------------------
 
 
-def _seed_entry(seed_dir: Path, seed: int, configs: dict[str, int], config_list: list) -> tuple[dict, list, tuple]:
+def _seed_entry(
+    seed_dir: Path, seed: int, configs: dict[str, int], config_list: list, keep_folders: bool = False
+) -> tuple[dict, list, tuple]:
     """One seed folder's record for the metadata, its typed rows and its columns; a
-    RunFolderError for a folder that cannot be packed without losing something."""
+    RunFolderError for a folder that cannot be packed without losing something. With
+    ``keep_folders`` the folder stays, so what a packed set does not keep (weights, checkpoints,
+    pictures) stays in it and is left out of the record."""
     from keras_rl.runs.summary import RunSummary
 
     files = {p.name: p for p in seed_dir.iterdir() if not p.name.startswith(".")}
@@ -244,10 +248,13 @@ def _seed_entry(seed_dir: Path, seed: int, configs: dict[str, int], config_list:
         for n, p in others.items()
         if not p.is_file() or p.suffix not in TEXT_SUFFIXES or p.stat().st_size > SMALL_FILE
     ]
-    if unpackable:
+    if keep_folders:
+        others = {n: p for n, p in others.items() if n not in unpackable}
+    elif unpackable:
         raise RunFolderError(
             f"{seed_dir} holds {', '.join(sorted(unpackable))}, which a packed set does not keep (weights, "
-            "checkpoints, pictures): pack with --keep-folders, or move them out first"
+            "checkpoints, pictures): pack with --keep-folders (the folders stay and keep them; the packed set "
+            "holds the rest), or move them out first"
         )
     summary_text = files["summary.json"].read_text()
     summary = RunSummary.read(seed_dir)
@@ -293,7 +300,7 @@ def _seed_entry(seed_dir: Path, seed: int, configs: dict[str, int], config_list:
     return entry, typed, columns
 
 
-def pack_table(seed_dirs: list[tuple[int, Path]], existing: PackedSet | None = None):
+def pack_table(seed_dirs: list[tuple[int, Path]], existing: PackedSet | None = None, keep_folders: bool = False):
     """The Parquet table of ``existing``'s seeds and the folders ``seed_dirs``, and its metadata."""
     pa, _ = _pyarrow()
     configs: dict[str, int] = {}
@@ -316,7 +323,7 @@ def pack_table(seed_dirs: list[tuple[int, Path]], existing: PackedSet | None = N
     for seed, seed_dir in seed_dirs:
         if seed in entries:
             raise RunFolderError(f"seed {seed} is both in {existing.path if existing else '?'} and in {seed_dir}")
-        entry, rows, cols = _seed_entry(seed_dir, seed, configs, config_list)
+        entry, rows, cols = _seed_entry(seed_dir, seed, configs, config_list, keep_folders)
         if columns is not None and cols != columns:
             raise RunFolderError(
                 f"{seed_dir / 'episodes.csv'} has columns {', '.join(cols)}, the set's other seeds "
@@ -399,7 +406,7 @@ def pack(folder: Path, keep_folders: bool = False) -> tuple[Path, list[int]]:
         if existing is not None:
             return path, []
         raise RunFolderError(f"{folder} holds no seed_<n>/ folders to pack")
-    table = pack_table([(seed_of(d), d) for d in dirs], existing)
+    table = pack_table([(seed_of(d), d) for d in dirs], existing, keep_folders)
     tmp = folder / f".{PACKED}.new"
     write_table(table, tmp)
     try:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import os
 import platform
 import subprocess
 import sys
@@ -126,10 +127,25 @@ def command_line() -> str:
     return " ".join([prog, *sys.argv[1:]])
 
 
+ARITHMETIC_ENVIRONMENT = ("XLA_FLAGS", "TF_XLA_FLAGS", "TF_ENABLE_ONEDNN_OPTS")
+"""Environment variables that change a run's arithmetic without changing its code or config (XLA's
+fast math, oneDNN's kernels): recorded where set, so that a set made under one can be told apart
+from the code's own bits (issue 70's real changes). PyTorch's MKL and ATen switches are recorded as
+``portable_torch``, which sets them."""
+
+
+def arithmetic_environment() -> dict[str, str]:
+    """Those of ``ARITHMETIC_ENVIRONMENT`` that are set, as set."""
+    return {name: os.environ[name] for name in ARITHMETIC_ENVIRONMENT if name in os.environ}
+
+
 def provenance() -> dict[str, object]:
-    """The machine and code version a run was made with (``summary.json``'s ``provenance``)."""
+    """The machine and code version a run was made with (``summary.json``'s ``provenance``); the
+    arithmetic's environment only where some of it is set (a run made without any records none)."""
+    environment = arithmetic_environment()
     return {
         "cpu_model": cpu_model(),
         "cpu_isa": cpu_isa(),
         **git_state(),
+        **({"environment": environment} if environment else {}),
     }  # no working folder: it tells a reader nothing and leaks a path

@@ -14,12 +14,13 @@ come in seed order. Nothing here imports TensorFlow.
 from __future__ import annotations
 
 import json
+import numbers
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from keras_rl.errors import RunFolderError
+from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.runs.files import SEED_FOLDER, seed_of
 
 __all__ = ["SEED_FOLDER", "RunSet", "SeedRun", "seed_of"]
@@ -156,6 +157,8 @@ class RunSet:
 
     def run(self, seed: int) -> SeedRun:
         """One seed; a RunFolderError names the set and the seeds it holds."""
+        if isinstance(seed, bool) or not isinstance(seed, numbers.Integral):
+            raise ConfigError(f"a seed is a whole number, got {seed!r}")
         for r in self.runs():
             if r.seed == seed:
                 return r
@@ -176,6 +179,15 @@ class RunSet:
     def configs(self) -> list[dict[str, Any]]:
         """Each run's ``config.json`` as written, in seed order."""
         return [r.config() for r in self.runs(holding="config.json")]
+
+    def kinds(self) -> dict[tuple[str, str, str], list[int]]:
+        """(experiment, variant, framework) -> the seeds of that kind: one key for a set that is one
+        study, more for a folder that mixes them (which ``aggregate`` and ``reproduce`` refuse)."""
+        out: dict[tuple[str, str, str], list[int]] = {}
+        for run in self.runs(holding="config.json"):
+            c = run.config()
+            out.setdefault((c["experiment"], c["variant"], c.get("framework", "keras")), []).append(run.seed)
+        return out
 
     def episodes(self):
         """Every episode of every run, one row each with its ``seed``: a pandas DataFrame where

@@ -27,10 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from keras_rl.check.rules import HELD_OUT, RULES
+from keras_rl.check.rules import HELD_OUT, UNPAIRED_SENSITIVE
 from keras_rl.check.statistics import changed_many
 from keras_rl.runs.run_set import RunSet
-from maintainers.calibrate.runs import CHECKS, HOLM_LEVEL, clopper_pearson, load, shifted, values
+from maintainers.calibrate.runs import CHECKS, HOLM_LEVEL, clopper_pearson, load, shifted, splice_calibration, values
 
 TIER = "sensitive"
 OUT = CHECKS / "real_checks.json"
@@ -136,13 +136,13 @@ def sizes(baseline: np.ndarray, pool: np.ndarray, budget: int, alpha: float, see
 
 def pool_values(post: str) -> np.ndarray | None:
     """Each unchanged seed's statistic (the post's sensitive rule's) from its no-change pool, or None."""
-    rule = RULES[(post, TIER)]
+    rule = UNPAIRED_SENSITIVE[post]
     folders = folders_under(CHECKS / post / "no-change")
     return values(post, rule.statistic, rule.episodes, runs_of(folders)[0]) if folders else None
 
 
 def post_entry(post: str) -> dict:
-    rule = RULES[(post, TIER)]
+    rule = UNPAIRED_SENSITIVE[post]
     base = values(post, rule.statistic, rule.episodes, load(CHECKS / post / rule.baseline))
     _, pool_seeds, pool_walls = runs_of(folders_under(CHECKS / post / "no-change"))
     entry: dict = {
@@ -314,8 +314,7 @@ def render(data: dict, resampled: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from keras_rl.check.command import SENSITIVE_RATES
-    from keras_rl.report.markdown import replace_block
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+    from keras_rl.runs.files import atomic_write_json
 
     data = compute()
     text = render(data, json.loads(SENSITIVE_RATES.read_text()))
@@ -323,10 +322,5 @@ def run(args: argparse.Namespace) -> int:
         print(text)
         return 0
     atomic_write_json(OUT, data)
-    page = CHECKS / "calibration.md"
-    current = page.read_text()
-    if BEGIN not in current:  # where ``calibrate/rules.markdown`` puts it: after the sensitive tier's block
-        current = current.rstrip("\n") + f"\n\n{HEADING}\n\n{BEGIN}\n{END}\n"
-    atomic_write_text(page, replace_block(current, BEGIN, END, text))
-    print(f"updated {OUT} and {page}")
+    print(f"updated {OUT} and {splice_calibration(HEADING, BEGIN, END, text)}")
     return 0

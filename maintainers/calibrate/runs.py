@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from keras_rl.check.rules import ALPHAS, CALIBRATED_TIERS, RULES
+from keras_rl.check.rules import ALPHAS, CALIBRATED_TIERS, RULES, UNPAIRED_SENSITIVE
 from keras_rl.check.statistics import decide, false_alarm_rate, power, seed_statistic
 from keras_rl.checkout import ROOT
 from keras_rl.registry import get_experiment
@@ -86,6 +86,20 @@ def halved(folders: list[Path]) -> bool:
     return all(seed_count(f) >= len(TUNE) + len(REPORT) for f in folders)
 
 
+def splice_calibration(heading: str, begin: str, end: str, text: str) -> Path:
+    """``text`` between ``begin`` and ``end`` in ``results/checks/calibration.md``; a block the page
+    lacks is added at its end, under ``heading``. Returns the page."""
+    from keras_rl.report.markdown import replace_block
+    from keras_rl.runs.files import atomic_write_text
+
+    page = CHECKS / "calibration.md"
+    current = page.read_text()
+    if begin not in current:
+        current = current.rstrip("\n") + f"\n\n{heading}\n\n{begin}\n{end}\n"
+    atomic_write_text(page, replace_block(current, begin, end, text))
+    return page
+
+
 def clopper_pearson(k: int, n: int) -> tuple[float, float]:
     from scipy.stats import binomtest
 
@@ -98,7 +112,7 @@ def measure(post: str, tier: str, baseline: np.ndarray, runs: np.ndarray) -> dic
     ``runs``: each seed's statistic): power at alpha and at alpha / 3 (n seeds drawn with
     replacement, 2,000 times), the runs cut into disjoint real checks with their exact
     (Clopper-Pearson) 95% interval, a seed bootstrap of the power, and both medians."""
-    rule = RULES[(post, tier)]
+    rule = UNPAIRED_SENSITIVE[post] if tier == "sensitive" else RULES[(post, tier)]
     levels = {"alpha": rule.alpha, "holm_first": rule.alpha / HOLM_LEVEL}
     out: dict = {"seeds": len(runs), "n": rule.seeds, "statistic": rule.statistic}
     for key, alpha in levels.items():

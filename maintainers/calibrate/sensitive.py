@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from keras_rl.check.rules import HELD_OUT, MUTANTS, RULES
+from keras_rl.check.rules import HELD_OUT, MUTANTS, UNPAIRED_SENSITIVE
 from keras_rl.check.statistics import changed_many, check_false_alarm_rate, family_false_alarm_rate, power
 from keras_rl.checkout import ROOT
 from maintainers.calibrate import real
@@ -50,6 +50,7 @@ from maintainers.calibrate.runs import (
     measure,
     power_cells,
     shifted,
+    splice_calibration,
     values,
 )
 
@@ -74,7 +75,7 @@ def shift_power(baseline: np.ndarray, n: int, budget: int, shift: float, alpha: 
 
 
 def post_entry(post: str) -> dict:
-    rule = RULES[(post, TIER)]
+    rule = UNPAIRED_SENSITIVE[post]
     baseline_runs = load(CHECKS / post / rule.baseline)
     entry: dict = {
         "rule": {
@@ -273,10 +274,6 @@ def run(args: argparse.Namespace) -> int:
     docs = ROOT / "docs" / "check.md"
     held = json.loads((CHECKS / "held_out.json").read_text())
     atomic_write_text(docs, replace_block(docs.read_text(), SEES_BEGIN, SEES_END, sees_table(data, held)))
-    page = CHECKS / "calibration.md"
-    current = page.read_text()
-    if BEGIN not in current:  # where ``calibrate/rules.markdown`` puts it: after the held-out block
-        current = current.rstrip("\n") + f"\n\n{HEADING}\n\n{BEGIN}\n{END}"
-    atomic_write_text(page, replace_block(current, BEGIN, END, text))
-    print(f"updated {SENSITIVE_RATES}, {CHECKS / 'calibration.md'} and {docs}")
+    page = splice_calibration(HEADING, BEGIN, END, text)
+    print(f"updated {SENSITIVE_RATES}, {page} and {docs}")
     return 0

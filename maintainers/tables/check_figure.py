@@ -23,12 +23,12 @@ COMMAND = "python -m maintainers tables check-figure --write"
 def draw(path: Path) -> str:
     """The figure at ``path``; its verdict in words."""
     from keras_rl.check.command import CheckResult, _plot, _statistic, baseline_values, error_rates
-    from keras_rl.check.rules import rule_for
+    from keras_rl.check.rules import UNPAIRED_SENSITIVE
     from keras_rl.check.statistics import decide
     from keras_rl.registry import get_experiment
     from keras_rl.runs.run_set import RunSet
 
-    experiment, rule = get_experiment("pendulum"), rule_for("pendulum", "sensitive")
+    experiment, rule = get_experiment("pendulum"), UNPAIRED_SENSITIVE["pendulum"]
     baseline, baseline_rows = baseline_values(experiment, rule, BASELINE)
     runs = RunSet(FRESH).runs()[: rule.seeds]
     new_rows = {run.seed: run.rows() for run in runs}
