@@ -114,6 +114,7 @@ def describe(name: str, runs: list[SeedRun]) -> dict:
         "status": dict(
             sorted({st: sum(s["status"] == st for s in summaries) for st in {s["status"] for s in summaries}}.items())
         ),
+        "episodes": sum(int(s.get("episodes_run") or 0) for s in summaries),
         "process_minutes": round(sum(batches.values()) / 60, 1),
         "longest_job_minutes": round(max(batches.values()) / 60, 1),
     }
@@ -341,6 +342,18 @@ def rerun(patterns: list[str], out: Path, workers: int, address: str | None = No
     return results
 
 
+SIZE_BEGIN, SIZE_END = "<!-- results-size:begin -->", "<!-- results-size:end -->"
+SIZE_PAGE = ROOT / "docs" / "runs.md"
+
+
+def size_text(entries: list[dict], results: Path = RESULTS) -> str:
+    """How much ``results/`` commits: its sets, seeds, episodes and packed MiB (``docs/runs.md``'s block)."""
+    seeds = sum(len(e["seeds"]) for e in entries)
+    episodes = sum(e["episodes"] for e in entries)
+    mib = sum((results / e["set"] / "runs.parquet").stat().st_size for e in entries) / 2**20
+    return f"{len(entries)} sets, {seeds:,} seeds and {episodes:,} episodes in {mib:.0f} MiB of `runs.parquet`"
+
+
 def run(args: argparse.Namespace) -> int:
     if args.regenerate:
         if args.out is None:
@@ -355,7 +368,10 @@ def run(args: argparse.Namespace) -> int:
         return 0
     from keras_rl.runs.files import atomic_write_json, atomic_write_text
 
+    from keras_rl.report.markdown import replace_block
+
     atomic_write_json(RESULTS / "MANIFEST.json", entries)
     atomic_write_text(RESULTS / "MANIFEST.md", markdown(entries))
-    print(f"updated {RESULTS / 'MANIFEST.md'} and MANIFEST.json")
+    atomic_write_text(SIZE_PAGE, replace_block(SIZE_PAGE.read_text(), SIZE_BEGIN, SIZE_END, size_text(entries)))
+    print(f"updated {RESULTS / 'MANIFEST.md'}, MANIFEST.json and {SIZE_PAGE}")
     return 0

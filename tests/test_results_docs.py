@@ -170,6 +170,9 @@ def test_the_manifest_lists_every_committed_run_set_as_it_is():
     assert (ROOT / "results" / "MANIFEST.md").read_text() == gen.markdown(entries), (
         "results/MANIFEST.md is stale: run python -m maintainers manifest --write"
     )
+    page = gen.SIZE_PAGE.read_text()  # docs/runs.md's count of what results/ commits (it read 95 sets at 137)
+    block = page.split(gen.SIZE_BEGIN, 1)[1].split(gen.SIZE_END, 1)[0].strip()
+    assert block == gen.size_text(entries), "docs/runs.md's count is stale: run python -m maintainers manifest --write"
     sets = {e["set"]: e for e in entries}
     for post in ("pendulum", "cartpole", "mountaincar"):
         assert f"{post}/faithful" in sets and f"checks/{post}/baseline" in sets
