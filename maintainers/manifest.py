@@ -366,9 +366,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.write:
         print(markdown(entries))
         return 0
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
-
     from keras_rl.report.markdown import replace_block
+    from keras_rl.runs.files import atomic_write_json, atomic_write_text
 
     atomic_write_json(RESULTS / "MANIFEST.json", entries)
     atomic_write_text(RESULTS / "MANIFEST.md", markdown(entries))
