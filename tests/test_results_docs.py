@@ -381,3 +381,15 @@ def test_the_check_example_figure_is_what_its_command_draws(tmp_path):
     verdict = gen.draw(tmp_path / "check.png")
     assert verdict.startswith("consistent") and "80 fresh seeds against 200" in verdict
     assert (tmp_path / "check.png").read_bytes() == gen.FIGURE.read_bytes(), f"stale: {gen.COMMAND}"
+
+
+def test_a_deviation_that_counts_code_versions_names_every_commit_its_arm_recorded():
+    """†4 named two code versions of the vectorised arm; its seeds recorded three commits (issue 72 item 13)."""
+    from keras_rl.report.plans import DEVIATIONS
+
+    words = {2: "two", 3: "three", 4: "four"}
+    arm = RunSet(ROOT / "results" / "cartpole" / "vectorised-torch" / "seeds-0-199")
+    commits = {r.summary_record()["provenance"]["commit"][:8] for r in arm.runs()}
+    (deviation,) = [d for d in DEVIATIONS if d.plan == "results/cartpole/vectorised-torch/plan.md"]
+    assert f"holds {words[len(commits)]} code versions" in deviation.text
+    assert all(c in deviation.text for c in commits), (sorted(commits), deviation.text)
