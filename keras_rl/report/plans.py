@@ -204,6 +204,24 @@ DEVIATIONS: tuple[Deviation, ...] = (
             "results/cartpole/tutorial-fix/report-pr-3384-vectorised.md",
         ),
     ),
+    Deviation(
+        "results/cartpole/tutorial-fix/plan.md",
+        "The plan's addendum for PR #3384's PyTorch arm to 100 seeds was edited twice while its seeds 30-99 ran "
+        "(2026-11-26 14:50 to 18:25): 533b38b3 (15:37) changed when the arm lands (in one piece at seeds 0-99, "
+        "not as it goes) and 5beaa16c (15:55) the expected precision, drawn from a committed command. Neither "
+        "edit changed the arm's seeds, its reading or its margin.",
+        (
+            "the tutorial's community fix vs as published: cartpole, pytorch/tutorials PR #3384's values "
+            "(the tutorial's PyTorch code), second look",
+        ),
+    ),
+    Deviation(
+        "results/ablation_plan.md",
+        "The plan ran `popping_buffer=false`'s 600 seeds as one set; it was run as twelve sets of 50, the same "
+        "seeds and arguments, after 189 seeds of the one set were lost with a session's worktree "
+        "(`maintainers/queues/ablations.tsv`). Every one of the 600 planned seeds is in the verdict.",
+        ("mountaincar ablation vs faithful, the planned seeds: popping_buffer=false (600 planned)",),
+    ),
 )
 
 
