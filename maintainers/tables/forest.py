@@ -282,10 +282,18 @@ def rows() -> list[dict[str, Any]]:
 READ = {"equivalent within the margin": "equivalent", "different": "**different**", "inconclusive": "inconclusive"}
 
 
+DEGENERATE = (
+    "; no width: both medians are whole episodes and tie in most resamples, so the interval cannot show "
+    "the ratio's step, one episode in a median of m (x1/m: x0.067 at post 001's median of about 15)"
+)
+"""What a ratio's interval of no width says (issue 72 item 11): not a precision the data have."""
+
+
 def _cell(v: dict[str, Any]) -> str:
     if v["estimate"] is None:
         return f"no estimate: {READ[v['reading']]}"
-    return f"{v['estimate']:.3g} ({v['low']:.3g} to {v['high']:.3g}): {READ[v['reading']]}"
+    width = DEGENERATE if v["low"] == v["high"] else ""
+    return f"{v['estimate']:.3g} ({v['low']:.3g} to {v['high']:.3g}{width}): {READ[v['reading']]}"
 
 
 def table(data: list[dict[str, Any]]) -> str:
