@@ -24,8 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
+from keras_rl.registry import get_experiment
 from keras_rl.report import plans
-from keras_rl.report.equivalence import CONVERGED_AT_END, Arm, framework_verdict
+from keras_rl.report.equivalence import CONVERGED_AT_END, Arm, framework_verdict, success_rate_equivalence
 from keras_rl.report.stats import censored_mann_whitney, fisher_exact, median_difference_ci
 from keras_rl.runs.files import atomic_write_text
 from keras_rl.runs.run_set import RunSet
@@ -131,6 +132,14 @@ def main() -> None:
     same_outcome = sum(
         (x, u) == (y, v) for x, u, y, v in zip(a_arm.reached, a_arm.success, b_arm.reached, b_arm.success, strict=True)
     )
+    config = RunSet.seed_at(reference[seeds[0]] / f"seed_{seeds[0]}").config()
+    threshold = float(config["threshold"])
+    experiment = get_experiment(config["experiment"])
+    metric = experiment.make_metric(experiment.config_cls.from_dict(config))
+
+    def at_end(summaries: list) -> int:
+        return sum(s.final_metric is not None and metric.passes(s.final_metric, threshold) for s in summaries)
+
     median = lambda arm: np.median([budget + 1 if e is None else e for e in arm.episodes()])  # noqa: E731
     lines += [
         "",
@@ -146,6 +155,11 @@ def main() -> None:
         f"{budget + 1}) p = {p:.3g}.",
         f"- Equivalence under the margins set before the 30-seed runs (docs/findings.md): {headline}: "
         + "; ".join(e.sentence() for e in judged)
+        + ".",
+        f"- Success converged at the end (the metric at {threshold:g} or better after the last episode; the "
+        f"second reading of success, printed beside the first passing one, which governs): {judged_arm} "
+        f"{at_end(batch_s)}/{n}, {ref} {at_end(solo_s)}/{n}: "
+        + success_rate_equivalence(at_end(batch_s), n, at_end(solo_s), n).sentence()
         + ".",
         f"- Wall time: the {ref} seeds took {sum(s.wall_seconds for s in solo_s):.0f} s of seed time in all; "
         + (
