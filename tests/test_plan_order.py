@@ -138,3 +138,69 @@ def test_a_report_gets_the_section_of_the_deviations_it_touches_and_no_other():
     assert disclosed("# A report\n", None) == "# A report\n"
     assert report_path(ROOT / "results" / "x" / ".." / "README.md") == "results/README.md"
     assert report_path(Path("/tmp/report.md")) is None and report_path(None) is None
+
+
+def _full_clone() -> None:
+    if shallow():
+        pytest.skip(
+            "cannot run on a shallow clone: it reads each plan's commits; clone with history "
+            "(git clone without --depth, or git fetch --unshallow)"
+        )
+
+
+@pytest.mark.parametrize("plan", PLANS, ids=[p.path + (f" ({p.section})" if p.section else "") for p in PLANS])
+def test_a_planned_set_made_at_several_commits_is_disclosed_with_each(plan):
+    """A set the plan governs whose seeds recorded more than one commit: a deviation of that plan
+    names every one (†4 named two of the vectorised arm's three, issue 72 item 13)."""
+    from keras_rl.report.plans import code_versions
+
+    texts = " ".join(d.text for d in DEVIATIONS if d.plan == plan.path)
+    for folder, commits in code_versions(plan, ROOT).items():
+        missing = sorted(c for c in commits if c not in texts)
+        assert not missing, (
+            f"{folder} holds seeds made at {sorted(commits)}; no deviation of {plan.path} names {missing}"
+        )
+
+
+@pytest.mark.parametrize("plan", PLANS, ids=[p.path + (f" ({p.section})" if p.section else "") for p in PLANS])
+def test_an_edit_of_a_plan_while_its_runs_ran_is_disclosed(plan):
+    """A commit that changed a plan between its first and last governed seed's start (other than the
+    ones adding it or a section) is named by a deviation of that plan or in ``PLAN_EDITS`` (the
+    tutorial-fix plan's two edits went undisclosed, issue 72 item 14)."""
+    from keras_rl.report.plans import PLAN_EDITS, edits_during_runs
+
+    _full_clone()
+    named = " ".join(
+        [d.text for d in DEVIATIONS if d.plan == plan.path] + [e.commit for e in PLAN_EDITS if e.plan == plan.path]
+    )
+    missing = [c for c in edits_during_runs(plan, ROOT) if c not in named]
+    assert not missing, f"{plan.path} was edited in {missing} while its runs ran, and nothing discloses it"
+
+
+def test_the_edit_check_finds_an_edit_made_while_runs_ran(tmp_path):
+    """The rule itself, on a throwaway repository: a plan edited between two seeds' starts is found;
+    its adding commit is not."""
+    import json
+    import os
+
+    from keras_rl.report.plans import Plan, edits_during_runs
+
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(tmp_path)]
+    subprocess.run([*git, "init", "-q"], check=True)
+    plan_file = tmp_path / "plan.md"
+
+    def commit(message: str, when: str) -> str:
+        env = {**os.environ, "GIT_COMMITTER_DATE": when, "GIT_AUTHOR_DATE": when}
+        subprocess.run([*git, "add", "-A"], check=True)
+        subprocess.run([*git, "commit", "-qm", message], check=True, env=env)
+        return subprocess.run([*git, "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout[:8]
+
+    plan_file.write_text("the plan\n")
+    commit("plan", "2026-11-20T10:00:00+00:00")
+    for seed, started in ((0, "2026-11-20T11:00:00+00:00"), (1, "2026-11-20T13:00:00+00:00")):
+        folder = tmp_path / "results" / "set" / f"seed_{seed}"
+        folder.mkdir(parents=True)
+        (folder / "summary.json").write_text(json.dumps({"seed": seed, "provenance": {"started_at": started}}))
+    plan_file.write_text("the plan, edited\n")
+    edit = commit("edit", "2026-11-20T12:00:00+00:00")
+    assert edits_during_runs(Plan("plan.md", {"set": None}), tmp_path) == [edit]

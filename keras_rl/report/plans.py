@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from keras_rl.report.certified import KERAS_ARMS, TORCH_ARMS
+from keras_rl.runs.run_set import RunSet
 
 
 @dataclass(frozen=True)
@@ -41,6 +42,80 @@ class Deviation:
     """The reports (under the repository root) that print it beside the verdict."""
     early: dict[str, range] = field(default_factory=dict)
     """Run set -> its seeds that started before the plan was committed."""
+
+
+@dataclass(frozen=True)
+class PlanEdit:
+    plan: str
+    commit: str
+    """The commit (8 hex digits) that edited the plan after some of its runs had started."""
+    what: str
+    """What it changed, and why no reading moved with it."""
+
+
+PLAN_EDITS: tuple[PlanEdit, ...] = (
+    PlanEdit(
+        "results/checks/real_checks_plan.md",
+        "b8529904",
+        "corrected the time in the heading of its post 001 and post 003 section (05:55 was a slip for commit "
+        "0b012ef9 at 05:48) while post 001's runs ran; no rule, size or reading changed",
+    ),
+)
+"""Edits of a plan made after its runs began that touch no verdict's row (a deviation discloses
+those that do, beside the verdict): each named, with what it changed."""
+
+
+def governed_records(plan: Plan, root: Path) -> dict[str, list[dict]]:
+    """Each set's summary records of the seeds ``plan`` governs (a set still to be run holds none)."""
+    out: dict[str, list[dict]] = {}
+    for folder, governed in plan.governs.items():
+        where = root / "results" / folder
+        if where.is_dir():
+            out[folder] = [r for r in RunSet(where).summary_records() if governed is None or int(r["seed"]) in governed]
+    return out
+
+
+def code_versions(plan: Plan, root: Path) -> dict[str, dict[str, list[int]]]:
+    """Set -> commit (8 hex digits) -> the governed seeds made at it, for each set made at more than one."""
+    out: dict[str, dict[str, list[int]]] = {}
+    for folder, records in governed_records(plan, root).items():
+        commits: dict[str, list[int]] = {}
+        for r in records:
+            commits.setdefault(str(r.get("provenance", {}).get("commit"))[:8], []).append(int(r["seed"]))
+        if len(commits) > 1:
+            out[folder] = commits
+    return out
+
+
+def edits_during_runs(plan: Plan, root: Path) -> list[str]:
+    """The commits (8 hex digits) that changed ``plan.path`` after the first seed it governs started and
+    before the last did, other than the commits that add the plan or one of its sections (``PLANS``)."""
+    import subprocess
+    from datetime import datetime
+
+    starts = [
+        datetime.fromisoformat(r["provenance"]["started_at"])
+        for records in governed_records(plan, root).values()
+        for r in records
+        if r.get("provenance", {}).get("started_at")
+    ]
+    if not starts:
+        return []
+    log = subprocess.run(
+        ["git", "log", "--format=%H %cI", "--", plan.path], cwd=root, capture_output=True, text=True, check=True
+    ).stdout.split("\n")
+    added = subprocess.run(
+        ["git", "log", "--diff-filter=A", "--format=%H", "--", plan.path], cwd=root, capture_output=True, text=True
+    ).stdout.split()
+    sections = {p.commit for p in PLANS if p.path == plan.path and p.commit} | set(added)
+    out = []
+    for line in filter(None, log):
+        commit, when = line.split()
+        if min(starts) < datetime.fromisoformat(when) <= max(starts) and not any(
+            commit.startswith(s) for s in sections
+        ):
+            out.append(commit[:8])
+    return out
 
 
 def queued_sets(name: str = "*.tsv") -> list[str]:
