@@ -133,7 +133,9 @@ def plan(study: Study) -> StudyPlan:
     experiment, config = study.experiment, study.config
     from keras_rl.envs import check_env_id
 
-    check_env_id(config.env_id)  # type: ignore[attr-defined]  # a bad id is named before any folder is made
+    env_id = getattr(config, "env_id", None)  # a post registered from outside may build its env otherwise
+    if env_id is not None:
+        check_env_id(env_id)  # a bad id is named before any folder is made
     check_not_inside_a_run(study.out)
     check_writable_dir(study.out, "--out")
     for seed_dir in study.seed_dirs():  # a seed folder that cannot be written, named before TensorFlow loads

@@ -461,8 +461,21 @@ def markdown(results: dict) -> str:
             lines.append("")
             if "held_back" in entry:
                 lines += held_back_table(entry["held_back"], rule)
-    lines += [held_out_block(), "", sensitive_block(), "", real_block()]
+    lines += [held_out_block(), "", sensitive_block(), "", real_block() + "\n" + twins_block()]
     return "\n".join(lines)
+
+
+def twins_block() -> str:
+    """The twin check's section (``maintainers/calibrate/twins.py --write``), kept across rewrites."""
+    from keras_rl.check.command import TWIN_RATES
+    from maintainers.calibrate.twins import BEGIN, END, HEADING, render
+
+    text = (
+        render(json.loads(TWIN_RATES.read_text()))
+        if TWIN_RATES.is_file()
+        else "Not computed yet: run python -m maintainers calibrate twins --write"
+    )
+    return f"{HEADING}\n\n{BEGIN}\n{text}\n{END}\n"
 
 
 def held_back_table(held: dict, rule) -> list[str]:
