@@ -129,7 +129,7 @@ class ExperimentConfig:
         a list (or NumPy array) of widths as a tuple, NumPy's numbers and booleans as Python's,
         a whole number in a float field as a float. A value of another kind is left as it is,
         for ``validate`` to refuse by name; a name that is not a field is a ConfigError."""
-        hints = typing.get_type_hints(cls)
+        hints = _hints(cls)
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(values) - names)
         if unknown:
@@ -194,7 +194,7 @@ class ExperimentConfig:
         ConfigError names a malformed item, a run option, a renamed or unknown field, an
         empty or unparsable value, and a field given twice."""
         parsed: dict[str, Any] = {}
-        hints = typing.get_type_hints(cls)
+        hints = _hints(cls)
         for item in items:
             name, sep, text = item.partition("=")
             name = name.strip().replace("-", "_")
@@ -228,7 +228,7 @@ class ExperimentConfig:
     # -- validation ---------------------------------------------------------------------
     def validate(self) -> None:
         """Raise ConfigError naming the first field that is out of range or not a choice."""
-        hints = typing.get_type_hints(type(self))
+        hints = _hints(type(self))
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
             if typing.get_origin(hints[f.name]) is Literal and value not in typing.get_args(hints[f.name]):
