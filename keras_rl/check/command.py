@@ -943,9 +943,9 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
 
 LIBRARIES = ("tensorflow", "keras", "numpy", "gymnasium", "torch", "python", "keras_rl")
 """The versions a run records (``provenance.library_versions``) that a check compares."""
-MODULE_OF = {"tensorflow": "tensorflow", "keras": "keras", "numpy": "numpy", "gymnasium": "gymnasium", "torch": "torch"}
-"""Which import each library is: the distribution that provides it now is named where it is not the
-library's own (``keras`` provided by ``keras-nightly``, ``tensorflow`` by ``tf-nightly``)."""
+IMPORTS = ("tensorflow", "keras", "numpy", "gymnasium", "torch")
+"""The libraries whose import another distribution may provide (``keras`` by ``keras-nightly``,
+``tensorflow`` by ``tf-nightly``): each import is named as its library is."""
 
 
 def providers(versions: dict[str, str]) -> dict[str, str]:
@@ -957,8 +957,8 @@ def providers(versions: dict[str, str]) -> dict[str, str]:
 
     found = packages_distributions()
     out = {}
-    for library, module in MODULE_OF.items():
-        names = list(dict.fromkeys(found.get(module, [])))
+    for library in IMPORTS:
+        names = list(dict.fromkeys(found.get(library, [])))
         imported = versions.get(library)
         owner = next((n for n in names if imported is not None and _same_version(version(n), imported)), None)
         if owner is None and len(names) == 1:

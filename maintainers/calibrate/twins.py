@@ -99,15 +99,12 @@ def differences(post: str, baseline: dict[int, float], twins: dict[int, float], 
     return paired_differences([baseline[s] for s in common], [twins[s] for s in common], statistic)
 
 
-def resampled(d: np.ndarray, n: int, alpha: float, rng: np.random.Generator, replace: bool = False) -> float:
-    """How often n twins drawn from ``d`` are called changed at ``alpha``."""
-    if not replace and n > len(d):
+def resampled(d: np.ndarray, n: int, alpha: float, rng: np.random.Generator) -> float:
+    """How often n distinct twins drawn from ``d`` are called changed at ``alpha`` (NaN where ``d``
+    holds fewer than n)."""
+    if n > len(d):
         return float("nan")
-    picks = (
-        rng.integers(0, len(d), (DRAWS, n))
-        if replace
-        else np.argsort(rng.random((DRAWS, len(d))), axis=1)[:, :n]  # n distinct twins per draw
-    )
+    picks = np.argsort(rng.random((DRAWS, len(d))), axis=1)[:, :n]  # n distinct twins per draw
     return float(paired_changed_many(d[picks], alpha).mean())
 
 
