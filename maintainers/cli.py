@@ -7,6 +7,7 @@ checkout as ``python -m maintainers ...`` (this folder is not part of the instal
   (``maintainers/tables/``), each spliced between its markers (``report/markdown.py``);
 - ``python -m maintainers manifest``: ``results/MANIFEST``, and ``--regenerate`` to rerun sets and compare;
 - ``python -m maintainers audit``: rerun K drawn seeds of every set and compare (``results/AUDIT.md``);
+- ``python -m maintainers sigterm-stress``: SIGTERM each engine at random times, resume, count aborts;
 - ``python -m maintainers replay-references``: the replay tests' references for a host of another
   instruction set or vendor, made natively there or under an emulated CPU, and checked
   (``tests/replay_references/``).
@@ -191,6 +192,20 @@ def add_parser(sub) -> None:
         "--again",
         action="store_true",
         help="with --write: rerun every set, not only those the committed report lacks",
+    )
+
+    p = sub.add_parser(
+        "sigterm-stress",
+        help="SIGTERM each engine's short seed at random times, resume it, and count aborts (results/reliability)",
+        parents=[shared_flags("sigterm-stress", "--out", "--write")],
+    )
+    p.set_defaults(module="maintainers.sigterm_stress")
+    p.add_argument("--stops", type=int, default=100, help="SIGTERMs per engine (default 100)")
+    p.add_argument(
+        "--engines",
+        nargs="+",
+        default=["compiled", "gymnasium", "vectorised"],
+        help="the engines to stop (default: compiled gymnasium vectorised)",
     )
 
     p = sub.add_parser(
