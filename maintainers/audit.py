@@ -11,7 +11,10 @@ episodes, every column but wall time.
 
 The draw is fixed by ``--draw-seed``: the same seed draws the same seeds of the same sets. A
 seed-batched set is drawn by batch (its seeds' bits depend on their batch mates): the whole
-batch reruns and its drawn seed is compared. Each rerun goes through ``manifest.reproduce_command``
+batch reruns and its drawn seed is compared. A set made at more than one commit draws a batch
+of each, so that every code version is sampled. ``--write`` runs only at a committed tree (its
+own report aside), and a committed result rerun at "HEAD + changes" is rerun. Each rerun goes
+through ``manifest.reproduce_command``
 (as ``manifest --regenerate``), at HEAD; a set that HEAD no longer makes the same bits for by
 design (``AT_RECORDED_COMMIT``: a retired path, a fixed bug) reruns at its seed's recorded commit,
 in a temporary ``git worktree`` with that commit's own ``keras_rl``, as ``keras-rl bisect`` does.
@@ -79,11 +82,20 @@ RECORD = RESULTS / "AUDIT.json"
 """The committed report's results, set by set, as ``audit.json`` keeps them: what ``--write`` extends."""
 
 
+def uncommitted() -> list[str]:
+    """The tracked files that differ from HEAD, other than the report that ``--write`` rewrites as
+    it goes (which made every set after the first read "+ changes" in an audit that began clean)."""
+    own = [f":(exclude){(RESULTS / name).relative_to(ROOT)}" for name in ("AUDIT.md", "AUDIT.json")]
+    diff = subprocess.run(
+        ["git", "diff-index", "--name-only", "HEAD", "--", ".", *own], cwd=ROOT, capture_output=True, text=True
+    )
+    return diff.stdout.split()
+
+
 def head_commit() -> str:
     """Where a rerun at HEAD ran: the commit, and "+ changes" where tracked files differ from it."""
     commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, check=True)
-    clean = subprocess.run(["git", "diff-index", "--quiet", "HEAD", "--"], cwd=ROOT).returncode == 0
-    return f"HEAD {commit.stdout.strip()[:8]}" + ("" if clean else " + changes")
+    return f"HEAD {commit.stdout.strip()[:8]}" + (" + changes" if uncommitted() else "")
 
 
 def kept(path: Path, draw_seed: int, per_set: int, drawn: dict[str, list[list[int]]]) -> dict[str, dict]:
@@ -99,16 +111,28 @@ def kept(path: Path, draw_seed: int, per_set: int, drawn: dict[str, list[list[in
     return {r["set"]: r for r in log["results"] if drawn.get(r["set"]) == r["batches"]}
 
 
+def at_committed_tree(results: dict[str, dict]) -> dict[str, dict]:
+    """The results whose reruns ran at a committed tree: what the committed report keeps (a result
+    rerun at "HEAD + changes" reruns, issue 72 item 17)."""
+    return {name: r for name, r in results.items() if not r["at"].endswith("+ changes")}
+
+
 def draw(entries: list[dict], per_set: int, draw_seed: int) -> dict[str, list[list[int]]]:
     """Set -> the batches drawn from it (``per_set`` of them, or all it has). Each set's draw has a
     generator of its own, seeded by ``draw_seed`` and the set's name, so a set draws the same
-    batches whichever other sets an audit takes (``--sets``)."""
+    batches whichever other sets an audit takes (``--sets``). A set made at more than one commit
+    (``batch_commits``) also draws ``per_set`` batches of each commit the first draw missed, so
+    that every code version is sampled."""
     drawn = {}
     for entry in entries:
         batches = entry["batches"]
         rng = np.random.default_rng([draw_seed, zlib.crc32(entry["set"].encode())])
-        picks = rng.choice(len(batches), size=min(per_set, len(batches)), replace=False)
-        drawn[entry["set"]] = [batches[i] for i in sorted(int(p) for p in picks)]
+        picks = {int(p) for p in rng.choice(len(batches), size=min(per_set, len(batches)), replace=False)}
+        commits = entry.get("batch_commits") or [None] * len(batches)
+        for commit in sorted(set(commits) - {commits[i] for i in picks}):
+            mine = [i for i, c in enumerate(commits) if c == commit]
+            picks.update(int(p) for p in rng.choice(mine, size=min(per_set, len(mine)), replace=False))
+        drawn[entry["set"]] = [batches[i] for i in sorted(picks)]
     return drawn
 
 
@@ -132,13 +156,16 @@ def _at_commit(commit: str, command: list[str], env: dict[str, str] | None = Non
             subprocess.run(["git", "worktree", "remove", "--force", str(worktree)], cwd=ROOT, check=False)
 
 
-def audit_set(entry: dict, batches: list[list[int]], out: Path, workers: int, address: str | None = None) -> dict:
-    """Rerun the drawn batches of one set and compare the drawn seeds."""
+def audit_set(
+    entry: dict, batches: list[list[int]], out: Path, workers: int, address: str | None = None, where: str = ""
+) -> dict:
+    """Rerun the drawn batches of one set and compare the drawn seeds (``where``: the tree they rerun
+    at, read once when the audit began; ``head_commit()`` where not given)."""
     from keras_rl.runs.replay import why_not_bit_exact
 
     committed = RunSet(RESULTS / entry["set"])
     target = out / entry["set"]
-    where = head_commit()
+    where = where or head_commit()
     codes = []
     for batch in batches:
         command = reproduce_command(entry, batch, out, workers, address)
@@ -208,6 +235,14 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("audit needs --out: a fresh folder, or one to resume")
     if args.again and not args.write:
         raise ConfigError("--again reruns the sets the committed report holds: it needs --write")
+    changed = uncommitted()
+    if args.write and changed:
+        raise ConfigError(
+            f"--write reruns the committed report's seeds at a committed tree, and {len(changed)} tracked file(s) "
+            f"differ from HEAD ({', '.join(changed[:3])}{', ...' if len(changed) > 3 else ''}): commit them, or "
+            "audit from a clean worktree"
+        )
+    where = head_commit()
     args.out = args.out.resolve()  # the reruns' paths hold from any working folder (a worktree's too)
     if args.out.is_relative_to(RESULTS.resolve()):
         raise ConfigError("--out must not be inside results/: the reruns are compared with it, never written over it")
@@ -227,7 +262,9 @@ def run(args: argparse.Namespace) -> int:
         + (" --write" if args.write else "")
     )
     # what --write extends (the committed report's sets), then what this --out holds already
-    committed = kept(RECORD, args.draw_seed, args.per_set, drawn) if args.write and not args.again else {}
+    committed = (
+        at_committed_tree(kept(RECORD, args.draw_seed, args.per_set, drawn)) if args.write and not args.again else {}
+    )
     finished = {**committed, **kept(log, args.draw_seed, args.per_set, drawn)}
     todo = [e for e in entries if e["set"] not in finished]
     covered = every if args.write else entries  # the committed report covers every set
@@ -236,7 +273,7 @@ def run(args: argparse.Namespace) -> int:
     def one(entry: dict) -> None:
         batches = drawn[entry["set"]]
         # a set's batch is one job: --workers sets at once (on Ray, each job on the cluster)
-        result = audit_set(entry, batches, args.out, 1, args.address)
+        result = audit_set(entry, batches, args.out, 1, args.address, where)
         with lock:
             finished[entry["set"]] = result
             report(finished)

@@ -95,10 +95,13 @@ def batch_of(summary: dict) -> list[int]:
 def describe(name: str, runs: list[SeedRun]) -> dict:
     summaries = [r.summary_record() for r in runs]
     batches: dict[tuple[int, ...], float] = {}
+    made_at: dict[tuple[int, ...], str] = {}
     for s in summaries:
         key = tuple(batch_of(s))
         batches[key] = max(batches.get(key, 0.0), float(s.get("wall_seconds") or 0.0))
+        made_at[key] = str(s.get("provenance", {}).get("commit"))[:8]
     first = summaries[0]
+    versions = {"batch_commits": [made_at[b] for b in batches]} if len(set(made_at.values())) > 1 else {}
     return {
         "set": name,
         "experiment": first["experiment"],
@@ -117,6 +120,7 @@ def describe(name: str, runs: list[SeedRun]) -> dict:
         "episodes": sum(int(s.get("episodes_run") or 0) for s in summaries),
         "process_minutes": round(sum(batches.values()) / 60, 1),
         "longest_job_minutes": round(max(batches.values()) / 60, 1),
+        **versions,  # a set made at more than one commit: each batch's (the audit samples each)
     }
 
 

@@ -131,6 +131,23 @@ def test_an_audit_draws_the_same_seeds_from_the_same_draw_seed_and_a_batch_whole
     assert len(first["a"]) == 2 and all(b in entries[0]["batches"] for b in first["a"])
     assert first["b"] == [[0, 1, 2], [3, 4, 5]] and first["c"] == [[7]]  # K past a set's batches: all of them
     assert any(draw(entries, 1, seed)["a"] != draw(entries, 1, 52)["a"] for seed in range(5))
+    # a set made at three commits: its first draw kept, and one batch of each commit it missed
+    versions = [{**entries[0], "batch_commits": ["x", "x", "y", "z"]}]
+    by_version = draw(versions, 1, 52)["a"]
+    assert draw(entries, 1, 52)["a"][0] in by_version
+    assert len(by_version) == 3 and {versions[0]["batch_commits"][b[0]] for b in by_version} == {"x", "y", "z"}
+
+
+def test_a_written_audit_runs_at_a_committed_tree_and_keeps_no_rerun_made_on_changes(tmp_path, monkeypatch):
+    """--write refuses a tree whose tracked files differ from HEAD (its report's own files aside, which
+    it rewrites as it goes), and reruns a committed result made at "HEAD + changes"."""
+    import maintainers.audit as audit
+
+    monkeypatch.setattr(audit, "uncommitted", lambda: ["keras_rl/api.py"])
+    code = main(["audit", "--sets", "checks/pendulum/mutants/tau_x10", "--write", "--out", str(tmp_path / "a")])
+    assert code == 2 and not (tmp_path / "a").exists()
+    made = {"a": {"at": "HEAD 0123abcd"}, "b": {"at": "HEAD 0123abcd + changes"}}
+    assert audit.at_committed_tree(made) == {"a": made["a"]}
 
 
 @pytest.mark.slow
@@ -170,6 +187,7 @@ def test_a_written_audit_extends_the_committed_report_and_reruns_only_the_sets_i
     }
     record, report = tmp_path / "AUDIT.json", tmp_path / "AUDIT.md"
     record.write_text(json.dumps({"draw_seed": 52, "per_set": 1, "results": [result]}))
+    monkeypatch.setattr(audit, "uncommitted", lambda: [])  # this test is not about the tree it runs in
     monkeypatch.setattr(audit, "RECORD", record)
     monkeypatch.setattr(audit, "REPORT", report)
     argv = ["audit", "--sets", old, new, "--write", "--out", str(tmp_path / "audit")]
@@ -199,3 +217,4 @@ def test_the_committed_audit_report_is_its_records_rendering_over_committed_sets
     assert text == markdown(record["results"], command[1], record["per_set"], record["draw_seed"], int(total[1]))
     drawn = draw(manifest(), record["per_set"], record["draw_seed"])
     assert all(r["batches"] == drawn[r["set"]] for r in record["results"])
+    assert not [r["set"] for r in record["results"] if r["at"].endswith("+ changes")]  # every rerun at a commit
