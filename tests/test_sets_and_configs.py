@@ -5,6 +5,9 @@ name before anything is written (exit 2 on the command line, a ConfigError in th
 from __future__ import annotations
 
 import os
+import shutil
+import subprocess
+import sys
 
 import pytest
 from committed import RESULTS, copy_seeds
@@ -79,16 +82,40 @@ def test_a_seed_given_as_a_string_is_named_as_such(pendulum_set):
     assert runs.run(1).seed == 1
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into a read-only folder; the check needs another user")
-def test_a_seed_folder_that_cannot_be_written_is_named_with_exit_2(pendulum_set, capsys):
-    """Item 4: a read-only ``seed_0`` exited 1 after TensorFlow loaded."""
-    seed = pendulum_set / "seed_0"
+WITHOUT_ROOTS_OVERRIDE = (
+    ["setpriv", "--bounding-set=-dac_override,-dac_read_search", "--inh-caps=-dac_override,-dac_read_search", "--"]
+    if os.geteuid() == 0
+    else []
+)
+"""As root, the command runs without the capabilities that let root write into a read-only folder
+(``setpriv``, util-linux): still uid 0, so it reads the interpreter under /root, but a 0555 folder
+refuses its writes as it would a user's."""
+
+
+@pytest.mark.skipif(os.geteuid() == 0 and not shutil.which("setpriv"), reason="root needs setpriv to drop its override")
+def test_a_seed_folder_that_cannot_be_written_is_named_with_exit_2(tmp_path):
+    """Item 4: ``--out ro3`` where ``ro3/seed_0`` is read-only exited 1 after TensorFlow loaded,
+    on a temporary file it could not make. Now exit 2, naming the folder, before TensorFlow loads."""
+    out = tmp_path / "ro3"
+    seed = out / "seed_0"
+    seed.mkdir(parents=True)
     seed.chmod(0o555)
+    probe = subprocess.run([*WITHOUT_ROOTS_OVERRIDE, "touch", str(seed / "probe")], capture_output=True)
+    assert probe.returncode != 0, "the read-only folder took a write: the test would prove nothing"
     try:
-        code = main(["reproduce", "pendulum", "--seeds", "0", "--resume", "--out", str(pendulum_set)])
+        done = subprocess.run(
+            [*WITHOUT_ROOTS_OVERRIDE, sys.executable, "-X", "importtime", "-m", "keras_rl", "reproduce", "pendulum"]
+            + ["--seeds", "0", "--episodes", "1", "--out", str(out)],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
     finally:
         seed.chmod(0o755)
-    assert code == 2 and "is not a writable folder" in capsys.readouterr().err
+    assert done.returncode == 2, done.stderr[-2000:]
+    assert f"{seed} is not a writable folder" in done.stderr and "Traceback" not in done.stderr
+    assert "| tensorflow" not in done.stderr  # -X importtime lists every module imported: TensorFlow never was
+    assert _listing(out) == ["seed_0"]
 
 
 def test_pack_keep_folders_works_where_its_refusal_recommends_it(pendulum_set, capsys):
