@@ -798,16 +798,54 @@ def test_check_runs_from_a_package_installed_outside_the_checkout(installed):
 
 
 @pytest.mark.slow
-def test_an_installed_package_checks_a_post_to_a_verdict_from_another_directory(installed):
-    """Issue: the check from ``pip install``. The installed wheel trains the smoke tier's fixed
-    fresh seeds from a directory outside the checkout and reads its baselines from the package:
-    a verdict, "consistent" on a main that has not changed pendulum's learner."""
-    target, where, _ = installed
-    done = installed_cli(installed, "check", "pendulum", "--tier", "smoke", "--no-progress", "--workers", "2")
-    assert done.returncode == 0, done.stdout + done.stderr
-    report = json.loads((where / "check-runs" / "check.json").read_text())
+def test_the_ci_recipe_checks_a_post_to_a_verdict_from_the_wheel_in_a_fresh_environment(installed, tmp_path):
+    """``docs/canary.sh``, the CI recipe of docs/check.md, run as written from an empty folder: a fresh
+    venv, the wheel built from this checkout, the check (pendulum's smoke tier: fixed fresh seeds,
+    the cheapest real verdict). Its report and picture are where the recipe says to keep them, and
+    the check read its baselines from the installed package (no checkout beside it).
+
+    What the test changes, and only that: the libraries this environment holds are lent to the fresh
+    one (``PYTHONPATH``, with pip offline), so that pip installs the wheel alone instead of TensorFlow's
+    gigabytes from the index. The recipe's own lines run unchanged."""
+    import site
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    recipe = root / "docs" / "canary.sh"
+    assert f"`{recipe.relative_to(root)}`" in (root / "docs" / "check.md").read_text()  # the recipe the docs show
+    target, _, _ = installed
+    (wheel,) = (target.parent / "dist").glob("keras_rl_repro-*.whl")
+    lent = tmp_path / "lent"  # this environment's libraries, less this project (its editable install)
+    lent.mkdir()
+    for folder in map(Path, site.getsitepackages()):
+        for entry in folder.iterdir():
+            if not re.match(r"(keras_rl|__editable__.*keras_rl|_?keras_rl_repro)", entry.name, re.IGNORECASE):
+                (lent / entry.name).symlink_to(entry)
+    work = tmp_path / "job"
+    work.mkdir()
+    env = {
+        **{k: v for k, v in __import__("os").environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")},
+        "PYTHONPATH": str(lent),
+        "PIP_NO_INDEX": "1",
+        "KERAS_RL_WHEEL": str(wheel),
+        "POSTS": "pendulum",
+        "TIER": "smoke",
+    }
+    done = subprocess.run(["bash", str(recipe)], cwd=work, env=env, capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert "keras-rl check exited 0; the report is check-runs/check.md" in done.stdout
+    report = json.loads((work / "check-runs" / "check.json").read_text())
     assert [e["verdict"] for e in report["experiments"]] == ["consistent"], done.stdout
-    assert not (target / "results").exists()  # no checkout beside the package: its own baselines
+    assert (work / "check-runs" / "check.md").is_file() and (work / "check-runs" / "pendulum" / "check.png").is_file()
+    assert re.search(r"^keras[-_]rl[-_]repro @ file://\S*\.whl\b", (work / "pip-freeze.txt").read_text(), re.M | re.I)
+    probe = subprocess.run(
+        [str(work / "canary" / "bin" / "python"), "-c", "import keras_rl; print(keras_rl.__file__)"],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    assert probe.stdout.startswith(str(work / "canary")), probe  # the fresh environment's copy was checked
 
 
 @pytest.mark.parametrize(
