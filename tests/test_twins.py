@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from committed import RESULTS
+from committed import RESULTS, copy_seeds
 
 import keras_rl.check.command as command
 from keras_rl.check.rules import RULES, rule_for
@@ -126,6 +126,31 @@ def test_error_rates_are_claimed_only_for_the_committed_baseline(tmp_path):
     assert (
         "not the committed one" in fields["baseline_note"] and "smallest p its test allows" in fields["baseline_note"]
     )
+    report = tmp_path / "report"
+    report.mkdir()
+    command.write_report(report, [replace(result, **fields)], "smoke", command="keras-rl check pendulum --against mine")
+    text = (report / "check.md").read_text()
+    assert "not calibrated" in text and "The power column is the rule's" not in text
+    assert "its test's size on this baseline" in text
+
+
+def test_a_dry_run_against_another_baseline_quotes_no_committed_rate(tmp_path, capsys):
+    """The same for ``--dry-run``, which quoted the committed baseline's rates for any (round four's pass)."""
+    from keras_rl.cli import main
+
+    committed = command.BASELINES / "pendulum" / "baseline"
+    mine = tmp_path / "mine" / "pendulum" / "baseline"
+    mine.mkdir(parents=True)
+    (mine / "runs.parquet").write_bytes((committed / "runs.parquet").read_bytes())
+    argv = ["check", "pendulum", "--tier", "smoke", "--dry-run", "--out", str(tmp_path / "out")]
+    assert main([*argv, "--against", str(tmp_path / "mine")]) == 0  # byte for byte the committed one
+    assert "measured false-alarm rate" in capsys.readouterr().out
+    subset = tmp_path / "subset"
+    copy_seeds(RESULTS / "checks" / "pendulum" / "baseline", subset / "pendulum" / "baseline", lambda s: s < 20)
+    assert main([*argv, "--against", str(subset)]) == 0
+    out = capsys.readouterr().out
+    assert "measured false-alarm rate" not in out and "power" not in out
+    assert "error rates not measured for this baseline" in out
 
 
 def test_the_report_names_each_version_that_differs_a_replaced_package_and_the_cpus(monkeypatch):

@@ -309,7 +309,8 @@ def measured_for(folder: Path, result: CheckResult) -> dict[str, Any]:
         "error_rates": None,
         "baseline_note": (
             f"this baseline ({folder}, {len(result.baseline)} seeds) is not the committed one the rule's error rates "
-            f"were measured on, so its false alarms and power are not measured; {how}"
+            "were measured on, so its false alarms on real changes and its power are not measured (a false-alarm "
+            f"figure in the table is its test's size on this baseline, its seeds taken as exchangeable); {how}"
         ),
     }
 
@@ -339,10 +340,15 @@ def rates_source(rule: CheckRule) -> str:
     return (TWIN_RATES if rule.twins else SENSITIVE_RATES if rule.tier == "sensitive" else CALIBRATION).name
 
 
-def describe_plan(rule: CheckRule, fresh: list[int], baseline: int, design, fallback: str | None = None) -> str:
-    """One post's plan, as ``check --dry-run`` prints it."""
-    rates = error_rates(rule)
-    if rates and rule.twins:
+def describe_plan(
+    rule: CheckRule, fresh: list[int], baseline: int, design, fallback: str | None = None, committed: bool = True
+) -> str:
+    """One post's plan, as ``check --dry-run`` prints it. ``committed``: the baseline is the committed
+    one the rule's error rates were measured on (else none is quoted, issue 72 item 6)."""
+    rates = error_rates(rule) if committed else None
+    if not committed:
+        measured = "error rates not measured for this baseline (they were measured on the committed one)"
+    elif rates and rule.twins:
         measured = power_text(rates, source=rates_source(rule))
     elif rates:
         power = power_text(rates, source=rates_source(rule))
@@ -571,9 +577,9 @@ def run_check(
         plan.append((experiment, rule, fresh, config, baseline, baseline_rows))
     if dry_run:
         for experiment, rule, fresh, _config, baseline, _rows in plan:
-            print(
-                describe_plan(rule, fresh, len(baseline), designs.get(experiment.name), fallbacks.get(experiment.name))
-            )
+            committed = committed_baseline(Path(against) / experiment.name / rule.baseline, rule)
+            design = designs.get(experiment.name)
+            print(describe_plan(rule, fresh, len(baseline), design, fallbacks.get(experiment.name), committed))
         return []
     for experiment, *_ in plan:
         if (out / experiment.name).exists():
@@ -878,8 +884,9 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
                 if above
                 else ""
             ),
-            "The power column is the rule's, measured against the mutants (calibration.json).",
         ]
+        if all(r.error_rates for r in results):
+            lines.append("The power column is the rule's, measured against the mutants (calibration.json).")
     for r in results:
         if r.twins is not None:
             lines += ["", f"{r.experiment}: twins (the baseline's own seeds, rerun): {r.twins.text()}."]

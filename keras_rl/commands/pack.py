@@ -24,8 +24,8 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--keep-folders",
         action="store_true",
-        help="write runs.parquet and keep the seed folders (the set then holds each seed twice: "
-        "readers refuse it until one form is removed)",
+        help="keep in the seed folders what a packed set does not hold (weights, checkpoints, pictures); "
+        "their records (config.json, summary.json, episodes.csv) move into runs.parquet",
     )
 
 

@@ -253,8 +253,8 @@ def _seed_entry(
     elif unpackable:
         raise RunFolderError(
             f"{seed_dir} holds {', '.join(sorted(unpackable))}, which a packed set does not keep (weights, "
-            "checkpoints, pictures): pack with --keep-folders (the folders stay and keep them; the packed set "
-            "holds the rest), or move them out first"
+            "checkpoints, pictures): pack with --keep-folders (the packed set holds the records, and the folders "
+            "keep only those files), or move them out first"
         )
     summary_text = files["summary.json"].read_text()
     summary = RunSummary.read(seed_dir)
@@ -390,7 +390,8 @@ def extract(packed: PackedSet, seed: int, dest: Path) -> Path:
 def pack(folder: Path, keep_folders: bool = False) -> tuple[Path, list[int]]:
     """Pack the finished ``seed_<n>/`` folders of ``folder`` into ``folder/runs.parquet`` (with
     the seeds it already holds), check that the file reads back to every record, then remove the
-    folders (unless ``keep_folders``). Returns the file and the seeds newly packed."""
+    folders; with ``keep_folders``, only the files the packed set holds, so that each folder keeps
+    what it does not (weights, checkpoints, pictures). Returns the file and the seeds newly packed."""
     import shutil
 
     folder = Path(folder)
@@ -415,9 +416,15 @@ def pack(folder: Path, keep_folders: bool = False) -> tuple[Path, list[int]]:
         tmp.unlink(missing_ok=True)
         raise
     os.replace(tmp, path)
-    if not keep_folders:
-        for d in dirs:
+    packed = open_packed(path)
+    for d in dirs:
+        if not keep_folders:
             shutil.rmtree(d)
+            continue
+        # the folder keeps only what the packed set does not (weights, checkpoints, pictures): its
+        # records live in runs.parquet alone, so every reader takes the set (no seed in both forms)
+        for name in (*RECORDS, *packed.record(seed_of(d)).files):
+            (d / name).unlink(missing_ok=True)
     return path, [seed_of(d) for d in dirs]
 
 
