@@ -4,64 +4,38 @@ the commit that added the plan, or a disclosed deviation (``keras_rl/report/plan
 from __future__ import annotations
 
 import subprocess
-import sys
-from datetime import datetime
 from pathlib import Path
 
 import pytest
 
-from keras_rl.report.plans import DEVIATIONS, PLANS, Plan, deviations_of
-from keras_rl.runs.run_set import RunSet
+from keras_rl.report.plans import DEVIATIONS, PLANS, deviations_of, early_seeds, is_shallow, plan_time
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def committed_at(path: str) -> datetime | None:
-    """When the commit that added ``path`` was made; None where this clone lacks it (shallow)."""
-    out = subprocess.run(
-        ["git", "log", "--diff-filter=A", "--format=%cI", "--", path], cwd=ROOT, capture_output=True, text=True
-    ).stdout.split()
-    return datetime.fromisoformat(out[-1]) if out else None
-
-
-def plan_time(plan: Plan) -> datetime | None:
-    """When a plan (or its later section) was committed: the seeds it governs must follow it."""
-    if plan.commit is None:
-        return committed_at(plan.path)
-    out = subprocess.run(["git", "show", "-s", "--format=%cI", plan.commit], cwd=ROOT, capture_output=True, text=True)
-    return datetime.fromisoformat(out.stdout.strip()) if out.returncode == 0 else None
-
-
-def early_seeds(plan: Plan, when: datetime) -> dict[str, list[int]]:
-    """Each governed set's seeds (in what the plan governs) that started before ``when``."""
-    early: dict[str, list[int]] = {}
-    for folder, governed in plan.governs.items():
-        where = ROOT / "results" / folder
-        if not where.is_dir():  # a set still to be run holds nothing yet
-            continue
-        for record in RunSet(where).summary_records():
-            seed, started = int(record["seed"]), record.get("provenance", {}).get("started_at")
-            if (governed is None or seed in governed) and started and datetime.fromisoformat(started) < when:
-                early.setdefault(folder, []).append(seed)
-    return early
-
-
 def shallow() -> bool:
-    out = subprocess.run(["git", "rev-parse", "--is-shallow-repository"], cwd=ROOT, capture_output=True, text=True)
-    return out.stdout.strip() == "true"
+    return is_shallow(ROOT)
+
+
+def _full_clone() -> None:
+    if shallow():
+        pytest.skip(
+            "cannot run on a shallow clone: it reads each plan's commits; clone with history "
+            "(git clone without --depth, or git fetch --unshallow)"
+        )
 
 
 @pytest.mark.parametrize("plan", PLANS, ids=[p.path + (f" ({p.section})" if p.section else "") for p in PLANS])
 def test_every_seed_a_plan_governs_started_after_it_or_is_disclosed(plan):
-    if shallow():
-        pytest.skip("a shallow clone lacks the commits that added the plans: clone with history")
-    when = plan_time(plan)
+    _full_clone()
+    when = plan_time(plan, ROOT)
     assert when is not None, f"{plan.path} is not committed"
     disclosed = {
         (folder, seed) for d in DEVIATIONS if d.plan == plan.path for folder, seeds in d.early.items() for seed in seeds
     }
     undisclosed = {
-        folder: [s for s in seeds if (folder, s) not in disclosed] for folder, seeds in early_seeds(plan, when).items()
+        folder: [s for s in seeds if (folder, s) not in disclosed]
+        for folder, seeds in early_seeds(plan, ROOT, when).items()
     }
     undisclosed = {f: s for f, s in undisclosed.items() if s}
     assert not undisclosed, (
@@ -83,31 +57,42 @@ def test_each_disclosed_deviation_is_real_and_names_rows_that_exist():
             assert d in deviations_of(verdict)
         if d.early and not shallow():
             plan = next(p for p in PLANS if p.path == d.plan)
-            found = early_seeds(plan, plan_time(plan))
+            found = early_seeds(plan, ROOT)
             for folder, seeds in d.early.items():
                 assert sorted(found.get(folder, [])) == list(seeds), (d.plan, folder)
 
 
-def test_the_check_spots_a_seed_run_before_its_plan(monkeypatch):
-    """The rule itself: a seed that started before the plan's commit is found, one after is not."""
-    from keras_rl.report import plans
+def test_the_check_spots_a_seed_run_before_its_plan(tmp_path):
+    """The rule itself, the product's (``report/plans.early_seeds``), on a throwaway repository: a seed
+    that started before the commit adding its plan is found, one after is not, a seed the plan does not
+    govern is not read, and a later section governs from its own commit."""
+    import json
+    import os
 
-    record = {"seed": 5, "provenance": {"started_at": "2026-11-20T10:00:00+00:00"}}
-    later = {"seed": 6, "provenance": {"started_at": "2026-11-26T10:00:00+00:00"}}
+    from keras_rl.report.plans import Plan
 
-    class FakeSet:
-        def __init__(self, where):
-            pass
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(tmp_path)]
+    subprocess.run([*git, "init", "-q"], check=True)
 
-        def summary_records(self):
-            return [record, later]
+    def commit(message: str, when: str) -> str:
+        env = {**os.environ, "GIT_COMMITTER_DATE": when, "GIT_AUTHOR_DATE": when}
+        subprocess.run([*git, "add", "-A"], check=True)
+        subprocess.run([*git, "commit", "-qm", message], check=True, env=env)
+        return subprocess.run([*git, "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout[:8]
 
-    monkeypatch.setattr(sys.modules[__name__], "RunSet", FakeSet)
-    when = datetime.fromisoformat("2026-11-25T00:00:00+00:00")
-    assert early_seeds(plans.Plan("x.md", {"engines/pendulum/compiled": None}), when) == {
-        "engines/pendulum/compiled": [5]
-    }
-    assert early_seeds(plans.Plan("x.md", {"engines/pendulum/compiled": range(6, 7)}), when) == {}
+    for seed, started in ((5, "2026-11-20T10:00:00+00:00"), (6, "2026-11-26T10:00:00+00:00")):
+        folder = tmp_path / "results" / "engines" / f"seed_{seed}"
+        folder.mkdir(parents=True)
+        (folder / "summary.json").write_text(json.dumps({"seed": seed, "provenance": {"started_at": started}}))
+    (tmp_path / "plan.md").write_text("the plan\n")
+    commit("the plan", "2026-11-25T00:00:00+00:00")
+    (tmp_path / "plan.md").write_text("the plan\n\n## a section\n")
+    section = commit("a section", "2026-11-27T00:00:00+00:00")
+    assert str(plan_time(Plan("plan.md", {}), tmp_path)) == "2026-11-25 00:00:00+00:00"
+    assert early_seeds(Plan("plan.md", {"engines": None}), tmp_path) == {"engines": [5]}
+    assert early_seeds(Plan("plan.md", {"engines": range(6, 7)}), tmp_path) == {}
+    assert early_seeds(Plan("plan.md", {"engines": None}, "a section", section), tmp_path) == {"engines": [5, 6]}
+    assert not is_shallow(tmp_path)
 
 
 def test_each_deviation_is_printed_in_its_reports_and_marks_its_forest_rows():
@@ -138,14 +123,6 @@ def test_a_report_gets_the_section_of_the_deviations_it_touches_and_no_other():
     assert disclosed("# A report\n", None) == "# A report\n"
     assert report_path(ROOT / "results" / "x" / ".." / "README.md") == "results/README.md"
     assert report_path(Path("/tmp/report.md")) is None and report_path(None) is None
-
-
-def _full_clone() -> None:
-    if shallow():
-        pytest.skip(
-            "cannot run on a shallow clone: it reads each plan's commits; clone with history "
-            "(git clone without --depth, or git fetch --unshallow)"
-        )
 
 
 @pytest.mark.parametrize("plan", PLANS, ids=[p.path + (f" ({p.section})" if p.section else "") for p in PLANS])

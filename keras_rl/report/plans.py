@@ -75,6 +75,44 @@ def governed_records(plan: Plan, root: Path) -> dict[str, list[dict]]:
     return out
 
 
+def _git(root: Path, *args: str) -> str | None:
+    import subprocess
+
+    done = subprocess.run(["git", *args], cwd=root, capture_output=True, text=True)
+    return done.stdout.strip() if done.returncode == 0 else None
+
+
+def is_shallow(root: Path) -> bool:
+    """Whether ``root`` is a shallow clone, which lacks the commits that added the plans."""
+    return _git(root, "rev-parse", "--is-shallow-repository") == "true"
+
+
+def plan_time(plan: Plan, root: Path):
+    """When the plan (or its later section, ``plan.commit``) was committed: the seeds it governs must
+    follow it. None where the clone lacks that commit."""
+    from datetime import datetime
+
+    if plan.commit is None:
+        added = (_git(root, "log", "--diff-filter=A", "--format=%cI", "--", plan.path) or "").split()
+        return datetime.fromisoformat(added[-1]) if added else None
+    when = _git(root, "show", "-s", "--format=%cI", plan.commit)
+    return datetime.fromisoformat(when) if when else None
+
+
+def early_seeds(plan: Plan, root: Path, when=None) -> dict[str, list[int]]:
+    """Each governed set's seeds that started before the plan was committed (or before ``when``)."""
+    from datetime import datetime
+
+    when = when or plan_time(plan, root)
+    early: dict[str, list[int]] = {}
+    for folder, records in governed_records(plan, root).items():
+        for r in records:
+            started = r.get("provenance", {}).get("started_at")
+            if started and datetime.fromisoformat(started) < when:
+                early.setdefault(folder, []).append(int(r["seed"]))
+    return early
+
+
 def code_versions(plan: Plan, root: Path) -> dict[str, dict[str, list[int]]]:
     """Set -> commit (8 hex digits) -> the governed seeds made at it, for each set made at more than one."""
     out: dict[str, dict[str, list[int]]] = {}
