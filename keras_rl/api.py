@@ -181,20 +181,22 @@ def check(
     tier: str = "smoke",
     workers: int = 1,
     against: str | Path | None = None,
+    framework: str = "keras",
 ) -> list:
     """``keras-rl check``: fresh seeds against the committed baselines (or ``against``); each
-    post's ``CheckResult`` (``.verdict``, ``.decision.p``, ``.config_changes``)."""
+    post's ``CheckResult`` (``.verdict``, ``.decision.p``, ``.config_changes``). ``framework="torch"``:
+    the PyTorch rules (``rules.TORCH_RULES``), for the posts that have one."""
     from keras_rl.check.command import check_request, default_baselines, run_check
 
     names = [experiments] if isinstance(experiments, str) else [_name(e) for e in experiments]
-    check_request(names, tier)
+    check_request(names, tier, framework)
     out_path = _path(out, "out")
     from keras_rl.study import check_writable_dir
 
     check_writable_dir(out_path, "out")
     baselines = default_baselines() if against is None else _path(against, "against")
     options = RunOptions.checked(workers=_whole(workers), progress=False)
-    return run_check(names, tier, baselines, out_path, None, options)
+    return run_check(names, tier, baselines, out_path, None, options, framework=framework)
 
 
 def _name(experiment: object) -> str:

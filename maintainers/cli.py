@@ -1,8 +1,8 @@
 """The maintainers' commands: what regenerates the checkout's committed figures, run from a
 checkout as ``python -m maintainers ...`` (this folder is not part of the installed package).
 
-- ``python -m maintainers calibrate rules|family|held-out|designs|sensitive|real|bisect-levels``: the check's
-  calibration (``maintainers/calibrate/``), whose JSON ships as package data;
+- ``python -m maintainers calibrate rules|family|held-out|designs|sensitive|real|twins|torch|bisect-levels``:
+  the check's calibration (``maintainers/calibrate/``), whose JSON ships as package data;
 - ``python -m maintainers tables findings|ablations|compat|forest|check-figure|runs``: the generated Markdown tables
   (``maintainers/tables/``), each spliced between its markers (``report/markdown.py``);
 - ``python -m maintainers manifest``: ``results/MANIFEST``, and ``--regenerate`` to rerun sets and compare;
@@ -88,6 +88,14 @@ def add_parser(sub) -> None:
         "maintainers.calibrate.sensitive",
         "the sensitive tier's false alarms, power against a 10% move and against the held-out mutants, "
         "and post 001's statistic (keras_rl/check/sensitive.json, calibration.md's block)",
+        "--write",
+    )
+    p = _what(
+        inner,
+        "torch",
+        "maintainers.calibrate.torch",
+        "check --framework torch: its rules' false alarms on real arithmetic changes and power against real changes "
+        "of the algorithm, from committed runs (keras_rl/check/torch.json, calibration.md's block)",
         "--write",
     )
     p = _what(

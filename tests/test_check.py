@@ -716,10 +716,11 @@ def test_the_smallest_delay_is_searched_only_where_the_delayed_metric_is_defined
 def test_the_packaged_baselines_are_the_committed_ones():
     """The check's baselines travel as package data (``keras_rl/check/baselines``): byte for
     byte the committed packed sets, so an installed package checks against what a checkout does."""
-    from keras_rl.check.rules import RULES
+    from keras_rl.check.rules import RULES, TORCH_RULES
 
     root = Path(__file__).resolve().parents[1]
-    for post, folder in sorted({(rule.experiment, rule.baseline) for rule in RULES.values()}):
+    rules = [*RULES.values(), *TORCH_RULES.values()]
+    for post, folder in sorted({(rule.experiment, rule.baseline) for rule in rules}):
         packaged = command.PACKAGED_BASELINES / post / folder / "runs.parquet"
         committed = root / "results" / "checks" / post / folder / "runs.parquet"
         assert packaged.read_bytes() == committed.read_bytes(), (

@@ -55,6 +55,8 @@ SENSITIVE_RATES = Path(__file__).with_name("sensitive.json")
 """The sensitive tier's measured false-alarm rates and power (package data)."""
 TWIN_RATES = Path(__file__).with_name("twins.json")
 """The twin rules' size and error rates on real changes (package data; ``python -m maintainers calibrate twins``)."""
+TORCH_RATES = Path(__file__).with_name("torch.json")
+"""``check --framework torch``'s rules measured on committed real runs (``python -m maintainers calibrate torch``)."""
 SEQUENTIAL = Path(__file__).with_name("sequential.json")
 """Each post's calibrated sequential design and its measured rates (package data)."""
 BASELINES = Path(__file__).resolve().parents[2] / "results" / "checks"
@@ -64,10 +66,10 @@ PACKAGED_BASELINES = Path(__file__).with_name("baselines")
 checkout's, which a test holds equal), so an installed package checks without a checkout."""
 
 
-def check_request(names: list[str], tier: str) -> None:
-    """The posts and tier a check names, checked before TensorFlow loads: a typo is named in a
-    second, not after the imports (a ConfigError)."""
-    from keras_rl.check.rules import RULES, TIERS
+def check_request(names: list[str], tier: str, framework: str = "keras") -> None:
+    """The posts, tier and framework a check names, checked before TensorFlow loads: a typo is named
+    in a second, not after the imports (a ConfigError); PyTorch's absence is named with its extra."""
+    from keras_rl.check.rules import FRAMEWORKS, RULES, TIERS, rule_for
 
     known = sorted({e for e, _ in RULES}, key=["pendulum", "cartpole", "mountaincar"].index)
     unknown = [n for n in names if n not in known]
@@ -79,6 +81,14 @@ def check_request(names: list[str], tier: str) -> None:
         raise ConfigError(f"unknown tier {tier!r}; choose one of {', '.join(TIERS)}")
     if len(set(names)) != len(names):
         raise ConfigError(f"an experiment is named twice: {' '.join(names)}")
+    if framework not in FRAMEWORKS:
+        raise ConfigError(f"unknown framework {framework!r}; choose one of {', '.join(FRAMEWORKS)}")
+    if framework == "torch":
+        for name in names:
+            rule_for(name, tier, framework)
+        from keras_rl.torch import check_torch
+
+        check_torch()
 
 
 def default_baselines() -> Path:
@@ -204,7 +214,7 @@ def baseline_values(
             )
         engine = summary.provenance.get("engine", "gymnasium")
         for field_name, theirs, ours in (
-            ("framework", made.framework, "keras"),
+            ("framework", made.framework, rule.framework),
             ("matched_init", made.matched_init, False),
             ("engine", engine, rule.engine),
         ):
@@ -337,6 +347,8 @@ def _statistic(experiment, rule: CheckRule, rows: list[dict[str, Any]]) -> float
 
 def rates_source(rule: CheckRule) -> str:
     """The package-data file a rule's error rates come from."""
+    if rule.framework == "torch":
+        return TORCH_RATES.name
     return (TWIN_RATES if rule.twins else SENSITIVE_RATES if rule.tier == "sensitive" else CALIBRATION).name
 
 
@@ -348,7 +360,7 @@ def describe_plan(
     rates = error_rates(rule) if committed else None
     if not committed:
         measured = "error rates not measured for this baseline (they were measured on the committed one)"
-    elif rates and rule.twins:
+    elif rates and (rule.twins or "real_power" in rates):
         measured = power_text(rates, source=rates_source(rule))
     elif rates:
         power = power_text(rates, source=rates_source(rule))
@@ -383,6 +395,8 @@ def what_it_sees(rule: CheckRule) -> str:
         seen = power_text(rates, source=source) if rates else "error rates not measured (twins.json)"
     else:
         seen = f"power {power_text(rates, source=source)}" if rates else "power not calibrated"
+    if rule.framework == "torch":  # measured on real changes only, and no finer tier yet
+        return f"the PyTorch {rule.tier} tier: {seen}"
     text = f"the {rule.tier} tier sees gross breakage ({seen})" if rule.tier != "sensitive" else f"{seen}"
     finer = RULES.get((rule.experiment, "sensitive"))
     if finer is not None and rule.tier != "sensitive":
@@ -413,6 +427,15 @@ def power_text(rates: dict[str, Any], short: bool = False, source: str = "calibr
             else f"twins: no held-out mutant that moves the median 10% or more has landed{alarms}"
         )
         return f"{text} ({source})"
+    if "real_power" in rates:  # torch.json: real changes only
+        power = rates["real_power"]
+        if short:
+            return f"{min(r['resampled'] for r in power.values()):.0%} (least)"
+        seen = ", ".join(f"{n} (x{r['true_shift']:.2f}) {r['resampled']:.0%}" for n, r in power.items())
+        return (
+            f"against real changes of the algorithm: {seen}; false alarms on real arithmetic changes "
+            f"{rates['false_alarm_rate']:.1%} ({source})"
+        )
     if "shift_power" in rates:
         moved = rates["shift_power"]
         text = f"{moved['x0.90']:.0%} / {moved['x1.10']:.0%} against a median 10% lower / higher"
@@ -430,6 +453,8 @@ def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, A
     (the sensitive tier's are in ``SENSITIVE_RATES``, by ``python -m maintainers calibrate sensitive``)."""
     if rule.twins:
         return twin_rates(rule)
+    if rule.framework == "torch":
+        return torch_rates(rule)
     if rule.tier == "sensitive":
         return sensitive_rates(rule)
     if not calibration.is_file():
@@ -449,6 +474,22 @@ def error_rates(rule: CheckRule, calibration: Path = CALIBRATION) -> dict[str, A
         None,
     )
     return measured
+
+
+def torch_rates(rule: CheckRule, path: Path = TORCH_RATES) -> dict[str, Any] | None:
+    """A PyTorch rule's rates on real runs (``torch.json``), or None where the rule measured there is
+    not this one."""
+    if not path.is_file():
+        return None
+    entry = json.loads(path.read_text()).get(rule.experiment, {}).get(rule.tier)
+    if not entry or entry["rule"] != rule_fields(rule):
+        return None
+    return entry
+
+
+def rule_fields(rule: CheckRule) -> dict[str, Any]:
+    """What makes a rule the one its rates were measured for."""
+    return {k: getattr(rule, k) for k in ("statistic", "alpha", "seeds", "episodes", "engine", "framework")}
 
 
 def twin_rates(rule: CheckRule, path: Path = TWIN_RATES) -> dict[str, Any] | None:
@@ -533,6 +574,7 @@ def run_check(
     sequential: bool = False,
     sequential_alpha: float | None = None,
     dry_run: bool = False,
+    framework: str = "keras",
 ) -> list[CheckResult]:
     """Run the fresh seeds of every experiment at once, then test each against its baseline
     (fixed-n, Holm over the posts); or, ``sequential``, look after every stage of seeds and
@@ -546,7 +588,7 @@ def run_check(
     fallbacks: dict[str, str | None] = {}
     for name in names:
         experiment = get_experiment(name)
-        rule = rule_for(name, tier)
+        rule = rule_for(name, tier, framework)
         if sequential:
             designs[name] = sequential_design(rule)
             if sequential_alpha is not None:
@@ -571,9 +613,9 @@ def run_check(
             check_twin_count(name, rule.statistic, len(fresh), level)
         else:
             check_baseline_size(name, rule.statistic, len(baseline), len(fresh), level)
-        config = experiment.config_cls.for_variant("faithful", episodes=rule.episodes).with_text_overrides(
-            options.overrides
-        )
+        config = experiment.config_cls.for_variant(
+            "faithful", episodes=rule.episodes, framework=rule.framework
+        ).with_text_overrides(options.overrides)
         plan.append((experiment, rule, fresh, config, baseline, baseline_rows))
     if dry_run:
         for experiment, rule, fresh, _config, baseline, _rows in plan:

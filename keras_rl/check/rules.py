@@ -70,6 +70,8 @@ class CheckRule:
     with fresh seeds from ``SENSITIVE_FIRST_SEED``, and the report says so."""
     bits_seeds: int = 4
     """Twins run first, to compare bits (``twins`` rules only)."""
+    framework: str = "keras"
+    """The framework the fresh seeds train in, and the baseline's (``TORCH_RULES``: torch)."""
 
     def seed_list(self) -> list[int]:
         return list(range(self.first_seed, self.first_seed + self.seeds))
@@ -345,9 +347,47 @@ when its 30 seeds all failed at the first layer; the config now refuses it up fr
 replaced by ``input_noise_x0.5``, the same change in the other direction."""
 
 
-def rule_for(experiment: str, tier: str) -> CheckRule:
+TORCH_RULES: dict[tuple[str, str], CheckRule] = {
+    # results/checks/torch_plan.md (committed before its rates): the Keras smoke rule of post 003 as it
+    # stands, on the PyTorch engine certified for the tutorial's code (vectorised, torch.compile'd),
+    # its 10 fresh seeds in one batch, against the committed 200-seed vectorised set. Its rates on
+    # real runs: python -m maintainers calibrate torch (torch.json).
+    ("cartpole", "smoke"): CheckRule(
+        "cartpole",
+        "smoke",
+        "final_metric",
+        0.01,
+        seeds=10,
+        episodes=250,
+        first_seed=1000,
+        seed_batch=10,
+        candidates=("final_metric",),
+        engine="vectorised-compiled",
+        baseline="baseline-torch",
+        framework="torch",
+    ),
+}
+"""``check --framework torch``'s rules. Posts 000 and 001 in PyTorch run only on the Gymnasium loop, at
+1-2 minutes a seed, and have none yet; neither has the sensitive tier."""
+FRAMEWORKS = ("keras", "torch")
+
+
+def rules_of(framework: str) -> dict[tuple[str, str], CheckRule]:
+    return TORCH_RULES if framework == "torch" else RULES
+
+
+def rule_for(experiment: str, tier: str, framework: str = "keras") -> CheckRule:
     from keras_rl.errors import ConfigError
 
+    if framework == "torch":
+        if (experiment, tier) in TORCH_RULES:
+            return TORCH_RULES[(experiment, tier)]
+        have = ", ".join(f"{e} --tier {t}" for e, t in TORCH_RULES)
+        raise ConfigError(
+            f"check --framework torch has no rule for {experiment} at the {tier} tier; it checks {have} "
+            "(posts 000 and 001 in PyTorch run only on the Gymnasium loop, at 1-2 minutes a seed; "
+            "results/checks/torch_plan.md)"
+        )
     try:
         return RULES[(experiment, tier)]
     except KeyError:

@@ -36,6 +36,7 @@ def add_parser(sub) -> None:
                 "--alpha",
                 "--dry-run",
                 "--out",
+                "--framework",
             )
         ],
     )
@@ -96,10 +97,12 @@ def check(args: argparse.Namespace) -> int:
 def check_results(args: argparse.Namespace) -> list:
     """``check``'s work (``api.check`` too): each post's ``CheckResult``, the report written."""
     from keras_rl.check.command import check_request
-    from keras_rl.check.rules import RULES
+    from keras_rl.check.rules import rules_of
 
-    names = args.experiments or sorted({e for e, _ in RULES}, key=["pendulum", "cartpole", "mountaincar"].index)
-    check_request(names, args.tier)
+    known = rules_of(args.framework or "keras")
+    names = args.experiments or sorted({e for e, _ in known}, key=["pendulum", "cartpole", "mountaincar"].index)
+    framework = args.framework or "keras"
+    check_request(names, args.tier, framework)
     if args.sequential and args.tier == "sensitive":
         raise ConfigError(
             "the sensitive tier has no sequential design: its fresh seeds were sized by a power computation "
@@ -130,4 +133,5 @@ def check_results(args: argparse.Namespace) -> list:
         sequential=args.sequential,
         sequential_alpha=args.alpha,
         dry_run=args.dry_run,
+        framework=framework,
     )

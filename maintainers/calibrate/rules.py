@@ -461,21 +461,35 @@ def markdown(results: dict) -> str:
             lines.append("")
             if "held_back" in entry:
                 lines += held_back_table(entry["held_back"], rule)
-    lines += [held_out_block(), "", sensitive_block(), "", real_block() + "\n" + twins_block()]
+    lines += [held_out_block(), "", sensitive_block(), "", real_block() + "\n" + twins_block() + "\n" + torch_block()]
     return "\n".join(lines)
 
 
-def twins_block() -> str:
-    """The twin check's section (``maintainers/calibrate/twins.py --write``), kept across rewrites."""
-    from keras_rl.check.command import TWIN_RATES
-    from maintainers.calibrate.twins import BEGIN, END, HEADING, render
+def _rates_block(name: str) -> str:
+    """A section that ``maintainers/calibrate/<name>.py --write`` splices, rendered from its JSON and
+    kept across rewrites of the page."""
+    from importlib import import_module
 
+    from keras_rl.check import command
+
+    module = import_module(f"maintainers.calibrate.{name}")
+    rates: Path = command.TWIN_RATES if name == "twins" else command.TORCH_RATES
     text = (
-        render(json.loads(TWIN_RATES.read_text()))
-        if TWIN_RATES.is_file()
-        else "Not computed yet: run python -m maintainers calibrate twins --write"
+        module.render(json.loads(rates.read_text()))
+        if rates.is_file()
+        else f"Not computed yet: run python -m maintainers calibrate {name} --write"
     )
-    return f"{HEADING}\n\n{BEGIN}\n{text}\n{END}\n"
+    return f"{module.HEADING}\n\n{module.BEGIN}\n{text}\n{module.END}\n"
+
+
+def twins_block() -> str:
+    """The twin check's section (``maintainers/calibrate/twins.py --write``)."""
+    return _rates_block("twins")
+
+
+def torch_block() -> str:
+    """The PyTorch check's section (``maintainers/calibrate/torch.py --write``)."""
+    return _rates_block("torch")
 
 
 def held_back_table(held: dict, rule) -> list[str]:
