@@ -24,7 +24,7 @@ from typing import Any
 
 from keras_rl.config import ExperimentConfig
 from keras_rl.errors import ConfigError
-from keras_rl.runs.options import RunOptions
+from keras_rl.runs.options import AUTO, RunOptions
 from keras_rl.runs.run_set import RunSet
 from keras_rl.study import MIN_SUCCESS_RATE, checked_seeds
 
@@ -70,7 +70,7 @@ def reproduce(
     framework: str = "keras",
     overrides: Mapping[str, object] | None = None,
     episodes: int | None = None,
-    engine: str = "auto",
+    engine: str = AUTO,
     workers: int = 1,
     resume: bool = False,
     overwrite: bool = False,

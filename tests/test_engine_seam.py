@@ -59,8 +59,18 @@ def test_a_job_trains_on_its_engine_with_one_settings_object(tmp_path, monkeypat
     assert settings == TrainSettings(progress=False, checkpoint_every=4, command="cmd")
 
 
-def test_the_default_engine_is_the_gymnasium_loop():
-    assert jobs.SeedJob("pendulum", {}, Path("x")).engine == engines.DEFAULT_ENGINE == "gymnasium"
+def test_a_run_without_a_recorded_engine_is_the_loops_and_a_user_gets_auto():
+    """Two facts that were one name (``DEFAULT_ENGINE``, tested as "gymnasium" while users got ``auto``):
+    the engine of a job or run that names none, and the one default every entry point gives users."""
+    import inspect
+
+    from keras_rl import api
+    from keras_rl.commands.flags import FLAGS
+    from keras_rl.runs.options import AUTO, RunOptions
+
+    assert jobs.SeedJob("pendulum", {}, Path("x")).engine == engines.UNRECORDED_ENGINE == "gymnasium"
+    assert RunOptions().engine == inspect.signature(RunOptions.checked).parameters["engine"].default == AUTO
+    assert inspect.signature(api.reproduce).parameters["engine"].default == FLAGS["--engine"]["default"] == AUTO
     engine = engines.get_engine("gymnasium")
     assert isinstance(engine, engines.GymnasiumEngine) and engine.refusal(None, None) is None
 

@@ -22,7 +22,7 @@ from keras_rl.runs.jobs import AfterJob, SeedJob
 from keras_rl.runs.options import RunOptions
 from keras_rl.runs.provenance import code_version
 from keras_rl.runs.reuse import check_reusable, start_of
-from keras_rl.train.engine import DEFAULT_ENGINE
+from keras_rl.train.engine import UNRECORDED_ENGINE
 
 
 def framework_overrides(framework: str, matched_init: bool) -> dict[str, Any]:
@@ -71,7 +71,7 @@ def arm_engine(folder: Path, rerun: list[int] | tuple[int, ...] = ()) -> str:
     which every committed comparison was made."""
     from keras_rl.runs.lifecycle import set_engine
 
-    return set_engine(folder, [folder / f"seed_{s}" for s in rerun]) or DEFAULT_ENGINE
+    return set_engine(folder, [folder / f"seed_{s}" for s in rerun]) or UNRECORDED_ENGINE
 
 
 def make_compare_runs(

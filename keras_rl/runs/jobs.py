@@ -29,7 +29,7 @@ from keras_rl.runs.packed import refuse_packed
 from keras_rl.runs.provenance import command_line
 from keras_rl.runs.signals import sigterm_as_interrupt
 from keras_rl.runs.summary import RunSummary
-from keras_rl.train.engine import DEFAULT_ENGINE, get_engine
+from keras_rl.train.engine import UNRECORDED_ENGINE, get_engine
 from keras_rl.train.settings import TrainSettings
 from keras_rl.train.vectorised import COMPILED_ENGINE, ENGINE
 
@@ -51,7 +51,7 @@ class SeedJob:
     argv is not it)."""
     evaluation: EvalSchedule | None = None
     """Greedy evaluations during training (``--eval-every``), or none."""
-    engine: str = DEFAULT_ENGINE
+    engine: str = UNRECORDED_ENGINE
     """Which engine trains it (``train/engine.ENGINES``)."""
 
     @classmethod

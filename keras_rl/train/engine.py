@@ -73,7 +73,10 @@ ENGINES: dict[str, Engine] = {
     "vectorised": VectorisedEngine(),
     "vectorised-compiled": VectorisedEngine(compiled=True),
 }
-DEFAULT_ENGINE = "gymnasium"
+UNRECORDED_ENGINE = "gymnasium"
+"""The engine of a run that recorded none (every run made before the engine seam), and of a job
+built without one. Not what a user gets by default: that is ``auto`` (``runs.options.AUTO``,
+``study.choose_engine``), declared once in ``RunOptions``."""
 
 
 def get_engine(name: str) -> Engine:
