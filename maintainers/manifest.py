@@ -137,9 +137,33 @@ def run_key(run: SeedRun) -> str:
     return digest.hexdigest()
 
 
+_MANIFESTS: dict[tuple, list[dict]] = {}
+"""``manifest``'s entries by ``results``' fingerprint: reading every episode of every set takes about
+25 s, and one process (a test worker, an audit) asks several times of files that did not change."""
+
+
+def _fingerprint(results: Path) -> tuple:
+    """What ``manifest`` reads: the tracked folders and every run file's path, size and modification time."""
+    names = ("runs.parquet", "summary.json", "episodes.csv", "config.json")
+    files = sorted(p for p in Path(results).rglob("*") if p.name in names and p.is_file())
+    stats = tuple((str(p), p.stat().st_size, p.stat().st_mtime_ns) for p in files)
+    return str(Path(results).resolve()), stats, tuple(sorted(map(str, tracked_folders(results))))
+
+
 def manifest(results: Path = RESULTS) -> list[dict]:
     """Every set, each with its ``copies``: the seeds that are the same run as a seed of a set
-    listed before it (``run_key``; a set extended by copying, say), counted once in the cost."""
+    listed before it (``run_key``; a set extended by copying, say), counted once in the cost.
+    Read once per state of the files (``_fingerprint``); each call gets its own copy."""
+    import copy
+
+    key = _fingerprint(results)
+    if key not in _MANIFESTS:
+        _MANIFESTS.clear()
+        _MANIFESTS[key] = _read_manifest(results)
+    return copy.deepcopy(_MANIFESTS[key])
+
+
+def _read_manifest(results: Path) -> list[dict]:
     entries: list[dict] = []
     seen: dict = {}
     for name, runs in find_sets(results).items():

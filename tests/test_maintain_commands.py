@@ -12,6 +12,9 @@ import pytest
 from maintainers.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
+READS_THE_MANIFEST = pytest.mark.xdist_group("manifest")
+"""Tests that read every committed set (``manifest()``, about 25 s) share one process, whose cache reads
+them once (``maintainers.manifest._MANIFESTS``)."""
 
 
 def test_tables_runs_tabulates_folders_against_the_first(capsys):
@@ -50,6 +53,7 @@ def test_tables_print_without_writing(capsys, monkeypatch):
         (["audit", "--again", "--out", "/tmp/keras-rl-audit"], "--again reruns the sets the committed report holds"),
     ],
 )
+@READS_THE_MANIFEST
 def test_bad_input_exits_2_naming_it(argv, message, capsys):
     assert main(argv) == 2
     assert message in capsys.readouterr().err
@@ -146,6 +150,7 @@ def test_a_written_audit_runs_at_a_committed_tree_and_keeps_no_rerun_made_on_cha
 
 
 @pytest.mark.slow
+@READS_THE_MANIFEST
 def test_an_audit_reruns_its_drawn_seeds_to_the_committed_bits_and_resumes_from_its_log(tmp_path, capsys):
     """Two committed compiled-engine sets (about 2 s a seed), one drawn seed each, two at once."""
     sets = ["checks/pendulum/mutants/tau_x10", "checks/pendulum/mutants/gamma_0.9"]
@@ -162,6 +167,7 @@ def test_an_audit_reruns_its_drawn_seeds_to_the_committed_bits_and_resumes_from_
 
 
 @pytest.mark.slow
+@READS_THE_MANIFEST
 def test_a_written_audit_extends_the_committed_report_and_reruns_only_the_sets_it_lacks(tmp_path, capsys, monkeypatch):
     """--write keeps the committed report's results for this draw (here one set's, marked so that
     a rerun would show) and reruns only the set it lacks; the report covers every committed set."""
@@ -197,6 +203,7 @@ def test_a_written_audit_extends_the_committed_report_and_reruns_only_the_sets_i
     assert "tau_x10: seeds" in capsys.readouterr().out
 
 
+@READS_THE_MANIFEST
 def test_the_committed_audit_report_is_its_records_rendering_over_committed_sets():
     """results/AUDIT.md is ``markdown`` of results/AUDIT.json (what ``audit --write`` extends), and
     every set it audited is a committed set, drawn as its draw seed draws it."""

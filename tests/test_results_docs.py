@@ -160,6 +160,7 @@ def test_the_matrix_table_shows_failed_installs_unrun_cells_and_divergences(tmp_
     assert "000, 001 (2/3)" in short and "changed or no verdict: 000" in short and "install failed" in short
 
 
+@pytest.mark.xdist_group("manifest")  # shares test_maintain_commands.py's reading of every set
 def test_the_manifest_lists_every_committed_run_set_as_it_is():
     import json
 
