@@ -8,8 +8,8 @@
 # UNDER_TEST      what to install over it: the release you are testing (empty: the pinned versions)
 # POSTS           the posts to check (empty: all three)
 # TIER            sensitive (default: twins, "the same bits" or a paired test), smoke or full
-# FRAMEWORK       torch: the PyTorch rules (post 003 at the smoke tier); the wheel then needs its torch
-#                 extra: KERAS_RL_WHEEL="dist/keras_rl_repro-0.1.0-py3-none-any.whl[torch]"
+# FRAMEWORK       torch: the PyTorch rules (post 003 at the smoke tier, the default tier then); the wheel
+#                 needs its torch extra: KERAS_RL_WHEEL="dist/keras_rl_repro-0.1.0-py3-none-any.whl[torch]"
 # Exit code: the check's own. 0 consistent; 1 changed (fail the job); 2 usage; 3 no verdict (a seed
 # crashed); 143 stopped. Keep check-runs/ as the job's artifact whatever the code: check.md (the
 # verdicts and what changed around the code), check.json, and each post's check.png.
@@ -21,8 +21,9 @@ if [ -n "${UNDER_TEST:-}" ]; then
   canary/bin/pip install --quiet $UNDER_TEST
 fi
 canary/bin/pip freeze > pip-freeze.txt  # what the check ran under, beside its report
+if [ "${FRAMEWORK:-}" = torch ]; then default_tier=smoke; else default_tier=sensitive; fi
 set +e
-canary/bin/keras-rl check ${POSTS:-} --tier "${TIER:-sensitive}" ${FRAMEWORK:+--framework "$FRAMEWORK"} \
+canary/bin/keras-rl check ${POSTS:-} --tier "${TIER:-$default_tier}" ${FRAMEWORK:+--framework "$FRAMEWORK"} \
   --no-progress --workers 2 --out check-runs
 code=$?
 set -e

@@ -85,9 +85,12 @@ def uncommitted() -> list[str]:
     """The tracked files that differ from HEAD, other than the report that ``--write`` rewrites as
     it goes (which made every set after the first read "+ changes" in an audit that began clean)."""
     own = [f":(exclude){(RESULTS / name).relative_to(ROOT)}" for name in ("AUDIT.md", "AUDIT.json")]
+    subprocess.run(["git", "update-index", "-q", "--refresh"], cwd=ROOT, capture_output=True)  # touched, same bytes
     diff = subprocess.run(
         ["git", "diff-index", "--name-only", "HEAD", "--", ".", *own], cwd=ROOT, capture_output=True, text=True
     )
+    if diff.returncode != 0:  # not a clean answer: never read as a clean tree
+        raise ConfigError(f"cannot tell whether the tree is committed: git diff-index says {diff.stderr.strip()}")
     return diff.stdout.split()
 
 
@@ -258,7 +261,8 @@ def run(args: argparse.Namespace) -> int:
     committed = (
         at_committed_tree(kept(RECORD, args.draw_seed, args.per_set, drawn)) if args.write and not args.again else {}
     )
-    finished = {**committed, **kept(log, args.draw_seed, args.per_set, drawn)}
+    resumed = kept(log, args.draw_seed, args.per_set, drawn)
+    finished = {**committed, **(at_committed_tree(resumed) if args.write else resumed)}
     todo = [e for e in entries if e["set"] not in finished]
     covered = every if args.write else entries  # the committed report covers every set
     lock = threading.Lock()

@@ -120,7 +120,7 @@ def describe(name: str, runs: list[SeedRun]) -> dict:
         "episodes": sum(int(s.get("episodes_run") or 0) for s in summaries),
         "process_minutes": round(sum(batches.values()) / 60, 1),
         "longest_job_minutes": round(max(batches.values()) / 60, 1),
-        **versions,  # a set made at more than one commit: each batch's (the audit samples each)
+        **versions,  # a set made at more than one commit: each batch's
     }
 
 

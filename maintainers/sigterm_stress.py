@@ -14,7 +14,9 @@ under glibc's heap checking: ``MALLOC_CHECK_=3``, which since glibc 2.34 acts on
 
 Each stop is read as:
 - its exit code: 143 (stopped, as ``timeout`` and Slurm expect), 0 (finished before the signal
-  came), or anything else, an abort (-6, 134), a crash or a hang (killed after ``HANG_SECONDS``);
+  came), -15 after its work (the signal came as the interpreter exited, its handlers gone, and its
+  files were already complete: "killed after its work"), or anything else, an abort (-6, 134), a
+  crash or a hang (killed after ``HANG_SECONDS``);
 - whether its stderr holds a heap message (glibc's, or Python's ``Fatal Python error``);
 - whether the checkpoint written in that stop is intact: the stopped seed is resumed
   (``--resume``, in a fresh process without heap checking) and its ``episodes.csv`` must equal
@@ -97,23 +99,27 @@ def reference(engine: str, out: Path) -> dict:
         return json.loads(record.read_text())
     shutil.rmtree(folder, ignore_errors=True)
     started = time.monotonic()
-    process = subprocess.Popen(
-        _command(CASES[engine], folder), env=_env(False), stdout=subprocess.PIPE, stderr=subprocess.STDOUT
-    )
-    began = _wait_for_training(process, folder)
-    output = process.communicate(timeout=HANG_SECONDS * 4)[0].decode(errors="replace")
+    log = out / engine / "reference.log"
+    with log.open("wb") as sink:
+        process = subprocess.Popen(_command(CASES[engine], folder), env=_env(False), stdout=sink, stderr=sink)
+        began = _wait_for_training(process, folder)
+        process.wait(timeout=HANG_SECONDS * 4)
+    output = log.read_text(errors="replace")
     ended = time.monotonic()
     if process.returncode != 0 or began is None:
         raise RuntimeError(f"the {engine} reference run failed (exit {process.returncode}):\n{output[-2000:]}")
     result = {"seconds_to_training": round(began - started, 2), "window_seconds": round(ended - began, 2)}
-    record.write_text(json.dumps(result))
+    from keras_rl.runs.files import atomic_write_json
+
+    atomic_write_json(record, result)
     return result
 
 
 def _wait_for_training(process: subprocess.Popen, folder: Path) -> float | None:
     """When the seed's first episode row was written (training began), or None if it exited first."""
     csv = folder / "seed_0" / "episodes.csv"
-    while process.poll() is None:
+    deadline = time.monotonic() + HANG_SECONDS
+    while process.poll() is None and time.monotonic() < deadline:
         if csv.is_file() and csv.stat().st_size > 0:
             return time.monotonic()
         time.sleep(0.02)
@@ -127,24 +133,27 @@ def stop_once(engine: str, index: int, out: Path, window: float, reference_rows:
     delay = float(rng.uniform(0.0, window))
     folder = out / engine / f"stop_{index}"
     shutil.rmtree(folder, ignore_errors=True)
-    process = subprocess.Popen(
-        _command(CASES[engine], folder), env=_env(heap_check), stdout=subprocess.PIPE, stderr=subprocess.PIPE
-    )
-    began = _wait_for_training(process, folder)
-    signalled = False
-    if began is not None:
-        time.sleep(max(0.0, delay - (time.monotonic() - began)))
-        if process.poll() is None:
-            process.send_signal(signal.SIGTERM)
-            signalled = True
-    try:
-        _, stderr = process.communicate(timeout=HANG_SECONDS)
-        hung = False
-    except subprocess.TimeoutExpired:
-        process.kill()
-        _, stderr = process.communicate()
-        hung = True
-    stderr_text = stderr.decode(errors="replace")
+    err = out / engine / f"stop_{index}.stderr"  # files, not pipes: nothing blocks on output nobody reads
+    with err.open("wb") as sink:
+        process = subprocess.Popen(
+            _command(CASES[engine], folder), env=_env(heap_check), stdout=subprocess.DEVNULL, stderr=sink
+        )
+        began = _wait_for_training(process, folder)
+        signalled = False
+        if began is not None:
+            time.sleep(max(0.0, delay - (time.monotonic() - began)))
+            if process.poll() is None:
+                process.send_signal(signal.SIGTERM)
+                signalled = True
+        try:
+            process.wait(timeout=HANG_SECONDS)
+            hung = False
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+            hung = True
+    stderr_text = err.read_text(errors="replace")
+    err.unlink()
     heap = sorted(set(HEAP_MESSAGE.findall(stderr_text)))
     result = {
         "engine": engine,
@@ -164,6 +173,8 @@ def stop_once(engine: str, index: int, out: Path, window: float, reference_rows:
         result["resume_exit"] = resumed.returncode
         if resumed.returncode != 0:
             result["resume_tail"] = (resumed.stdout + resumed.stderr)[-600:]
+    summary = folder / "seed_0" / "summary.json"
+    result["summary_status"] = json.loads(summary.read_text()).get("status") if summary.is_file() else None
     result["reference_bits"] = _rows(folder) == reference_rows
     if result["reference_bits"] and not heap and process.returncode in (0, 143):
         shutil.rmtree(folder)  # kept only where something is to be read
@@ -179,7 +190,7 @@ def verdict(r: dict) -> str:
         return "stopped"
     if r["exit"] == 0:
         return "finished first"
-    if r["exit"] == -signal.SIGTERM and r["reference_bits"]:
+    if r["exit"] == -signal.SIGTERM and r["reference_bits"] and r.get("summary_status", "completed") == "completed":
         return "killed after its work"  # no handler left (at exit): the default action, files complete
     return f"exit {r['exit']}"
 
@@ -258,18 +269,28 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--stops must be at least 1, got {args.stops}")
     if args.out is None:
         raise ConfigError("sigterm-stress needs --out: a fresh folder, or one to resume")
+    import ctypes.util
+
+    if ctypes.util.find_library("c_malloc_debug") is None:
+        raise ConfigError("glibc's libc_malloc_debug.so.0 is not installed: MALLOC_CHECK_=3 would do nothing")
     unknown = [e for e in args.engines if e not in CASES]
     if unknown:
         raise ConfigError(f"unknown engine {unknown[0]!r}; known: {', '.join(CASES)}")
     out = args.out.resolve()
     out.mkdir(parents=True, exist_ok=True)
     log = out / "stops.jsonl"
-    results = [json.loads(line) for line in log.read_text().splitlines()] if log.is_file() else []
+    lines = log.read_text().splitlines() if log.is_file() else []
+    if lines and not lines[-1].rstrip().endswith("}"):  # a stop cut off as it was written reruns
+        lines.pop()
+        log.write_text("".join(line + "\n" for line in lines))
+    results = [json.loads(line) for line in lines]
     done = {(r["engine"], r["stop"]) for r in results}
     references = {}
     for engine in args.engines:
         references[engine] = reference(engine, out)
         reference_rows = _rows(out / engine / "reference")
+        if reference_rows is None:
+            raise ConfigError(f"{out / engine / 'reference'} lost its episodes.csv: remove {engine}/reference.json")
         for index in range(args.stops):
             if (engine, index) in done:
                 continue

@@ -139,6 +139,8 @@ def test_pack_keep_folders_works_where_its_refusal_recommends_it(pendulum_set, c
     assert _listing(pendulum_set / "seed_0") == ["actor.weights.h5"]
     assert api.load(pendulum_set).seeds == [0, 1]
     assert main(["aggregate", str(pendulum_set)]) == 0
+    assert main(["pack", str(pendulum_set)]) == 0  # packed again: the kept folders are not runs to pack
+    assert _listing(pendulum_set / "seed_0") == ["actor.weights.h5"]
 
 
 def test_a_torch_study_in_a_keras_set_names_the_framework_not_an_engine(pendulum_set):

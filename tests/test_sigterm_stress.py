@@ -26,6 +26,7 @@ def test_a_stop_is_read_by_its_exit_its_heap_messages_and_its_bits():
     assert read(_stop(hung=True, exit=-9)) == "hung"
     assert read(_stop(exit=-15)) == "killed after its work"
     assert read(_stop(exit=-15, reference_bits=False)) == "exit -15"  # killed mid-run: counted as other
+    assert read(_stop(exit=-15, summary_status="running")) == "exit -15"  # its summary not yet final
     assert sigterm_stress.HEAP_MESSAGE.search("corrupted size vs. prev_size while consolidating")
     rows = sigterm_stress.counts([_stop(), _stop(heap_check=True, exit=-6), _stop(reference_bits=False)])
     assert [(r["heap_check"], r["stops"], r["aborts"], r["reference_bits"]) for r in rows] == [
@@ -43,7 +44,8 @@ def test_the_committed_counts_are_their_stops_as_read_and_show_no_abort():
         mine = [r for r in record["stops"] if r["engine"] == engine]
         assert len(mine) >= 100, engine
         assert sum(r["heap_check"] for r in mine) == len(mine) // 2 + len(mine) % 2
-        assert all(sigterm_stress.verdict(r) != "abort" and r["reference_bits"] for r in mine), engine
+        allowed = ("stopped", "finished first", "killed after its work")
+        assert all(sigterm_stress.verdict(r) in allowed and r["reference_bits"] for r in mine), engine
         assert sum(r["signalled"] and r["exit"] == 143 for r in mine) >= 50  # most landed in training
     assert sigterm_stress.REPORT.read_text() == sigterm_stress.markdown(
         record["counts"], record["references"], record["command"]

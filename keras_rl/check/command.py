@@ -59,6 +59,8 @@ TORCH_RATES = Path(__file__).with_name("torch.json")
 """``check --framework torch``'s rules measured on committed real runs (``python -m maintainers calibrate torch``)."""
 SEQUENTIAL = Path(__file__).with_name("sequential.json")
 """Each post's calibrated sequential design and its measured rates (package data)."""
+RATE_FILES = (CALIBRATION, SENSITIVE_RATES, TWIN_RATES, TORCH_RATES, SEQUENTIAL)
+"""Every file of measured rates the reports quote, all package data."""
 BASELINES = Path(__file__).resolve().parents[2] / "results" / "checks"
 """The committed baselines (``<experiment>/<rule.baseline>/runs.parquet``), in a checkout."""
 PACKAGED_BASELINES = Path(__file__).with_name("baselines")
@@ -247,7 +249,7 @@ def config_changes(experiment, folder: Path) -> list[str]:
     config now differs from the one the baseline recorded (a changed default shows here,
     beside the verdict that says whether it changed the behaviour)."""
     made = baseline_config(experiment, folder)
-    now = experiment.config_cls.for_variant("faithful", episodes=made.episodes)
+    now = experiment.config_cls.for_variant("faithful", episodes=made.episodes, framework=made.framework)
     was, wanted = made.to_dict(), now.to_dict()
     return [f"{k}: {was.get(k)!r} -> {wanted.get(k)!r}" for k in made.differs_from(now)]
 
@@ -928,7 +930,13 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
             ),
         ]
         if all(r.error_rates for r in results):
-            lines.append("The power column is the rule's, measured against the mutants (calibration.json).")
+            sources = ", ".join(sorted({rates_source(r.rule) for r in results}))
+            against = (
+                "real changes of the algorithm (the least shown)"
+                if all(r.rule.framework == "torch" for r in results)
+                else "the mutants"
+            )
+            lines.append(f"The power column is the rule's, measured against {against} ({sources}).")
     for r in results:
         if r.twins is not None:
             lines += ["", f"{r.experiment}: twins (the baseline's own seeds, rerun): {r.twins.text()}."]
@@ -952,7 +960,7 @@ def write_report(out: Path, results: list[CheckResult], tier: str, command: str 
         "Unpaired fresh seeds are never the baseline's; twins are its own seeds, rerun. "
         "`changed` means p < alpha in either direction "
         "(learning faster is a change in fidelity too). The error rates quoted here ship with the package "
-        f"({', '.join(f'keras_rl/check/{f.name}' for f in (CALIBRATION, SENSITIVE_RATES, TWIN_RATES, SEQUENTIAL))}); "
+        f"({', '.join(f'keras_rl/check/{f.name}' for f in RATE_FILES)}); "
         "how each was measured: docs/check.md in the project's repository.",
         "",
     ]

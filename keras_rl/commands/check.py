@@ -108,6 +108,11 @@ def check_results(args: argparse.Namespace) -> list:
             "the sensitive tier has no sequential design: its fresh seeds were sized by a power computation "
             "(results/checks/sensitive_plan.md); run it without --sequential"
         )
+    if args.sequential and framework == "torch":
+        raise ConfigError(
+            "--framework torch has no sequential design: sequential.json's designs were calibrated on the Keras "
+            "baselines; run it without --sequential"
+        )
     if args.sequential and args.seeds is not None:
         raise ConfigError("--seeds and --sequential do not go together: the sequential design runs its own fresh seeds")
     if args.alpha is not None and not args.sequential:

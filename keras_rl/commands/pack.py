@@ -25,7 +25,7 @@ def add_parser(sub) -> None:
         "--keep-folders",
         action="store_true",
         help="keep in the seed folders what a packed set does not hold (weights, checkpoints, pictures); "
-        "their records (config.json, summary.json, episodes.csv) move into runs.parquet",
+        "the rest (config.json, summary.json, episodes.csv and small text files) moves into runs.parquet",
     )
 
 

@@ -399,8 +399,16 @@ def pack(folder: Path, keep_folders: bool = False) -> tuple[Path, list[int]]:
         raise RunFolderError(f"{folder} is not a folder")
     path = folder / PACKED
     existing = open_packed(path) if path.is_file() else None
+    kept = set(existing.seeds) if existing is not None else set()
     dirs = sorted(
-        (p for p in folder.iterdir() if SEED_FOLDER.fullmatch(p.name) and p.is_dir()),
+        (
+            p
+            for p in folder.iterdir()
+            if SEED_FOLDER.fullmatch(p.name)
+            and p.is_dir()
+            # a folder an earlier --keep-folders left (its files that runs.parquet does not hold) is not a run
+            and not (seed_of(p) in kept and not (p / "summary.json").exists())
+        ),
         key=seed_of,
     )
     if not dirs:
