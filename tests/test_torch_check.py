@@ -22,6 +22,8 @@ def test_a_post_without_a_pytorch_rule_and_an_install_without_pytorch_are_refuse
     assert "no rule for cartpole at the sensitive tier" in capsys.readouterr().err
     assert main([*argv[:1], "cartpole", *argv[1:], "--framework", "jax"]) == 2
     assert "unknown framework 'jax'" in capsys.readouterr().err
+    assert main([*argv[:1], "cartpole", *argv[1:], "--sequential"]) == 2
+    assert "--framework torch has no sequential design" in capsys.readouterr().err
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "torch" else real(name, *a))
     assert main([*argv[:1], "cartpole", *argv[1:]]) == 2  # a Keras-only install, before any training
@@ -38,6 +40,28 @@ def test_the_pytorch_plan_names_its_engine_its_baseline_and_its_real_run_rates(t
     rule = rule_for("cartpole", "smoke", "torch")
     assert rule.framework == "torch" and command.error_rates(rule) is not None
     assert command.error_rates(rule_for("cartpole", "smoke")) != command.error_rates(rule)  # Keras' own
+    # the baseline is compared with the PyTorch faithful config (the run from the wheel said "framework:
+    # 'torch' -> 'keras'", comparing it with Keras')
+    from keras_rl.registry import get_experiment
+
+    assert command.config_changes(get_experiment("cartpole"), command.BASELINES / "cartpole" / rule.baseline) == []
+
+
+def test_a_pytorch_report_names_where_its_power_was_measured(tmp_path):
+    rule = rule_for("cartpole", "smoke", "torch")
+    result = command.CheckResult(
+        "cartpole",
+        rule,
+        {s: 120.0 for s in range(200)},
+        {s: 118.0 for s in range(1000, 1010)},
+        command.Decision(0.4, False, "Mann-Whitney U (two-sided)", 0.0),
+        [],
+        command.error_rates(rule),
+    )
+    command.write_report(tmp_path, [result], "smoke", command="keras-rl check cartpole --framework torch")
+    text = (tmp_path / "check.md").read_text()
+    assert "measured against real changes of the algorithm (the least shown) (torch.json)" in text
+    assert "calibration.json)." not in text and "keras_rl/check/torch.json" in text
 
 
 def test_the_pytorch_rates_are_what_committed_runs_give(tmp_path):
