@@ -622,8 +622,8 @@ def run_check(
     if dry_run:
         for experiment, rule, fresh, _config, baseline, _rows in plan:
             committed = committed_baseline(Path(against) / experiment.name / rule.baseline, rule)
-            design = designs.get(experiment.name)
-            print(describe_plan(rule, fresh, len(baseline), design, fallbacks.get(experiment.name), committed))
+            planned = designs.get(experiment.name)
+            print(describe_plan(rule, fresh, len(baseline), planned, fallbacks.get(experiment.name), committed))
         return []
     for experiment, *_ in plan:
         if (out / experiment.name).exists():

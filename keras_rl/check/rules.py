@@ -382,9 +382,9 @@ def rule_for(experiment: str, tier: str, framework: str = "keras") -> CheckRule:
     if framework == "torch":
         if (experiment, tier) in TORCH_RULES:
             return TORCH_RULES[(experiment, tier)]
-        have = ", ".join(f"{e} --tier {t}" for e, t in TORCH_RULES)
+        torch_checks = ", ".join(f"{e} --tier {t}" for e, t in TORCH_RULES)
         raise ConfigError(
-            f"check --framework torch has no rule for {experiment} at the {tier} tier; it checks {have} "
+            f"check --framework torch has no rule for {experiment} at the {tier} tier; it checks {torch_checks} "
             "(posts 000 and 001 in PyTorch run only on the Gymnasium loop, at 1-2 minutes a seed; "
             "results/checks/torch_plan.md)"
         )
