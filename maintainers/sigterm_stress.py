@@ -100,6 +100,7 @@ def reference(engine: str, out: Path) -> dict:
     shutil.rmtree(folder, ignore_errors=True)
     started = time.monotonic()
     log = out / engine / "reference.log"
+    log.parent.mkdir(parents=True, exist_ok=True)
     with log.open("wb") as sink:
         process = subprocess.Popen(_command(CASES[engine], folder), env=_env(False), stdout=sink, stderr=sink)
         began = _wait_for_training(process, folder)
