@@ -1031,7 +1031,7 @@ def round_four(p: Pass) -> None:
         "r4.3 the set, packed with its folders kept, read by aggregate (the folders keep only the weights)",
         ["aggregate", str(kept)],
         0,
-        "pendulum",
+        "2 seeds succeeded",
         keep=weights,
     )
     # 4. a new run's seed folder that cannot be written (the empty ro3/seed_0, mode 0555): exit 2
@@ -1106,8 +1106,8 @@ def round_four(p: Pass) -> None:
         "r4.6 check against one's own 20-seed baseline (trains 2 seeds)",
         [*check, "--no-progress", "--out", str(c6)],
         0,
-        "is not the committed one the rule's error rates were measured on, so its false alarms and power are "
-        "not measured",
+        "is not the committed one the rule's error rates were measured on, so its false alarms on real changes "
+        "and its power are not measured",
     )
     seconds = time.monotonic() - started
     report = json.loads((c6 / "check.json").read_text()) if (c6 / "check.json").is_file() else {}
@@ -1169,7 +1169,7 @@ def round_four(p: Pass) -> None:
     )
     # env_id is looked up in Gymnasium's registry when reproduce plans the study (item 9), as docs/api.md says:
     # an environment registered after the config was built still counts
-    api_doc = (p.clone / "docs" / "api.md").read_text()
+    api_doc = " ".join((p.clone / "docs" / "api.md").read_text().split())  # a sentence may wrap
     p.judge(
         "r4.8 docs/api.md says when env_id is checked",
         "docs/api.md",
