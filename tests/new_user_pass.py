@@ -118,6 +118,17 @@ class Pass:
         self.outcomes.append(Outcome(item, f"{program} " + " ".join(args), ok, seen))
         return done
 
+    def pytest(self, tests: list[str], timeout: float) -> subprocess.CompletedProcess:
+        """The clone's own tests, run in the clone."""
+        return subprocess.run(
+            [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *tests],
+            cwd=self.clone,
+            env=self.env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
+
     def api(self, item: str, call: str, message: str, absent: Path | None = None) -> subprocess.CompletedProcess:
         """A notebook's call of ``keras_rl.api`` (``API_CALL``): ``message`` printed, no traceback,
         and ``absent`` (the call's ``out``) not made."""
@@ -601,14 +612,7 @@ def the_check_against_its_regression(p: Pass) -> None:
 def docs_and_weight(p: Pass) -> None:
     """Items 19, 20, 22 and 23: the docs' examples and text, the plots' tests, no per-seed PNG."""
     tests = ["tests/test_docs_commands.py", "tests/test_results_docs.py", "tests/test_plots.py"]
-    done = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *tests],
-        cwd=p.clone,
-        env=p.env,
-        capture_output=True,
-        text=True,
-        timeout=1800,
-    )
+    done = p.pytest(tests, timeout=1800)
     tail = (done.stdout.strip().splitlines() or [""])[-1]
     p.judge(
         "r2.19, r2.20, r2.22 the docs' examples, text and the plots",
@@ -953,14 +957,7 @@ def round_four(p: Pass) -> None:
         "seed 13: completed",
     )
     tests = ["tests/test_packed.py"]
-    done = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *tests],
-        cwd=p.clone,
-        env=p.env,
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
+    done = p.pytest(tests, timeout=900)
     p.judge(
         "r4.1 the committed sets' tests pass beside that live set",
         "pytest " + " ".join(tests) + f" (with {live.relative_to(p.clone)}/seed_13 untracked)",

@@ -71,14 +71,15 @@ def reading(rule: CheckRule, baseline: dict[int, float], changed: dict[int, floa
     n = rule.seeds
     news, bases = [], []
     for _ in range(DRAWS):
-        drawn = rng.choice(seeds, size=n, replace=False)
-        news.append([changed[int(s)] for s in drawn])
-        bases.append([v for s, v in sorted(baseline.items()) if s not in set(drawn.tolist())])
+        drawn = set(rng.choice(seeds, size=n, replace=False).tolist())
+        news.append([changed[s] for s in sorted(drawn)])
+        bases.append([v for s, v in sorted(baseline.items()) if s not in drawn])
     flagged = changed_many(np.asarray(bases), np.asarray(news), rule.statistic, rule.alpha)
     blocks = [seeds[i : i + n] for i in range(0, len(seeds) - n + 1, n)]
     real = []
     for block in blocks:
-        rest = [v for s, v in sorted(baseline.items()) if s not in set(block.tolist())]
+        left_out = set(block.tolist())
+        rest = [v for s, v in sorted(baseline.items()) if s not in left_out]
         real.append(bool(changed_many([rest], [[changed[int(s)] for s in block]], rule.statistic, rule.alpha)[0]))
     low, high = clopper_pearson(sum(real), len(real))
     return {
