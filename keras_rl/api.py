@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from keras_rl.config import ExperimentConfig
-from keras_rl.errors import ConfigError
+from keras_rl.errors import ConfigError, argument
 from keras_rl.runs.options import AUTO, RunOptions
 from keras_rl.runs.run_set import RunSet
 from keras_rl.study import MIN_SUCCESS_RATE, checked_seeds
@@ -193,7 +193,7 @@ def check(
     out_path = _path(out, "out")
     from keras_rl.study import check_writable_dir
 
-    check_writable_dir(out_path, "out")
+    check_writable_dir(out_path, argument("out"))
     baselines = default_baselines() if against is None else _path(against, "against")
     options = RunOptions.checked(workers=_whole(workers), progress=False)
     return run_check(names, tier, baselines, out_path, None, options, framework=framework)

@@ -23,7 +23,7 @@ from keras_rl.commands.check import check_results
 from keras_rl.commands.common import EXIT_CRITERION, EXIT_NO_VERDICT, EXIT_OK, EXIT_USAGE, MAX_SEEDS, parse_seeds
 from keras_rl.commands.compare import compare_result
 from keras_rl.commands.flags import resolve_defaults
-from keras_rl.errors import KerasRLError
+from keras_rl.errors import KerasRLError, as_flags
 
 __all__ = [
     "COMMANDS",
@@ -74,7 +74,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     try:
-        return COMMANDS[args.command](args)
+        with as_flags():  # the library's messages name flags, not parameters
+            return COMMANDS[args.command](args)
     except KerasRLError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USAGE

@@ -20,7 +20,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from keras_rl.errors import ConfigError
+from keras_rl.errors import ConfigError, argument
 from keras_rl.runs.options import VECTORISED, RunOptions
 from keras_rl.runs.run_set import RunSet
 
@@ -89,15 +89,15 @@ class Study:
             raise ConfigError(f"a study's config is a post's config object, got {type(self.config).__name__}")
         object.__setattr__(self, "seeds", checked_seeds(self.seeds))
         if not isinstance(self.out, (str, os.PathLike)):
-            raise ConfigError(f"out must be a folder's path, got {self.out!r}")
+            raise ConfigError(f"{argument('out')} must be a folder's path, got {self.out!r}")
         object.__setattr__(self, "out", Path(self.out))
         if isinstance(self.checkpoint_every, bool) or not isinstance(self.checkpoint_every, int):
-            raise ConfigError(f"checkpoint_every must be a whole number, got {self.checkpoint_every!r}")
+            raise ConfigError(f"{argument('checkpoint_every')} must be a whole number, got {self.checkpoint_every!r}")
         if self.checkpoint_every < 0:
-            raise ConfigError(f"--checkpoint-every must be zero or more, got {self.checkpoint_every}")
+            raise ConfigError(f"{argument('checkpoint_every')} must be zero or more, got {self.checkpoint_every}")
         if self.evaluation is not None and getattr(self.config, "learning_phase_training", False):
             raise ConfigError(
-                "--eval-every does not cover learning_phase_training=true: its noise layer draws from "
+                f"{argument('eval_every')} does not cover learning_phase_training=true: its noise layer draws from "
                 "TensorFlow's generator when the policy acts, which would change the training run"
             )
 
@@ -137,12 +137,12 @@ def plan(study: Study) -> StudyPlan:
     if env_id is not None:
         check_env_id(env_id)  # a bad id is named before any folder is made
     check_not_inside_a_run(study.out)
-    check_writable_dir(study.out, "--out")
+    check_writable_dir(study.out, argument("out"))
     for seed_dir in study.seed_dirs():  # a seed folder that cannot be written, named before TensorFlow loads
         if seed_dir.is_dir():
-            check_writable_dir(seed_dir, "--out")
+            check_writable_dir(seed_dir, argument("out"))
     if study.tensorboard is not None:
-        check_writable_dir(study.tensorboard, "--tensorboard")
+        check_writable_dir(study.tensorboard, argument("tensorboard"))
     for seed_dir in study.seed_dirs():
         refuse_packed(seed_dir)
     check_one_kind(study)
@@ -154,7 +154,7 @@ def plan(study: Study) -> StudyPlan:
             if made_by is not None and made_by != experiment.name:
                 raise ConfigError(
                     f"{seed_dir} holds a run made by {made_by}, not {experiment.name}; it is left as it "
-                    "is: pass --out for another folder"
+                    f"is: pass {argument('out')} for another folder"
                 )
     modes = _start_modes(study.seed_dirs(), study.overwrite, study.resume, config.episodes)  # type: ignore[attr-defined]
     study.options.check_address()  # now that the input is good: is the cluster there?
@@ -185,7 +185,7 @@ def check_one_kind(study: Study) -> None:
         raise ConfigError(
             f"{study.out} holds runs of {experiment} ({variant}, {framework}), seeds {shown}; this is "
             f"{mine[0]} ({mine[1]}, {mine[2]}), and a set holds one experiment, variant and framework: "
-            "pass --out for another folder"
+            f"pass {argument('out')} for another folder"
         )
 
 
@@ -201,9 +201,9 @@ def choose_engine(study: Study, modes: list[str]) -> tuple[str, str]:
 
     asked = study.options.engine
     if asked != AUTO:
-        return asked, f"--engine {asked}"
+        return asked, argument("engine", asked)
     if study.recorded_engine is not None:
-        return study.recorded_engine, "the engine that made --config's run"
+        return study.recorded_engine, f"the engine that made {argument('config')}'s run"
     leaving = [d for d, m in zip(study.seed_dirs(), modes) if m == "overwrite"]
     held = set_engine(study.out, leaving)
     if held is not None:
@@ -214,7 +214,7 @@ def choose_engine(study: Study, modes: list[str]) -> tuple[str, str]:
     if (experiment, framework) not in CERTIFIED:
         return "gymnasium", f"the compiled engine is not certified for {experiment} in {framework}"
     if study.options.seed_batch != 1:
-        return "gymnasium", f"--seed-batch {study.options.seed_batch} batches seeds on the Gymnasium loop"
+        return "gymnasium", f"{argument('seed_batch', study.options.seed_batch)} batches seeds on the Gymnasium loop"
     why_not = refusal(experiment, study.config)
     if why_not is not None:
         return "gymnasium", f"the compiled engine cannot run this config: {why_not}"
@@ -252,8 +252,9 @@ MIN_SUCCESS_RATE = 1.0
 ``api.reproduce``'s ``min_success_rate`` defaults to it, as the command's does (``test_api``)."""
 
 
-def check_success_rate(rate: object, name: str = "--min-success-rate") -> float:
-    """A share of seeds in [0, 1], or a ConfigError naming ``name``."""
+def check_success_rate(rate: object, name: str = "min_success_rate") -> float:
+    """A share of seeds in [0, 1], or a ConfigError naming the argument ``name``."""
+    name = argument(name)
     if isinstance(rate, bool) or not isinstance(rate, (int, float)):
         raise ConfigError(f"{name} must be a number in [0, 1], got {rate!r}")
     if not 0 <= rate <= 1:
@@ -326,13 +327,14 @@ def compare_frameworks(
 
     if rerun and reuse_only:
         raise ConfigError(
-            "--rerun and --reuse-only contradict each other (one reruns every seed, the other runs none); pick one"
+            f"{argument('rerun')} and {argument('reuse_only')} contradict each other (one reruns every seed, "
+            "the other runs none); pick one"
         )
     seed_list = list(checked_seeds(seeds))
     runs, out = Path(runs), Path(out)
-    check_writable_dir(out, "--out")  # before any training
+    check_writable_dir(out, argument("out"))  # before any training
     if not reuse_only:
-        check_writable_dir(runs, "--runs")
+        check_writable_dir(runs, argument("runs"))
     options.check_address()
     from keras_rl.learners.table import RETIRED, compared_frameworks, no_stacked_learner
     from keras_rl.registry import get_experiment
@@ -344,7 +346,7 @@ def compare_frameworks(
         if alone:  # reproduce refuses --seed-batch there; compare batches what it can, and says so
             why = "".join(f" ({fw}: {RETIRED[(exp.name, fw)]})" for fw in alone if (exp.name, fw) in RETIRED)
             print(
-                f"warning: --seed-batch {options.seed_batch}: {exp.name} in {', '.join(alone)} has no "
+                f"warning: {argument('seed_batch', options.seed_batch)}: {exp.name} in {', '.join(alone)} has no "
                 f"seed-batched version, so its seeds run alone{why}",
                 file=sys.stderr,
             )
@@ -383,14 +385,15 @@ def compare_frameworks(
 
 
 def check_writable_dir(path: Path, flag: str) -> None:
-    """A folder that exists and is writable, or can be made: else a ConfigError naming it (a
-    name longer than the file system takes, a symlink loop, a file, no write permission)."""
+    """A folder that exists and is writable, or can be made: else a ConfigError naming it as
+    ``flag`` says it (``argument("out")``): a name longer than the file system takes, a symlink
+    loop, a file, no write permission."""
     path = Path(path)
     for part in path.parts:
         if len(os.fsencode(part)) > 255:
             raise ConfigError(
                 f"{flag}: the folder name {part[:40]}... is {len(os.fsencode(part))} bytes, more than the 255 a "
-                "file system takes; pass --out with a shorter name"
+                f"file system takes; pass {flag} with a shorter name"
             )
     try:
         path.resolve(strict=False)
@@ -419,7 +422,7 @@ def check_not_inside_a_run(out: Path) -> None:
     for folder in (out, *out.parents):
         if folder.name.startswith("seed_") and (folder / "config.json").is_file():
             raise ConfigError(
-                f"--out {out} is inside the run folder {folder}; name the folder that holds the "
+                f"{argument('out', out)} is inside the run folder {folder}; name the folder that holds the "
                 "seed_<n>/ folders (its parent), or another one"
             )
 
@@ -437,7 +440,7 @@ def check_engine(engine: str, experiment, config) -> None:
         raise ConfigError(f"unknown engine {engine!r}")
     why = refusal(experiment.name, config)
     if why is not None:
-        raise ConfigError(f"--engine {engine}: {why}")
+        raise ConfigError(f"{argument('engine', engine)}: {why}")
 
 
 def check_seed_batch(seed_batch: int | str, experiment: str, framework: str, engine: str = "gymnasium") -> None:

@@ -49,7 +49,7 @@ def test_a_typed_config_travels_as_itself(planned, tmp_path):
         ({"seeds": "0-3"}, "seeds must be a whole number or several"),
         ({"seeds": [1, 1]}, "seed 1 is named twice"),
         ({"seeds": [2**32]}, "seeds must be in [0, 2**32)"),
-        ({"workers": "two"}, "--workers must be a whole number, got 'two'"),
+        ({"workers": "two"}, "workers must be a whole number, got 'two'"),
         ({"episodes": 2.5}, "episodes must be a whole number, got 2.5"),
         ({"out": None}, "out must be a folder's path, got None"),
         ({"min_success_rate": 2}, "min_success_rate must be in [0, 1]"),

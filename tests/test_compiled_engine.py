@@ -124,7 +124,7 @@ def test_what_the_compiled_engine_cannot_run_is_refused_before_training(tmp_path
                           ("learning_phase_training", True))
            if getattr(mountaincar.config_cls.for_variant("fixed"), f) == v]  # fmt: skip
     assert len(off) >= 2 and all(f"{f}=" in fixed for f in off)  # every switch the variant turns, named at once
-    assert "(P001-POP wants True" in fixed and "--engine gymnasium" in fixed
+    assert "(P001-POP wants True" in fixed and "engine=gymnasium" in fixed
     for field, value, quirk in (
         ("episode_returns_as_rewards", False, "P001-RETURNS"),
         ("exploration", "ou", "P001-NOEXPLORE"),

@@ -75,7 +75,7 @@ def test_a_config_no_stacked_learner_covers_runs_alone_under_auto_and_is_refused
     packed = batched(phase + base, "auto")
     assert [j for j in packed if not isinstance(j, SeedBatchJob)] == phase  # each alone
     assert [[m.config["seed"] for m in j.jobs] for j in packed if isinstance(j, SeedBatchJob)] == [[0, 1, 2, 3]]
-    with pytest.raises(ConfigError, match="--seed-batch 2 does not cover .*learning_phase_training=true"):
+    with pytest.raises(ConfigError, match="seed_batch=2 does not cover .*learning_phase_training=true"):
         batched(base + phase, 2)
     assert batched(phase, 1) == phase
 

@@ -325,7 +325,7 @@ def test_the_engine_refuses_before_it_trains_and_the_options_let_it_batch(tmp_pa
     assert not (tmp_path / "a").exists()
     assert engine.refusal(cartpole, cartpole.config_cls.for_variant("pr-3384", framework="torch")) is None
     assert RunOptions.checked(engine="vectorised", seed_batch=8).seed_batch == 8
-    with pytest.raises(ConfigError, match="--engine compiled runs one seed per program"):
+    with pytest.raises(ConfigError, match="engine=compiled runs one seed per program"):
         RunOptions.checked(engine="compiled", seed_batch=8)
 
 

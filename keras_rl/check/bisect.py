@@ -36,7 +36,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from keras_rl.check.statistics import holm_adjusted
-from keras_rl.errors import ConfigError
+from keras_rl.errors import ConfigError, argument
 from keras_rl.runs.files import atomic_write_json, atomic_write_text
 from keras_rl.runs.signals import stop_signals_deferred
 
@@ -142,7 +142,7 @@ def bisect(
 ) -> BisectResult:
     good_sha, bad_sha, commits = resolve(repo, good, bad)
     if not (against / experiments[0] / "baseline").is_dir():
-        raise ConfigError(f"--against {against} holds no {experiments[0]}/baseline")
+        raise ConfigError(f"{argument('against', against)} holds no {experiments[0]}/baseline")
     out.mkdir(parents=True, exist_ok=True)
     baseline = out / "baseline"
     if baseline.exists():

@@ -42,7 +42,7 @@ from keras_rl.check.statistics import (
     holm_adjusted,
     seed_statistic,
 )
-from keras_rl.errors import ConfigError, NoVerdictError, RunFolderError
+from keras_rl.errors import ConfigError, NoVerdictError, RunFolderError, argument
 from keras_rl.registry import get_experiment
 from keras_rl.runs.files import atomic_write_json, atomic_write_text, read_episodes
 from keras_rl.runs.options import RunOptions
@@ -101,7 +101,7 @@ def default_baselines() -> Path:
         return PACKAGED_BASELINES
     raise ConfigError(
         f"no committed baselines beside this keras_rl ({Path(__file__).resolve().parents[1]}) and none in "
-        "the package; pass --against FOLDER, a checkout's results/checks"
+        f"the package; pass {argument('against', 'FOLDER')}, a checkout's results/checks"
     )
 
 
@@ -195,7 +195,8 @@ def baseline_values(
     runs = RunSet(folder).runs()
     if not runs:
         raise RunFolderError(
-            f"no baseline at {folder} (expected seed_<n>/ folders or a runs.parquet); --against names the folder "
+            f"no baseline at {folder} (expected seed_<n>/ folders or a runs.parquet); "
+            f"{argument('against')} names the folder "
             "that holds <experiment>/baseline"
         )
     values, rows_of = {}, {}
@@ -205,7 +206,7 @@ def baseline_values(
         if summary.experiment != experiment.name:
             raise RunFolderError(
                 f"{run.where} is a baseline of {summary.experiment}, not of {experiment.name}: "
-                f"--against names the folder that holds {experiment.name}/baseline"
+                f"{argument('against')} names the folder that holds {experiment.name}/baseline"
             )
         made = experiment.config_cls.from_dict(run.config())
         # The faithful variant as the code that made the baseline had it: a default changed since
@@ -545,7 +546,7 @@ def sequential_design(rule: CheckRule, path: Path = SEQUENTIAL) -> tuple[Sequent
     if entry is None:
         raise ConfigError(
             f"{rule.experiment} has no calibrated sequential design for the {rule.tier} tier in {path}; "
-            "run python -m maintainers calibrate designs --write, or check without --sequential"
+            f"run python -m maintainers calibrate designs --write, or check without {argument('sequential')}"
         )
     design = entry["design"]
     null = next(row for row in entry["rows"] if row["scenario"] == "no change")
@@ -558,10 +559,10 @@ def sequential_design(rule: CheckRule, path: Path = SEQUENTIAL) -> tuple[Sequent
 def prepare_out(out: Path) -> None:
     """``--out`` holds nothing, or an earlier check's output (replaced): never anything else."""
     if out.exists() and not out.is_dir():
-        raise ConfigError(f"--out {out} is a file; check needs a folder")
+        raise ConfigError(f"{argument('out', out)} is a file; check needs a folder")
     if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file():
         raise ConfigError(
-            f"--out {out} holds files that are not a check's output; refusing to touch them: "
+            f"{argument('out', out)} holds files that are not a check's output; refusing to touch them: "
             "pass an empty or new folder"
         )
 

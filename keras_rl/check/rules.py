@@ -18,6 +18,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
+from keras_rl.errors import argument
+
 Tier = Literal["smoke", "full", "sensitive"]
 TIERS: tuple[str, ...] = ("smoke", "full", "sensitive")
 CALIBRATED_TIERS: tuple[str, ...] = ("smoke", "full")
@@ -376,9 +378,10 @@ def rule_for(experiment: str, tier: str, framework: str = "keras") -> CheckRule:
     if framework == "torch":
         if (experiment, tier) in TORCH_RULES:
             return TORCH_RULES[(experiment, tier)]
-        torch_checks = ", ".join(f"{e} --tier {t}" for e, t in TORCH_RULES)
+        torch_checks = ", ".join(f"{e} {argument('tier', t)}" for e, t in TORCH_RULES)
         raise ConfigError(
-            f"check --framework torch has no rule for {experiment} at the {tier} tier; it checks {torch_checks} "
+            f"the PyTorch check ({argument('framework', 'torch')}) has no rule for {experiment} at the {tier} tier; "
+            f"it checks {torch_checks} "
             "(posts 000 and 001 in PyTorch run only on the Gymnasium loop, at 1-2 minutes a seed; "
             "results/checks/torch_plan.md)"
         )

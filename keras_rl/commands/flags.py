@@ -18,10 +18,10 @@ from keras_rl.runs.options import AUTO, ENGINE_NAMES, RunOptions
 
 def options_from_args(args: argparse.Namespace) -> RunOptions:
     """The options a command was given, checked; absent flags take their defaults."""
-    address, source = None, "--address"
+    address, source = None, "address"
     if hasattr(args, "address"):
         address = args.address or os.environ.get("RAY_ADDRESS") or None
-        source = "--address" if args.address else "$RAY_ADDRESS"
+        source = "address" if args.address else "$RAY_ADDRESS"
     return RunOptions.checked(
         workers=getattr(args, "workers", 1),
         episodes=getattr(args, "episodes", None),

@@ -29,6 +29,7 @@ import tensorflow as tf
 from keras_rl.buffers import Layout
 from keras_rl.config import check_same_but_seed
 from keras_rl.envs import EnvSpec
+from keras_rl.errors import argument
 from keras_rl.learners.common import save_weights
 from keras_rl.learners.ddpg import DDPGLearner, post001_networks
 from keras_rl.learners.optimizers import SeedAdam
@@ -386,7 +387,7 @@ def stack_post001(configs: Sequence, spec: EnvSpec, xla: bool = True):
         from keras_rl.errors import ConfigError
 
         raise ConfigError(
-            "--seed-batch does not cover learning_phase_training=true (its noise layer draws from "
+            f"{argument('seed_batch')} does not cover learning_phase_training=true (its noise layer draws from "
             "TensorFlow's one generator, so seeds could not keep their own draws); run it without"
         )
     obs, act = spec.obs_dim, spec.action_dim

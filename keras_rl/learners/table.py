@@ -17,6 +17,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from keras_rl.errors import argument
+
 
 @dataclass(frozen=True)
 class Implementation:
@@ -50,11 +52,11 @@ STACKED: dict[tuple[str, str], Implementation] = {
 RETIRED: dict[tuple[str, str], str] = {
     ("pendulum", "keras"): (
         "a compiled solo run costs 0.69x a seed of the Gymnasium loop's batch of 10 (docs/performance.md), "
-        "so issue 34 retired post 000's stacked Keras learner; run its seeds with --engine compiled"
+        "so issue 34 retired post 000's stacked Keras learner"
     ),
     ("cartpole", "keras"): (
         "a compiled solo run costs 0.57x a seed of the Gymnasium loop's batch of 10 (docs/performance.md), "
-        "so issue 34 retired post 003's stacked Keras learner; run its seeds with --engine compiled"
+        "so issue 34 retired post 003's stacked Keras learner"
     ),
 }
 """Seed-batched learners retired because the compiled engine (``train/compiled.py``) runs a
@@ -102,10 +104,11 @@ def no_stacked_learner(experiment: str, framework: str) -> str | None:
     """Why ``--seed-batch`` cannot batch this post in this framework (retired, or never built),
     or None where it can: the one wording the CLI and the benchmarks refuse or warn with."""
     if (experiment, framework) in RETIRED:
-        return f"--seed-batch: {RETIRED[(experiment, framework)]}"
+        instead = argument("engine", "compiled")
+        return f"{argument('seed_batch')}: {RETIRED[(experiment, framework)]}; run its seeds with {instead}"
     if (experiment, framework) not in STACKED:
         have = ", ".join(f"{e} ({f})" for e, f in STACKED)
-        return f"--seed-batch has no {framework} learner for {experiment} yet; it has: {have}"
+        return f"{argument('seed_batch')} has no {framework} learner for {experiment} yet; it has: {have}"
     return None
 
 

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from keras_rl.errors import ConfigError, RunFolderError
+from keras_rl.errors import ConfigError, RunFolderError, argument
 from keras_rl.report.aggregate import write_aggregate
 from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm
 from keras_rl.report.plots import plot_sweep
@@ -35,7 +35,9 @@ from keras_rl.runs.summary import RunSummary
 def analyse_sweep(summaries: dict[str, list[RunSummary]], baseline: str) -> dict[str, Any]:
     """Every number in ``sweep.md``, from the seeds' summaries."""
     if baseline not in summaries:
-        raise ConfigError(f"--baseline {baseline!r} is not a grid point; the points are {', '.join(summaries)}")
+        raise ConfigError(
+            f"{argument('baseline', repr(baseline))} is not a grid point; the points are {', '.join(summaries)}"
+        )
     if not summaries[baseline]:
         raise RunFolderError(
             f"the baseline grid point {baseline!r} has no run to compare with (its jobs' errors are above)"

@@ -29,7 +29,7 @@ import pickle
 from pathlib import Path
 from typing import Any
 
-from keras_rl.errors import RunFolderError
+from keras_rl.errors import RunFolderError, argument
 from keras_rl.runs.files import atomic_write_bytes
 
 CHECKPOINT = "checkpoint.pkl"
@@ -76,12 +76,12 @@ def read_batch_checkpoints(run_dirs: list[Path], batch: list[int], part: bool = 
         if state.get("version") != VERSION:
             raise RunFolderError(
                 f"{Path(d) / CHECKPOINT} was written by an older keras-rl (checkpoint layout "
-                f"{state.get('version', 1)}, this one reads {VERSION}); pass --overwrite to start again"
+                f"{state.get('version', 1)}, this one reads {VERSION}); pass {argument('overwrite')} to start again"
             )
         if state["batch"] != batch and not (part and set(batch) <= set(state["batch"])):
             raise RunFolderError(
                 f"{Path(d) / CHECKPOINT} belongs to a batch of seeds {state['batch']}, this command "
-                f"resumes seeds {batch} together; resume with the same --seeds and --seed-batch"
+                f"resumes seeds {batch} together; resume with the same {argument('seeds')} and {argument('seed_batch')}"
             )
     steps = {state["vector_step"] for state in current}
     if len(steps) == 1:
@@ -94,7 +94,7 @@ def read_batch_checkpoints(run_dirs: list[Path], batch: list[int], part: bool = 
         if state.get("vector_step") != older:
             raise RunFolderError(
                 f"the checkpoints of seeds {batch} were not written at one vector step and "
-                f"{d} holds none of step {older}; pass --overwrite to start again"
+                f"{d} holds none of step {older}; pass {argument('overwrite')} to start again"
             )
         chosen.append(state)
     return chosen
@@ -106,7 +106,8 @@ def read_checkpoint(run_dir: Path, name: str = CHECKPOINT) -> dict[str, Any]:
     if not path.is_file():
         raise RunFolderError(
             f"{run_dir} has no {CHECKPOINT} to resume from (a run writes one every "
-            "--checkpoint-every episodes and when it is stopped); pass --overwrite to start again"
+            f"{argument('checkpoint_every')} episodes and when it is stopped); pass "
+            f"{argument('overwrite')} to start again"
         )
     data = path.read_bytes()
     digest_end = len(MAGIC) + 64

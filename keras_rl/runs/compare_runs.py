@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from keras_rl.errors import RunFolderError
+from keras_rl.errors import RunFolderError, argument
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import compared_frameworks
 from keras_rl.runs.backends import train_seeds
@@ -60,7 +60,7 @@ def gather(
         have = {fw: sorted(set(seeds) - set(missing.get(fw, []))) for fw in compared}
         raise RunFolderError(
             f"mismatched seed sets: {', '.join(f'{fw} lacks seeds {s}' for fw, s in missing.items())} "
-            f"(reusable: {have}); run without --reuse-only to make them"
+            f"(reusable: {have}); run without {argument('reuse_only')} to make them"
         )
     return jobs
 

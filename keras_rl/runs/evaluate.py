@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from keras_rl.errors import ConfigError, RunFolderError
+from keras_rl.errors import ConfigError, RunFolderError, argument
 from keras_rl.runs.files import atomic_write_bytes, atomic_write_json, run_folder_locks
 from keras_rl.runs.signals import stop_signals_as_flag
 
@@ -53,7 +53,7 @@ def evaluate_run(
     refused before anything plays unless ``overwrite``. An interrupted evaluation never
     replaces a finished one: it goes to ``evaluation.interrupted.json``."""
     if episodes <= 0:
-        raise ConfigError(f"--episodes must be positive, got {episodes}")
+        raise ConfigError(f"{argument('episodes')} must be positive, got {episodes}")
     load_run_config(run_dir)  # a clear error for a folder that is not a run, before any lock file
     with run_folder_locks([Path(run_dir)]):  # a command extending the run would change its weights
         return _evaluate_held(Path(run_dir), episodes, gif, seed, progress, overwrite)
@@ -86,7 +86,7 @@ def _evaluate_held(
     if held is not None and held > episodes and not overwrite:
         raise ConfigError(
             f"{Path(run_dir) / EVALUATION} holds an evaluation of {held} episodes; this one of "
-            f"{episodes} would replace it. Ask for {held} or more, or pass --overwrite"
+            f"{episodes} would replace it. Ask for {held} or more, or pass {argument('overwrite')}"
         )
     configure_tensorflow(1)
     if gif:  # off-screen frames: SDL needs no display, and says nothing about XDG_RUNTIME_DIR
@@ -184,9 +184,9 @@ class EvalSchedule:
 
     def __post_init__(self) -> None:
         if self.every < 1:
-            raise ConfigError(f"--eval-every must be at least 1, got {self.every}")
+            raise ConfigError(f"{argument('eval_every')} must be at least 1, got {self.every}")
         if self.episodes < 1:
-            raise ConfigError(f"--eval-episodes must be at least 1, got {self.episodes}")
+            raise ConfigError(f"{argument('eval_episodes')} must be at least 1, got {self.episodes}")
 
 
 class TrainingEvaluator:
@@ -206,7 +206,7 @@ class TrainingEvaluator:
     def __init__(self, experiment, config, run_dir: Path, schedule: EvalSchedule):
         if getattr(config, "learning_phase_training", False):
             raise ConfigError(
-                "--eval-every does not cover learning_phase_training=true: its noise layer draws from "
+                f"{argument('eval_every')} does not cover learning_phase_training=true: its noise layer draws from "
                 "TensorFlow's generator when the policy acts, which would change the training run"
             )
         self.schedule, self.run_dir = schedule, Path(run_dir)

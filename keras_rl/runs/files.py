@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from keras_rl.errors import argument
 from keras_rl.runs.signals import stop_signals_deferred
 
 
@@ -156,7 +157,9 @@ def read_episodes(path: Path, expected_rows: int | None = None) -> list[dict[str
     from keras_rl.errors import RunFolderError
 
     path = Path(path)
-    damaged = "damaged or cut off: rerun the seed (--overwrite, or --rerun in compare and sweep)"
+    damaged = (
+        f"damaged or cut off: rerun the seed ({argument('overwrite')}, or {argument('rerun')} in compare and sweep)"
+    )
     try:
         with open(path, newline="") as fh:
             reader = csv.DictReader(fh)
@@ -259,7 +262,7 @@ def run_folder_locks(run_dirs: Iterable[Path]):
                     handle.close()
                     raise RunFolderError(
                         f"{run_dir} is being written by another keras-rl command ({holder}); wait for "
-                        "it to end, or pass another --out"
+                        f"it to end, or pass another {argument('out')}"
                     ) from None
                 try:
                     same = os.stat(path).st_ino == os.fstat(handle.fileno()).st_ino

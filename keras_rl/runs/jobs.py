@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, Protocol
 
-from keras_rl.errors import ConfigError, RunFolderError
+from keras_rl.errors import ConfigError, RunFolderError, argument
 from keras_rl.registry import get_experiment
 from keras_rl.runs.checkpoint import CHECKPOINT, checkpoint_batch
 from keras_rl.runs.evaluate import EvalSchedule
@@ -115,8 +115,9 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
         if refusal is not None:
             if seed_batch != "auto":
                 raise ConfigError(
-                    f"--seed-batch {seed_batch} does not cover {Path(job.out_dir).parent}: {refusal}; "
-                    "pass --seed-batch auto, which runs such seeds alone, or --seed-batch 1"
+                    f"{argument('seed_batch', seed_batch)} does not cover {Path(job.out_dir).parent}: {refusal}; "
+                    f"pass {argument('seed_batch', 'auto')}, which runs such seeds alone, or "
+                    f"{argument('seed_batch', 1)}"
                 )
             alone.append(job)
             continue

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from keras_rl.errors import ConfigError
+from keras_rl.errors import ConfigError, argument
 
 
 def _seed_folder_state(seed_dir: Path) -> tuple[str, str] | None:
@@ -28,7 +28,7 @@ def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool, episodes:
     anything runs. With ``--resume``, a completed run asked for more episodes than it played
     is extended from its final checkpoint (``resume``); one that has none is refused."""
     if overwrite and resume:
-        raise ConfigError("--overwrite and --resume contradict each other; pick one")
+        raise ConfigError(f"{argument('overwrite')} and {argument('resume')} contradict each other; pick one")
     from keras_rl.runs.checkpoint import CHECKPOINT
     from keras_rl.runs.reuse import joins_its_stopped_batch
 
@@ -46,16 +46,17 @@ def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool, episodes:
                 modes.append("new")  # nothing to resume: start it
             elif extend:
                 raise ConfigError(
-                    f"--resume --episodes {episodes}: {seed_dir} completed its budget but holds no final "
+                    f"{argument('resume')} {argument('episodes', episodes)}: {seed_dir} completed its "
+                    f"budget but holds no final "
                     f"{CHECKPOINT} (a seed-batched run keeps none), so it cannot be extended; "
-                    "--overwrite reruns it"
+                    f"{argument('overwrite')} reruns it"
                 )
             elif status == "completed":
                 modes.append("keep")  # finishing an interrupted set: its finished seeds stay as they are
             else:
                 raise ConfigError(
-                    f"--resume: {seed_dir} holds {held} but no {CHECKPOINT}, so it cannot be "
-                    "continued (use --overwrite to run it again)"
+                    f"{argument('resume')}: {seed_dir} holds {held} but no {CHECKPOINT}, so it cannot be "
+                    f"continued (use {argument('overwrite')} to run it again)"
                 )
         elif held is not None and not overwrite:
             occupied.append(f"{seed_dir} ({held})")
@@ -68,10 +69,11 @@ def _start_modes(seed_dirs: list[Path], overwrite: bool, resume: bool, episodes:
             + "; ".join(occupied[:5])
             + (f" and {len(occupied) - 5} more" if len(occupied) > 5 else "")
             + (
-                ". They are results: pass --out for a folder of your own (for example --out runs/mine)"
+                f". They are results: pass {argument('out')} for a folder of your own "
+                f"(for example {argument('out', 'runs/mine')})"
                 if committed
-                else ". Pass --overwrite to replace them, --resume to continue unfinished ones, "
-                "or --out for another folder"
+                else f". Pass {argument('overwrite')} to replace them, {argument('resume')} to continue "
+                f"unfinished ones, or {argument('out')} for another folder"
             )
         )
     return modes
@@ -107,8 +109,8 @@ def check_keepable(base, seeds_and_dirs: list) -> None:
             check_reusable(seed_dir, base.replace(seed=seed), version)
         except RunFolderError as exc:
             raise ConfigError(
-                f"--resume keeps completed seeds, but {str(exc).split('; ')[0]}; "
-                "use --overwrite to run it again, or --out for another folder"
+                f"{argument('resume')} keeps completed seeds, but {str(exc).split('; ')[0]}; "
+                f"use {argument('overwrite')} to run it again, or {argument('out')} for another folder"
             ) from None
         # its rows as the set's summary will read them: a damaged episodes.csv is named now, by
         # the dry run too, not after the other seeds have trained (issue 54 item 18)
@@ -182,7 +184,7 @@ def set_engine(folder: Path, leaving: list[Path] | tuple[Path, ...] = ()) -> str
         found = "; ".join(f"the {e} engine: {', '.join(d.name for d in dirs[:3])}" for e, dirs in sorted(held.items()))
         raise ConfigError(
             f"{folder} holds runs of more than one engine ({found}), so which to continue on is not "
-            "known; name it with --engine"
+            f"known; name it with {argument('engine')}"
         )
     return next(iter(held), None)
 
@@ -195,8 +197,8 @@ def check_checkpoint_engine(out_dir: Path, state: dict, engine: str) -> None:
     wrote = state.get("engine", "gymnasium")
     if wrote != engine:
         raise RunFolderError(
-            f"{out_dir}'s checkpoint was written by the {wrote} engine; resume it with --engine {wrote}, "
-            "or pass --overwrite to start again"
+            f"{out_dir}'s checkpoint was written by the {wrote} engine; resume it with {argument('engine', wrote)}, "
+            f"or pass {argument('overwrite')} to start again"
         )
 
 
@@ -222,13 +224,13 @@ def check_resume_config(out_dir: Path, wanted: dict, theirs: dict, played: int) 
     wanted, theirs = json.loads(json.dumps(wanted)), json.loads(json.dumps(theirs))
     if wanted["episodes"] < played:
         raise ConfigError(
-            f"--resume: {out_dir} has played {played} episodes, more than --episodes "
+            f"{argument('resume')}: {out_dir} has played {played} episodes, more than {argument('episodes')} "
             f"{wanted['episodes']}; a resumed run keeps what it played (ask for at least {played})"
         )
     differing = sorted(k for k in wanted if k != "episodes" and theirs.get(k) != wanted[k])
     if differing:
         k = differing[0]
         raise ConfigError(
-            f"--resume: the checkpoint in {out_dir} was made with {k}={theirs.get(k)!r}, "
+            f"{argument('resume')}: the checkpoint in {out_dir} was made with {k}={theirs.get(k)!r}, "
             f"this command asks for {wanted[k]!r}; resume with the same options"
         )

@@ -10,7 +10,7 @@ import os
 import sys
 from dataclasses import dataclass
 
-from keras_rl.errors import ConfigError
+from keras_rl.errors import ConfigError, argument
 
 ENGINE_NAMES = ("gymnasium", "compiled", "vectorised", "vectorised-compiled")
 """``train/engine.ENGINES``' names (a test keeps them equal), here so that parsing imports no TensorFlow."""
@@ -38,8 +38,8 @@ class RunOptions:
     overrides: tuple[str, ...] = ()
     """``FIELD=VALUE`` texts from ``--set``, parsed by ``config.parse_assignments``."""
     progress: bool = True
-    address_source: str = "--address"
-    """Where ``address`` came from, for messages: ``--address`` or ``$RAY_ADDRESS``."""
+    address_source: str = "address"
+    """Where ``address`` came from, for messages: the argument ``address`` or ``$RAY_ADDRESS``."""
     engine: str = AUTO
     """Which engine trains the seeds (``train/engine.ENGINES``): ``gymnasium``, the reference
     loop, ``compiled``, each episode one XLA program, or ``vectorised``, post 003's PyTorch
@@ -54,36 +54,39 @@ class RunOptions:
         seed_batch: int | str = 1,
         engine: str = AUTO,
         address: str | None = None,
-        address_source: str = "--address",
+        address_source: str = "address",
         overrides: tuple[str, ...] = (),
         progress: bool = True,
     ) -> RunOptions:
         """Options made in code (``api``) or from a command line: each checked, a ConfigError naming
         the first that is wrong (a whole number where one is wanted, not a float or a string)."""
-        for name, value in (("--workers", workers), ("--episodes", episodes)):
+        for name, value in (("workers", workers), ("episodes", episodes)):
             if value is not None and (isinstance(value, bool) or not isinstance(value, int)):
-                raise ConfigError(f"{name} must be a whole number, got {value!r}")
+                raise ConfigError(f"{argument(name)} must be a whole number, got {value!r}")
+        batch = argument("seed_batch")
         if seed_batch != "auto" and (isinstance(seed_batch, bool) or not isinstance(seed_batch, int)):
-            raise ConfigError(f"--seed-batch must be a whole number or auto, got {seed_batch!r}")
+            raise ConfigError(f"{batch} must be a whole number or auto, got {seed_batch!r}")
         if workers < 1:
-            raise ConfigError(f"--workers must be at least 1, got {workers}")
+            raise ConfigError(f"{argument('workers')} must be at least 1, got {workers}")
         if episodes is not None and episodes <= 0:
-            raise ConfigError(f"--episodes must be positive, got {episodes}")
+            raise ConfigError(f"{argument('episodes')} must be positive, got {episodes}")
         if seed_batch != "auto" and int(seed_batch) < 1:
-            raise ConfigError(f"--seed-batch must be at least 1 or auto, got {seed_batch}")
+            raise ConfigError(f"{batch} must be at least 1 or auto, got {seed_batch}")
         if engine not in (AUTO, *ENGINE_NAMES):
             raise ConfigError(f"unknown engine {engine!r}; known: {', '.join((AUTO, *ENGINE_NAMES))}")
         if engine == "compiled" and seed_batch != 1:
-            raise ConfigError(f"--engine {engine} runs one seed per program; --seed-batch is the gymnasium engine's")
+            raise ConfigError(
+                f"{argument('engine', engine)} runs one seed per program; {batch} is the gymnasium engine's"
+            )
         if engine in VECTORISED and seed_batch == "auto":
             raise ConfigError(
-                f"--engine {engine} takes --seed-batch S, a whole number: the seeds stepped in one program "
-                "(auto is the gymnasium engine's measured size)"
+                f"{argument('engine', engine)} takes {argument('seed_batch', 'S')}, a whole number: the seeds "
+                "stepped in one program (auto is the gymnasium engine's measured size)"
             )
         cores = os.cpu_count() or 1
         if workers > cores:
             print(
-                f"warning: --workers {workers} is more than this machine's {cores} cores; using {cores}",
+                f"warning: {argument('workers', workers)} is more than this machine's {cores} cores; using {cores}",
                 file=sys.stderr,
             )
             workers = cores

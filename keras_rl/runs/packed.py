@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from keras_rl.errors import RunFolderError
+from keras_rl.errors import RunFolderError, argument
 from keras_rl.runs.files import (
     INTEGER_COLUMNS,
     SEED_FOLDER,
@@ -222,7 +222,7 @@ def refuse_packed(run_dir: Path) -> None:
     if seed_of(run_dir) in open_packed(packed).seeds:
         raise RunFolderError(
             f"seed {run_dir.name[5:]} of {run_dir.parent} is packed in {packed}, and a packed run is "
-            "never rewritten: pass --out for a folder of your own"
+            f"never rewritten: pass {argument('out')} for a folder of your own"
         )
 
 
@@ -253,7 +253,8 @@ def _seed_entry(
     elif unpackable:
         raise RunFolderError(
             f"{seed_dir} holds {', '.join(sorted(unpackable))}, which a packed set does not keep (weights, "
-            "checkpoints, pictures): pack with --keep-folders (the packed set holds the records, and the folders "
+            f"checkpoints, pictures): pack with {argument('keep_folders')} (the packed set holds the "
+            f"records, and the folders "
             "keep only those files), or move them out first"
         )
     summary_text = files["summary.json"].read_text()

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from keras_rl.errors import ConfigError
+from keras_rl.errors import ConfigError, argument
 from keras_rl.runs.checkpoint import delete_checkpoints
 from keras_rl.runs.files import atomic_write_bytes
 from keras_rl.runs.jobs import execute, members, say_job_failed, seeds_bar, with_each
@@ -115,15 +115,16 @@ def require_ray() -> None:
 
     if importlib.util.find_spec("ray") is None:
         raise ConfigError(
-            "--address (or $RAY_ADDRESS) runs seeds on a Ray cluster, and Ray is not installed: "
-            "pip install 'keras-rl-repro[ray]' (--workers N alone needs no Ray)"
+            f"{argument('address')} (or $RAY_ADDRESS) runs seeds on a Ray cluster, and Ray is not installed: "
+            f"pip install 'keras-rl-repro[ray]' ({argument('workers', 'N')} alone needs no Ray)"
         )
 
 
-def check_reachable(address: str, timeout: float = 5.0, source: str = "--address") -> None:
+def check_reachable(address: str, timeout: float = 5.0, source: str = "address") -> None:
     """A ConfigError within ``timeout`` seconds if nothing listens at ``HOST:PORT``, instead of
-    Ray's own long retries. ``source`` names where the address came from (``--address`` or
-    ``$RAY_ADDRESS``), as the message says."""
+    Ray's own long retries. ``source`` names where the address came from (the argument
+    ``address`` or ``$RAY_ADDRESS``), as the message says."""
+    source = source if source.startswith("$") else argument(source)
     if address in ("auto", "local") or address.startswith("ray://"):
         return
     host, _, port = address.rpartition(":")

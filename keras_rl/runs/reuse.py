@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from keras_rl.errors import RunFolderError
+from keras_rl.errors import RunFolderError, argument
 from keras_rl.runs.checkpoint import CHECKPOINT, checkpoint_batch
 from keras_rl.runs.provenance import code_version_of
 from keras_rl.runs.summary import RunSummary
@@ -34,7 +34,7 @@ def check_reusable(seed_dir: Path, expected, code_version: str | None) -> str | 
             held = ", ".join(sorted(p.name for p in seed_dir.iterdir())[:5])
             raise RunFolderError(
                 f"{seed_dir} holds files ({held}) but no summary.json, so it is not a run that can be "
-                "reused and it is left as it is; move what you keep there and pass --rerun to "
+                f"reused and it is left as it is; move what you keep there and pass {argument('rerun')} to "
                 "replace it"
             )
         return "missing"
@@ -42,7 +42,7 @@ def check_reusable(seed_dir: Path, expected, code_version: str | None) -> str | 
     try:
         values = json.loads((seed_dir / "config.json").read_text())
     except (OSError, ValueError) as exc:
-        raise RunFolderError(f"{seed_dir} is corrupt ({exc}); delete it or pass --rerun") from None
+        raise RunFolderError(f"{seed_dir} is corrupt ({exc}); delete it or pass {argument('rerun')}") from None
     why = _check_made(str(seed_dir), summary, values, expected, code_version)
     if why is None and joins_its_stopped_batch(seed_dir):
         return JOINS_BATCH
@@ -68,25 +68,25 @@ def _check_made(where: str, summary: RunSummary, values, expected, code_version:
     if made_by is not None and made_by != expected.experiment:
         raise RunFolderError(
             f"{where} holds a run made by {made_by}, not {expected.experiment}; "
-            "pass --out (or --runs) for another folder"
+            f"pass {argument('out')} (or {argument('runs')}) for another folder"
         )
     try:
         made_config = type(expected).from_dict(values)
     except (TypeError, ValueError) as exc:
-        raise RunFolderError(f"{where} is corrupt ({exc}); delete it or pass --rerun") from None
+        raise RunFolderError(f"{where} is corrupt ({exc}); delete it or pass {argument('rerun')}") from None
     made, wanted = made_config.to_dict(), expected.to_dict()
     differing = made_config.differs_from(expected)
     if differing:
         which = ", ".join(f"{k}={made.get(k)!r} here, {wanted[k]!r} wanted" for k in differing[:3])
         raise RunFolderError(
             f"{where} was made with a different config ({which}); "
-            "refusing to mix runs: pass --rerun to replace it, or --runs to use another folder"
+            f"refusing to mix runs: pass {argument('rerun')} to replace it, or {argument('runs')} to use another folder"
         )
     theirs = code_version_of(summary.provenance, summary.versions.get("keras_rl"))
     if code_version is not None and theirs != code_version:  # None: report what is there (--reuse-only)
         raise RunFolderError(
             f"{where} was made by code version {theirs}, this is {code_version}; "
-            "refusing to mix code versions: pass --rerun to replace it"
+            f"refusing to mix code versions: pass {argument('rerun')} to replace it"
         )
     if summary.status not in OUTCOMES:
         return f"unfinished ({summary.status})"

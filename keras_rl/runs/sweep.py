@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from keras_rl.config import BASE, point_name, value_text
-from keras_rl.errors import ConfigError, RunFolderError
+from keras_rl.errors import ConfigError, RunFolderError, argument
 from keras_rl.runs.jobs import SeedJob
 from keras_rl.runs.provenance import code_version
 from keras_rl.runs.reuse import check_reusable, start_of
@@ -32,12 +32,12 @@ class GridPoint:
 def parse_grid(config_cls, items: list[str]) -> list[GridPoint]:
     """``["tau=0.001,0.005", "gamma=0.9,0.99"]`` -> the cross product, each value parsed by
     its field's type (``config.parse_assignments``; a ConfigError names a bad field or value)."""
-    axes = config_cls.parse_assignments(items, flag="--grid", many=True)
+    axes = config_cls.parse_assignments(items, flag=argument("grid"), many=True)
     for name, parsed in axes.items():
         repeated = sorted({value_text(v) for v in parsed if parsed.count(v) > 1})
         if repeated:  # 0.1, 0.10 and 1e-1 are one grid point: as three they would count its seeds thrice
             raise ConfigError(
-                f"--grid {name}= gives {name}={' and '.join(repeated)} more than once (values are "
+                f"{argument('grid')} {name}= gives {name}={' and '.join(repeated)} more than once (values are "
                 "compared after parsing); give each value once"
             )
     points = [dict(zip(axes, combo)) for combo in itertools.product(*axes.values())]
@@ -66,7 +66,7 @@ def sweep_jobs(
     if total > MAX_JOBS_WITHOUT_YES and not yes:
         raise ConfigError(
             f"this sweep has {total} jobs ({len(points)} grid points x {len(seeds)} seeds), more than "
-            f"{MAX_JOBS_WITHOUT_YES}; pass --yes if you mean it"
+            f"{MAX_JOBS_WITHOUT_YES}; pass {argument('yes')} if you mean it"
         )
     version = code_version()
     every, todo, configs = [], [], {}
@@ -79,7 +79,8 @@ def sweep_jobs(
                 reason = check_reusable(seed_dir, config.replace(seed=seed), version)
             except RunFolderError as exc:
                 raise RunFolderError(
-                    f"{exc} (this sweep's folder {out} holds runs of another sweep or code version: use another --out)"
+                    f"{exc} (this sweep's folder {out} holds runs of another sweep or code version: use "
+                    f"another {argument('out')})"
                 ) from None
             job = SeedJob.of(config.replace(seed=seed), seed_dir, start=start_of(seed_dir, reason), **job_options)
             every.append(job)

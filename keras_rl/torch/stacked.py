@@ -22,7 +22,7 @@ import numpy as np
 from keras_rl.buffers import Layout
 from keras_rl.config import check_same_but_seed
 from keras_rl.envs import EnvSpec
-from keras_rl.errors import ConfigError
+from keras_rl.errors import ConfigError, argument
 from keras_rl.torch import require_torch, save_state
 from keras_rl.torch.ddpg import TorchDDPGLearner, post000_learner, post001_learner
 from keras_rl.torch.optimizers import SeedKerasAdam, keep_where, not_portable
@@ -184,7 +184,7 @@ def stack_post001(configs: Sequence, spec: EnvSpec):
         return SoloAsStack(post001_learner(c, spec))
     if c.learning_phase_training:
         raise ConfigError(
-            "--seed-batch does not cover learning_phase_training=true (its BatchNormalization updates "
+            f"{argument('seed_batch')} does not cover learning_phase_training=true (its BatchNormalization updates "
             "its statistics in place and its noise draws from one generator); run it without"
         )
     return StackedTorchDDPGLearner(

@@ -40,7 +40,7 @@ import numpy as np
 import tensorflow as tf
 
 from keras_rl.agents.skeleton import EpisodeStats, LossTally
-from keras_rl.errors import ConfigError, NonFiniteLossError
+from keras_rl.errors import ConfigError, NonFiniteLossError, argument
 from keras_rl.experiment import Experiment
 from keras_rl.learners.common import step_function
 from keras_rl.learners.table import implementation
@@ -71,7 +71,7 @@ class CompiledEngine:
         should_stop: Callable[[], bool] | None = None,
     ) -> list[RunSummary]:
         if len(configs) != 1:
-            raise ConfigError("the compiled engine runs one seed per program: drop --seed-batch")
+            raise ConfigError(f"the compiled engine runs one seed per program: drop {argument('seed_batch')}")
         why = self.refusal(experiment, configs[0])
         if why is not None:
             raise ConfigError(why)

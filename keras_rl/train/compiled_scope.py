@@ -4,6 +4,8 @@ refuse a config it cannot run from here, before TensorFlow loads (``train/compil
 
 from __future__ import annotations
 
+from keras_rl.errors import argument
+
 ENGINE = "compiled"
 ENV_IDS = {"pendulum": "Pendulum-v1", "cartpole": "CartPole-v1", "mountaincar": "MountainCarContinuous-v0"}
 """The posts the compiled engine runs, each with the env it has in TensorFlow (``keras_rl/tf_envs.py``)."""
@@ -36,10 +38,11 @@ evidence; ``tests/test_engine_default.py`` keeps this table equal to them."""
 def refusal(experiment: str, config) -> str | None:
     """Why the compiled engine cannot run ``config`` of ``experiment`` (every reason at once), or None."""
     if experiment not in ENV_IDS:
-        return f"the compiled engine runs {' and '.join(ENV_IDS)} so far; run {experiment} with --engine gymnasium"
+        loop = argument("engine", "gymnasium")
+        return f"the compiled engine runs {' and '.join(ENV_IDS)} so far; run {experiment} with {loop}"
     reasons = []
     if config.framework != "keras":
-        reasons.append("it runs the Keras learner; the PyTorch side runs with --engine gymnasium")
+        reasons.append(f"it runs the Keras learner; the PyTorch side runs with {argument('engine', 'gymnasium')}")
     if config.env_id != ENV_IDS[experiment]:
         reasons.append(f"it has {ENV_IDS[experiment]} in TensorFlow, not env_id {config.env_id!r}")
     off = [
@@ -50,6 +53,7 @@ def refusal(experiment: str, config) -> str | None:
     if off:
         shown = "; ".join(off)
         reasons.append(
-            f"it runs {experiment} with its faithful switches only, not {shown}; run it with --engine gymnasium"
+            f"it runs {experiment} with its faithful switches only, not {shown}; "
+            f"run it with {argument('engine', 'gymnasium')}"
         )
     return "; ".join(reasons) or None

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from keras_rl.config import check_same_but_seed
-from keras_rl.errors import ConfigError, NonFiniteLossError
+from keras_rl.errors import ConfigError, NonFiniteLossError, argument
 from keras_rl.experiment import Experiment
 from keras_rl.learners.axis import SeedAxisLearner
 from keras_rl.learners.table import implementation, stacked_implementation
@@ -128,7 +128,7 @@ def build_seed_axis(experiment: Experiment, configs: list, envs: Sequence | None
         if len(configs) > 1:
             raise ConfigError(
                 f"{experiment.name}'s {c.framework} version is the original code, one seed per run; "
-                "it does not batch (drop --seed-batch)"
+                f"it does not batch (drop {argument('seed_batch')})"
             )
         return WholeAgentAxis(impl.load()(c, spec, envs[0].action_space)), envs
     if len(configs) == 1:
@@ -349,7 +349,7 @@ class _Seed(SeedLife):
     def restore(self, state: dict[str, Any]) -> None:
         if getattr(self.config, "learning_phase_training", False):
             raise ConfigError(
-                "--resume does not cover learning_phase_training=true (its noise layer draws from "
+                f"{argument('resume')} does not cover learning_phase_training=true (its noise layer draws from "
                 "TensorFlow's generator, which checkpoints do not hold)"
             )
         self.resume(state)

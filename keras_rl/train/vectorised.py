@@ -68,7 +68,7 @@ from typing import Any
 from keras_rl.agents.skeleton import EpisodeStats
 from keras_rl.config import check_same_but_seed
 from keras_rl.dynamics import MAX_STEPS
-from keras_rl.errors import ConfigError, RunFolderError
+from keras_rl.errors import ConfigError, RunFolderError, argument
 from keras_rl.experiment import Experiment
 from keras_rl.runs.checkpoint import VERSION, delete_checkpoints, read_batch_checkpoints, write_checkpoint
 from keras_rl.runs.lifecycle import check_checkpoint_engine
@@ -92,18 +92,21 @@ def refusal(experiment: str, config) -> str | None:
     if experiment != "cartpole":
         return (
             f"the vectorised engine runs cartpole (post 003's PyTorch tutorial) only; run {experiment} "
-            "with --engine gymnasium"
+            f"with {argument('engine', 'gymnasium')}"
         )
     reasons = []
     if config.framework != "torch":
         reasons.append(
-            f"it runs the PyTorch tutorial's DQN (--framework torch), not framework {config.framework!r}; "
-            "the Keras side runs with --engine compiled"
+            f"it runs the PyTorch tutorial's DQN ({argument('framework', 'torch')}), not framework "
+            f"{config.framework!r}; "
+            f"the Keras side runs with {argument('engine', 'compiled')}"
         )
     if config.init != "torch":
         reasons.append(f"it starts from the tutorial's torch initialisation only, not init={config.init!r} (P003-INIT)")
     if config.matched_init:
-        reasons.append("it starts from the tutorial's own initial weights, not the Keras ones (drop --matched-init)")
+        reasons.append(
+            f"it starts from the tutorial's own initial weights, not the Keras ones (drop {argument('matched_init')})"
+        )
     if config.env_id != "CartPole-v1":
         reasons.append(f"it has CartPole-v1 in PyTorch, not env_id {config.env_id!r}")
     if not config.amsgrad:
@@ -114,7 +117,7 @@ def refusal(experiment: str, config) -> str | None:
             f"train_start={config.train_start}"
         )
     if reasons and config.framework == "torch":
-        reasons[-1] += "; run it with --engine gymnasium"
+        reasons[-1] += f"; run it with {argument('engine', 'gymnasium')}"
     return "; ".join(reasons) or None
 
 
@@ -303,7 +306,7 @@ class VectorisedRun:
         if len(steps) != 1:
             raise RunFolderError(
                 f"the checkpoints of seeds {self.batch} hold env steps {steps}; the seeds of one vectorised "
-                "batch resume at one step: resume each one alone, or pass --overwrite to start again"
+                f"batch resume at one step: resume each one alone, or pass {argument('overwrite')} to start again"
             )
         for life, state in zip(self.lives, states):
             life.resume(state["seed"])  # first: a config the core's state would not fit is refused, naming the field
