@@ -21,8 +21,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from keras_rl.errors import ConfigError, argument
-from keras_rl.runs.options import VECTORISED, RunOptions
+from keras_rl.runs.options import RunOptions
 from keras_rl.runs.run_set import RunSet
+from keras_rl.train.engine import VECTORISED
 
 MAX_SEEDS = 10_000
 """The most seeds one study trains."""

@@ -313,10 +313,10 @@ def test_the_engine_refuses_before_it_trains_and_the_options_let_it_batch(tmp_pa
     every reason at once; ``--seed-batch S`` is the vectorised engine's as it is the loop's."""
     from keras_rl.registry import get_experiment
     from keras_rl.runs.options import RunOptions
-    from keras_rl.train.engine import ENGINES
+    from keras_rl.train.engine import get_engine
     from keras_rl.train.settings import TrainSettings
 
-    engine, cartpole = ENGINES["vectorised"], get_experiment("cartpole")
+    engine, cartpole = get_engine("vectorised"), get_experiment("cartpole")
     config = cartpole.config_cls.for_variant("faithful", init="keras", amsgrad=False)
     why = engine.refusal(cartpole, config)
     assert "framework 'keras'" in why and "init='keras'" in why and "amsgrad=false" in why

@@ -13,7 +13,8 @@ import os
 from pathlib import Path
 from typing import Any
 
-from keras_rl.runs.options import AUTO, ENGINE_NAMES, RunOptions
+from keras_rl.runs.options import AUTO, RunOptions
+from keras_rl.train.engine import ENGINE_NAMES
 
 
 def options_from_args(args: argparse.Namespace) -> RunOptions:

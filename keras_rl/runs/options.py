@@ -11,11 +11,8 @@ import sys
 from dataclasses import dataclass
 
 from keras_rl.errors import ConfigError, argument
+from keras_rl.train.engine import ENGINE_NAMES, VECTORISED
 
-ENGINE_NAMES = ("gymnasium", "compiled", "vectorised", "vectorised-compiled")
-"""``train/engine.ENGINES``' names (a test keeps them equal), here so that parsing imports no TensorFlow."""
-VECTORISED = ("vectorised", "vectorised-compiled")
-"""The vectorised engine's two programs (``train/vectorised.py``): eager, and its step compiled."""
 AUTO = "auto"
 """``--engine auto``, the default: ``study.choose_engine`` picks the engine when the study is planned
 (the one a set or ``--config``'s run recorded; else compiled where it is certified, else gymnasium)."""

@@ -15,16 +15,17 @@ command turns into exit 2.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from functools import partial
 from pathlib import Path
 from typing import Protocol
 
 from keras_rl.errors import ConfigError
 from keras_rl.experiment import Experiment
 from keras_rl.runs.summary import RunSummary
-from keras_rl.train.compiled import CompiledEngine
-from keras_rl.train.loop import run_seeds
+from keras_rl.train.compiled_scope import ENGINE as COMPILED
 from keras_rl.train.settings import TrainSettings
-from keras_rl.train.vectorised import VectorisedEngine
+from keras_rl.train.vectorised import COMPILED_ENGINE, VectorisedEngine
+from keras_rl.train.vectorised import ENGINE as VECTORISED_EAGER
 
 
 class Engine(Protocol):
@@ -64,23 +65,39 @@ class GymnasiumEngine:
         *,
         should_stop: Callable[[], bool] | None = None,
     ) -> list[RunSummary]:
+        from keras_rl.train.loop import run_seeds  # TensorFlow loads here
+
         return run_seeds(experiment, configs, out_dirs, settings, should_stop=should_stop)
 
 
-ENGINES: dict[str, Engine] = {
-    "gymnasium": GymnasiumEngine(),
-    "compiled": CompiledEngine(),
-    "vectorised": VectorisedEngine(),
-    "vectorised-compiled": VectorisedEngine(compiled=True),
+def _compiled() -> Engine:
+    from keras_rl.train.compiled import CompiledEngine  # TensorFlow loads here
+
+    return CompiledEngine()
+
+
+_BUILD: dict[str, Callable[[], Engine]] = {
+    GymnasiumEngine.name: GymnasiumEngine,
+    COMPILED: _compiled,
+    VECTORISED_EAGER: VectorisedEngine,
+    COMPILED_ENGINE: partial(VectorisedEngine, compiled=True),
 }
-UNRECORDED_ENGINE = "gymnasium"
+ENGINE_NAMES = tuple(_BUILD)
+"""Every engine, by name: the one list ``--engine`` offers and ``RunOptions`` checks. Naming them
+loads neither TensorFlow nor PyTorch (each engine's module loads its framework when it trains)."""
+VECTORISED = (VECTORISED_EAGER, COMPILED_ENGINE)
+"""The vectorised engine's two programs (``train/vectorised.py``): eager, and its step compiled."""
+ENGINES: dict[str, Engine] = {}
+"""The engines built so far, by name (``get_engine`` builds each on first use)."""
+UNRECORDED_ENGINE = GymnasiumEngine.name
 """The engine of a run that recorded none (every run made before the engine seam), and of a job
 built without one. Not what a user gets by default: that is ``auto`` (``runs.options.AUTO``,
 ``study.choose_engine``), declared once in ``RunOptions``."""
 
 
 def get_engine(name: str) -> Engine:
-    try:
-        return ENGINES[name]
-    except KeyError:
-        raise ConfigError(f"unknown engine {name!r}; known: {', '.join(sorted(ENGINES))}") from None
+    if name not in ENGINES:
+        if name not in _BUILD:
+            raise ConfigError(f"unknown engine {name!r}; known: {', '.join(sorted(ENGINE_NAMES))}")
+        ENGINES[name] = _BUILD[name]()
+    return ENGINES[name]
