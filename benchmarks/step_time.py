@@ -62,7 +62,7 @@ def time_post000_eager(steps: int, warmup: int) -> float:
     import gymnasium as gym
 
     from keras_rl.learners.networks import Critic, build
-    from keras_rl.reference.post000_eager import PostActor, PostAgent, run_steps
+    from maintainers.reference.post000_eager import PostActor, PostAgent, run_steps
 
     env = gym.make("Pendulum-v1", g=10)
     nets = [build(PostActor(1, 2.0), 3), build(Critic(), 3, 1), build(PostActor(1, 2.0), 3), build(Critic(), 3, 1)]
@@ -79,7 +79,7 @@ def time_post001_updates(batches_wanted: int, with_torch: bool) -> tuple[float, 
     """ms per training batch (one critic + one literal actor update + soft updates) on the
     same popped data: the post's ``Agent.train`` mirrored eagerly, our compiled Keras
     learner, and our PyTorch learner."""
-    from keras_rl.reference.post001_eager import PostAgent, fill, functional_models
+    from maintainers.reference.post001_eager import PostAgent, fill, functional_models
 
     rng = np.random.default_rng(0)
     n = 100 + 32 * batches_wanted

@@ -67,14 +67,14 @@ class Arm:
 def committed_steps() -> dict[str, tuple[int, int]]:
     """Seeds and env steps (``total_steps``) of the committed PyTorch post 003 runs: all of them,
     and the least issue 35 asked for (the seed plan's seeds per arm of the certified comparison at
-    each init, ``report.certified.certifications``, and the planned PyTorch seeds of each proposed
-    fix, ``report.tutorial_fix``)."""
+    each init, ``maintainers.certified.certifications``, and the planned PyTorch seeds of each proposed
+    fix, ``maintainers.tutorial_fix``)."""
     import json
 
-    from keras_rl.checkout import ROOT
-    from keras_rl.report.certified import arm, certifications
-    from keras_rl.report.tutorial_fix import PLANNED_SEEDS, TUTORIAL_FIXES
     from keras_rl.runs.run_set import RunSet
+    from maintainers.certified import arm, certifications
+    from maintainers.checkout import ROOT
+    from maintainers.tutorial_fix import PLANNED_SEEDS, TUTORIAL_FIXES
 
     sets = [s["set"] for s in json.loads((ROOT / "results" / "MANIFEST.json").read_text())]
     every = [

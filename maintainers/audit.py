@@ -42,9 +42,9 @@ from pathlib import Path
 
 import numpy as np
 
-from keras_rl.checkout import ROOT
 from keras_rl.errors import ConfigError
 from keras_rl.runs.run_set import RunSet
+from maintainers.checkout import ROOT
 from maintainers.manifest import RESULTS, compare_seeds, manifest, reproduce_command
 
 AT_RECORDED_COMMIT: dict[str, str] = {}
@@ -157,7 +157,7 @@ def audit_set(
 ) -> dict:
     """Rerun the drawn batches of one set and compare the drawn seeds (``where``: the tree they rerun
     at, read once when the audit began; ``head_commit()`` where not given)."""
-    from keras_rl.runs.replay import why_not_bit_exact
+    from maintainers.replay import why_not_bit_exact
 
     committed = RunSet(RESULTS / entry["set"])
     target = out / entry["set"]

@@ -4,7 +4,7 @@ checkout as ``python -m maintainers ...`` (this folder is not part of the instal
 - ``python -m maintainers calibrate rules|family|held-out|designs|sensitive|real|twins|torch|bisect-levels``:
   the check's calibration (``maintainers/calibrate/``), whose JSON ships as package data;
 - ``python -m maintainers tables findings|ablations|compat|forest|check-figure|runs``: the generated Markdown tables
-  (``maintainers/tables/``), each spliced between its markers (``report/markdown.py``);
+  (``maintainers/tables/``), each spliced between its markers (``maintainers/markdown.py``);
 - ``python -m maintainers manifest``: ``results/MANIFEST``, and ``--regenerate`` to rerun sets and compare;
 - ``python -m maintainers audit``: rerun K drawn seeds of every set and compare (``results/AUDIT.md``);
 - ``python -m maintainers sigterm-stress``: SIGTERM each engine at random times, resume, count aborts;
@@ -12,7 +12,7 @@ checkout as ``python -m maintainers ...`` (this folder is not part of the instal
   instruction set or vendor, made natively there or under an emulated CPU, and checked
   (``tests/replay_references/``).
 
-Each reads the checkout's ``results/`` (``keras_rl/checkout.py``). The arguments are declared
+Each reads the checkout's ``results/`` (``maintainers/checkout.py``). The arguments are declared
 here and each module's ``run(args)`` is imported only when its command runs.
 """
 
@@ -24,8 +24,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from keras_rl.checkout import results_dir
 from keras_rl.commands.flags import shared_flags
+from maintainers.checkout import results_dir
 
 
 def _what(inner, name: str, module: str, help: str, *flags: str) -> argparse.ArgumentParser:

@@ -30,9 +30,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-from keras_rl.checkout import ROOT
 from keras_rl.errors import ConfigError
 from keras_rl.runs.run_set import RunSet, SeedRun
+from maintainers.checkout import ROOT
 
 RESULTS = ROOT / "results"
 
@@ -286,7 +286,7 @@ def reproduce_command(
 def compare_seeds(committed: RunSet, target: Path, seeds: list[int]) -> dict[int, dict | None]:
     """Each seed's first divergence from its committed run (every column but wall time); None
     where the rerun left no ``episodes.csv``."""
-    from keras_rl.runs.replay import first_divergence, seed_rows
+    from maintainers.replay import first_divergence, seed_rows
 
     by_seed: dict[int, dict | None] = {}
     for seed in seeds:
@@ -305,7 +305,7 @@ def rerun_set(entry: dict, out: Path, workers: int, address: str | None = None) 
         for batch in entry["batches"]
     ]
     from keras_rl.runs.provenance import library_versions
-    from keras_rl.runs.replay import why_not_bit_exact
+    from maintainers.replay import why_not_bit_exact
 
     same_machine = bool(entry["cpu_models"]) and all(
         why_not_bit_exact({"cpu_model": m}, framework=entry["framework"]) is None for m in entry["cpu_models"]
@@ -394,8 +394,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.write:
         print(markdown(entries))
         return 0
-    from keras_rl.report.markdown import replace_block
     from keras_rl.runs.files import atomic_write_json, atomic_write_text
+    from maintainers.markdown import replace_block
 
     atomic_write_json(RESULTS / "MANIFEST.json", entries)
     atomic_write_text(RESULTS / "MANIFEST.md", markdown(entries))

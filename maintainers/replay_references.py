@@ -55,7 +55,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from keras_rl.checkout import ROOT
+from maintainers.checkout import ROOT
 
 REFERENCES = ROOT / "tests" / "replay_references"
 DEFAULT_EPISODES = 10
@@ -113,7 +113,7 @@ class Case:
         """The rerun's command (``episodes`` overrides the case's budget), after ``prefix``."""
         budget = self.episodes if episodes is None else episodes
         if self.kind == "seed":
-            from keras_rl.runs.replay import plan_replay
+            from maintainers.replay import plan_replay
 
             replay = plan_replay(ROOT / "results" / self.seed_folders()[0], self.experiment, budget)
             return [*prefix, *replay.command(out, *self.extra)]
@@ -244,7 +244,7 @@ def committed_rows(folder: str, episodes: int) -> list[dict[str, str]]:
 
 
 def _first_difference(expected: list[dict[str, str]], got: list[dict[str, str]]) -> str:
-    from keras_rl.runs.replay import first_divergence
+    from maintainers.replay import first_divergence
 
     d = first_divergence(expected, got)
     if d.identical and len(got) == len(expected):
@@ -258,7 +258,7 @@ def _first_difference(expected: list[dict[str, str]], got: list[dict[str, str]])
 
 def check(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[str]:
     """Rerun under the emulator every case whose references a real host made; compare."""
-    from keras_rl.runs.replay import seed_rows
+    from maintainers.replay import seed_rows
 
     host = json.loads(host_file(args.reference_set).read_text())
     made_here = set(host.get("emulated", {}).get("references", {}))
@@ -302,7 +302,7 @@ def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[
     """Make the references the chosen cases lack, under the emulator or natively (no ``--emulate``:
     a set for this host's CPU, made here); record each in host.json."""
     from keras_rl.runs.files import atomic_write_json, atomic_write_text
-    from keras_rl.runs.replay import seed_rows
+    from maintainers.replay import seed_rows
 
     path = host_file(args.reference_set)
     portable = args.reference_set == PORTABLE_SET
@@ -364,8 +364,8 @@ def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[
 def _committed_is_this_hosts(folder: str, case: Case, native: bool) -> bool:
     """Whether the replay test compares ``folder`` with its committed run on the host the references
     are made for (``replay.why_not_bit_exact``): only a native make can be that host."""
-    from keras_rl.runs.replay import why_not_bit_exact
     from keras_rl.runs.run_set import RunSet
+    from maintainers.replay import why_not_bit_exact
 
     provenance = RunSet.seed_at(ROOT / "results" / folder).summary_record().get("provenance", {})
     return native and why_not_bit_exact(provenance, framework=case.framework) is None
@@ -410,7 +410,7 @@ def _settings(pairs: list[str] | None) -> dict[str, str]:
 
 def probe(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[str]:
     """Each chosen case natively (``--env`` and ``--native-env``) and emulated (``--env``), compared."""
-    from keras_rl.runs.replay import seed_rows
+    from maintainers.replay import seed_rows
 
     both, native = _settings(args.env), _settings(args.native_env)
     lines = [

@@ -45,8 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
-from keras_rl.checkout import ROOT
 from keras_rl.errors import ConfigError
+from maintainers.checkout import ROOT
 
 
 @dataclass(frozen=True)

@@ -136,7 +136,7 @@ def step_envs(out: Path, work: Path) -> dict:
 
 
 def step_replay(out: Path, work: Path) -> dict:
-    from keras_rl.runs.replay import plan_replay
+    from maintainers.replay import plan_replay
 
     posts = {}
     for post, folder in REPLAYS.items():

@@ -39,11 +39,13 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout's maintainers/
+
 import numpy as np
 
-from keras_rl.checkout import ROOT
 from keras_rl.report.equivalence import median_ratio_equivalence, success_rate_equivalence
 from keras_rl.runs.run_set import RunSet
+from maintainers.checkout import ROOT
 
 RESULTS = ROOT / "results"
 CANDIDATES = (30, 60, 100, 150, 200, 300, 400, 600, 1000)
@@ -115,7 +117,7 @@ ABLATIONS = (
 def arm(folder: str, below: int | None = None) -> tuple[np.ndarray, np.ndarray, int]:
     """(successes 0/1, first passing episode or budget + 1, budget) of each seed of an arm (its
     seeds below ``below`` only, where given: an arm read at its planned seeds)."""
-    from keras_rl.report.certified import arm as records_of
+    from maintainers.certified import arm as records_of
 
     paths = tuple(str(RESULTS / f) for f in folder.split(","))
     held = records_of(paths, Path("/"))
@@ -231,7 +233,7 @@ def first_look_arms(entry: dict) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """The sets each arm of ``entry`` is read from at its planned seeds, as the forest reads them:
     the pilot where it ran on the plan's engine and the plan's runs, against its base and the
     plan's base runs."""
-    from keras_rl.report.plans import ablation_arms
+    from maintainers.plans import ablation_arms
 
     folders = [c.split("\t")[0].removeprefix("results/") for c in commands_of(entry)]
     pilot = (entry["pilot"],) if entry["pilot_engine"] == entry["engine"] else ()

@@ -36,14 +36,17 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout's maintainers/
 
 import numpy as np
 from scipy import stats
 
-from keras_rl.checkout import ROOT
 from keras_rl.report.equivalence import MEDIAN_RATIO_MARGIN, SUCCESS_RATE_MARGIN, Arm
 from keras_rl.report.stats import success_difference_ci
+from maintainers.checkout import ROOT
 
 CANDIDATES = (30, 60, 100, 150, 200, 300, 400, 600)
 PROBABILITY = 0.80
@@ -156,7 +159,7 @@ def render(plan: list[dict]) -> str:
 def run_set_arm(folders: str) -> tuple[int, int, list[float], int]:
     """(successes, seeds, episodes to threshold with never as budget + 1, budget) of an arm made
     of one or more run-set folders (the first folder holding a seed is read)."""
-    from keras_rl.report.certified import arm
+    from maintainers.certified import arm
 
     paths = [Path(f).resolve() for f in folders.split(",")]
     missing = [str(p) for p in paths if not p.is_dir()]

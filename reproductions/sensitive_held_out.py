@@ -23,16 +23,19 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 from typing import NoReturn
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout's maintainers/
 
 import numpy as np
 from scipy import stats
 
 from keras_rl.check.rules import HELD_OUT
-from keras_rl.checkout import ROOT
 from keras_rl.report.stats import censored_mann_whitney
 from keras_rl.runs.files import atomic_write_text
 from keras_rl.runs.run_set import RunSet
+from maintainers.checkout import ROOT
 
 CHECKS = ROOT / "results" / "checks"
 PLAN = CHECKS / "sensitive_plan.json"

@@ -43,14 +43,17 @@ the largest fresh count within that budget against the smallest baseline whose p
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout's maintainers/
 
 import numpy as np
 
-from keras_rl.checkout import ROOT
 from keras_rl.report.stats import censored_mann_whitney
 from keras_rl.runs.files import atomic_write_json, atomic_write_text
 from keras_rl.runs.run_set import RunSet
+from maintainers.checkout import ROOT
 
 SOURCES = {post: ROOT / "results" / "engines" / post / "compiled" for post in ("pendulum", "cartpole")}
 SOURCE = SOURCES["pendulum"]

@@ -22,7 +22,7 @@ non-finite loss: ``runs.reuse.OUTCOMES``); the report names how many each arm ho
 An arm may be several folders, comma-joined, where it grew in steps (the published PyTorch arm is
 ``results/cartpole/faithful-torch`` for seeds 0-29 and ``faithful-torch-seeds-30-199`` after): a
 seed held twice is read from the first folder listed, and both must agree on its outcome
-(``report.certified.arm_where``, the arms of the Keras-against-PyTorch comparisons).
+(``maintainers.certified.arm_where``, the arms of the Keras-against-PyTorch comparisons).
 ``--seeds`` reads both arms on those seeds only, and each arm must hold every one of them
 finished; without it, an arm is every finished seed its folders hold. ``--first-look`` names the
 seeds a planned earlier reading used (plan.md's addenda: a comparison read once at 30 seeds and
@@ -41,18 +41,20 @@ import sys
 from pathlib import Path
 from typing import NoReturn
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout's maintainers/
+
 import numpy as np
 
 from keras_rl.commands.common import parse_seeds
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.posts.cartpole import tutorial_num_episodes
-from keras_rl.report import plans
-from keras_rl.report.certified import arm_where
 from keras_rl.report.equivalence import Arm, median_ratio_equivalence, success_rate_equivalence
-from keras_rl.report.markdown import seed_span
 from keras_rl.report.stats import wilson_interval
 from keras_rl.runs.files import atomic_write_text
 from keras_rl.runs.run_set import RunSet
+from maintainers import plans
+from maintainers.certified import arm_where
+from maintainers.markdown import seed_span
 
 CPU_EPISODES = tutorial_num_episodes(cuda_available=False)
 

@@ -39,7 +39,7 @@ def test_the_second_look_runs_what_its_plan_says_under_a_registered_plan():
     """Its queue holds exactly the runs its JSON plans, each set governed by the committed plan
     (so the plan-order test compares their seeds' start with its commit), and the forest reads the
     ablation at the second look's seeds, its arms grown by those sets."""
-    from keras_rl.report.plans import PLANS
+    from maintainers.plans import PLANS
 
     second = json.loads((RESULTS / "ablation_plan_second.json").read_text())
     queue = (ROOT / "maintainers" / "queues" / "ablations-second.tsv").read_text().splitlines()

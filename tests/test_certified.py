@@ -1,4 +1,4 @@
-"""Keras against PyTorch at the planned seeds (issue 35 item 1, ``keras_rl/report/certified.py``):
+"""Keras against PyTorch at the planned seeds (issue 35 item 1, ``maintainers/certified.py``):
 arms made of several run sets, read only on seeds 0 to N-1 and only once both arms hold them."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from keras_rl.errors import RunFolderError
-from keras_rl.report import certified
-from keras_rl.report.certified import Certification, arm, certifications, reading
+from maintainers import certified
+from maintainers.certified import Certification, arm, certifications, reading
 
 
 def _seed(root: Path, folder: str, seed: int, reached: int | None, status: str = "completed") -> None:

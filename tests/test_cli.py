@@ -202,7 +202,7 @@ def test_reproduce_reruns_a_recorded_config_and_dry_run_trains_nothing(tmp_path)
         with open(path, newline="") as fh:
             return [{k: v for k, v in r.items() if k != "wall_seconds"} for r in csv.DictReader(fh)]
 
-    from keras_rl.runs.replay import why_not_bit_exact
+    from maintainers.replay import why_not_bit_exact
 
     again = rows(tmp_path / "again" / "seed_0" / "episodes.csv")
     if why_not_bit_exact(json.loads((committed / "summary.json").read_text())["provenance"]) is None:

@@ -41,8 +41,8 @@ from pathlib import Path
 import pytest
 
 from keras_rl.runs.provenance import cpu_isa, cpu_model
-from keras_rl.runs.replay import seed_rows, why_not_bit_exact
 from keras_rl.runs.run_set import RunSet
+from maintainers.replay import seed_rows, why_not_bit_exact
 from maintainers.replay_references import CASES, PORTABLE_SET, REFERENCES, VALIDATED, Case, reference_rows, set_env
 
 pytestmark = pytest.mark.slow  # every test here trains whole runs

@@ -7,9 +7,9 @@ from keras_rl.buffers import Batch
 from keras_rl.envs import EnvSpec
 from keras_rl.learners.networks import Critic, build
 from keras_rl.posts.pendulum import PendulumDDPGConfig
-from keras_rl.reference.post000_eager import PostActor, PostAgent
 from keras_rl.registry import agent_for
 from keras_rl.seeding import seed_everything
+from maintainers.reference.post000_eager import PostActor, PostAgent
 
 B = 4
 

@@ -60,11 +60,11 @@ def test_bad_input_exits_2_naming_it(argv, message, capsys):
 
 
 def test_outside_a_checkout_the_maintainers_commands_say_so(capsys, monkeypatch, tmp_path):
-    import keras_rl.checkout as checkout
+    import maintainers.checkout as checkout
 
     monkeypatch.setattr(checkout, "RESULTS", tmp_path / "no-results")
     assert main(["tables", "findings"]) == 2
-    assert "no results/ beside this keras_rl" in capsys.readouterr().err
+    assert "no results/ in this checkout" in capsys.readouterr().err
 
 
 def test_a_subcommand_is_required(capsys):

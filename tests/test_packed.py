@@ -14,8 +14,8 @@ from committed import RESULTS, copy_seeds
 from keras_rl.cli import main
 from keras_rl.errors import RunFolderError
 from keras_rl.runs.packed import PACKED, metadata, pack
-from keras_rl.runs.replay import seed_rows
 from keras_rl.runs.run_set import RunSet
+from maintainers.replay import seed_rows
 
 
 def folders(tmp_path: Path, run_set: str = "pendulum/faithful", seeds=(0, 1, 2)) -> Path:

@@ -1,5 +1,5 @@
 """Plans precede their runs (issue 52, item 2): every seed a committed plan governs started after
-the commit that added the plan, or a disclosed deviation (``keras_rl/report/plans.py``) names it."""
+the commit that added the plan, or a disclosed deviation (``maintainers/plans.py``) names it."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from keras_rl.report.plans import DEVIATIONS, PLANS, deviations_of, early_seeds, is_shallow, plan_time
+from maintainers.plans import DEVIATIONS, PLANS, deviations_of, early_seeds, is_shallow, plan_time
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -39,7 +39,7 @@ def test_every_seed_a_plan_governs_started_after_it_or_is_disclosed(plan):
     }
     undisclosed = {f: s for f, s in undisclosed.items() if s}
     assert not undisclosed, (
-        f"seeds started before {plan.path} was committed ({when}) and no deviation in keras_rl/report/plans.py "
+        f"seeds started before {plan.path} was committed ({when}) and no deviation in maintainers/plans.py "
         f"discloses them: { {f: f'{min(s)}-{max(s)} ({len(s)})' for f, s in undisclosed.items()} }"
     )
 
@@ -63,13 +63,13 @@ def test_each_disclosed_deviation_is_real_and_names_rows_that_exist():
 
 
 def test_the_check_spots_a_seed_run_before_its_plan(tmp_path):
-    """The rule itself, the product's (``report/plans.early_seeds``), on a throwaway repository: a seed
+    """The rule itself, the product's (``maintainers/plans.early_seeds``), on a throwaway repository: a seed
     that started before the commit adding its plan is found, one after is not, a seed the plan does not
     govern is not read, and a later section governs from its own commit."""
     import json
     import os
 
-    from keras_rl.report.plans import Plan
+    from maintainers.plans import Plan
 
     git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(tmp_path)]
     subprocess.run([*git, "init", "-q"], check=True)
@@ -98,7 +98,7 @@ def test_the_check_spots_a_seed_run_before_its_plan(tmp_path):
 def test_each_deviation_is_printed_in_its_reports_and_marks_its_forest_rows():
     """Disclosed where its verdict is printed: each report it names carries its note, and the
     forest's table marks each row it touches with its number and lists it."""
-    from keras_rl.report.plans import mark, notes
+    from maintainers.plans import mark, notes
 
     readme = (ROOT / "results" / "README.md").read_text()
     for d in DEVIATIONS:
@@ -114,7 +114,7 @@ def test_each_deviation_is_printed_in_its_reports_and_marks_its_forest_rows():
 def test_a_report_gets_the_section_of_the_deviations_it_touches_and_no_other():
     """``disclosed`` appends the section for a report a deviation names, after one blank line,
     and leaves any other report's text (or a report written outside the checkout) as it is."""
-    from keras_rl.report.plans import disclosed, notes, report_path
+    from maintainers.plans import disclosed, notes, report_path
 
     (d,) = [d for d in DEVIATIONS if "results/engines/mountaincar/report.md" in d.reports]
     made = disclosed("# A report\n\nits lines\n\n", "results/engines/mountaincar/report.md")
@@ -129,7 +129,7 @@ def test_a_report_gets_the_section_of_the_deviations_it_touches_and_no_other():
 def test_a_planned_set_made_at_several_commits_is_disclosed_with_each(plan):
     """A set the plan governs whose seeds recorded more than one commit: a deviation of that plan
     names every one (†4 named two of the vectorised arm's three, issue 72 item 13)."""
-    from keras_rl.report.plans import code_versions
+    from maintainers.plans import code_versions
 
     texts = " ".join(d.text for d in DEVIATIONS if d.plan == plan.path)
     for folder, commits in code_versions(plan, ROOT).items():
@@ -144,7 +144,7 @@ def test_an_edit_of_a_plan_while_its_runs_ran_is_disclosed(plan):
     """A commit that changed a plan between its first and last governed seed's start (other than the
     ones adding it or a section) is named by a deviation of that plan or in ``PLAN_EDITS`` (the
     tutorial-fix plan's two edits went undisclosed, issue 72 item 14)."""
-    from keras_rl.report.plans import PLAN_EDITS, edits_during_runs
+    from maintainers.plans import PLAN_EDITS, edits_during_runs
 
     _full_clone()
     named = " ".join(
@@ -160,7 +160,7 @@ def test_the_edit_check_finds_an_edit_made_while_runs_ran(tmp_path):
     import json
     import os
 
-    from keras_rl.report.plans import Plan, edits_during_runs
+    from maintainers.plans import Plan, edits_during_runs
 
     git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(tmp_path)]
     subprocess.run([*git, "init", "-q"], check=True)

@@ -1,7 +1,7 @@
 """Numbers written by hand in the docs come from the data (issue 52 item 3).
 
 Each claim is a page, a sentence fragment with ``{}`` slots, and a function that computes the
-slots from the committed runs (``RunSet``, ``report.certified.arm``) or from a generated file
+slots from the committed runs (``RunSet``, ``maintainers.certified.arm``) or from a generated file
 (``results/forest.json``, a report's per-seed table). The test formats the fragment and asserts
 the page holds it, whitespace folded: a number edited by hand, or data that moved under it,
 fails here.
@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from keras_rl.report.certified import arm, certifications, reading
 from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm
 from keras_rl.report.stats import fisher_exact
 from keras_rl.runs.run_set import RunSet
+from maintainers.certified import arm, certifications, reading
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "results"
@@ -204,8 +204,8 @@ def compare_001(matched: bool) -> dict:
 @cache
 def fix_and_published(variant: str, fw: str, seeds: int) -> tuple[int, int]:
     """Successes on seeds 0 to ``seeds`` - 1 of a tutorial-fix proposal's arm, then of the arm as
-    published that it is read against (``keras_rl/report/tutorial_fix.py``)."""
-    from keras_rl.report.tutorial_fix import PUBLISHED, TUTORIAL_FIXES
+    published that it is read against (``maintainers/tutorial_fix.py``)."""
+    from maintainers.tutorial_fix import PUBLISHED, TUTORIAL_FIXES
 
     (fix,) = [f for f in TUTORIAL_FIXES if f.variant == variant]
     proposal, published = arm((fix.folder(fw),)), arm(PUBLISHED[fw])

@@ -1,4 +1,4 @@
-"""Where a rerun parts from a committed run (keras_rl/runs/replay.py), on hand-made rows."""
+"""Where a rerun parts from a committed run (maintainers/replay.py), on hand-made rows."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 from committed import committed_seed
 
-from keras_rl.runs.replay import first_divergence, plan_replay, seed_rows
+from maintainers.replay import first_divergence, plan_replay, seed_rows
 
 RESULTS = Path(__file__).resolve().parent.parent / "results"
 
@@ -63,7 +63,7 @@ def test_a_machine_listed_as_not_bit_exact_or_another_isa_is_named(tmp_path, mon
     import json
 
     from keras_rl.runs import provenance
-    from keras_rl.runs.replay import why_not_bit_exact
+    from maintainers.replay import why_not_bit_exact
 
     monkeypatch.setattr(provenance, "cpu_model", lambda: "AMD EPYC")
     monkeypatch.setattr(provenance, "cpu_isa", lambda: ["avx2", "fma"])
@@ -87,7 +87,7 @@ def test_a_cpu_of_another_model_measured_to_give_a_frameworks_bits_replays_that_
     import json
 
     from keras_rl.runs import provenance
-    from keras_rl.runs.replay import why_not_bit_exact
+    from maintainers.replay import why_not_bit_exact
 
     isa = ["avx2", "fma", "avx512f"]
     monkeypatch.setattr(provenance, "cpu_model", lambda: "Intel Xeon")

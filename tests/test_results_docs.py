@@ -386,7 +386,7 @@ def test_the_check_example_figure_is_what_its_command_draws(tmp_path):
 
 def test_a_deviation_that_counts_code_versions_names_every_commit_its_arm_recorded():
     """†4 named two code versions of the vectorised arm; its seeds recorded three commits (issue 72 item 13)."""
-    from keras_rl.report.plans import DEVIATIONS
+    from maintainers.plans import DEVIATIONS
 
     words = {2: "two", 3: "three", 4: "four"}
     arm = RunSet(ROOT / "results" / "cartpole" / "vectorised-torch" / "seeds-0-199")

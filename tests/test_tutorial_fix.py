@@ -126,11 +126,11 @@ def test_labels_are_two_names(labels):
 def test_each_committed_report_is_what_its_command_makes_of_the_committed_folders(tmp_path):
     """The reports beside ``results/cartpole/tutorial-fix/plan.md`` (the findings quote them):
     each one's recorded command, rerun into a scratch file, gives the committed text, with the
-    deviations that its committed path discloses (``keras_rl/report/plans.py``)."""
+    deviations that its committed path discloses (``maintainers/plans.py``)."""
     import re
     import shlex
 
-    from keras_rl.report import plans
+    from maintainers import plans
 
     reports = sorted((ROOT / "results" / "cartpole" / "tutorial-fix").glob("report*.md"))
     assert len(reports) >= 2
@@ -150,15 +150,15 @@ def test_each_committed_report_is_what_its_command_makes_of_the_committed_folder
 
 
 def test_each_proposals_folders_were_made_by_the_command_the_findings_print():
-    """``keras_rl/report/tutorial_fix.py`` is the one home of each proposal's folders and commands:
+    """``maintainers/tutorial_fix.py`` is the one home of each proposal's folders and commands:
     every committed seed of each arm records that command (its own seed range aside), on the
     variant and framework the arm claims. An arm not yet committed is one its queue still makes
     (the vectorised engine's, ``maintainers/queues/tutorial-fix-vectorised.tsv``), with the same
     command."""
     import re
 
-    from keras_rl.report.tutorial_fix import FRAMEWORK_OF, FRAMEWORKS, PLANNED_SEEDS, TUTORIAL_FIXES
     from keras_rl.runs.run_set import RunSet
+    from maintainers.tutorial_fix import FRAMEWORK_OF, FRAMEWORKS, PLANNED_SEEDS, TUTORIAL_FIXES
 
     queued = {
         folder: "keras-rl " + args + f" --resume --out {folder}"

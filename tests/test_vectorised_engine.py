@@ -359,7 +359,7 @@ def test_the_vectorised_queues_run_the_commands_their_plans_name(queue, plan, se
     """``maintainers/queues/vectorised.tsv`` (the certification arm) and ``tutorial-fix-vectorised.tsv``
     (issue 53 item 5's proposals) make their sets as their plans word them (the queue adds
     ``--resume --out FOLDER``), into sets those plans govern."""
-    from keras_rl.report.plans import PLANS
+    from maintainers.plans import PLANS
 
     root = Path(__file__).resolve().parents[1]
     text = (root / plan).read_text()

@@ -41,10 +41,10 @@ from keras_rl.check.sequential import (
     null_pvalues,
     simulate,
 )
-from keras_rl.checkout import ROOT
 from keras_rl.registry import get_experiment
 from keras_rl.runs.files import atomic_write_text
 from maintainers.calibrate.runs import REPORT, TUNE, halved, load, values
+from maintainers.checkout import ROOT
 
 CHECKS = ROOT / "results" / "checks"
 POSTS = ("pendulum", "cartpole", "mountaincar")

@@ -29,8 +29,8 @@ from keras_rl.check.statistics import (
     family_false_alarm_rate,
     rejection_region,
 )
-from keras_rl.checkout import ROOT
 from keras_rl.registry import get_experiment
+from maintainers.checkout import ROOT
 
 CHECKS = ROOT / "results" / "checks"
 POSTS = ("pendulum", "cartpole", "mountaincar")
@@ -211,8 +211,8 @@ def render(family: dict) -> str:
 def write_with_block(json_path: Path, data: dict, begin: str, end: str, text: str, heading: str = "") -> None:
     """Write ``data`` to ``json_path`` and ``text`` between ``begin`` and ``end`` in calibration.md
     (added at its end under ``heading`` if the page has no such block yet)."""
-    from keras_rl.report.markdown import replace_block
     from keras_rl.runs.files import atomic_write_json, atomic_write_text
+    from maintainers.markdown import replace_block
 
     atomic_write_json(json_path, data)
     md = CHECKS / "calibration.md"

@@ -30,8 +30,8 @@ import argparse
 from pathlib import Path
 
 from keras_rl.check.rules import CALIBRATED_TIERS, HELD_OUT, RULES
-from keras_rl.checkout import ROOT
 from maintainers.calibrate.runs import CHECKS, engine_args, load, measure, power_cells, values
+from maintainers.checkout import ROOT
 
 SEEDS = "0-29"
 POSTS = ("pendulum", "cartpole", "mountaincar")

@@ -37,11 +37,9 @@ import numpy as np
 from keras_rl.check.command import CALIBRATION
 from keras_rl.check.rules import ALPHAS, CALIBRATED_TIERS, MUTANTS, RULES
 from keras_rl.check.statistics import false_alarm_rate, power
-from keras_rl.checkout import ROOT
 from keras_rl.errors import ConfigError
 from keras_rl.learners.table import batch_refusal
 from keras_rl.registry import get_experiment
-from keras_rl.report.markdown import replace_block
 from keras_rl.runs.files import atomic_write_text
 from keras_rl.runs.run_set import RunSet
 from maintainers.calibrate.runs import (
@@ -59,6 +57,8 @@ from maintainers.calibrate.runs import (
     seed_dirs,
     values,
 )
+from maintainers.checkout import ROOT
+from maintainers.markdown import replace_block
 
 MUTANT_SEEDS = "0-9"
 MUTANT_BATCH = 10

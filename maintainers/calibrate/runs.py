@@ -15,9 +15,9 @@ import numpy as np
 
 from keras_rl.check.rules import ALPHAS, CALIBRATED_TIERS, RULES, UNPAIRED_SENSITIVE
 from keras_rl.check.statistics import decide, false_alarm_rate, power, seed_statistic
-from keras_rl.checkout import ROOT
 from keras_rl.registry import get_experiment
 from keras_rl.runs.run_set import RunSet
+from maintainers.checkout import ROOT
 
 CHECKS = ROOT / "results" / "checks"
 HOLM_LEVEL = 3
@@ -89,8 +89,8 @@ def halved(folders: list[Path]) -> bool:
 def splice_calibration(heading: str, begin: str, end: str, text: str) -> Path:
     """``text`` between ``begin`` and ``end`` in ``results/checks/calibration.md``; a block the page
     lacks is added at its end, under ``heading``. Returns the page."""
-    from keras_rl.report.markdown import replace_block
     from keras_rl.runs.files import atomic_write_text
+    from maintainers.markdown import replace_block
 
     page = CHECKS / "calibration.md"
     current = page.read_text()

@@ -38,7 +38,6 @@ import numpy as np
 
 from keras_rl.check.rules import HELD_OUT, MUTANTS, UNPAIRED_SENSITIVE
 from keras_rl.check.statistics import changed_many, check_false_alarm_rate, family_false_alarm_rate, power
-from keras_rl.checkout import ROOT
 from maintainers.calibrate import real
 from maintainers.calibrate.runs import (
     CHECKS,
@@ -53,6 +52,7 @@ from maintainers.calibrate.runs import (
     splice_calibration,
     values,
 )
+from maintainers.checkout import ROOT
 
 POSTS = ("pendulum", "cartpole", "mountaincar")
 TIER = "sensitive"
@@ -267,8 +267,8 @@ def run(args: argparse.Namespace) -> int:
     import json
 
     from keras_rl.check.command import SENSITIVE_RATES
-    from keras_rl.report.markdown import replace_block
     from keras_rl.runs.files import atomic_write_json, atomic_write_text
+    from maintainers.markdown import replace_block
 
     atomic_write_json(SENSITIVE_RATES, data)
     docs = ROOT / "docs" / "check.md"

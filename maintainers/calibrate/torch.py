@@ -25,9 +25,9 @@ import numpy as np
 from keras_rl.check.command import TORCH_RATES, rule_fields
 from keras_rl.check.rules import TORCH_RULES, CheckRule
 from keras_rl.check.statistics import changed_many
-from keras_rl.checkout import ROOT
 from keras_rl.runs.run_set import RunSet
 from maintainers.calibrate.runs import CHECKS, clopper_pearson, load, splice_calibration, values
+from maintainers.checkout import ROOT
 
 PLAN = CHECKS / "torch_plan.md"
 BEGIN, END = "<!-- torch:begin -->", "<!-- torch:end -->"
@@ -162,8 +162,8 @@ def summary(data: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from keras_rl.report.markdown import replace_block
     from keras_rl.runs.files import atomic_write_json, atomic_write_text
+    from maintainers.markdown import replace_block
 
     data = compute()
     text = render(data)

@@ -33,10 +33,10 @@ import re
 from pathlib import Path
 from typing import Any
 
-from keras_rl.checkout import ROOT
 from keras_rl.errors import ConfigError
-from keras_rl.report.markdown import replace_block
 from keras_rl.runs.run_set import RunSet
+from maintainers.checkout import ROOT
+from maintainers.markdown import replace_block
 from maintainers.tables.runs import runs_table
 
 FIDELITY = ROOT / "reproductions" / "FIDELITY.md"

@@ -12,7 +12,7 @@ import argparse
 import tempfile
 from pathlib import Path
 
-from keras_rl.checkout import ROOT
+from maintainers.checkout import ROOT
 
 FIGURE = ROOT / "docs" / "check-example.png"
 BASELINE = ROOT / "results" / "checks" / "pendulum" / "baseline"

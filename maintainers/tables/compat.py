@@ -12,8 +12,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from keras_rl.checkout import ROOT
-from keras_rl.report.markdown import replace_block
+from maintainers.checkout import ROOT
+from maintainers.markdown import replace_block
 
 COMPAT = ROOT / "results" / "compat"
 POSTS = ("pendulum", "cartpole", "mountaincar")

@@ -23,13 +23,13 @@ from pathlib import Path
 
 import numpy as np
 
-from keras_rl.checkout import ROOT
-from keras_rl.report import plans
-from keras_rl.report.markdown import replace_block, seed_span
 from keras_rl.report.stats import wilson_interval
-from keras_rl.report.tutorial_fix import FRAMEWORKS, PLANNED_SEEDS, TUTORIAL_FIXES
 from keras_rl.runs.run_set import RunSet
+from maintainers import plans
+from maintainers.checkout import ROOT
+from maintainers.markdown import replace_block, seed_span
 from maintainers.tables.runs import load, runs_table
+from maintainers.tutorial_fix import FRAMEWORKS, PLANNED_SEEDS, TUTORIAL_FIXES
 
 BEGIN, END = "<!-- findings-table:begin -->", "<!-- findings-table:end -->"
 COMPARE_BEGIN, COMPARE_END = "<!-- compare-table:begin -->", "<!-- compare-table:end -->"
@@ -75,13 +75,13 @@ ROWS = [
 
 ELSEWHERE = {("cartpole", fix.variant): fix for fix in TUTORIAL_FIXES}
 """(experiment, variant) -> the tutorial's community fix whose folders and commands its rows take
-(``report/tutorial_fix.py``), for rows not in ``run_folder``'s default place."""
+(``maintainers/tutorial_fix.py``), for rows not in ``run_folder``'s default place."""
 
 
 def queued(folder: Path) -> bool:
     """Whether a committed queue of long runs (``maintainers/queues/*.tsv``) makes this run set: a
     row of it is pending until it lands (the forest lists its reading as pending), not "not run"."""
-    from keras_rl.report.plans import queued_sets
+    from maintainers.plans import queued_sets
 
     return folder.relative_to(ROOT / "results").as_posix() in queued_sets()
 
@@ -280,7 +280,7 @@ def compare_table() -> str:
         "| at the planned seeds (`results/compare/seed_plan.md`) |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    from keras_rl.report.certified import certifications, reading
+    from maintainers.certified import certifications, reading
 
     planned = {(c.post, c.matched_init): c for c in certifications()}
     g = lambda v: "-" if v is None else f"{v:.2g}"  # noqa: E731  (p-values)

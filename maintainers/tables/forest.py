@@ -14,7 +14,7 @@ within the margin, different, or inconclusive at its number of seeds.
 
 The rows: Keras against PyTorch, default and matched init (the committed ``compare`` results,
 ``results/compare/<post>/[matched-init/]result.json``, 30 seeds) and again at the seeds the plan
-asked for (``report.certified``: pending until both arms hold them); the compiled engine against the
+asked for (``maintainers.certified``: pending until both arms hold them); the compiled engine against the
 Gymnasium loop; the vectorised PyTorch engine against the tutorial's own code; the tutorial's
 community fix (pytorch/tutorials #3080) against the tutorial as published; seed-batched against solo
 runs; and each post's ablations, every quirk switched off alone against the faithful base. A
@@ -31,9 +31,9 @@ from typing import Any
 
 import numpy as np
 
-from keras_rl.checkout import ROOT
-from keras_rl.report import plans
 from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING
+from maintainers import plans
+from maintainers.checkout import ROOT
 
 RESULTS = ROOT / "results"
 FIGURE = RESULTS / "forest.png"
@@ -51,7 +51,7 @@ class Comparison:
     label: str
     first: str | tuple[str, ...] = ""
     """The first arm's run-set folder (under ``results/``), or its folders where it grew in steps
-    (``report.certified.arm``); or ``compare``'s result.json below."""
+    (``maintainers.certified.arm``); or ``compare``'s result.json below."""
     second: str | tuple[str, ...] = ""
     result: str | None = None
     """A committed ``compare`` result (``results/compare/...``), which holds both arms."""
@@ -60,12 +60,12 @@ class Comparison:
     """Read on seeds 0 to ``seeds_before_reading`` - 1 of both arms and on no other (a planned
     reading at that many seeds, where an arm holds more), pending until both hold all of them."""
     certified: Any = None
-    """A Keras-against-PyTorch comparison at its planned seeds (``report.certified``)."""
+    """A Keras-against-PyTorch comparison at its planned seeds (``maintainers.certified``)."""
 
 
 def _comparisons() -> list[Comparison]:
-    from keras_rl.report.certified import TORCH_ARMS, certifications
-    from keras_rl.report.tutorial_fix import FRAMEWORKS, PUBLISHED, TUTORIAL_FIXES
+    from maintainers.certified import TORCH_ARMS, certifications
+    from maintainers.tutorial_fix import FRAMEWORKS, PUBLISHED, TUTORIAL_FIXES
 
     out = []
     for post in ("pendulum", "cartpole", "mountaincar"):
@@ -170,7 +170,7 @@ def planned_ablations() -> list[tuple[str, str, str, int, tuple[str, ...], tuple
     hold them all."""
     import json
 
-    from keras_rl.report.plans import queued_sets
+    from maintainers.plans import queued_sets
 
     path = RESULTS / "ablation_plan.json"
     queued = queued_sets("ablations.tsv")
@@ -203,16 +203,16 @@ def second_look(post: str, switch: str, n: int, first: tuple[str, ...], second: 
 
 def _arm(folders: str | tuple[str, ...]) -> dict[int, dict[str, Any]]:
     """Seed -> its summary, for the run set(s) under ``results/``."""
-    from keras_rl.report.certified import arm
+    from maintainers.certified import arm
 
     return arm((folders,) if isinstance(folders, str) else folders, RESULTS)
 
 
 def row(c: Comparison) -> dict[str, Any]:
     """One comparison's numbers and readings (or why it is pending)."""
-    from keras_rl.report.certified import reading
     from keras_rl.report.compare import arm
     from keras_rl.report.equivalence import Arm, framework_verdict
+    from maintainers.certified import reading
 
     if c.certified is not None:
         read = reading(c.certified)
@@ -327,7 +327,7 @@ def table(data: list[dict[str, Any]]) -> str:
         lines.append(f"| {r['group']} | {label} | {r['seeds']} | {_cell(r['success'])} | {speed} |")
     marked = [d for d in plans.DEVIATIONS if any(d in plans.deviations_of(f"{r['group']}: {r['label']}") for r in data)]
     if marked:
-        lines += ["", "Deviations from the plans (`keras_rl/report/plans.py`), marked † on their rows:", ""]
+        lines += ["", "Deviations from the plans (`maintainers/plans.py`), marked † on their rows:", ""]
         lines += plans.notes(marked)
     return "\n".join(lines)
 
@@ -426,8 +426,8 @@ def draw(data: list[dict[str, Any]], path: Path) -> None:
 
 
 def run(args) -> int:
-    from keras_rl.report.markdown import replace_block
     from keras_rl.runs.files import atomic_write_bytes, atomic_write_json, atomic_write_text
+    from maintainers.markdown import replace_block
 
     data = rows()
     text = table(data)

@@ -24,12 +24,12 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import fisher_exact, mannwhitneyu
 
-from keras_rl.checkout import ROOT
 from keras_rl.errors import ConfigError
 from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm
-from keras_rl.report.markdown import seed_span
 from keras_rl.report.stats import censored_mann_whitney
 from keras_rl.runs.run_set import RunSet
+from maintainers.checkout import ROOT
+from maintainers.markdown import seed_span
 
 
 def load(folder: Path) -> list[dict]:

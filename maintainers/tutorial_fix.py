@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from keras_rl.report.certified import TORCH_ARMS
+from maintainers.certified import TORCH_ARMS
 
 FRAMEWORKS = ("keras", "torch", "vectorised")
 """The arms of each proposal: Keras, the tutorial's own PyTorch code, and PyTorch on the vectorised
@@ -29,7 +29,7 @@ PUBLISHED: dict[str, tuple[str, ...]] = {
     "vectorised": ("cartpole/vectorised-torch/seeds-0-199",),
 }
 """The tutorial as published, each arm's reference the proposals are read against (plan.md): the
-PyTorch one is the certified comparison's arm, several run sets (``report.certified.arm``); the
+PyTorch one is the certified comparison's arm, several run sets (``maintainers.certified.arm``); the
 vectorised engine's is its certification arm, read on the proposals' seeds."""
 FRAMEWORK_NAMES = {
     "keras": "Keras",

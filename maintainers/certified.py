@@ -22,9 +22,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from keras_rl.checkout import ROOT
 from keras_rl.errors import RunFolderError
 from keras_rl.runs.reuse import OUTCOMES
+from maintainers.checkout import ROOT
 
 RESULTS = ROOT / "results"
 PLAN = RESULTS / "compare" / "seed_plan.json"

@@ -14,8 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from keras_rl.report.certified import KERAS_ARMS, TORCH_ARMS
 from keras_rl.runs.run_set import RunSet
+from maintainers.certified import KERAS_ARMS, TORCH_ARMS
 
 
 @dataclass(frozen=True)
@@ -159,7 +159,7 @@ def edits_during_runs(plan: Plan, root: Path) -> list[str]:
 def queued_sets(name: str = "*.tsv") -> list[str]:
     """The run sets (under ``results/``) that the committed queues of long runs make
     (``maintainers/queues/<name>``; every queue by default), in the queues' order."""
-    from keras_rl.checkout import ROOT
+    from maintainers.checkout import ROOT
 
     return [
         line.split("\t")[0].removeprefix("results/")
@@ -376,7 +376,7 @@ def disclosure(report: str) -> str:
 def report_path(written: Path | None) -> str | None:
     """A report's path under the repository root, as ``Deviation.reports`` names it (None for no
     file, or a file outside the checkout)."""
-    from keras_rl.checkout import ROOT
+    from maintainers.checkout import ROOT
 
     if written is None or not written.resolve().is_relative_to(ROOT):
         return None

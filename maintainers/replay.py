@@ -113,7 +113,7 @@ def plan_replay(folder: Path, experiment: str, episodes: int | None = None) -> R
     return Replay(folder, experiment, str(config["variant"]), int(config["seed"]), budget, expected, engine)
 
 
-PLATFORMS = Path(__file__).resolve().parents[2] / "results" / "PLATFORMS.json"
+PLATFORMS = Path(__file__).resolve().parents[1] / "results" / "PLATFORMS.json"
 """Machines measured against the committed runs' bits, with the evidence: ``not_bit_exact``, those
 measured not to reproduce them (a CPU of the same model name but another instruction set rounds
 differently); ``bit_exact``, CPUs of another model name measured to reproduce the runs of one

@@ -20,7 +20,7 @@ def results_dir() -> Path:
     """``RESULTS``, or a ConfigError (exit 2) naming where it was looked for."""
     if not RESULTS.is_dir():
         raise ConfigError(
-            f"no results/ beside this keras_rl ({ROOT}): this command regenerates a checkout's committed "
+            f"no results/ in this checkout ({ROOT}): this command regenerates a checkout's committed "
             "results; run it from a checkout of the repository (python -m maintainers ...)"
         )
     return RESULTS
