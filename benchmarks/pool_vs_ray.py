@@ -3,7 +3,7 @@
     python benchmarks/pool_vs_ray.py --seeds 4 --episodes 20 --rounds 2
 
 The same jobs (post 000 on the compiled engine, ``--seeds`` seeds of ``--episodes`` episodes,
-no early stop) run through ``runs/pool_backend.ProcessPool(2)`` and ``runs/ray_backend.RayBackend(2)``
+no early stop) run through ``dispatch/pool_backend.ProcessPool(2)`` and ``dispatch/ray_backend.RayBackend(2)``
 (a local instance on loopback, started and shut down each round, as a command does), rounds
 interleaved, each into a fresh folder. Wall seconds include each backend's start-up: that is what
 a user waits for. Exits 1 unless both give the same ``episodes.csv`` (but wall time) for every
@@ -30,11 +30,11 @@ def main() -> int:
     parser.add_argument("--rounds", type=int, default=2)
     args = parser.parse_args()
 
+    from keras_rl.dispatch.jobs import SeedJob, read_outcome
+    from keras_rl.dispatch.pool_backend import ProcessPool
+    from keras_rl.dispatch.ray_backend import RayBackend, require_ray
     from keras_rl.posts.pendulum import PendulumDDPGConfig
     from keras_rl.runs.files import seed_rows
-    from keras_rl.runs.jobs import SeedJob, read_outcome
-    from keras_rl.runs.pool_backend import ProcessPool
-    from keras_rl.runs.ray_backend import RayBackend, require_ray
 
     require_ray()
     config = PendulumDDPGConfig(episodes=args.episodes, stop_at_threshold=False)

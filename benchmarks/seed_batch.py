@@ -213,8 +213,8 @@ STUDY_SEEDS, STUDY_TARGET = 30, 2.0
 
 def study_batch(name: str) -> int:
     """The batch size ``--seed-batch auto`` gives the 30-seed study on 2 workers."""
+    from keras_rl.dispatch.jobs import auto_batch_size
     from keras_rl.learners.table import seed_batch_cap
-    from keras_rl.runs.jobs import auto_batch_size
 
     return auto_batch_size(STUDY_SEEDS, 2, seed_batch_cap(name, FRAMEWORK[0]))
 

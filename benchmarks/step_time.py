@@ -224,7 +224,7 @@ def main() -> None:
     print(f"peak RSS of this process: {peak_mb:.0f} MB")
     result["peak_rss_mb"] = peak_mb
     if args.json:
-        from keras_rl.runs.files import atomic_write_json
+        from keras_rl.atomic import atomic_write_json
 
         atomic_write_json(args.json, result)
 

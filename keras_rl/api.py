@@ -23,8 +23,8 @@ from pathlib import Path
 from typing import Any
 
 from keras_rl.config import ExperimentConfig
+from keras_rl.dispatch.options import AUTO, RunOptions
 from keras_rl.errors import ConfigError, argument
-from keras_rl.runs.options import AUTO, RunOptions
 from keras_rl.runs.run_set import RunSet
 from keras_rl.study import MIN_SUCCESS_RATE, checked_seeds
 

@@ -20,8 +20,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from keras_rl.dispatch.options import RunOptions
 from keras_rl.errors import ConfigError, argument
-from keras_rl.runs.options import RunOptions
 from keras_rl.runs.run_set import RunSet
 from keras_rl.train.engine import VECTORISED
 
@@ -197,8 +197,8 @@ def choose_engine(study: Study, modes: list[str]) -> tuple[str, str]:
     already in ``out`` that stay (a set keeps the engine it was started on); else the compiled
     engine where it is certified (``compiled_scope.CERTIFIED``) and can run the config alone;
     else the Gymnasium loop."""
+    from keras_rl.dispatch.options import AUTO
     from keras_rl.runs.lifecycle import set_engine
-    from keras_rl.runs.options import AUTO
 
     asked = study.options.engine
     if asked != AUTO:
@@ -266,9 +266,9 @@ def check_success_rate(rate: object, name: str = "min_success_rate") -> float:
 def run(study: Study, planned: StudyPlan, after_job=None) -> StudyResult:
     """Train what ``plan`` found to do (each seed's mode, on its engine), keep what it found
     done, and write the set's ``summary.md`` and ``curves.png`` where there are several seeds."""
+    from keras_rl.dispatch.backends import train_seeds
+    from keras_rl.dispatch.jobs import SeedJob
     from keras_rl.report.aggregate import write_aggregate
-    from keras_rl.runs.backends import train_seeds
-    from keras_rl.runs.jobs import SeedJob
     from keras_rl.runs.lifecycle import _kept_runs
 
     experiment, base, seeds = study.experiment, study.config, list(study.seeds)
@@ -351,9 +351,9 @@ def compare_frameworks(
                 f"seed-batched version, so its seeds run alone{why}",
                 file=sys.stderr,
             )
+    from keras_rl.dispatch.compare_runs import make_compare_runs
     from keras_rl.report.compare import compare as write_compare
     from keras_rl.report.plots import draw_job_curves
-    from keras_rl.runs.compare_runs import make_compare_runs
     from keras_rl.runs.provenance import command_line
     from keras_rl.torch import require_torch
 

@@ -221,7 +221,7 @@ def markdown(results: list[dict], command: str, per_set: int, draw_seed: int, to
 
 
 def run(args: argparse.Namespace) -> int:
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+    from keras_rl.atomic import atomic_write_json, atomic_write_text
 
     if args.per_set < 1:
         raise ConfigError(f"--per-set must be at least 1, got {args.per_set}")

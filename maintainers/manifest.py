@@ -348,7 +348,7 @@ def _distribution_p(committed: RunSet, target: Path, seeds: list[int]) -> float 
 
 
 def rerun(patterns: list[str], out: Path, workers: int, address: str | None = None) -> list[dict]:
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+    from keras_rl.atomic import atomic_write_json, atomic_write_text
 
     names = [n for n in find_sets() if any(fnmatch.fnmatch(n, p) for p in patterns)]
     if not names:  # named at once, before the manifest reads every set
@@ -394,7 +394,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.write:
         print(markdown(entries))
         return 0
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+    from keras_rl.atomic import atomic_write_json, atomic_write_text
     from maintainers.markdown import replace_block
 
     atomic_write_json(RESULTS / "MANIFEST.json", entries)

@@ -301,7 +301,7 @@ def _shown(settings: dict[str, str]) -> str:
 def make(args: argparse.Namespace, prefix: tuple[str, ...], work: Path) -> list[str]:
     """Make the references the chosen cases lack, under the emulator or natively (no ``--emulate``:
     a set for this host's CPU, made here); record each in host.json."""
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+    from keras_rl.atomic import atomic_write_json, atomic_write_text
     from maintainers.replay import seed_rows
 
     path = host_file(args.reference_set)
@@ -512,7 +512,7 @@ def run(args: argparse.Namespace) -> int:
             f"{REFERENCES / args.reference_set} kept as it is"
         )
     if args.action == "check" and args.write:
-        from keras_rl.runs.files import atomic_write_text
+        from keras_rl.atomic import atomic_write_text
 
         report = REFERENCES / args.reference_set / f"emulation-{args.emulate}.md"
         atomic_write_text(

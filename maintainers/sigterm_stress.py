@@ -110,7 +110,7 @@ def reference(engine: str, out: Path) -> dict:
     if process.returncode != 0 or began is None:
         raise RuntimeError(f"the {engine} reference run failed (exit {process.returncode}):\n{output[-2000:]}")
     result = {"seconds_to_training": round(began - started, 2), "window_seconds": round(ended - began, 2)}
-    from keras_rl.runs.files import atomic_write_json
+    from keras_rl.atomic import atomic_write_json
 
     atomic_write_json(record, result)
     return result
@@ -264,7 +264,7 @@ def markdown(rows: list[dict], references: dict, command: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+    from keras_rl.atomic import atomic_write_json, atomic_write_text
 
     if args.stops < 1:
         raise ConfigError(f"--stops must be at least 1, got {args.stops}")

@@ -44,7 +44,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from keras_rl.runs.files import atomic_write_json, atomic_write_text  # noqa: E402
+from keras_rl.atomic import atomic_write_json, atomic_write_text  # noqa: E402
 
 STEPS = ("versions", "tests", "envs", "replay", "probe", "check", "speed")
 # Tests of the repository's committed state, not of the libraries: the matrix table is made from

@@ -364,8 +364,8 @@ def write(name: str, plan: list[dict], text: str, queue: str, heading: str, runs
     """``results/<name>.{json,md}`` and the queue of the runs it plans, ``maintainers/queues/<queue>``:
     once. A plan is written before its runs; redrawn after them it would read other data (the
     second look's, a forest that has read it), so a committed one is never replaced by accident."""
+    from keras_rl.atomic import atomic_write_json, atomic_write_text
     from keras_rl.errors import ConfigError
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
 
     if (RESULTS / f"{name}.json").exists():
         raise ConfigError(

@@ -27,10 +27,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout's m
 
 import numpy as np
 
+from keras_rl.atomic import atomic_write_text
 from keras_rl.registry import get_experiment
 from keras_rl.report.equivalence import CONVERGED_AT_END, Arm, framework_verdict, success_rate_equivalence
 from keras_rl.report.stats import censored_mann_whitney, fisher_exact, median_difference_ci
-from keras_rl.runs.files import atomic_write_text
 from keras_rl.runs.run_set import RunSet
 from keras_rl.runs.summary import RunSummary
 from maintainers import plans

@@ -212,7 +212,7 @@ def main(argv: list[str] | None = None) -> int:
         text = arms_table(*args.arms, candidates, command)
         print(text)
         if args.out:
-            from keras_rl.runs.files import atomic_write_text
+            from keras_rl.atomic import atomic_write_text
 
             atomic_write_text(Path(args.out), text)
         return 0

@@ -31,9 +31,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout's m
 import numpy as np
 from scipy import stats
 
+from keras_rl.atomic import atomic_write_text
 from keras_rl.check.rules import HELD_OUT
 from keras_rl.report.stats import censored_mann_whitney
-from keras_rl.runs.files import atomic_write_text
 from keras_rl.runs.run_set import RunSet
 from maintainers.checkout import ROOT
 

@@ -45,12 +45,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout's m
 
 import numpy as np
 
+from keras_rl.atomic import atomic_write_text
 from keras_rl.commands.common import parse_seeds
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.posts.cartpole import tutorial_num_episodes
 from keras_rl.report.equivalence import Arm, median_ratio_equivalence, success_rate_equivalence
 from keras_rl.report.stats import wilson_interval
-from keras_rl.runs.files import atomic_write_text
 from keras_rl.runs.run_set import RunSet
 from maintainers import plans
 from maintainers.certified import arm_where

@@ -19,7 +19,7 @@ def replace_backend(monkeypatch):
     """``replace_backend(run)``: every command's ``train_seeds`` hands its jobs to
     ``run(jobs, backend, progress, after_job)`` instead of running them (``backend``: the one it
     picked); ``run`` returns True where a Ctrl-C would have stopped them."""
-    from keras_rl.runs import backends
+    from keras_rl.dispatch import backends
 
     picks = backends.backend_for
 

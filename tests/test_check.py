@@ -598,7 +598,7 @@ def test_post_001s_fresh_seeds_run_in_one_batch_unless_no_stacked_learner_covers
 ):
     """The smoke tier's six post-001 seeds are one batch; with the learning phase on (a change
     the check must still be able to test) each runs alone instead of being refused."""
-    import keras_rl.runs.jobs as jobs
+    import keras_rl.dispatch.jobs as jobs
     from keras_rl.cli import main
 
     seen = []

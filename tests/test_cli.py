@@ -220,7 +220,7 @@ def test_seeds_that_leave_no_summary_fail_the_command_whatever_min_success_rate_
     """Under Ray, a seed whose worker raised before writing summary.json (Keras refusing a layer
     argument, say) printed its error and left no verdict; reproduce exited 0 with
     --min-success-rate 0 (found running a held-out mutant of issue #21)."""
-    import keras_rl.runs.backends as backends
+    import keras_rl.dispatch.backends as backends
 
     class Silent:  # a backend whose seeds all die before their first file
         def run(self, jobs, progress, after_job=None):

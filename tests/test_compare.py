@@ -184,9 +184,9 @@ def test_compare_resumes_an_interrupted_seed_from_its_checkpoint_and_restarts_on
     starts again; finished ones are reused."""
     import shutil
 
+    from keras_rl.dispatch.compare_runs import gather
     from keras_rl.registry import get_experiment
     from keras_rl.runs.checkpoint import write_checkpoint
-    from keras_rl.runs.compare_runs import gather
 
     runs = tmp_path / "runs"
     shutil.copytree(compared / "runs", runs)
@@ -211,9 +211,9 @@ def test_a_sweep_resumes_an_interrupted_seed_from_its_checkpoint(compared, tmp_p
     """The same for ``sweep`` (it restarted interrupted seeds from scratch as well)."""
     import shutil
 
+    from keras_rl.dispatch.sweep import GridPoint, sweep_jobs
     from keras_rl.posts.cartpole import CartPoleDQNConfig
     from keras_rl.runs.checkpoint import write_checkpoint
-    from keras_rl.runs.sweep import GridPoint, sweep_jobs
 
     point = tmp_path / "sweep" / "episodes=20"
     for seed in (0, 1):

@@ -179,13 +179,13 @@ def test_every_engine_is_named_once_and_naming_them_loads_no_framework():
     import sys
 
     from keras_rl.commands.flags import FLAGS
-    from keras_rl.runs.options import AUTO
+    from keras_rl.dispatch.options import AUTO
     from keras_rl.train.engine import ENGINE_NAMES, get_engine
 
     assert FLAGS["--engine"]["choices"] == (AUTO, *ENGINE_NAMES)
     assert [get_engine(name).name for name in ENGINE_NAMES] == list(ENGINE_NAMES)
     loaded = subprocess.run(
-        [sys.executable, "-c", "import sys, keras_rl.runs.options, keras_rl.train.engine as e; "
+        [sys.executable, "-c", "import sys, keras_rl.dispatch.options, keras_rl.train.engine as e; "
          "print(sorted(m for m in ('tensorflow', 'torch', 'keras') if m in sys.modules), e.ENGINE_NAMES)"],
         capture_output=True, text=True, check=True,
     ).stdout  # fmt: skip

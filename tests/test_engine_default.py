@@ -138,7 +138,7 @@ def test_the_certified_table_is_the_forests_engine_rows():
 def test_the_api_and_the_command_share_one_default():
     from keras_rl import api
     from keras_rl.commands.flags import FLAGS
-    from keras_rl.runs.options import AUTO, RunOptions
+    from keras_rl.dispatch.options import AUTO, RunOptions
 
     assert inspect.signature(api.reproduce).parameters["engine"].default == AUTO
     assert FLAGS["--engine"]["default"] == AUTO == RunOptions().engine

@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 from committed import committed_seed
 
+from keras_rl.dispatch import jobs
 from keras_rl.errors import ConfigError
-from keras_rl.runs import jobs
 from keras_rl.runs.summary import RunSummary
 from keras_rl.train import engine as engines
 from keras_rl.train.settings import TrainSettings
@@ -66,7 +66,7 @@ def test_a_run_without_a_recorded_engine_is_the_loops_and_a_user_gets_auto():
 
     from keras_rl import api
     from keras_rl.commands.flags import FLAGS
-    from keras_rl.runs.options import AUTO, RunOptions
+    from keras_rl.dispatch.options import AUTO, RunOptions
 
     assert jobs.SeedJob("pendulum", {}, Path("x")).engine == engines.UNRECORDED_ENGINE == "gymnasium"
     assert RunOptions().engine == inspect.signature(RunOptions.checked).parameters["engine"].default == AUTO
@@ -97,9 +97,9 @@ def test_only_learners_that_declare_masks_are_given_them():
 
 
 def test_train_seeds_packs_picks_the_backend_and_runs(tmp_path, replace_backend):
+    from keras_rl.dispatch import backends
+    from keras_rl.dispatch.options import RunOptions
     from keras_rl.registry import get_experiment
-    from keras_rl.runs import backends
-    from keras_rl.runs.options import RunOptions
 
     seen = {}
 

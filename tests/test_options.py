@@ -1,4 +1,4 @@
-"""The options every training command shares (``runs/options.py``, its flags in
+"""The options every training command shares (``dispatch/options.py``, its flags in
 ``commands/flags.py``) and the one ``FIELD=VALUE`` parser (``ExperimentConfig.parse_assignments``):
 declared once, checked once, named once."""
 
@@ -14,9 +14,9 @@ from committed import committed_seed
 
 from keras_rl.cli import build_parser, main, parse_args
 from keras_rl.commands.flags import COMMAND_DEFAULTS, FLAGS, RUN_FLAGS, help_for, options_from_args, shared_flags
+from keras_rl.dispatch.sweep import parse_grid
 from keras_rl.errors import ConfigError, as_flags
 from keras_rl.posts.pendulum import PendulumDDPGConfig as PendulumConfig
-from keras_rl.runs.sweep import parse_grid
 
 REPO = Path(__file__).resolve().parent.parent
 

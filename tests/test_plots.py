@@ -60,8 +60,8 @@ def test_a_curve_that_cannot_be_drawn_is_a_warning_not_an_error(tmp_path, monkey
     """The runs are on disk by then: a plot that fails (here matplotlib refusing the data)
     must not turn a finished command into a crash (issue #22)."""
     import keras_rl.report.plots as plots
+    from keras_rl.dispatch.jobs import SeedJob
     from keras_rl.posts.pendulum import PendulumDDPGConfig
-    from keras_rl.runs.jobs import SeedJob
 
     def refuse(*args, **kwargs):
         raise ValueError("Axis limits cannot be NaN or Inf")

@@ -1,5 +1,5 @@
 """``--workers N`` on one machine: seeds in the standard library's process pool
-(``runs/pool_backend.py``), no Ray; and ``keras-rl sweep`` through it."""
+(``dispatch/pool_backend.py``), no Ray; and ``keras-rl sweep`` through it."""
 
 from __future__ import annotations
 
@@ -47,9 +47,9 @@ def rows(path: Path) -> list[dict[str, str]]:
 
 def test_workers_on_one_machine_need_no_ray():
     """``--workers 2`` picks the process pool; only ``--address`` asks for Ray, and says how to get it."""
-    from keras_rl.runs.backends import backend_for
-    from keras_rl.runs.jobs import InProcess
-    from keras_rl.runs.pool_backend import ProcessPool
+    from keras_rl.dispatch.backends import backend_for
+    from keras_rl.dispatch.jobs import InProcess
+    from keras_rl.dispatch.pool_backend import ProcessPool
 
     assert backend_for(2, 4) == ProcessPool(workers=2)
     assert isinstance(backend_for(2, 1), InProcess) and isinstance(backend_for(1, 4), InProcess)
@@ -57,7 +57,7 @@ def test_workers_on_one_machine_need_no_ray():
         [
             sys.executable,
             "-c",
-            "import keras_rl.runs.backends as b, sys; b.backend_for(2, 4); print('ray' in sys.modules)",
+            "import keras_rl.dispatch.backends as b, sys; b.backend_for(2, 4); print('ray' in sys.modules)",
         ],
         capture_output=True,
         text=True,
@@ -69,8 +69,8 @@ def test_workers_on_one_machine_need_no_ray():
 def test_address_without_ray_says_how_to_get_it(monkeypatch):
     import importlib.util
 
+    from keras_rl.dispatch.backends import backend_for
     from keras_rl.errors import ConfigError
-    from keras_rl.runs.backends import backend_for
 
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "ray" else real(name, *a))
@@ -288,9 +288,9 @@ def test_ray_is_an_extra_not_a_dependency():
 def test_the_pools_progress_counts_episodes_from_the_seeds_files(tmp_path):
     """Under --workers the bar said "0/2" seeds for over a minute: it counts the episodes each
     seed's episodes.csv holds, out of every seed's budget."""
+    from keras_rl.dispatch.jobs import SeedJob
+    from keras_rl.dispatch.pool_backend import EpisodesBar
     from keras_rl.posts.pendulum import PendulumDDPGConfig
-    from keras_rl.runs.jobs import SeedJob
-    from keras_rl.runs.pool_backend import EpisodesBar
 
     jobs = [SeedJob.of(PendulumDDPGConfig(seed=s, episodes=10), tmp_path / f"seed_{s}") for s in (0, 1)]
     (tmp_path / "seed_0").mkdir()
@@ -314,7 +314,7 @@ def test_a_broken_pools_surviving_workers_are_killed_before_its_jobs_start_again
     from concurrent.futures import ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
-    from keras_rl.runs.pool_backend import _kill_survivors
+    from keras_rl.dispatch.pool_backend import _kill_survivors
 
     pool = ProcessPoolExecutor(
         2,

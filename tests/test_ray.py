@@ -18,7 +18,7 @@ pytestmark = [pytest.mark.ray, pytest.mark.slow]  # local Ray instances and clus
 
 
 def test_ray_servers_listen_on_loopback_only():
-    from keras_rl.runs.ray_backend import RayBackend
+    from keras_rl.dispatch.ray_backend import RayBackend
 
     backend = RayBackend(workers=1)
     ray_module, _ = backend._init()
@@ -56,9 +56,9 @@ def two_node_cluster():
 
 def test_two_node_cluster_runs_jobs_on_both_nodes_and_files_land_in_the_drivers_out(tmp_path, two_node_cluster):
     """Two seed batches (``--seed-batch 2``) and two solo seeds on a 2-node cluster."""
+    from keras_rl.dispatch.jobs import SeedBatchJob, SeedJob, batched, read_outcome
+    from keras_rl.dispatch.ray_backend import RayBackend
     from keras_rl.posts.pendulum import PendulumDDPGConfig
-    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched, read_outcome
-    from keras_rl.runs.ray_backend import RayBackend
 
     cluster = two_node_cluster
     try:
@@ -130,9 +130,9 @@ def test_bad_sweep_input_exits_2_and_names_the_problem(argv, message, capsys, tm
 
 
 def test_ablate_flips_each_quirk_switch_alone():
+    from keras_rl.dispatch.sweep import ablation_grid
     from keras_rl.posts.mountaincar import MountainCarDDPGConfig
     from keras_rl.registry import EXPERIMENTS
-    from keras_rl.runs.sweep import ablation_grid
 
     points = ablation_grid(MountainCarDDPGConfig, MountainCarDDPGConfig())
     assert points[0].name == "base" and len(points) == 1 + len(MountainCarDDPGConfig.QUIRKS)

@@ -258,10 +258,10 @@ def test_a_batch_killed_while_writing_its_checkpoints_resumes_from_the_step_ever
 
 
 def test_a_resumed_seed_must_resume_with_its_batch(tmp_path):
+    from keras_rl.dispatch.jobs import SeedBatchJob, SeedJob, batched
     from keras_rl.errors import RunFolderError
     from keras_rl.posts.cartpole import CartPoleDQNConfig
     from keras_rl.runs.checkpoint import write_checkpoint
-    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched
 
     jobs = []
     for seed in (4, 5):

@@ -1,4 +1,4 @@
-"""--seed-batch on reproduce, compare and sweep (keras_rl/runs/jobs.py): which jobs share a batch,
+"""--seed-batch on reproduce, compare and sweep (keras_rl/dispatch/jobs.py): which jobs share a batch,
 how auto sizes batches, and what runs alone or is refused."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import pytest
 
 
 def test_only_jobs_that_differ_in_the_seed_share_a_batch(tmp_path):
+    from keras_rl.dispatch.jobs import SeedBatchJob, SeedJob, batched
     from keras_rl.posts.mountaincar import MountainCarDDPGConfig
-    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched
 
     def job(seed, framework="keras", gamma=0.99, start="new"):
         config = MountainCarDDPGConfig(seed=seed, framework=framework, gamma=gamma)
@@ -32,7 +32,7 @@ def test_only_jobs_that_differ_in_the_seed_share_a_batch(tmp_path):
 def test_auto_batches_are_as_even_as_the_cap_and_the_workers_allow(seeds, workers, cap, size):
     import math
 
-    from keras_rl.runs.jobs import auto_batch_size
+    from keras_rl.dispatch.jobs import auto_batch_size
 
     got = auto_batch_size(seeds, workers, cap)
     assert got == size and got <= cap
@@ -41,11 +41,11 @@ def test_auto_batches_are_as_even_as_the_cap_and_the_workers_allow(seeds, worker
 
 
 def test_seed_batch_auto_packs_each_post_by_its_cap(tmp_path, monkeypatch):
+    from keras_rl.dispatch.jobs import SeedBatchJob, SeedJob, batched
     from keras_rl.learners import table
     from keras_rl.learners.table import SEED_BATCH_CAP, seed_batch_cap
     from keras_rl.posts.cartpole import CartPoleDQNConfig
     from keras_rl.posts.mountaincar import MountainCarDDPGConfig
-    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched
 
     jobs = [SeedJob.of(MountainCarDDPGConfig(seed=s), tmp_path / f"seed_{s}", command="x") for s in range(30)]
     assert seed_batch_cap("mountaincar", "keras") == SEED_BATCH_CAP[("mountaincar", "keras")] == 16
@@ -63,9 +63,9 @@ def test_a_config_no_stacked_learner_covers_runs_alone_under_auto_and_is_refused
     auto`` once sent its seeds to the stacked learner, which refused each batch at run time;
     now ``auto`` runs them alone beside the other grid points' batches, and a fixed size
     refuses them before anything runs."""
+    from keras_rl.dispatch.jobs import SeedBatchJob, SeedJob, batched
     from keras_rl.errors import ConfigError
     from keras_rl.posts.mountaincar import MountainCarDDPGConfig
-    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched
 
     def jobs(point, **overrides):
         config = MountainCarDDPGConfig.for_variant("faithful", **overrides)
@@ -159,9 +159,9 @@ def test_a_retired_stacked_learner_is_refused_with_its_reason_and_auto_runs_its_
     import subprocess
     import sys
 
+    from keras_rl.dispatch.jobs import SeedBatchJob, SeedJob, batched
     from keras_rl.learners.table import RETIRED, STACKED, seed_batch_cap
     from keras_rl.posts.pendulum import PendulumDDPGConfig
-    from keras_rl.runs.jobs import SeedBatchJob, SeedJob, batched
 
     for post in ("pendulum", "cartpole"):
         assert (post, "keras") in RETIRED and (post, "keras") not in STACKED

@@ -71,7 +71,7 @@ def test_the_sensitive_tier_refuses_a_sequential_check_and_a_bisect_with_exit_2(
 def test_a_sensitive_check_runs_its_fresh_seeds_alone_on_the_compiled_engine(tmp_path, replace_backend):
     """Post 000 at the sensitive tier: twins, each its own compiled job, the first 4 of the 80 first
     (the bits stage: the fake trains nothing, so nothing follows)."""
-    import keras_rl.runs.jobs as jobs
+    import keras_rl.dispatch.jobs as jobs
     from keras_rl.check.rules import rule_for
     from keras_rl.cli import main
 

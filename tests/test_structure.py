@@ -115,9 +115,9 @@ def test_keras_learners_never_import_the_torch_side():
         "keras_rl.posts",
         "keras_rl.torch",
         "keras_rl.train.loop",
-        "keras_rl.runs.jobs",  # what every Ray worker loads: the dispatcher and its backends
-        "keras_rl.runs.ray_backend",
-        "keras_rl.runs.backends",
+        "keras_rl.dispatch.jobs",  # what every Ray worker loads: the dispatcher and its backends
+        "keras_rl.dispatch.ray_backend",
+        "keras_rl.dispatch.backends",
         "keras_rl.registry",
     ],
 )
@@ -129,10 +129,10 @@ def test_training_code_never_reaches_plotting_or_reports(prefix):
 
 
 def test_reports_train_nothing():
-    """``report/`` reads run folders; making runs is ``runs/``' job (``runs/compare_runs.py``
+    """``report/`` reads run folders; making runs is ``runs/``' job (``dispatch/compare_runs.py``
     for compare), so no report reaches the dispatcher or the episode loop."""
     for name in (n for n in MODULES if n.startswith("keras_rl.report")):
-        bad = sorted(m for m in reachable(name) if m in ("keras_rl.runs.jobs", "keras_rl.train.loop"))
+        bad = sorted(m for m in reachable(name) if m in ("keras_rl.dispatch.jobs", "keras_rl.train.loop"))
         assert not bad, f"{name} reaches {bad}"
 
 
@@ -248,7 +248,7 @@ def test_the_cli_is_a_table_and_each_command_module_stays_small():
 
 
 def test_every_command_trains_its_seeds_one_way():
-    """``runs/backends.train_seeds`` packs, picks the backend and runs; no command picks or
+    """``dispatch/backends.train_seeds`` packs, picks the backend and runs; no command picks or
     runs a backend itself (they did, four times, each its own way)."""
     package = Path(__file__).resolve().parents[1] / "keras_rl"
     callers = sorted(

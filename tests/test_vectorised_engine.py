@@ -311,8 +311,8 @@ def test_its_refusals_need_neither_tensorflow_nor_torch(tmp_path):
 def test_the_engine_refuses_before_it_trains_and_the_options_let_it_batch(tmp_path):
     """The engine itself refuses too (a notebook or a job reaches it without ``plan``), naming
     every reason at once; ``--seed-batch S`` is the vectorised engine's as it is the loop's."""
+    from keras_rl.dispatch.options import RunOptions
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.options import RunOptions
     from keras_rl.train.engine import get_engine
     from keras_rl.train.settings import TrainSettings
 

@@ -35,9 +35,9 @@ import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from keras_rl.atomic import atomic_write_json, atomic_write_text
 from keras_rl.check.statistics import holm_adjusted
 from keras_rl.errors import ConfigError, argument
-from keras_rl.runs.files import atomic_write_json, atomic_write_text
 from keras_rl.runs.signals import stop_signals_deferred
 
 

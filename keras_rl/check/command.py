@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from keras_rl.atomic import atomic_write_json, atomic_write_text
 from keras_rl.check.rules import CheckRule, rule_for
 from keras_rl.check.sequential import SequentialDesign, at_level, run_design
 from keras_rl.check.statistics import (
@@ -42,10 +43,10 @@ from keras_rl.check.statistics import (
     holm_adjusted,
     seed_statistic,
 )
+from keras_rl.dispatch.options import RunOptions
 from keras_rl.errors import ConfigError, NoVerdictError, RunFolderError, argument
 from keras_rl.registry import get_experiment
-from keras_rl.runs.files import atomic_write_json, atomic_write_text, read_episodes
-from keras_rl.runs.options import RunOptions
+from keras_rl.runs.files import read_episodes
 from keras_rl.runs.run_set import RunSet
 from keras_rl.runs.summary import RunSummary
 
@@ -759,10 +760,10 @@ def run_check(
 def _run_seeds(out: Path, groups: list[tuple], options: RunOptions) -> None:
     """Train each (experiment, rule, config, seeds) group's seeds into ``out/<experiment>/``, on
     the rule's engine, in the rule's seed batches, all groups' jobs at once."""
+    from keras_rl.dispatch.backends import train_seeds
+    from keras_rl.dispatch.jobs import SeedJob, batched
     from keras_rl.learners.table import batch_refusal
     from keras_rl.report.plots import draw_job_curves
-    from keras_rl.runs.backends import train_seeds
-    from keras_rl.runs.jobs import SeedJob, batched
 
     jobs = []
     for experiment, rule, config, fresh in groups:

@@ -13,7 +13,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from keras_rl.runs.options import AUTO, RunOptions
+from keras_rl.dispatch.options import AUTO, RunOptions
 from keras_rl.train.engine import ENGINE_NAMES
 
 

@@ -61,8 +61,8 @@ def add_parser(sub) -> None:
 
 
 def sweep(args: argparse.Namespace) -> int:
+    from keras_rl.dispatch.sweep import ablation_grid, parse_grid, record_grid, sweep_jobs
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.sweep import ablation_grid, parse_grid, record_grid, sweep_jobs
 
     if args.out is None:
         raise ConfigError("sweep needs --out FOLDER: the sweep's folder (<grid point>/seed_<n>/, sweep.md)")
@@ -105,9 +105,9 @@ def sweep(args: argparse.Namespace) -> int:
         + (f" ({resumed} resuming from a checkpoint)" if (resumed := sum(j.start == "resume" for j in todo)) else ""),
         file=sys.stderr,
     )
+    from keras_rl.dispatch.backends import train_seeds
     from keras_rl.report.plots import draw_job_curves
     from keras_rl.report.sweep import write_sweep_report
-    from keras_rl.runs.backends import train_seeds
     from keras_rl.runs.provenance import command_line
     from keras_rl.runs.summary import RunSummary
 

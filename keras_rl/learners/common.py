@@ -36,8 +36,8 @@ def soft_update(target: Sequence[Any], source: Sequence[Any], tau: float, seeds:
 
 
 def save_weights(model, path: Path) -> None:
-    """``model.save_weights``, atomically (``runs/files.atomic_replace``)."""
-    from keras_rl.runs.files import atomic_replace
+    """``model.save_weights``, atomically (``atomic.atomic_replace``)."""
+    from keras_rl.atomic import atomic_replace
 
     atomic_replace(path, lambda tmp: model.save_weights(str(tmp)))
 

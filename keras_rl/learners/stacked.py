@@ -27,7 +27,6 @@ import numpy as np
 import tensorflow as tf
 
 from keras_rl.buffers import Layout
-from keras_rl.config import check_same_but_seed
 from keras_rl.envs import EnvSpec
 from keras_rl.errors import argument
 from keras_rl.learners.common import save_weights
@@ -340,8 +339,9 @@ class SoloAsStack:
 
 
 def _per_seed(configs: Sequence, build) -> list:
-    """``build(config)`` for each seed, Keras seeded first as that seed's solo run seeds it."""
-    check_same_but_seed(configs)
+    """``build(config)`` for each seed, Keras seeded first as that seed's solo run seeds it. The
+    configs are equal but for the seed: ``train/loop.run_seeds`` checks it before it builds a seed
+    axis, the only way to a stacked learner (``learners/table.STACKED``)."""
     built = []
     for config in configs:
         seed_everything(config.seed)

@@ -72,7 +72,7 @@ NOT_STACKED: dict[str, tuple[str, object, str]] = {
 }
 """Configs whose seeds cannot share a stacked learner: (field, value, why), per experiment.
 ``--seed-batch auto`` runs their seeds alone; a fixed ``--seed-batch N`` refuses them before
-anything runs (``runs.jobs.batched``)."""
+anything runs (``dispatch.jobs.batched``)."""
 
 
 def batch_refusal(experiment: str, config: dict) -> str | None:

@@ -7,11 +7,11 @@ from typing import Any
 
 import numpy as np
 
+from keras_rl.atomic import atomic_write_text
 from keras_rl.errors import RunFolderError
 from keras_rl.registry import get_experiment
 from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm
 from keras_rl.report.plots import plot_seed_curve, plt, save_figure
-from keras_rl.runs.files import atomic_write_text
 from keras_rl.runs.run_set import RunSet
 from keras_rl.runs.summary import RunSummary
 

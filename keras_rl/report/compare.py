@@ -1,6 +1,6 @@
 """``keras-rl compare``'s report: the same seeds in Keras and in PyTorch, and what differs.
 
-It reads run folders and trains nothing: ``runs/compare_runs.py`` makes or reuses them first.
+It reads run folders and trains nothing: ``dispatch/compare_runs.py`` makes or reuses them first.
 """
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from keras_rl.atomic import atomic_write_json, atomic_write_text, finite_or_none
 from keras_rl.errors import ConfigError, RunFolderError
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import compared_frameworks, frameworks
@@ -23,12 +24,12 @@ from keras_rl.report.stats import (
     iqm_ci,
     median_difference_ci,
 )
-from keras_rl.runs.files import atomic_write_json, atomic_write_text, finite_or_none, run_folder
+from keras_rl.runs.files import run_folder
 from keras_rl.runs.summary import RunSummary
 
 FRAMEWORKS = ("keras", "torch")
 """The two arms of every report, in ``learners/table.frameworks`` order
-(``runs/compare_runs.compared_frameworks`` holds each experiment to it)."""
+(``dispatch/compare_runs.compared_frameworks`` holds each experiment to it)."""
 
 
 def load_runs(folder: Path, seeds: list[int]) -> list[dict[str, Any]]:
@@ -299,7 +300,7 @@ def compare(
 ) -> CompareResult:
     """Write ``<out_root>/<name>/report.md`` (``<out_root>/<name>/matched-init/`` with
     ``matched_init``: the torch runs start from the Keras runs' initial weights) from the
-    run folders of ``seeds`` under ``runs_root``, which ``runs/compare_runs.py`` made.
+    run folders of ``seeds`` under ``runs_root``, which ``dispatch/compare_runs.py`` made.
     ``episodes``: the budget the runs had, if not the post's."""
     experiment = get_experiment(name)
     if compared_frameworks(name) != FRAMEWORKS:

@@ -13,7 +13,8 @@ matplotlib.use("Agg")  # files only; no display needed
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
-from keras_rl.runs.files import atomic_write_bytes, read_episodes  # noqa: E402
+from keras_rl.atomic import atomic_write_bytes
+from keras_rl.runs.files import read_episodes  # noqa: E402
 
 
 def save_figure(fig, path: Path) -> None:
@@ -212,7 +213,7 @@ def draw_job_curves(job) -> None:
 
     from keras_rl.registry import get_experiment
 
-    for member in getattr(job, "jobs", (job,)):  # a batch's seeds, or the one seed (runs/jobs.members)
+    for member in getattr(job, "jobs", (job,)):  # a batch's seeds, or the one seed (dispatch/jobs.members)
         experiment = get_experiment(member.experiment)
         try:
             plot_seed_curve(Path(member.out_dir), experiment, experiment.config_cls.from_dict(member.config))

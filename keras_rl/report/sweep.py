@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from keras_rl.atomic import atomic_write_json, atomic_write_text
 from keras_rl.errors import ConfigError, RunFolderError, argument
 from keras_rl.report.aggregate import write_aggregate
 from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm
@@ -27,7 +28,6 @@ from keras_rl.report.stats import (
     median_difference_ci,
     success_difference_ci,
 )
-from keras_rl.runs.files import atomic_write_json, atomic_write_text
 from keras_rl.runs.run_set import RunSet
 from keras_rl.runs.summary import RunSummary
 

@@ -29,8 +29,8 @@ import pickle
 from pathlib import Path
 from typing import Any
 
+from keras_rl.atomic import atomic_write_bytes
 from keras_rl.errors import RunFolderError, argument
-from keras_rl.runs.files import atomic_write_bytes
 
 CHECKPOINT = "checkpoint.pkl"
 PREVIOUS = "checkpoint.prev.pkl"

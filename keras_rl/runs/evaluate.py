@@ -11,8 +11,9 @@ from typing import Any
 
 import numpy as np
 
+from keras_rl.atomic import atomic_write_bytes, atomic_write_json
 from keras_rl.errors import ConfigError, RunFolderError, argument
-from keras_rl.runs.files import atomic_write_bytes, atomic_write_json, run_folder_locks
+from keras_rl.runs.files import run_folder_locks
 from keras_rl.runs.signals import stop_signals_as_flag
 
 
@@ -262,7 +263,7 @@ class TrainingEvaluator:
         return row
 
     def _write_rows(self) -> None:
-        from keras_rl.runs.files import atomic_write_text
+        from keras_rl.atomic import atomic_write_text
 
         lines = [",".join(self.COLUMNS)] + [",".join(repr(r[c]) for c in self.COLUMNS) for r in self.rows]
         atomic_write_text(self.run_dir / EVALUATIONS, "\n".join(lines) + "\n")

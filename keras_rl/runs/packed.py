@@ -30,13 +30,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from keras_rl.atomic import atomic_write_bytes, atomic_write_text
 from keras_rl.errors import RunFolderError, argument
 from keras_rl.runs.files import (
     INTEGER_COLUMNS,
     SEED_FOLDER,
     TIMING_COLUMNS,
-    atomic_write_bytes,
-    atomic_write_text,
     format_row,
     read_episodes,
     seed_of,
@@ -72,7 +71,7 @@ def _encoding(column: str) -> str:
 
 def _json_text(value: Any) -> str:
     """What ``atomic_write_json`` writes for ``value``."""
-    from keras_rl.runs.files import finite_or_none
+    from keras_rl.atomic import finite_or_none
 
     return json.dumps(finite_or_none(value), indent=2, allow_nan=False) + "\n"
 

@@ -111,7 +111,7 @@ class SeedRun:
         """A ``config.json`` of this seed on disk (written under ``scratch`` where it is packed)."""
         if self.folder is not None:
             return self.folder / "config.json"
-        from keras_rl.runs.files import atomic_write_text
+        from keras_rl.atomic import atomic_write_text
 
         path = Path(scratch) / f"seed_{self.seed}" / "config.json"
         atomic_write_text(path, self.run_set.packed().record(self.seed).config_text)

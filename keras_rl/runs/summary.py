@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from keras_rl.atomic import atomic_write_json
 from keras_rl.errors import RunFolderError
-from keras_rl.runs.files import atomic_write_json
 
 Status = Literal["running", "completed", "interrupted", "non_finite_loss", "error"]
 

@@ -8,8 +8,8 @@ import os
 import sys
 from pathlib import Path
 
+from keras_rl.atomic import atomic_write_bytes
 from keras_rl.errors import ConfigError, RunFolderError
-from keras_rl.runs.files import atomic_write_bytes
 
 NO_TORCH = (
     "the torch framework needs PyTorch: pip install 'keras-rl-repro[torch]' (in a checkout: "

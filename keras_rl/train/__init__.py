@@ -3,7 +3,7 @@
 - ``settings.py``: ``TrainSettings``, everything about *how* a set of seeds trains that is
   not in their configs (resume, checkpoints, TensorBoard, evaluation, progress), one typed
   object from the command to the loop;
-- ``engine.py``: the seam. ``Engine`` is what ``runs/jobs.execute`` calls; ``ENGINES`` names
+- ``engine.py``: the seam. ``Engine`` is what ``dispatch/jobs.execute`` calls; ``ENGINES`` names
   each implementation: ``gymnasium``, ``compiled`` and ``vectorised``;
 - ``life.py``: one seed's life, the same on every engine (records, resume and extension,
   checkpoints at close, signals, TensorBoard, evaluation);
@@ -12,6 +12,6 @@
 - ``compiled.py``: the ``compiled`` engine (a post's episode as one XLA program, Keras);
 - ``vectorised.py``: the ``vectorised`` engine (post 003 in PyTorch, S seeds in one program).
 
-Nothing above this package (``commands/``, ``runs/jobs.py``, ``report/``) knows which engine
+Nothing above this package (``commands/``, ``dispatch/jobs.py``, ``report/``) knows which engine
 ran a seed: each writes the same run folder.
 """

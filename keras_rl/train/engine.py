@@ -1,4 +1,4 @@
-"""The engine seam: what a backend calls (``runs/jobs.run_job``) to train a set of seeds.
+"""The engine seam: what a backend calls (``dispatch/jobs.run_job``) to train a set of seeds.
 
 An engine takes one experiment, the seeds' configs (equal but for the seed), their run
 folders and one ``TrainSettings``, trains them, and leaves in each folder what the project's
@@ -91,7 +91,7 @@ ENGINES: dict[str, Engine] = {}
 """The engines built so far, by name (``get_engine`` builds each on first use)."""
 UNRECORDED_ENGINE = GymnasiumEngine.name
 """The engine of a run that recorded none (every run made before the engine seam), and of a job
-built without one. Not what a user gets by default: that is ``auto`` (``runs.options.AUTO``,
+built without one. Not what a user gets by default: that is ``auto`` (``dispatch.options.AUTO``,
 ``study.choose_engine``), declared once in ``RunOptions``."""
 
 

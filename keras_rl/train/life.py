@@ -25,9 +25,10 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
+from keras_rl.atomic import atomic_write_text
 from keras_rl.experiment import Experiment
 from keras_rl.runs.evaluate import TrainingEvaluator
-from keras_rl.runs.files import RunRecorder, atomic_write_text, episode_columns, episodes_csv_text
+from keras_rl.runs.files import RunRecorder, episode_columns, episodes_csv_text
 from keras_rl.runs.lifecycle import check_resume_config
 from keras_rl.runs.provenance import command_line, library_versions, provenance
 from keras_rl.runs.signals import signal_name

@@ -12,8 +12,8 @@ from keras_rl.runs.evaluate import EvalSchedule
 class TrainSettings:
     """Everything an engine needs besides the experiment, the configs and their folders.
 
-    Parsed once where a command reads its flags (``runs/options.RunOptions`` and the job's
-    start mode), carried in a ``runs/jobs.SeedJob`` across a process boundary, and read by the
+    Parsed once where a command reads its flags (``dispatch/options.RunOptions`` and the job's
+    start mode), carried in a ``dispatch/jobs.SeedJob`` across a process boundary, and read by the
     engine: no field is forwarded one by one."""
 
     progress: bool = True

@@ -1,7 +1,7 @@
 """The vectorised engine (``--engine vectorised``): post 003's PyTorch tutorial on S seeds in one
 program, ``keras_rl/torch/vectorised.VectorisedDQN``, stepped a chunk of env steps per host call.
 
-A job's seeds are the batch: ``--seed-batch S`` packs them (``runs/jobs.batched``), and a solo
+A job's seeds are the batch: ``--seed-batch S`` packs them (``dispatch/jobs.batched``), and a solo
 run is a batch of one. Each seed's results are its own, whichever seeds share its batch (the
 core's counter-based streams), so a seed's ``episodes.csv`` and ``q_network.pt`` are the same
 alone and in any batch (``tests/test_vectorised_engine.py``), but for the compiled program's loss

@@ -106,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.write:
         print(text)
         return 0
-    from keras_rl.runs.files import atomic_write_text
+    from keras_rl.atomic import atomic_write_text
 
     atomic_write_text(OUT, text + "\n")
     print(f"wrote {OUT}")

@@ -30,6 +30,7 @@ import json
 
 import numpy as np
 
+from keras_rl.atomic import atomic_write_text
 from keras_rl.check.command import SEQUENTIAL, baseline_values
 from keras_rl.check.rules import CALIBRATED_TIERS, MUTANTS, RULES
 from keras_rl.check.sequential import (
@@ -42,7 +43,6 @@ from keras_rl.check.sequential import (
     simulate,
 )
 from keras_rl.registry import get_experiment
-from keras_rl.runs.files import atomic_write_text
 from maintainers.calibrate.runs import REPORT, TUNE, halved, load, values
 from maintainers.checkout import ROOT
 

@@ -211,7 +211,7 @@ def render(family: dict) -> str:
 def write_with_block(json_path: Path, data: dict, begin: str, end: str, text: str, heading: str = "") -> None:
     """Write ``data`` to ``json_path`` and ``text`` between ``begin`` and ``end`` in calibration.md
     (added at its end under ``heading`` if the page has no such block yet)."""
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+    from keras_rl.atomic import atomic_write_json, atomic_write_text
     from maintainers.markdown import replace_block
 
     atomic_write_json(json_path, data)

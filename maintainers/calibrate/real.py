@@ -313,8 +313,8 @@ def render(data: dict, resampled: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from keras_rl.atomic import atomic_write_json
     from keras_rl.check.command import SENSITIVE_RATES
-    from keras_rl.runs.files import atomic_write_json
 
     data = compute()
     text = render(data, json.loads(SENSITIVE_RATES.read_text()))

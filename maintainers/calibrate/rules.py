@@ -34,13 +34,13 @@ from typing import Any
 
 import numpy as np
 
+from keras_rl.atomic import atomic_write_text
 from keras_rl.check.command import CALIBRATION
 from keras_rl.check.rules import ALPHAS, CALIBRATED_TIERS, MUTANTS, RULES
 from keras_rl.check.statistics import false_alarm_rate, power
 from keras_rl.errors import ConfigError
 from keras_rl.learners.table import batch_refusal
 from keras_rl.registry import get_experiment
-from keras_rl.runs.files import atomic_write_text
 from keras_rl.runs.run_set import RunSet
 from maintainers.calibrate.runs import (
     CHECKS,

@@ -89,7 +89,7 @@ def halved(folders: list[Path]) -> bool:
 def splice_calibration(heading: str, begin: str, end: str, text: str) -> Path:
     """``text`` between ``begin`` and ``end`` in ``results/checks/calibration.md``; a block the page
     lacks is added at its end, under ``heading``. Returns the page."""
-    from keras_rl.runs.files import atomic_write_text
+    from keras_rl.atomic import atomic_write_text
     from maintainers.markdown import replace_block
 
     page = CHECKS / "calibration.md"

@@ -266,8 +266,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     import json
 
+    from keras_rl.atomic import atomic_write_json, atomic_write_text
     from keras_rl.check.command import SENSITIVE_RATES
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
     from maintainers.markdown import replace_block
 
     atomic_write_json(SENSITIVE_RATES, data)

@@ -162,7 +162,7 @@ def summary(data: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from keras_rl.runs.files import atomic_write_json, atomic_write_text
+    from keras_rl.atomic import atomic_write_json, atomic_write_text
     from maintainers.markdown import replace_block
 
     data = compute()

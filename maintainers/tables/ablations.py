@@ -279,7 +279,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.write:
         print("\n\n".join([*tables.values(), readings_table()]))
         return 0
-    from keras_rl.runs.files import atomic_write_text
+    from keras_rl.atomic import atomic_write_text
 
     content = FIDELITY.read_text()
     for name, text in tables.items():

@@ -243,7 +243,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.write:
         print(page())
         return 0
-    from keras_rl.runs.files import atomic_write_text
+    from keras_rl.atomic import atomic_write_text
 
     atomic_write_text(COMPAT / "README.md", page())
     readme = ROOT / "README.md"

@@ -416,7 +416,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.write:
         print(text, compared, *(post_block(post) for post in POSTS), sep="\n\n")
         return 0
-    from keras_rl.runs.files import atomic_write_text
+    from keras_rl.atomic import atomic_write_text
 
     readme = ROOT / "results" / "README.md"
     content = replace_block(readme.read_text(), BEGIN, END, text)

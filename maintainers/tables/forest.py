@@ -426,7 +426,7 @@ def draw(data: list[dict[str, Any]], path: Path) -> None:
 
 
 def run(args) -> int:
-    from keras_rl.runs.files import atomic_write_bytes, atomic_write_json, atomic_write_text
+    from keras_rl.atomic import atomic_write_bytes, atomic_write_json, atomic_write_text
     from maintainers.markdown import replace_block
 
     data = rows()

@@ -1,5 +1,5 @@
 """Where seeds are dispatched: ``SeedJob`` records, how a job opens its folders and trains on
-its engine, and the execution backends that ``runs/backends.train_seeds`` picks from.
+its engine, and the execution backends that ``dispatch/backends.train_seeds`` picks from.
 
 - ``InProcess``: one seed after another in this process (one worker: no start-up cost).
 - ``RayBackend`` (``ray_backend.py``): seeds as Ray tasks on a local instance or a cluster.

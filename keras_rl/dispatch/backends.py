@@ -4,24 +4,24 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from keras_rl.runs import jobs as dispatch
-from keras_rl.runs.jobs import AfterJob, Backend, InProcess, JobsOutcome
+from keras_rl.dispatch import jobs as dispatch
+from keras_rl.dispatch.jobs import AfterJob, Backend, InProcess, JobsOutcome
 
 if TYPE_CHECKING:
-    from keras_rl.runs.options import RunOptions
+    from keras_rl.dispatch.options import RunOptions
 
 
 def backend_for(workers: int, jobs: int, address: str | None = None) -> Backend:
     """In-process for one worker (no start-up cost); the standard library's process pool for
-    ``--workers N`` on this machine (``runs/pool_backend.py``); Ray for a cluster at ``address``
+    ``--workers N`` on this machine (``dispatch/pool_backend.py``); Ray for a cluster at ``address``
     (the ``ray`` extra)."""
     if address is None:
         if workers <= 1 or jobs <= 1:
             return InProcess()
-        from keras_rl.runs.pool_backend import ProcessPool
+        from keras_rl.dispatch.pool_backend import ProcessPool
 
         return ProcessPool(workers=workers)
-    from keras_rl.runs.ray_backend import RayBackend, require_ray
+    from keras_rl.dispatch.ray_backend import RayBackend, require_ray
 
     require_ray()
     return RayBackend(workers=workers, address=address)

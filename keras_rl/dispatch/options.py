@@ -29,7 +29,7 @@ class RunOptions:
     seed_batch: int | str = 1
     """Seeds trained together, one compiled step per env step (``--seed-batch``); ``"auto"``:
     as many as the post's measured cap allows, split evenly over the workers
-    (``runs/jobs.auto_batch_size``)."""
+    (``dispatch/jobs.auto_batch_size``)."""
     episodes: int | None = None
     """The episode budget; None keeps the post's."""
     overrides: tuple[str, ...] = ()
@@ -102,7 +102,7 @@ class RunOptions:
         """A ConfigError unless the cluster at ``address`` (if any) answers; call it once the
         rest of the input is known to be good."""
         if self.address:
-            from keras_rl.runs.ray_backend import check_reachable, require_ray
+            from keras_rl.dispatch.ray_backend import check_reachable, require_ray
 
             require_ray()
             check_reachable(self.address, source=self.address_source)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from keras_rl.runs.jobs import AfterJob, execute, members, say_job_failed, with_each
+from keras_rl.dispatch.jobs import AfterJob, execute, members, say_job_failed, with_each
 from keras_rl.runs.signals import sigterm_as_interrupt
 
 _stop: Any = None

@@ -31,10 +31,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from keras_rl.atomic import atomic_write_bytes
+from keras_rl.dispatch.jobs import execute, members, say_job_failed, seeds_bar, with_each
 from keras_rl.errors import ConfigError, argument
 from keras_rl.runs.checkpoint import delete_checkpoints
-from keras_rl.runs.files import atomic_write_bytes
-from keras_rl.runs.jobs import execute, members, say_job_failed, seeds_bar, with_each
 from keras_rl.runs.signals import sigterm_as_interrupt
 
 MAX_RETRIES = 3
@@ -89,7 +89,7 @@ def _record_node(run_dir: Path, node_id: str) -> None:
     """The Ray node a seed ran on, in its summary's provenance."""
     import json
 
-    from keras_rl.runs.files import atomic_write_json
+    from keras_rl.atomic import atomic_write_json
 
     path = run_dir / "summary.json"
     if path.is_file():

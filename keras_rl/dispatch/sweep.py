@@ -15,8 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from keras_rl.config import BASE, point_name, value_text
+from keras_rl.dispatch.jobs import SeedJob
 from keras_rl.errors import ConfigError, RunFolderError, argument
-from keras_rl.runs.jobs import SeedJob
 from keras_rl.runs.provenance import code_version
 from keras_rl.runs.reuse import check_reusable, start_of
 
@@ -91,6 +91,6 @@ def sweep_jobs(
 
 def record_grid(out: Path, points: list[GridPoint]) -> None:
     """``grid.json``: the points in order (the first is the baseline unless one is named)."""
-    from keras_rl.runs.files import atomic_write_json
+    from keras_rl.atomic import atomic_write_json
 
     atomic_write_json(Path(out) / "grid.json", [{"name": p.name, "overrides": p.overrides} for p in points])

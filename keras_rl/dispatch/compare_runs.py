@@ -13,13 +13,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from keras_rl.dispatch.backends import train_seeds
+from keras_rl.dispatch.jobs import AfterJob, SeedJob
+from keras_rl.dispatch.options import RunOptions
 from keras_rl.errors import RunFolderError, argument
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import compared_frameworks
-from keras_rl.runs.backends import train_seeds
 from keras_rl.runs.files import run_folder
-from keras_rl.runs.jobs import AfterJob, SeedJob
-from keras_rl.runs.options import RunOptions
 from keras_rl.runs.provenance import code_version
 from keras_rl.runs.reuse import check_reusable, start_of
 from keras_rl.train.engine import UNRECORDED_ENGINE
