@@ -250,11 +250,11 @@ def test_a_sweep_names_each_nan_stop_and_does_not_fail_on_it(capsys, tmp_path, r
     def fake_run_jobs(todo, backend, progress=True, after_job=None):
         for job in todo:
             job.out_dir.mkdir(parents=True, exist_ok=True)
-            (job.out_dir / "config.json").write_text(json.dumps(job.config))
+            (job.out_dir / "config.json").write_text(json.dumps(job.config.to_dict()))
             summary = json.loads((template / "summary.json").read_text())
-            if job.config["learning_phase_training"]:
+            if job.config.learning_phase_training:
                 summary.update(status="non_finite_loss", success=False, message="loss is nan at update 1")
-            summary["seed"] = job.config["seed"]
+            summary["seed"] = job.config.seed
             (job.out_dir / "summary.json").write_text(json.dumps(summary))
             shutil.copy(template / "episodes.csv", job.out_dir / "episodes.csv")
 

@@ -199,7 +199,7 @@ def test_compare_resumes_an_interrupted_seed_from_its_checkpoint_and_restarts_on
         if checkpointed:
             write_checkpoint(seed_dir, {"version": 2, "batch": [seed], "vector_step": 5})
     jobs = gather(get_experiment("cartpole"), "faithful", [0, 1], runs, False, False, {"episodes": 20})
-    assert [(j.config["framework"], j.config["seed"], j.start) for j in jobs] == [
+    assert [(j.config.framework, j.config.seed, j.start) for j in jobs] == [
         ("torch", 0, "resume"),
         ("torch", 1, "overwrite"),
     ]
@@ -224,12 +224,12 @@ def test_a_sweep_resumes_an_interrupted_seed_from_its_checkpoint(compared, tmp_p
     write_checkpoint(seed_dir, {"version": 2, "batch": [1], "vector_step": 5})
     base = CartPoleDQNConfig.for_variant("faithful")
     every, todo, _ = sweep_jobs(base, [GridPoint("episodes=20", {"episodes": 20})], [0, 1], tmp_path / "sweep")
-    assert len(every) == 2 and [(j.config["seed"], j.start) for j in todo] == [(1, "resume")]
+    assert len(every) == 2 and [(j.config.seed, j.start) for j in todo] == [(1, "resume")]
     # seed 0 finished inside a batch with seed 1 that was stopped after: it rejoins the batch
     for seed in (0, 1):
         write_checkpoint(point / f"seed_{seed}", {"version": 2, "batch": [0, 1], "vector_step": 5})
     _, todo, _ = sweep_jobs(base, [GridPoint("episodes=20", {"episodes": 20})], [0, 1], tmp_path / "sweep")
-    assert [(j.config["seed"], j.start) for j in todo] == [(0, "resume"), (1, "resume")]
+    assert [(j.config.seed, j.start) for j in todo] == [(0, "resume"), (1, "resume")]
 
 
 @pytest.mark.parametrize("experiment", ["cartpole", "pendulum", "mountaincar"])

@@ -269,7 +269,7 @@ def test_a_resumed_seed_must_resume_with_its_batch(tmp_path):
         jobs.append(SeedJob.of(CartPoleDQNConfig(seed=seed), tmp_path / f"seed_{seed}", start="resume", command="x"))
     packed = batched(jobs, 1)  # whatever --seed-batch says now, the batch that wrote them resumes whole
     assert len(packed) == 1 and isinstance(packed[0], SeedBatchJob)
-    assert [j.config["seed"] for j in packed[0].jobs] == [5, 4]  # in the checkpoint's order
+    assert [j.config.seed for j in packed[0].jobs] == [5, 4]  # in the checkpoint's order
     with pytest.raises(RunFolderError, match="resume them together"):
         batched(jobs[:1], 4)
 

@@ -16,11 +16,9 @@ def test_only_jobs_that_differ_in_the_seed_share_a_batch(tmp_path):
 
     jobs = [job(s, gamma=g) for g in (0.99, 0.9) for s in range(3)] + [job(0, "torch"), job(7, start="resume")]
     packed = batched(jobs, 2)
-    batches = [[j.config["seed"] for j in b.jobs] for b in packed if isinstance(b, SeedBatchJob)]
+    batches = [[j.config.seed for j in b.jobs] for b in packed if isinstance(b, SeedBatchJob)]
     assert batches == [[0, 1], [0, 1]]  # one per grid point; seed 2 of each point alone
-    alone = [
-        (j.config["framework"], j.config["gamma"], j.config["seed"]) for j in packed if not isinstance(j, SeedBatchJob)
-    ]
+    alone = [(j.config.framework, j.config.gamma, j.config.seed) for j in packed if not isinstance(j, SeedBatchJob)]
     assert sorted(alone) == [("keras", 0.9, 2), ("keras", 0.99, 2), ("keras", 0.99, 7), ("torch", 0.99, 0)]
     assert batched(jobs, 1) == jobs
 
@@ -74,7 +72,7 @@ def test_a_config_no_stacked_learner_covers_runs_alone_under_auto_and_is_refused
     phase, base = jobs("learning_phase_training=true", learning_phase_training=True), jobs("base")
     packed = batched(phase + base, "auto")
     assert [j for j in packed if not isinstance(j, SeedBatchJob)] == phase  # each alone
-    assert [[m.config["seed"] for m in j.jobs] for j in packed if isinstance(j, SeedBatchJob)] == [[0, 1, 2, 3]]
+    assert [[m.config.seed for m in j.jobs] for j in packed if isinstance(j, SeedBatchJob)] == [[0, 1, 2, 3]]
     with pytest.raises(ConfigError, match="seed_batch=2 does not cover .*learning_phase_training=true"):
         batched(base + phase, 2)
     assert batched(phase, 1) == phase

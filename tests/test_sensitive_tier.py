@@ -82,7 +82,7 @@ def test_a_sensitive_check_runs_its_fresh_seeds_alone_on_the_compiled_engine(tmp
     assert not any(isinstance(j, jobs.SeedBatchJob) for j in seen)
     assert {j.engine for j in seen} == {"compiled"}
     rule = rule_for("pendulum", "sensitive")
-    assert [j.config["seed"] for j in seen] == rule.seed_list()[: rule.bits_seeds] == [0, 1, 2, 3]
+    assert [j.config.seed for j in seen] == rule.seed_list()[: rule.bits_seeds] == [0, 1, 2, 3]
 
 
 def test_the_sensitive_tiers_committed_rates_are_its_rules_on_the_committed_baselines():

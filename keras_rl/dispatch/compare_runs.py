@@ -92,9 +92,9 @@ def make_compare_runs(
 
     for framework in compared_frameworks(experiment.name):
         folder = run_folder(runs_root, experiment.name, variant, framework, matched_init)
-        made = sorted(j.config["seed"] for j in jobs if j.config["framework"] == framework)
+        made = sorted(j.config.seed for j in jobs if j.config.framework == framework)
         reused = len(seeds) - len(made)
-        engines = {j.engine for j in jobs if j.config["framework"] == framework}
+        engines = {j.engine for j in jobs if j.config.framework == framework}
         to_run = (
             f"training {len(made)} ({', '.join(map(str, made[:10]))}{', ...' if len(made) > 10 else ''}) "
             f"on the {' and '.join(sorted(engines))} engine"

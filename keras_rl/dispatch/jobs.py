@@ -12,7 +12,6 @@ outcome is read back from disk, so an interrupted worker still reports what it k
 
 from __future__ import annotations
 
-import json
 import math
 import shutil
 from collections.abc import Callable
@@ -36,10 +35,11 @@ from keras_rl.train.vectorised import COMPILED_ENGINE, ENGINE
 
 @dataclass(frozen=True)
 class SeedJob:
-    """One seed of one experiment: its full config (``config.to_dict()``) and its folder."""
+    """One seed of one experiment: its typed config (a post's ``ExperimentConfig``, pickled only
+    where a process boundary is real: the pool, Ray) and its folder."""
 
     experiment: str
-    config: dict[str, Any]
+    config: Any
     out_dir: Path
     start: Literal["new", "overwrite", "resume"] = "new"
     """``overwrite``: the folder is cleared whole first; ``resume``: continue from its checkpoint."""
@@ -57,7 +57,7 @@ class SeedJob:
     @classmethod
     def of(cls, config, out_dir: Path, **options: Any) -> SeedJob:
         options.setdefault("command", command_line())
-        return cls(config.experiment, config.to_dict(), Path(out_dir), **options)
+        return cls(config.experiment, config, Path(out_dir), **options)
 
 
 @dataclass(frozen=True)
@@ -107,7 +107,7 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
             if len(batch) > 1:
                 resumed.setdefault((tuple(batch), job.command), []).append(job)
                 continue
-        seed_axis = (job.experiment, job.config.get("framework")) in STACKED or job.engine in (ENGINE, COMPILED_ENGINE)
+        seed_axis = (job.experiment, job.config.framework) in STACKED or job.engine in (ENGINE, COMPILED_ENGINE)
         if seed_batch == 1 or job.start == "resume" or not seed_axis:
             alone.append(job)
             continue
@@ -123,7 +123,7 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
             continue
         key = (
             job.experiment,
-            json.dumps({k: v for k, v in job.config.items() if k != "seed"}, sort_keys=True),
+            job.config.replace(seed=0),  # equal but for the seed
             job.command,
             str(job.tensorboard),
             job.checkpoint_every,
@@ -134,7 +134,7 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
     out = []
     for group in groups.values():
         size = (
-            auto_batch_size(len(group), workers, seed_batch_cap(group[0].experiment, group[0].config["framework"]))
+            auto_batch_size(len(group), workers, seed_batch_cap(group[0].experiment, group[0].config.framework))
             if seed_batch == "auto"
             else int(seed_batch)
         )
@@ -142,7 +142,7 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
             chunk = tuple(group[i : i + size])
             out.append(chunk[0] if len(chunk) == 1 else SeedBatchJob(chunk))
     for (batch, _), group in resumed.items():
-        have = sorted(j.config["seed"] for j in group)
+        have = sorted(j.config.seed for j in group)
         # the seeds of the batch that still hold its checkpoint: a vectorised batch removes those
         # of the seeds it shed, which then resume no more (runs/checkpoint.read_batch_checkpoints)
         folder = Path(group[0].out_dir).parent
@@ -151,7 +151,7 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
                 f"{group[0].out_dir} was checkpointed in a batch of seeds {list(batch)}; resume "
                 f"them together (this command resumes {have} of them)"
             )
-        out.append(SeedBatchJob(tuple(sorted(group, key=lambda j: list(batch).index(j.config["seed"])))))
+        out.append(SeedBatchJob(tuple(sorted(group, key=lambda j: list(batch).index(j.config.seed)))))
     return out + alone
 
 
@@ -168,7 +168,7 @@ def run_job(job, progress: bool = True, position: int = 0, should_stop=None) -> 
     whole (no weights or ``evaluation.json`` of the old run survive). Returns each seed's summary."""
     group = members(job)
     experiment = get_experiment(group[0].experiment)
-    configs = [experiment.config_cls.from_dict(j.config) for j in group]
+    configs = [j.config for j in group]
     first = group[0]
     for j in group:
         refuse_packed(Path(j.out_dir))
@@ -210,7 +210,7 @@ def say_job_failed(job, error: BaseException, text: str | None = None) -> None:
     if unsaid:
         import sys
 
-        who = ", ".join(f"seed {m.config['seed']}" for m in unsaid)
+        who = ", ".join(f"seed {m.config.seed}" for m in unsaid)
         print(
             f"error: {who} in {Path(unsaid[0].out_dir).parent}: {type(error).__name__}: {text or error}",
             file=sys.stderr,

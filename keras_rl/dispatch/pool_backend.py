@@ -151,7 +151,7 @@ def _kill_survivors(pool: ProcessPoolExecutor) -> None:
 
 
 def _seeds(job) -> str:
-    seeds = [str(m.config["seed"]) for m in members(job)]
+    seeds = [str(m.config.seed) for m in members(job)]
     return f"seed {seeds[0]}" if len(seeds) == 1 else f"seeds {', '.join(seeds)}"
 
 
@@ -170,7 +170,7 @@ class EpisodesBar:
         from tqdm.auto import tqdm
 
         self.seeds = [m for job in jobs for m in members(job)]
-        total = sum(int(m.config["episodes"]) for m in self.seeds)
+        total = sum(int(m.config.episodes) for m in self.seeds)
         self.done = 0
         self.bar = tqdm(total=total, unit="ep", desc=f"{len(self.seeds)} seeds", dynamic_ncols=True)
 

@@ -69,7 +69,7 @@ def _seed_task(job, files_in: list[dict[str, bytes]] | None, stop_flag) -> list[
             _record_node(Path(j.out_dir), node)
         return None
     with tempfile.TemporaryDirectory(prefix="keras-rl-seed-") as tmp:
-        dirs = [Path(tmp) / f"seed_{j.config['seed']}" for j in group]
+        dirs = [Path(tmp) / f"seed_{j.config.seed}" for j in group]
         for run_dir, files in zip(dirs, files_in):
             run_dir.mkdir()
             for name, data in files.items():

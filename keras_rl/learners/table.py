@@ -75,12 +75,12 @@ NOT_STACKED: dict[str, tuple[str, object, str]] = {
 anything runs (``dispatch.jobs.batched``)."""
 
 
-def batch_refusal(experiment: str, config: dict) -> str | None:
+def batch_refusal(experiment: str, config) -> str | None:
     """Why a job of this config cannot join a seed batch, or None."""
     if experiment not in NOT_STACKED:
         return None
     field, value, why = NOT_STACKED[experiment]
-    return f"{field}={str(value).lower()} ({why})" if config.get(field) == value else None
+    return f"{field}={str(value).lower()} ({why})" if getattr(config, field) == value else None
 
 
 SEED_BATCH_CAP: dict[tuple[str, str], int] = {

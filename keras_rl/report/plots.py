@@ -216,7 +216,7 @@ def draw_job_curves(job) -> None:
     for member in getattr(job, "jobs", (job,)):  # a batch's seeds, or the one seed (dispatch/jobs.members)
         experiment = get_experiment(member.experiment)
         try:
-            plot_seed_curve(Path(member.out_dir), experiment, experiment.config_cls.from_dict(member.config))
+            plot_seed_curve(Path(member.out_dir), experiment, member.config)
         except Exception as exc:  # noqa: BLE001 - the runs are written; a missing plot must not fail the command
             print(
                 f"warning: could not draw {Path(member.out_dir) / 'curve.png'}: {type(exc).__name__}: {exc}",

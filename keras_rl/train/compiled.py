@@ -31,7 +31,6 @@ loop's own.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -142,16 +141,17 @@ class ProgramCache:
     (``tests/test_compiled_engine.py::test_a_seed_on_a_kept_program_plays_what_it_plays_alone``).
     """
 
-    UNSHAPING = ("seed", "episodes")
-    """Config fields the traced program does not depend on (the host reads them)."""
+    UNSHAPING = {"seed": 0, "episodes": 1}
+    """Config fields the traced program does not depend on (the host reads them), each set to one
+    value in the key."""
 
     def __init__(self, size: int = 4):
         self.size = size
-        self.kept: dict[str, tuple[Any, Any]] = {}
+        self.kept: dict[tuple, tuple[Any, Any]] = {}
 
-    def key(self, experiment: str, config) -> str:
-        fields = {k: v for k, v in config.to_dict().items() if k not in self.UNSHAPING}
-        return json.dumps([experiment, fields], sort_keys=True, default=str)
+    def key(self, experiment: str, config) -> tuple:
+        """The typed config itself, but for the fields no program depends on."""
+        return (experiment, config.replace(**self.UNSHAPING))
 
     def take(self, experiment: str, config, fresh, make_program: Callable) -> tuple[Any, Any]:
         """The (learner, program) this seed runs on, the learner holding ``fresh``'s state."""
