@@ -343,3 +343,51 @@ def test_a_broken_pools_surviving_workers_are_killed_before_its_jobs_start_again
         for process in list((pool._processes or {}).values()):
             process.kill()
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def test_the_one_dispatch_loop_refills_requeues_recovers_and_drains(monkeypatch):
+    """``dispatch/jobs.drive``, which the pool and Ray share (issue 71, item 4), on fake workers:
+    at most ``slots`` jobs at once, a job handed back by ``again`` starts first, a break is
+    recovered from, and Ctrl-C stops the workers and drains what runs."""
+    from keras_rl.dispatch import jobs
+
+    class Fake:
+        def __init__(self, interrupt_after: int | None = None):
+            self.log, self.started, self.at_once, self.polls = [], 0, 0, 0
+            self.interrupt_after, self.broke = interrupt_after, False
+
+        def submit(self, job):
+            self.started += 1
+            self.log.append(("start", job))
+            return job
+
+        def done(self, handles, timeout):
+            self.at_once = max(self.at_once, len(handles))
+            return list(handles) if timeout is None else handles[:1]
+
+        def collect(self, handle, job, again):
+            self.log.append(("end", job))
+            if job == "b" and not self.broke:  # its worker died: it and the pool start again
+                self.broke = True
+                again("b")
+                return True
+            return False
+
+        def stop(self):
+            self.log.append(("stop", None))
+
+        def poll(self):
+            self.polls += 1
+            if self.interrupt_after is not None and self.polls > self.interrupt_after:
+                raise KeyboardInterrupt
+
+        def recover(self):
+            self.log.append(("recover", None))
+
+    fake = Fake()
+    assert jobs.drive(["a", "b", "c", "d"], 2, fake) == (False, 0)
+    assert fake.at_once == 2 and [j for e, j in fake.log if e == "end"] == ["a", "b", "c", "b", "d"]
+    assert fake.log.index(("recover", None)) < fake.log.index(("start", "d"))  # recovered before more start
+    stopped = Fake(interrupt_after=1)
+    assert jobs.drive(["a", "b", "c", "d"], 2, stopped) == (True, 0)
+    assert ("stop", None) in stopped.log and ("start", "d") not in stopped.log  # queued jobs never start

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import math
 import shutil
+import sys
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -236,6 +238,78 @@ AfterJob = Callable[["SeedJob | SeedBatchJob"], None]
 class Backend(Protocol):
     def run(self, jobs: list[SeedJob], progress: bool, after_job: AfterJob | None = None) -> bool:
         """Run the jobs; True if Ctrl-C stopped them (no further job starts then)."""
+
+
+STOP_WAIT_SECONDS = 300
+"""How long a driver waits for its running seeds to stop after Ctrl-C or SIGTERM."""
+
+
+class Workers(Protocol):
+    """What the one dispatch loop (``drive``) asks of a backend's workers (the pool's processes,
+    Ray's tasks): start a job, say which started jobs are done, report one, stop them all."""
+
+    def submit(self, job) -> Any:
+        """Start ``job``; a handle for it."""
+
+    def done(self, handles: list, timeout: float | None) -> list:
+        """Those of ``handles`` that are done within ``timeout`` seconds (None: all of them)."""
+
+    def collect(self, handle, job, again: Callable[[Any], None]) -> bool:
+        """Report a finished job (``again(job)`` queues one to start again first); True where
+        the backend broke and must be ``recover``ed before anything else starts."""
+
+    def stop(self) -> None:
+        """Ask every running job to stop at its next episode end."""
+
+    def poll(self) -> None:
+        """Between waits: a progress bar's update, or nothing."""
+
+    def recover(self) -> None:
+        """After a break: the backend as new (a broken pool replaced)."""
+
+
+def drive(jobs: list, slots: int, workers: Workers) -> tuple[bool, int]:
+    """The one submit/collect/drain loop of the pool and Ray: up to ``slots`` jobs at once, each
+    reported as it ends; on Ctrl-C or SIGTERM no queued job starts, the running ones are asked to
+    stop and waited for (``STOP_WAIT_SECONDS`` at most; a second Ctrl-C meanwhile keeps waiting).
+    Whether it was interrupted, and how many jobs still ran when it gave up waiting."""
+    pending: list = list(jobs)
+    running: dict[Any, Any] = {}
+
+    def again(job) -> None:
+        pending.insert(0, job)
+
+    def collect(handles) -> bool:
+        broke = False
+        for handle in handles:
+            broke |= workers.collect(handle, running.pop(handle), again)
+        return broke
+
+    try:
+        while pending or running:
+            while pending and len(running) < slots:
+                job = pending.pop(0)
+                running[workers.submit(job)] = job
+            workers.poll()
+            if collect(workers.done(list(running), 0.5)):
+                collect(workers.done(list(running), None))  # the backend is gone: every job it ran with it
+                workers.recover()
+    except KeyboardInterrupt:
+        workers.stop()
+        deadline = time.monotonic() + STOP_WAIT_SECONDS
+        while running and time.monotonic() < deadline:
+            try:
+                collect(workers.done(list(running), 1.0))
+            except KeyboardInterrupt:
+                continue
+        if running:
+            print(
+                f"warning: {len(running)} jobs did not stop within {STOP_WAIT_SECONDS} s; their folders may not "
+                "be written",
+                file=sys.stderr,
+            )
+        return True, len(running)
+    return False, 0
 
 
 class InProcess:

@@ -18,21 +18,18 @@ from __future__ import annotations
 
 import dataclasses
 import sys
-import time
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures import ALL_COMPLETED, FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from keras_rl.dispatch.jobs import AfterJob, execute, members, say_job_failed, with_each
+from keras_rl.dispatch.jobs import AfterJob, drive, execute, members, say_job_failed, with_each
 from keras_rl.runs.signals import sigterm_as_interrupt
 
 _stop: Any = None
 """The driver's stop flag, in each worker (set by ``_start_worker``)."""
 
-STOP_WAIT_SECONDS = 300
-"""How long the driver waits for running seeds to stop after Ctrl-C."""
 MAX_RETRIES = 3
 """How often a job starts again after its worker died."""
 
@@ -58,82 +55,81 @@ class ProcessPool:
     def run(self, jobs: list, progress: bool, after_job: AfterJob | None = None) -> bool:
         import multiprocessing
 
-        context = multiprocessing.get_context("spawn")
-        stop = context.Event()
         size = max(1, min(self.workers, len(jobs)))
-
-        def new_pool() -> ProcessPoolExecutor:
-            return ProcessPoolExecutor(
-                max_workers=size, mp_context=context, initializer=_start_worker, initargs=(stop,)
-            )
-
         bar = EpisodesBar(jobs) if progress else None
-        running: dict[Future, Any] = {}
-        pending = list(jobs)
-        retries: dict[int, int] = {}
-        interrupted = False
-        pool = new_pool()
-
-        def collect(done) -> bool:
-            """Each finished job reported; True where a dead worker broke the pool."""
-            broken = False
-            for future in done:
-                job = running.pop(future)
-                error = future.exception()
-                if isinstance(error, BrokenProcessPool) and not stop.is_set():
-                    broken = True
-                    key = id(job)
-                    retries[key] = retries.get(key, 0) + 1
-                    if retries[key] <= MAX_RETRIES:
-                        print(
-                            f"warning: a worker died running {_seeds(job)}; it starts again "
-                            f"({retries[key]} of {MAX_RETRIES})",
-                            file=sys.stderr,
-                        )
-                        pending.insert(0, _again(job))
-                        retries[id(pending[0])] = retries.pop(key)
-                        continue
-                if error is not None:
-                    say_job_failed(job, error)
-                if after_job is not None:
-                    after_job(job)
-                if bar is not None:
-                    bar.job_done(job)
-            return broken
-
+        pool = _PoolWorkers(multiprocessing.get_context("spawn"), size, bar, after_job)
         try:
             with sigterm_as_interrupt():
-                try:
-                    while pending or running:
-                        while pending and len(running) < size:
-                            job = pending.pop(0)
-                            running[pool.submit(_run_job, job)] = job
-                        if bar is not None:
-                            bar.poll()
-                        if collect(wait(list(running), timeout=0.5, return_when=FIRST_COMPLETED).done):
-                            collect(wait(list(running)).done)  # the pool is gone: every job it ran with it
-                            _kill_survivors(pool)
-                            pool.shutdown(wait=True, cancel_futures=True)
-                            pool = new_pool()
-                except KeyboardInterrupt:
-                    interrupted = True
-                    stop.set()  # running seeds stop at their next episode end; queued ones never start
-                    deadline = time.monotonic() + STOP_WAIT_SECONDS
-                    while running and time.monotonic() < deadline:
-                        try:
-                            collect(wait(list(running), timeout=1.0, return_when=FIRST_COMPLETED).done)
-                        except KeyboardInterrupt:  # a second Ctrl-C while the seeds flush: keep waiting
-                            continue
-                    if running:
-                        print(
-                            f"warning: {len(running)} jobs did not stop within {STOP_WAIT_SECONDS} s",
-                            file=sys.stderr,
-                        )
+                interrupted, _ = drive(jobs, size, pool)
         finally:
-            pool.shutdown(wait=not running, cancel_futures=True)
-            if bar is not None:
-                bar.close()
+            pool.pool.shutdown(wait=not pool.in_flight, cancel_futures=True)
+            if pool.bar is not None:
+                pool.bar.close()
         return interrupted
+
+
+class _PoolWorkers:
+    """The pool's side of ``jobs.drive``: processes of a ``ProcessPoolExecutor`` that share a stop
+    flag; a job whose worker died starts again, at most ``MAX_RETRIES`` times, in a new pool."""
+
+    def __init__(self, context, size: int, bar: EpisodesBar | None, after_job: AfterJob | None):
+        self.context, self.size, self.bar, self.after_job = context, size, bar, after_job
+        self.stop_flag = context.Event()
+        self.retries: dict[int, int] = {}
+        self.in_flight: set[Future] = set()
+        self.pool = self._new_pool()
+
+    def _new_pool(self) -> ProcessPoolExecutor:
+        return ProcessPoolExecutor(
+            max_workers=self.size, mp_context=self.context, initializer=_start_worker, initargs=(self.stop_flag,)
+        )
+
+    def submit(self, job) -> Future:
+        future = self.pool.submit(_run_job, job)
+        self.in_flight.add(future)
+        return future
+
+    def done(self, handles: list, timeout: float | None) -> list:
+        return list(
+            wait(handles, timeout=timeout, return_when=ALL_COMPLETED if timeout is None else FIRST_COMPLETED).done
+        )
+
+    def collect(self, future: Future, job, again) -> bool:
+        self.in_flight.discard(future)
+        error = future.exception()
+        broken = isinstance(error, BrokenProcessPool) and not self.stop_flag.is_set()
+        if broken:
+            key = id(job)
+            self.retries[key] = self.retries.get(key, 0) + 1
+            if self.retries[key] <= MAX_RETRIES:
+                print(
+                    f"warning: a worker died running {_seeds(job)}; it starts again "
+                    f"({self.retries[key]} of {MAX_RETRIES})",
+                    file=sys.stderr,
+                )
+                retry = _again(job)
+                self.retries[id(retry)] = self.retries.pop(key)
+                again(retry)
+                return True
+        if error is not None:
+            say_job_failed(job, error)
+        if self.after_job is not None:
+            self.after_job(job)
+        if self.bar is not None:
+            self.bar.job_done(job)
+        return broken
+
+    def stop(self) -> None:
+        self.stop_flag.set()  # running seeds stop at their next episode end; queued ones never start
+
+    def poll(self) -> None:
+        if self.bar is not None:
+            self.bar.poll()
+
+    def recover(self) -> None:
+        _kill_survivors(self.pool)
+        self.pool.shutdown(wait=True, cancel_futures=True)
+        self.pool = self._new_pool()
 
 
 def _kill_survivors(pool: ProcessPoolExecutor) -> None:

@@ -24,15 +24,13 @@ from __future__ import annotations
 import dataclasses
 import os
 import socket
-import sys
 import tempfile
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from keras_rl.atomic import atomic_write_bytes
-from keras_rl.dispatch.jobs import execute, members, say_job_failed, seeds_bar, with_each
+from keras_rl.dispatch.jobs import drive, execute, members, say_job_failed, seeds_bar, with_each
 from keras_rl.errors import ConfigError, argument
 from keras_rl.runs.checkpoint import delete_checkpoints
 from keras_rl.runs.signals import sigterm_as_interrupt
@@ -196,60 +194,56 @@ class RayBackend:
             ray.shutdown()
 
     def _run(self, ray, slots: int, jobs: list, progress: bool, after_job=None) -> bool:
-        task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(_seed_task)
-        stop = ray.remote(num_cpus=0)(_StopFlag).remote()
-        ship = self.address is not None  # a cluster's nodes may not share this disk
-        pending = list(jobs)
-        running: dict[Any, Any] = {}
-        bar = seeds_bar(len(jobs)) if progress else None
-        interrupted = False
-
-        def collect(refs) -> None:
-            for ref in refs:
-                job = running.pop(ref)
-                try:
-                    files = ray.get(ref)
-                except ray.exceptions.RayTaskError as exc:  # one line, not the worker's coloured traceback
-                    cause = exc.cause if getattr(exc, "cause", None) is not None else exc
-                    say_job_failed(job, cause, _plain(str(cause)))
-                    if after_job is not None:
-                        after_job(job)
-                    if bar is not None:
-                        bar.update(1)
-                    continue
-                if ship:
-                    for member, member_files in zip(members(job), files):
-                        _land(member, member_files)
-                if after_job is not None:
-                    after_job(job)
-                if bar is not None:
-                    bar.update(1)
-
+        tasks = _RayWorkers(ray, self.address is not None, seeds_bar(len(jobs)) if progress else None, after_job)
         try:
-            while pending or running:
-                while pending and len(running) < slots:
-                    job = pending.pop(0)
-                    files = [_pack(m.out_dir) if m.start == "resume" else {} for m in members(job)] if ship else None
-                    running[task.remote(job, files, stop)] = job
-                collect(ray.wait(list(running), num_returns=1, timeout=0.5)[0])
-        except KeyboardInterrupt:
-            interrupted = True
-            stop.set.remote()  # running seeds stop at their next episode end; queued ones never start
-            deadline = time.monotonic() + 300
-            while running and time.monotonic() < deadline:
-                try:
-                    collect(ray.wait(list(running), num_returns=1, timeout=1.0)[0])
-                except KeyboardInterrupt:  # a second Ctrl-C while the seeds flush: keep waiting
-                    continue
-            if running:
-                print(
-                    f"warning: {len(running)} seeds did not stop within 300 s; their folders are not written",
-                    file=sys.stderr,
-                )
+            interrupted, _ = drive(jobs, slots, tasks)
         finally:
-            if bar is not None:
-                bar.close()
+            if tasks.bar is not None:
+                tasks.bar.close()
         return interrupted
+
+
+class _RayWorkers:
+    """Ray's side of ``jobs.drive``: each job a task (Ray retries a task whose worker died,
+    ``MAX_RETRIES`` times), all sharing one stop flag; on a cluster (``ship``) a resumed job's files
+    travel with it and every job's files come back, since the nodes may not share this disk."""
+
+    def __init__(self, ray, ship: bool, bar, after_job):
+        self.ray, self.ship, self.bar, self.after_job = ray, ship, bar, after_job
+        self.task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(_seed_task)
+        self.flag = ray.remote(num_cpus=0)(_StopFlag).remote()
+
+    def submit(self, job) -> Any:
+        files = [_pack(m.out_dir) if m.start == "resume" else {} for m in members(job)] if self.ship else None
+        return self.task.remote(job, files, self.flag)
+
+    def done(self, handles: list, timeout: float | None) -> list:
+        return self.ray.wait(handles, num_returns=1 if timeout is not None else len(handles), timeout=timeout)[0]
+
+    def collect(self, ref, job, again) -> bool:
+        try:
+            files = self.ray.get(ref)
+        except self.ray.exceptions.RayTaskError as exc:  # one line, not the worker's coloured traceback
+            cause = exc.cause if getattr(exc, "cause", None) is not None else exc
+            say_job_failed(job, cause, _plain(str(cause)))
+        else:
+            if self.ship:
+                for member, member_files in zip(members(job), files):
+                    _land(member, member_files)
+        if self.after_job is not None:
+            self.after_job(job)
+        if self.bar is not None:
+            self.bar.update(1)
+        return False
+
+    def stop(self) -> None:
+        self.flag.set.remote()  # running seeds stop at their next episode end; queued ones never start
+
+    def poll(self) -> None:
+        pass
+
+    def recover(self) -> None:
+        pass
 
 
 def _plain(text: str) -> str:
