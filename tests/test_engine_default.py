@@ -16,7 +16,6 @@ import pytest
 from keras_rl.cli import main
 from keras_rl.runs.lifecycle import recorded_engine
 from keras_rl.runs.run_set import RunSet
-from keras_rl.train.compiled_scope import CERTIFIED
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "results"
@@ -115,24 +114,6 @@ def test_every_committed_set_names_the_engine_its_manifest_entry_records():
     for entry in entries:
         first = RESULTS / entry["set"] / f"seed_{entry['seeds'][0]}"
         assert recorded_engine(first) == entry["engine"], entry["set"]
-
-
-def test_the_certified_table_is_the_forests_engine_rows():
-    """``CERTIFIED`` names exactly the posts whose "compiled engine vs Gymnasium loop" row reads
-    equivalent on both readings, at the seeds it names."""
-    rows = json.loads((RESULTS / "forest.json").read_text())["rows"]
-    engine_rows = [r for r in rows if r["group"] == "compiled engine vs Gymnasium loop"]
-    assert engine_rows
-    certified = {
-        (r["label"], "keras")
-        for r in engine_rows
-        if not r["pending"]
-        and r["success"]["reading"].startswith("equivalent")
-        and r["speed"]["reading"].startswith("equivalent")
-    }
-    assert certified == set(CERTIFIED)
-    for r in engine_rows:
-        assert f"over {r['seeds']} seeds per engine" in CERTIFIED[(r["label"], "keras")]
 
 
 def test_the_api_and_the_command_share_one_default():

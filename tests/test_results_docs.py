@@ -223,6 +223,13 @@ def test_the_forest_plot_and_its_tables_match_the_committed_runs():
     assert committed == {"command": gen.COMMAND, "rows": rows}, (
         "results/forest.json is stale: python -m maintainers tables forest --write"
     )
+    # the compiled engine's certification, read by the package, is generated from these rows
+    from keras_rl.train.compiled_scope import CERTIFIED
+
+    assert json.loads(gen.CERTIFIED.read_text()) == gen.certified(rows), (
+        "keras_rl/train/certified.json is stale: python -m maintainers tables forest --write"
+    )
+    assert set(CERTIFIED) == {("pendulum", "keras"), ("cartpole", "keras"), ("mountaincar", "keras")}
     figure = (ROOT / "results" / "forest.png").read_bytes()
     assert figure == (ROOT / "docs" / "forest.png").read_bytes()  # the docs site's copy
     text = gen.table(rows)

@@ -4,6 +4,9 @@ refuse a config it cannot run from here, before TensorFlow loads (``train/compil
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 from keras_rl.errors import argument
 
 ENGINE = "compiled"
@@ -22,17 +25,16 @@ SWITCHES = {
 with fixed weights only when nothing trains before its end): field -> (value, ledger ID, why)."""
 
 
-CERTIFIED = {
-    ("pendulum", "keras"): "equivalent to the Gymnasium loop on success and median episodes over 100 seeds per engine "
-    "(results/engines/pendulum/report.md)",
-    ("cartpole", "keras"): "equivalent to the Gymnasium loop on success and median episodes over 100 seeds per engine "
-    "(results/engines/cartpole/report.md)",
-    ("mountaincar", "keras"): "equivalent to the Gymnasium loop on success and median episodes over 200 seeds per "
-    "engine, read as its plan defines them (results/engines/mountaincar/report.md)",
+CERTIFIED_FILE = Path(__file__).with_name("certified.json")
+"""Package data written from the forest's "compiled engine vs Gymnasium loop" rows by
+``python -m maintainers tables forest --write`` (``tests/test_results_docs.py`` regenerates it)."""
+CERTIFIED: dict[tuple[str, str], str] = {
+    (post, framework): why
+    for key, why in json.loads(CERTIFIED_FILE.read_text()).items()
+    for post, framework in [key.split("/")]
 }
 """Where the compiled engine is certified, with what says so: the default engine there
-(``study.choose_engine``). The forest's "compiled engine vs Gymnasium loop" rows are the
-evidence; ``tests/test_engine_default.py`` keeps this table equal to them."""
+(``study.choose_engine``). Read from the forest's verdicts, never written here."""
 
 
 def refusal(experiment: str, config) -> str | None:

@@ -36,6 +36,7 @@ from maintainers import plans
 from maintainers.checkout import ROOT
 
 RESULTS = ROOT / "results"
+ENGINE_GROUP = "compiled engine vs Gymnasium loop"
 FIGURE = RESULTS / "forest.png"
 DOCS_FIGURE = ROOT / "docs" / "forest.png"
 """The same figure beside ``docs/findings.md`` (the docs site takes no link out of ``docs/``)."""
@@ -78,7 +79,7 @@ def _comparisons() -> list[Comparison]:
     for post, seeds in (("pendulum", 100), ("cartpole", 100)):
         out.append(
             Comparison(
-                "compiled engine vs Gymnasium loop",
+                ENGINE_GROUP,
                 post,
                 f"engines/{post}/compiled",
                 f"engines/{post}/gymnasium",
@@ -90,7 +91,7 @@ def _comparisons() -> list[Comparison]:
     # row reads the 200 as planned
     out.append(
         Comparison(
-            "compiled engine vs Gymnasium loop",
+            ENGINE_GROUP,
             "mountaincar",
             "engines/mountaincar/compiled",
             ("checks/mountaincar/baseline", "mountaincar/faithful-seeds-100-199"),
@@ -425,6 +426,26 @@ def draw(data: list[dict[str, Any]], path: Path) -> None:
     save_figure(fig, path)
 
 
+CERTIFIED = ROOT / "keras_rl" / "train" / "certified.json"
+"""The compiled engine's certification, package data that ``train/compiled_scope.CERTIFIED`` reads."""
+
+
+def certified(data: list[dict]) -> dict[str, str]:
+    """Each post whose "compiled engine vs Gymnasium loop" row reads equivalent on both readings,
+    with what says so: the compiled engine is its default engine (``study.choose_engine``)."""
+    return {
+        f"{r['label']}/keras": "equivalent to the Gymnasium loop on success and median episodes over "
+        f"{r['seeds']} seeds per engine"
+        + (", read as its plan defines them" if "speed_converged_at_end" in r else "")
+        + f" (results/engines/{r['label']}/report.md)"
+        for r in data
+        if r["group"] == ENGINE_GROUP
+        and not r["pending"]
+        and r["success"]["reading"].startswith("equivalent")
+        and r["speed"]["reading"].startswith("equivalent")
+    }
+
+
 def run(args) -> int:
     from keras_rl.atomic import atomic_write_bytes, atomic_write_json, atomic_write_text
     from maintainers.markdown import replace_block
@@ -435,9 +456,10 @@ def run(args) -> int:
         print(text)
         return 0
     atomic_write_json(DATA, {"command": COMMAND, "rows": data})
+    atomic_write_json(CERTIFIED, certified(data))
     draw(data, FIGURE)
     atomic_write_bytes(DOCS_FIGURE, FIGURE.read_bytes())
     for page in PAGES:
         atomic_write_text(page, replace_block(page.read_text(), BEGIN, END, text))
-    print(f"wrote {FIGURE}, {DATA} and the blocks of {', '.join(str(p) for p in PAGES)}")
+    print(f"wrote {FIGURE}, {DATA}, {CERTIFIED} and the blocks of {', '.join(str(p) for p in PAGES)}")
     return 0
