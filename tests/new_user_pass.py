@@ -709,7 +709,7 @@ def round_three(p: Pass) -> None:
     p.api(
         "r3.6 api.reproduce(workers='two')",
         f"api.reproduce('pendulum', seeds=[0], workers='two', out={str(w / 'A6')!r})",
-        "ConfigError: --workers must be a whole number, got 'two'",
+        "ConfigError: workers must be a whole number, got 'two'",
         absent=w / "A6",
     )
     p.api(
