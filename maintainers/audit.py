@@ -114,9 +114,10 @@ def kept(path: Path, draw_seed: int, per_set: int, drawn: dict[str, list[list[in
 
 
 def at_committed_tree(results: dict[str, dict]) -> dict[str, dict]:
-    """The results whose reruns ran at a committed tree: what the committed report keeps (a result
-    rerun at "HEAD + changes" reruns, issue 72 item 17)."""
-    return {name: r for name, r in results.items() if not r["at"].endswith("+ changes")}
+    """The results whose reruns ran at a committed tree and kept their own record: what the
+    committed report keeps. A result rerun at "HEAD + changes", and one transcribed from an older
+    report whose JSON was not kept, rerun (issue 72 item 17)."""
+    return {name: r for name, r in results.items() if not r["at"].endswith("+ changes") and not r.get("transcribed")}
 
 
 def draw(entries: list[dict], per_set: int, draw_seed: int) -> dict[str, list[list[int]]]:

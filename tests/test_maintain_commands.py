@@ -139,13 +139,18 @@ def test_an_audit_draws_the_same_seeds_from_the_same_draw_seed_and_a_batch_whole
 
 def test_a_written_audit_runs_at_a_committed_tree_and_keeps_no_rerun_made_on_changes(tmp_path, monkeypatch):
     """--write refuses a tree whose tracked files differ from HEAD (its report's own files aside, which
-    it rewrites as it goes), and reruns a committed result made at "HEAD + changes"."""
+    it rewrites as it goes), and reruns a committed result made at "HEAD + changes" or transcribed
+    from an older report without its JSON."""
     import maintainers.audit as audit
 
     monkeypatch.setattr(audit, "uncommitted", lambda: ["keras_rl/api.py"])
     code = main(["audit", "--sets", "checks/pendulum/mutants/tau_x10", "--write", "--out", str(tmp_path / "a")])
     assert code == 2 and not (tmp_path / "a").exists()
-    made = {"a": {"at": "HEAD 0123abcd"}, "b": {"at": "HEAD 0123abcd + changes"}}
+    made = {
+        "a": {"at": "HEAD 0123abcd"},
+        "b": {"at": "HEAD 0123abcd + changes"},
+        "c": {"at": "HEAD 0123abcd", "transcribed": "from results/AUDIT.md at e6136158"},
+    }
     assert audit.at_committed_tree(made) == {"a": made["a"]}
 
 
