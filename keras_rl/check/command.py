@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 import math
 import shutil
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -579,13 +580,15 @@ def run_check(
     sequential_alpha: float | None = None,
     dry_run: bool = False,
     framework: str = "keras",
+    overrides: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> list[CheckResult]:
     """Run the fresh seeds of every experiment at once, then test each against its baseline
     (fixed-n, Holm over the posts); or, ``sequential``, look after every stage of seeds and
     stop each post where its design decides. ``sequential_alpha``: the command's false-alarm
     bound instead of the committed designs' 1%, split over the posts and each post's looks
     (``sequential.at_level``; a bisect step's share of its alpha). ``dry_run``: every input
-    checked and each post's plan printed, nothing trained or written."""
+    checked and each post's plan printed, nothing trained or written. ``overrides``: each post's typed
+    config changes (post -> field -> value; ``config.replace``), none by default."""
     prepare_out(out)  # a folder of someone else's files is named before anything else
     plan = []
     designs: dict[str, tuple[SequentialDesign, float]] = {}
@@ -617,9 +620,8 @@ def run_check(
             check_twin_count(name, rule.statistic, len(fresh), level)
         else:
             check_baseline_size(name, rule.statistic, len(baseline), len(fresh), level)
-        config = experiment.config_cls.for_variant(
-            "faithful", episodes=rule.episodes, framework=rule.framework
-        ).with_text_overrides(options.overrides)
+        config = experiment.config_cls.for_variant("faithful", episodes=rule.episodes, framework=rule.framework)
+        config = config.replace(**(overrides or {}).get(name, {}))
         plan.append((experiment, rule, fresh, config, baseline, baseline_rows))
     if dry_run:
         for experiment, rule, fresh, _config, baseline, _rows in plan:
@@ -680,7 +682,7 @@ def run_check(
                 baseline_of,
                 new,
                 decision,
-                list(options.overrides),
+                override_texts(overrides, experiment.name),
                 error_rates(rule),
                 twins=reading,
                 fallback=fallbacks.get(experiment.name),
@@ -718,7 +720,7 @@ def run_check(
                     baseline,
                     new,
                     decision,
-                    list(options.overrides),
+                    override_texts(overrides, experiment.name),
                     error_rates(rule),
                     looks=looks[experiment.name],
                     design={
@@ -774,11 +776,19 @@ def _run_seeds(out: Path, groups: list[tuple], options: RunOptions) -> None:
             for s in fresh
         ]
         # a --set no stacked learner covers (post 001's learning phase) runs its seeds alone
-        size = rule.seed_batch if batch_refusal(experiment.name, config.to_dict()) is None else 1
+        size = rule.seed_batch if batch_refusal(experiment.name, config) is None else 1
         jobs += batched(group, size)
     outcome = train_seeds(jobs, options, after_job=draw_job_curves, pack=False)
     if outcome.interrupted:
         raise KeyboardInterrupt
+
+
+def override_texts(overrides: Mapping[str, Mapping[str, Any]] | None, experiment: str) -> list[str]:
+    """A post's config changes as ``check.json`` and ``check.md`` record them: ``FIELD=VALUE``,
+    each value as a folder name writes it, sorted by field."""
+    from keras_rl.config import value_text
+
+    return [f"{k}={value_text(v)}" for k, v in sorted((overrides or {}).get(experiment, {}).items())]
 
 
 def _read_new(folder: Path, experiment, rule: CheckRule, fresh: list[int]) -> tuple[dict, dict]:

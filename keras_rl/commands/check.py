@@ -12,7 +12,7 @@ from keras_rl.commands.common import (
     _stopped,
     parse_seeds,
 )
-from keras_rl.commands.flags import options_from_args, shared_flags
+from keras_rl.commands.flags import options_from_args, set_changes, shared_flags
 from keras_rl.errors import ConfigError, KerasRLError, NoVerdictError
 from keras_rl.study import check_writable_dir
 
@@ -123,6 +123,9 @@ def check_results(args: argparse.Namespace) -> list:
         raise ConfigError(f"--alpha must lie in (0, 1), got {args.alpha}")
     seeds = parse_seeds(args.seeds) if args.seeds is not None else None
     options = options_from_args(args)
+    from keras_rl.registry import get_experiment
+
+    overrides = {name: set_changes(get_experiment(name).config_cls, args) for name in names}
     check_writable_dir(args.out, "--out")  # bad input (exit 2), found before any training
     options.check_address()
     from keras_rl.check.command import default_baselines, run_check
@@ -139,4 +142,5 @@ def check_results(args: argparse.Namespace) -> list:
         sequential_alpha=args.alpha,
         dry_run=args.dry_run,
         framework=framework,
+        overrides=overrides,
     )

@@ -30,9 +30,14 @@ def options_from_args(args: argparse.Namespace) -> RunOptions:
         engine=getattr(args, "engine", AUTO),
         address=address,
         address_source=source,
-        overrides=tuple(getattr(args, "overrides", ())),
         progress=not getattr(args, "no_progress", False),
     )
+
+
+def set_changes(config_cls, args: argparse.Namespace) -> dict[str, Any]:
+    """``--set FIELD=VALUE``'s texts, parsed once by the config's field types into the typed changes
+    the library takes (``config.replace(**changes)``)."""
+    return config_cls.parse_assignments(tuple(getattr(args, "overrides", None) or ()))
 
 
 def seed_batch_arg(text: str) -> int | str:

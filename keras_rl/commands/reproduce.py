@@ -11,7 +11,7 @@ from keras_rl.commands.common import (
     _recorded_config,
     parse_seeds,
 )
-from keras_rl.commands.flags import RUN_FLAGS, options_from_args, path_arg, shared_flags
+from keras_rl.commands.flags import RUN_FLAGS, options_from_args, path_arg, set_changes, shared_flags
 from keras_rl.errors import ConfigError
 from keras_rl.study import MIN_SUCCESS_RATE
 
@@ -87,12 +87,12 @@ def add_parser(sub) -> None:
     )
 
 
-def _set_suffix(config_cls, assignments: tuple[str, ...]) -> str:
+def _set_suffix(changes: dict) -> str:
     """``-set-broadcast_target=false,tau=0.005`` for a default folder of a modified config,
     named from the parsed values (``tau=5e-3`` and ``tau=0.005`` name one folder)."""
     from keras_rl.config import overrides_name
 
-    return "-set-" + overrides_name(config_cls.parse_assignments(assignments)).replace("/", "_")
+    return "-set-" + overrides_name(changes).replace("/", "_")
 
 
 def reproduce(args: argparse.Namespace) -> int:
@@ -140,12 +140,13 @@ def study_from_args(args: argparse.Namespace):
     eval_episodes = 10 if args.eval_episodes is None else args.eval_episodes
     evaluation = EvalSchedule(args.eval_every, eval_episodes) if args.eval_every else None
     check_success_rate(args.min_success_rate)
+    changes = set_changes(experiment.config_cls, args)
     if recorded is not None:
-        base = recorded.replace(**options.config_changes()).with_text_overrides(options.overrides)
+        base = recorded.replace(**options.config_changes()).replace(**changes)
     else:
         base = experiment.config_cls.for_variant(
             variant, framework=framework, matched_init=matched_init, **options.config_changes()
-        ).with_text_overrides(options.overrides)
+        ).replace(**changes)
     if framework == "torch":
         from keras_rl.torch import check_torch
 
@@ -153,8 +154,8 @@ def study_from_args(args: argparse.Namespace):
     out = args.out
     if out is None:
         out = run_folder(Path("results"), experiment.name, variant, framework, matched_init)
-        if options.overrides:  # a modified config never lands in the variant's own folder
-            out = out.with_name(out.name + _set_suffix(experiment.config_cls, options.overrides))
+        if changes:  # a modified config never lands in the variant's own folder
+            out = out.with_name(out.name + _set_suffix(changes))
     return Study(
         base,
         tuple(seeds),

@@ -12,7 +12,7 @@ from keras_rl.commands.common import (
     _stopped,
     parse_seeds,
 )
-from keras_rl.commands.flags import options_from_args, shared_flags
+from keras_rl.commands.flags import options_from_args, set_changes, shared_flags
 from keras_rl.errors import ConfigError
 from keras_rl.study import check_seed_batch, check_writable_dir
 
@@ -70,15 +70,14 @@ def sweep(args: argparse.Namespace) -> int:
     seeds = parse_seeds(args.seeds)
     options = options_from_args(args)
     base = experiment.config_cls.for_variant(args.variant, framework=args.framework, **options.config_changes())
-    base = base.with_text_overrides(options.overrides)
+    changes = set_changes(experiment.config_cls, args)
+    base = base.replace(**changes)
     if args.ablate and args.grid:
         raise ConfigError("--ablate makes its own grid; drop --grid, or sweep without --ablate")
     if not args.ablate and not args.grid:
         raise ConfigError("a sweep needs --grid FIELD=V1,V2 (repeatable) or --ablate")
     points = ablation_grid(experiment.config_cls, base) if args.ablate else parse_grid(experiment.config_cls, args.grid)
-    both = sorted(
-        set(experiment.config_cls.parse_assignments(options.overrides)) & {k for p in points for k in p.overrides}
-    )
+    both = sorted(set(changes) & {k for p in points for k in p.overrides})
     if both:
         raise ConfigError(
             f"{', '.join(both)} given both by --set and by the {'ablation' if args.ablate else '--grid'}; "

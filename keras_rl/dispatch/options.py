@@ -32,8 +32,6 @@ class RunOptions:
     (``dispatch/jobs.auto_batch_size``)."""
     episodes: int | None = None
     """The episode budget; None keeps the post's."""
-    overrides: tuple[str, ...] = ()
-    """``FIELD=VALUE`` texts from ``--set``, parsed by ``config.parse_assignments``."""
     progress: bool = True
     address_source: str = "address"
     """Where ``address`` came from, for messages: the argument ``address`` or ``$RAY_ADDRESS``."""
@@ -52,7 +50,6 @@ class RunOptions:
         engine: str = AUTO,
         address: str | None = None,
         address_source: str = "address",
-        overrides: tuple[str, ...] = (),
         progress: bool = True,
     ) -> RunOptions:
         """Options made in code (``api``) or from a command line: each checked, a ConfigError naming
@@ -92,7 +89,6 @@ class RunOptions:
             address=address,
             seed_batch=seed_batch,
             episodes=episodes,
-            overrides=overrides,
             progress=progress,
             address_source=address_source,
             engine=engine,

@@ -103,7 +103,7 @@ def make_commands(name: str) -> list[list[str]]:
         if folder.is_dir() and seed_count(folder) < len(TUNE) + len(REPORT):
             # seeds 10-29 beside the committed 0-9, made alike; --make then moves them in (move_seeds)
             config = get_experiment(name).config_cls.for_variant("faithful").with_text_overrides(sets[1::2])
-            batched = engine_args(name, 1 if batch_refusal(name, config.to_dict()) else MUTANT_BATCH)
+            batched = engine_args(name, 1 if batch_refusal(name, config) else MUTANT_BATCH)
             out.append(
                 ["keras-rl", "reproduce", name, "--seeds", "10-29", "--episodes", str(episodes), *sets,
                  "--no-progress", "--min-success-rate", "0", "--workers", "2", *batched,
