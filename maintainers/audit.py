@@ -11,8 +11,10 @@ episodes, every column but wall time.
 
 The draw is fixed by ``--draw-seed``: the same seed draws the same seeds of the same sets. A
 seed-batched set is drawn by batch (its seeds' bits depend on their batch mates): the whole
-batch reruns and its drawn seed is compared. ``--write`` runs only at a committed tree (its own
-report aside), and a committed result rerun at "HEAD + changes" is rerun. Each rerun goes
+batch reruns and its drawn seed is compared. A set made at more than one commit draws a batch
+of each, so that every code version is sampled. ``--write`` runs only at a committed tree (its
+own report aside), and a committed result rerun at "HEAD + changes", or transcribed from an older
+report without its JSON, is rerun. Each rerun goes
 through ``manifest.reproduce_command``
 (as ``manifest --regenerate``), at HEAD; a set that HEAD no longer makes the same bits for by
 design (``AT_RECORDED_COMMIT``: a retired path, a fixed bug) reruns at its seed's recorded commit,
@@ -123,13 +125,19 @@ def at_committed_tree(results: dict[str, dict]) -> dict[str, dict]:
 def draw(entries: list[dict], per_set: int, draw_seed: int) -> dict[str, list[list[int]]]:
     """Set -> the batches drawn from it (``per_set`` of them, or all it has). Each set's draw has a
     generator of its own, seeded by ``draw_seed`` and the set's name, so a set draws the same
-    batches whichever other sets an audit takes (``--sets``)."""
+    batches whichever other sets an audit takes (``--sets``). A set made at more than one commit
+    (``batch_commits``) also draws ``per_set`` batches of each commit the first draw missed, so
+    that every code version is sampled (issue 72 item 17)."""
     drawn = {}
     for entry in entries:
         batches = entry["batches"]
         rng = np.random.default_rng([draw_seed, zlib.crc32(entry["set"].encode())])
-        picks = rng.choice(len(batches), size=min(per_set, len(batches)), replace=False)
-        drawn[entry["set"]] = [batches[i] for i in sorted(int(p) for p in picks)]
+        picks = {int(p) for p in rng.choice(len(batches), size=min(per_set, len(batches)), replace=False)}
+        commits = entry.get("batch_commits") or [None] * len(batches)
+        for commit in sorted(set(commits) - {commits[i] for i in picks}):
+            mine = [i for i, c in enumerate(commits) if c == commit]
+            picks.update(int(p) for p in rng.choice(mine, size=min(per_set, len(mine)), replace=False))
+        drawn[entry["set"]] = [batches[i] for i in sorted(picks)]
     return drawn
 
 

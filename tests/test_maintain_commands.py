@@ -135,6 +135,11 @@ def test_an_audit_draws_the_same_seeds_from_the_same_draw_seed_and_a_batch_whole
     assert len(first["a"]) == 2 and all(b in entries[0]["batches"] for b in first["a"])
     assert first["b"] == [[0, 1, 2], [3, 4, 5]] and first["c"] == [[7]]  # K past a set's batches: all of them
     assert any(draw(entries, 1, seed)["a"] != draw(entries, 1, 52)["a"] for seed in range(5))
+    # a set made at three commits: its first draw kept, and one batch of each commit it missed
+    versions = [{**entries[0], "batch_commits": ["x", "x", "y", "z"]}]
+    by_version = draw(versions, 1, 52)["a"]
+    assert draw(entries, 1, 52)["a"][0] in by_version
+    assert len(by_version) == 3 and {versions[0]["batch_commits"][b[0]] for b in by_version} == {"x", "y", "z"}
 
 
 def test_a_written_audit_runs_at_a_committed_tree_and_keeps_no_rerun_made_on_changes(tmp_path, monkeypatch):
@@ -224,3 +229,4 @@ def test_the_committed_audit_report_is_its_records_rendering_over_committed_sets
     assert text == markdown(record["results"], command[1], record["per_set"], record["draw_seed"], int(total[1]))
     drawn = draw(manifest(), record["per_set"], record["draw_seed"])
     assert all(r["batches"] == drawn[r["set"]] for r in record["results"])
+    assert not [r["set"] for r in record["results"] if r["at"].endswith("+ changes")]  # every rerun at a commit
