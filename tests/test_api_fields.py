@@ -125,7 +125,6 @@ CHECK = [
 def _call(function, kwargs: dict, tmp_path: Path) -> str:
     """``function``'s message for ``kwargs`` (placeholders made real), asserting that it raised a
     KerasRLError and that nothing appeared in ``tmp_path`` but the placeholders' own files."""
-    made = {p for p in tmp_path.rglob("*")}
     args = {}
     for name, value in kwargs.items():
         if value == "RUN/inner":
@@ -134,10 +133,10 @@ def _call(function, kwargs: dict, tmp_path: Path) -> str:
             value = tmp_path / "empty"
             value.mkdir(exist_ok=True)
         args[name] = value
-    made = {p for p in tmp_path.rglob("*")}
+    made = set(tmp_path.rglob("*"))
     with pytest.raises(KerasRLError) as caught:
         function(**args)
-    assert {p for p in tmp_path.rglob("*")} == made, "a refused call wrote something"
+    assert set(tmp_path.rglob("*")) == made, "a refused call wrote something"
     return str(caught.value)
 
 
