@@ -17,10 +17,11 @@ step without its file; ``--redo STEP`` reruns one):
 - ``probe``: ``matrix/compat_probe.py`` here and under ``--reference-python``: each
   post's initial weights, first action and one update on a fixed batch, compared (the largest
   absolute difference of each: 0 for the same bits, ~1e-7 for float32 rounding);
-- ``check``: ``keras-rl check pendulum cartpole mountaincar --tier smoke`` against the committed
-  baselines (its ``check.json`` and ``check.md`` copied here as ``check-report.*``). A post
-  found ``changed`` is checked again at the full tier before anyone calls it a break
-  (``check-full-report.*``);
+- ``check``: ``keras-rl check pendulum cartpole mountaincar --tier sensitive --workers 2``, the twin
+  check, against the committed baselines (its ``check.json`` and ``check.md`` copied here as
+  ``check-report.*``), then ``keras-rl check cartpole --framework torch --tier smoke``, PyTorch's
+  one rule (``check-torch-report.*``). Cells run before the twin check hold the smoke tier's
+  verdicts instead, a ``changed`` post rerun at the full tier (``check-full-report.*``);
 - ``speed``: ``benchmarks/step_time.py --keras-only`` here and under ``--reference-python``
   (the reference cell's interpreter), alternated five times in this one session; the cell's ms
   over the reference's ms per post, median of the runs.
@@ -77,7 +78,7 @@ def step_versions(out: Path, work: Path) -> dict:
     freeze = subprocess.run([sys.executable, "-m", "pip", "freeze"], capture_output=True, text=True, check=True)
     lines = [line for line in freeze.stdout.splitlines() if not line.startswith("-e ") and "keras-rl-repro" not in line]
     atomic_write_text(out / "pip-freeze.txt", "\n".join(lines) + "\n")
-    import torch  # the torch extra is part of every cell (pinned at 2.13.0, the CPU wheel)
+    import torch  # in every cell: the CPU wheel 2.13.0, or the PyTorch cell's release
 
     code = {k: v for k, v in git_state().items() if k in ("commit", "dirty")}
     return {"versions": {**library_versions(), "torch": torch.__version__}, "packages": len(lines), "code": code}
@@ -175,7 +176,7 @@ def step_probe(out: Path, work: Path, reference_python: str) -> dict:
     return {"max_abs_difference": compare(dumps["reference"], dumps["cell"])}
 
 
-def _check(out: Path, work: Path, posts: list[str], tier: str, name: str) -> dict:
+def _check(out: Path, work: Path, posts: list[str], tier: str, name: str, *options: str) -> dict:
     check_dir = work / name
     shutil.rmtree(check_dir, ignore_errors=True)
     command = [
@@ -186,6 +187,7 @@ def _check(out: Path, work: Path, posts: list[str], tier: str, name: str) -> dic
         *posts,
         "--tier",
         tier,
+        *options,
         "--no-progress",
         "--out",
         str(check_dir),
@@ -199,24 +201,28 @@ def _check(out: Path, work: Path, posts: list[str], tier: str, name: str) -> dic
     shutil.copy(check_dir / "check.md", out / f"{name}-report.md")
     payload = json.loads(report.read_text())
     # each post-cell test on its own, at its rule's alpha (the check itself adjusts over the posts)
-    verdicts = {
-        e["experiment"]: {
-            "verdict": "changed" if e["decision"]["p"] < e["rule"]["alpha"] else "consistent",
-            "p": e["decision"]["p"],
+    verdicts = {}
+    for e in payload["experiments"]:
+        twins = e.get("twins") or {}
+        p = e["decision"]["p"]  # 1.0 where every twin kept its baseline seed's bits
+        verdicts[e["experiment"]] = {
+            "verdict": "changed" if p < e["rule"]["alpha"] else "consistent",
+            "p": p,
             "alpha": e["rule"]["alpha"],
             "statistic": e["rule"]["statistic"],
             "check_verdict": e["verdict"],
+            "same_bits": twins.get("same_bits"),
+            "twins": twins.get("compared"),
+            "identical": twins.get("identical"),
+            "environment": e.get("environment"),
         }
-        for e in payload["experiments"]
-    }
     return {"tier": tier, "exit_code": code, "seconds": round(seconds, 1), "posts": verdicts}
 
 
 def step_check(out: Path, work: Path) -> dict:
-    smoke = _check(out, work, list(POSTS), "smoke", "check")
-    changed = [post for post, v in smoke["posts"].items() if v["verdict"] == "changed"]
-    full = _check(out, work, changed, "full", "check-full") if changed else None
-    return {"smoke": smoke, "full": full, "rerun_at_full_tier": changed}
+    keras = _check(out, work, list(POSTS), "sensitive", "check", "--workers", "2")
+    torch = _check(out, work, ["cartpole"], "smoke", "check-torch", "--framework", "torch", "--workers", "2")
+    return {"sensitive": keras, "torch": torch}
 
 
 def step_speed(out: Path, work: Path, reference_python: str) -> dict:

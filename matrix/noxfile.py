@@ -1,5 +1,5 @@
 """The version matrix: one nox session per cell, each a fresh virtualenv holding one combination
-of TensorFlow, Keras, Gymnasium and NumPy (``make matrix`` runs them all, the reference first).
+of TensorFlow, Keras, Gymnasium, NumPy and PyTorch (``make matrix`` runs them all, the reference first).
 
     .venv/bin/nox -f matrix/noxfile.py                          # every cell, then the table
     .venv/bin/nox -f matrix/noxfile.py -s cell-tf2.19.1 table   # one cell, then the table
@@ -11,12 +11,16 @@ root, whatever folder nox starts in.
 Each cell varies one factor from the reference (the versions that made ``results/``, pinned in
 ``constraints.txt``), but for the combined cells ``oldest`` and ``newest``. A factor left out of a
 cell's spec (``None``) is whatever pip resolves beside the others. Everything else (Ray, SciPy,
-...) is resolved by pip in every cell, and recorded in the cell's ``pip-freeze.txt``. PyTorch stays
-at 2.13.0, the CPU wheel, in every cell.
+...) is resolved by pip in every cell, and recorded in the cell's ``pip-freeze.txt``. PyTorch is
+2.13.0, the CPU wheel the project pins, but in the PyTorch cells and ``newest``: any other release
+is a CUDA build of several GB, and this machine's pip caps torch at 2.14.1 in a file of its own
+configuration, which such a cell's install lifts for itself. The nightly cell takes TensorFlow
+and Keras from their nightly packages. The cells, and the pip command of each, are in ``cells.py``.
 
 A cell writes ``results/compat/<cell>/``: ``install.json`` here, then the steps of
 ``matrix/compat_cell.py`` (tests, bit-exact replay of each post's committed seed 0, the
-smoke check against the committed baselines, the speed ratio to the reference cell). A cell
+twin check against the committed baselines in Keras and PyTorch, the speed ratio to the reference
+cell). A cell
 interrupted midway resumes at its first unfinished step. ``nox -s table`` regenerates
 ``results/compat/README.md`` and the README's short table from the committed cell folders.
 """
@@ -33,34 +37,11 @@ import nox
 
 ROOT = Path(__file__).resolve().parents[1]
 COMPAT = ROOT / "results" / "compat"
-FACTORS = ("tensorflow", "keras", "gymnasium", "numpy")
-REFERENCE = {"tensorflow": "2.21.0", "keras": "3.15.1", "gymnasium": "1.4.0", "numpy": "2.4.6"}
-
-# cell -> the version of each factor it asks for (None: pip resolves it)
-CELLS: dict[str, dict[str, str | None]] = {
-    "reference": REFERENCE,
-    # TensorFlow on its own, each with the Keras 3 and NumPy that pip resolves for it
-    "tf2.20.0": {**REFERENCE, "tensorflow": "2.20.0", "keras": None, "numpy": None},
-    "tf2.19.1": {**REFERENCE, "tensorflow": "2.19.1", "keras": None, "numpy": None},
-    # Keras on its own, on TensorFlow 2.21
-    "keras3.14.1": {**REFERENCE, "keras": "3.14.1"},
-    "keras3.13.2": {**REFERENCE, "keras": "3.13.2"},
-    # Gymnasium on its own
-    "gymnasium1.3.0": {**REFERENCE, "gymnasium": "1.3.0"},
-    "gymnasium1.2.3": {**REFERENCE, "gymnasium": "1.2.3"},
-    # NumPy 1.26 against the reference's 2.x
-    "numpy1.26.4": {**REFERENCE, "numpy": "1.26.4"},
-    # combined: the oldest of everything, and the newest pip resolves today (nothing pinned)
-    "oldest": {"tensorflow": "2.19.1", "keras": "3.13.0", "gymnasium": "1.2.0", "numpy": "1.26.4"},
-    "newest": {factor: None for factor in FACTORS},
-}
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # matrix/cells.py, beside this file
+from cells import CELLS, install_command  # noqa: E402
 
 nox.options.sessions = [f"cell-{name}" for name in CELLS] + ["table"]
 nox.options.reuse_venv = "yes"  # a cell resumes at its first unfinished step, in the venv it made
-
-
-def _requirements(spec: dict[str, str | None]) -> list[str]:
-    return [f"{factor}=={version}" for factor, version in spec.items() if version is not None]
 
 
 def _cell(name: str, spec: dict[str, str | None]):
@@ -70,15 +51,16 @@ def _cell(name: str, spec: dict[str, str | None]):
         session.chdir(ROOT)
         python = str(Path(session.bin) / "python")
         reference_python = str(Path(session.virtualenv.location).parent / "cell-reference" / "bin" / "python")
-        install = [python, "-m", "pip", "install", "--quiet", "-e", ".[test,torch]", *_requirements(spec)]
+        install, env = install_command(name, spec, python)
         marker = out / "install.json"
         if not marker.exists() or json.loads(marker.read_text())["exit_code"] != 0:
             session.log(" ".join(install[2:]))
             start = time.perf_counter()
-            done = subprocess.run(install, cwd=ROOT, capture_output=True, text=True)
+            done = subprocess.run(install, cwd=ROOT, capture_output=True, text=True, env=env)
             record = {
                 "spec": spec,
                 "command": "pip " + " ".join(install[3:]),
+                "torch_cap_lifted": env is not None,
                 "exit_code": done.returncode,
                 "seconds": round(time.perf_counter() - start, 1),
                 "error": done.stderr[-4000:] if done.returncode else None,
@@ -90,7 +72,7 @@ def _cell(name: str, spec: dict[str, str | None]):
             # the cell's folder is committed but this machine's virtualenv is new (a fresh machine,
             # or a step added since the cell ran): install again, keeping the first install's record
             session.log(f"{name}: a new virtualenv for a cell run before; installing (install.json kept)")
-            done = subprocess.run(install, cwd=ROOT, capture_output=True, text=True)
+            done = subprocess.run(install, cwd=ROOT, capture_output=True, text=True, env=env)
             if done.returncode != 0:
                 session.error(f"{name}: the install failed:\n{done.stderr[-4000:]}")
         session.run(

@@ -18,7 +18,8 @@ from maintainers.markdown import replace_block
 COMPAT = ROOT / "results" / "compat"
 POSTS = ("pendulum", "cartpole", "mountaincar")
 POST_NAMES = {"pendulum": "000", "cartpole": "003", "mountaincar": "001"}
-FACTORS = ("tensorflow", "keras", "gymnasium", "numpy")
+FACTORS = ("tensorflow", "keras", "gymnasium", "numpy", "torch")
+DEFAULT_TORCH = "2.13.0"  # the CPU wheel; cells made before PyTorch was a factor used it
 ENV_IDS = ("Pendulum-v1", "CartPole-v1", "MountainCarContinuous-v0")
 """The envs of ``tests/test_tf_envs.py``, whose parametrised names carry them."""
 SHORT_BEGIN, SHORT_END = "<!-- compat-short:begin -->", "<!-- compat-short:end -->"
@@ -50,7 +51,15 @@ def load_cells() -> list[tuple[str, dict, dict | None]]:
 def versions_text(install: dict, cell: dict | None) -> list[str]:
     """Each factor's installed version (what the cell asked for, until it has run)."""
     got = cell["versions"]["versions"] if cell else {}
-    return [got.get(f) or (install["spec"].get(f) or "?") for f in FACTORS]
+    spec = {"torch": DEFAULT_TORCH, **install["spec"]}
+    return [got.get(f) or (spec.get(f) or "as resolved") for f in FACTORS]
+
+
+def install_failure(install: dict) -> str:
+    """Why an install failed: pip's last ERROR line, which names what it could not find."""
+    errors = [line for line in (install.get("error") or "").splitlines() if line.startswith("ERROR:")]
+    reason = errors[-1].removeprefix("ERROR:").strip().replace("|", "/") if errors else "see install.json"
+    return f"**failed**: {reason}"
 
 
 def tests_text(cell: dict) -> str:
@@ -114,16 +123,55 @@ def post_verdict(entry: dict) -> str:
     return "changed" if entry["p"] < entry.get("alpha", 0.01) else "consistent"
 
 
+def twin_text(run: dict, post: str) -> str:
+    """A post's twin check: the same bits as the baseline, or the paired test's verdict."""
+    entry = run["posts"].get(post)
+    if entry is None:
+        return f"**no verdict** (exit {run['exit_code']})"
+    if entry.get("same_bits"):
+        return f"same bits ({entry['identical']}/{entry['twins']} twins)"
+    twins = f", {entry['twins']} twins" if entry.get("twins") else ""
+    verdict = post_verdict(entry)
+    return f"{'**changed**' if verdict == 'changed' else verdict} (p={entry['p']:.2g}{twins})"
+
+
+def changes_text(cell: dict) -> str:
+    """What the cell's check names as differing from the baseline's (the first post's report)."""
+    check = cell["check"]
+    if "sensitive" not in check:
+        return "not recorded"
+    posts = [e for e in check["sensitive"]["posts"].values() if e.get("environment")]
+    if not posts:
+        return "-"
+    env = posts[0]["environment"]
+    names = [f"{lib} {v['was']} -> {v['now']}" for lib, v in sorted(env["versions"].items())]
+    names += [f"`{was}` -> `{now}`" for was, now in sorted(env.get("replaced", {}).items())]
+    return "; ".join(names) or "nothing"
+
+
 def check_text(cell: dict, post: str) -> str:
     check = cell["check"]
+    if "sensitive" in check:
+        return twin_text(check["sensitive"], post)
     smoke = check["smoke"]["posts"].get(post)
     if smoke is None:
         return f"**no verdict** (exit {check['smoke']['exit_code']})"
-    text = f"{post_verdict(smoke)} (p={smoke['p']:.2g})"
+    text = f"smoke: {post_verdict(smoke)} (p={smoke['p']:.2g})"
     if post in check["rerun_at_full_tier"]:
         full = (check["full"] or {}).get("posts", {}).get(post)
         text += f"; full tier: {post_verdict(full)} (p={full['p']:.2g})" if full else "; full tier: no verdict"
     return text
+
+
+def torch_check_text(cell: dict) -> str:
+    torch = cell["check"].get("torch")
+    if torch is None:
+        return "not run"
+    entry = torch["posts"].get("cartpole")
+    if entry is None:
+        return f"**no verdict** (exit {torch['exit_code']})"
+    verdict = post_verdict(entry)
+    return f"{'**changed**' if verdict == 'changed' else verdict} (p={entry['p']:.2g})"
 
 
 def speed_text(cell: dict) -> str:
@@ -133,25 +181,27 @@ def speed_text(cell: dict) -> str:
 
 def table() -> str:
     header = (
-        "| cell | TensorFlow | Keras | Gymnasium | NumPy | install | fast tests | env parity | replay 000 | replay 003 "
-        "| replay 001 "
-        "| first numbers | check 000 | check 003 | check 001 | ms / reference (000 / 003 / 001) | cost (min) |"
+        "| cell | TensorFlow | Keras | Gymnasium | NumPy | PyTorch | install | fast tests | env parity | replay 000 "
+        "| replay 003 | replay 001 | first numbers | check 000 | check 003 | check 001 | check 003 (PyTorch) "
+        "| what the check names as changed | ms / reference (000 / 003 / 001) | cost (min) |"
     )
+    steps = header.count("|") - 1 - len(FACTORS) - 2  # the columns after install
     lines = [header, "|" + "---|" * (header.count("|") - 1)]
     for name, install, cell in load_cells():
         versions = versions_text(install, cell)
         if install["exit_code"] != 0:
-            lines.append(f"| {name} | {' | '.join(versions)} | **failed** (see install.json) |" + " - |" * 11)
+            lines.append(f"| {name} | {' | '.join(versions)} | {install_failure(install)} |" + " - |" * steps)
             continue
         if cell is None:
-            lines.append(f"| {name} | {' | '.join(versions)} | ok |" + " not run yet |" * 11)
+            lines.append(f"| {name} | {' | '.join(versions)} | ok |" + " not run yet |" * steps)
             continue
         replays = [replay_text(cell["replay"]["posts"][p]) for p in POSTS]
         checks = [check_text(cell, p) for p in POSTS]
         lines.append(
             f"| {name} | {' | '.join(versions)} | ok ({install['seconds'] / 60:.0f} min) | {tests_text(cell)} | "
             f"{envs_text(cell)} | "
-            f"{' | '.join(replays)} | {probe_text(cell)} | {' | '.join(checks)} | {speed_text(cell)} | "
+            f"{' | '.join(replays)} | {probe_text(cell)} | {' | '.join(checks)} | {torch_check_text(cell)} | "
+            f"{changes_text(cell)} | {speed_text(cell)} | "
             f"{cell['seconds'] / 60:.0f} |"
         )
     return "\n".join(lines)
@@ -159,7 +209,8 @@ def table() -> str:
 
 def short_table() -> str:
     lines = [
-        "| cell | TF / Keras / Gymnasium / NumPy | fast tests (when the cell ran) | seed 0 bit-exact | smoke check |",
+        "| cell | TF / Keras / Gymnasium / NumPy / PyTorch | fast tests (when the cell ran) | seed 0 bit-exact "
+        "| check (Keras; the tier it ran) |",
         "|---|---|---|---|---|",
     ]
     for name, install, cell in load_cells():
@@ -169,12 +220,15 @@ def short_table() -> str:
             lines.append(f"| {name} | {versions} | {state} | - | - |")
             continue
         exact = [POST_NAMES[p] for p in POSTS if cell["replay"]["posts"][p]["bit_exact"]]
-        changed = [
-            POST_NAMES[p]
-            for p in POSTS
-            if p not in cell["check"]["smoke"]["posts"] or post_verdict(cell["check"]["smoke"]["posts"][p]) == "changed"
-        ]
-        checks = "all 3 consistent" if not changed else "changed or no verdict: " + ", ".join(changed)
+        tier = "sensitive" if "sensitive" in cell["check"] else "smoke"
+        run = cell["check"][tier]["posts"]
+        changed = [POST_NAMES[p] for p in POSTS if p not in run or post_verdict(run[p]) == "changed"]
+        if changed:
+            checks = f"{tier}: changed or no verdict: " + ", ".join(changed)
+        elif all(run[p].get("same_bits") for p in POSTS):
+            checks = f"{tier}: the same bits, all 3"
+        else:
+            checks = f"{tier}: all 3 consistent"
         lines.append(
             f"| {name} | {versions} | {short_tests_text(cell)} | {', '.join(exact) or 'none'} ({len(exact)}/3) "
             f"| {checks} |"
@@ -193,8 +247,9 @@ def page() -> str:
             "Generated by `python -m maintainers tables compat --write` from the cell folders beside this",
             "file; the cells are run by `make matrix` (`noxfile.py`: one fresh virtualenv per cell,",
             "`.venv/bin/nox -l` lists them). Each cell varies one factor from `reference`, the versions that",
-            "made `results/` (`constraints.txt`); `oldest` and `newest` vary all four. PyTorch is 2.13.0",
-            "(the CPU wheel) in every cell.",
+            "made `results/` (`constraints.txt`); `oldest` and `newest` vary all five. PyTorch is 2.13.0",
+            "(the CPU wheel the project pins) but in `torch*` and `newest`, whose releases are CUDA builds",
+            "run on the CPU. A failed install is a result too: its row gives pip's reason.",
             "",
             table(),
             "",
@@ -225,11 +280,16 @@ def page() -> str:
             "  largest absolute difference over all of them (`probe.json`). `same bits`; `rounding`: float32",
             "  rounding in a kernel (under 1e-5), which a long run then amplifies into different episodes",
             "  without changing what is learned; `differ`: the computation itself changed.",
-            "- **check**: `keras-rl check pendulum cartpole mountaincar --tier smoke` against the committed",
-            "  baselines (`check-report.md`). Each post-cell test has a false-alarm rate under 1%",
-            "  (`results/checks/calibration.md`), so over 30 or so of them about one false alarm is expected: a",
-            "  `changed` smoke verdict is rerun at the full tier in the same cell, and shown beside it, before it",
-            "  is called a break.",
+            "- **check**: `keras-rl check pendulum cartpole mountaincar --tier sensitive --workers 2`, the twin",
+            "  check, against the committed baselines (`check-report.md`): `same bits` where every twin run first",
+            "  kept its baseline seed's bits, otherwise the paired test's p over its twins. `smoke:` marks a cell",
+            "  run before the twin check existed, with `keras-rl check ... --tier smoke` (a `changed` smoke",
+            "  verdict was rerun at the full tier in the same cell and shown beside it). Each post-cell test has",
+            "  a false-alarm rate under 1% (`results/checks/calibration.md`).",
+            "- **check 003 (PyTorch)**: `keras-rl check cartpole --framework torch --tier smoke`, PyTorch's one",
+            "  rule (`check-torch-report.md`).",
+            "- **what the check names as changed**: each library whose version differs from the baseline's, and",
+            "  a package that replaced another (`keras` -> `keras-nightly`), as the check's report names them.",
             "- **ms / reference**: `benchmarks/step_time.py --keras-only` in the cell over the same in the reference",
             "  cell, alternated five times in one session, median per post (`speed.json`). The reference row",
             "  against itself shows the noise.",

@@ -1,0 +1,71 @@
+"""The version matrix's cells ask pip for what they say: the torch extra only where the cell keeps
+the pinned CPU wheel, the nightlies by their package names, and the machine's cap on torch lifted
+only for a cell that needs another PyTorch, keeping the rest of pip's configuration."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _cells():
+    spec = importlib.util.spec_from_file_location("matrix_cells", ROOT / "matrix" / "cells.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+cells = _cells()
+
+
+def test_the_reference_keeps_the_torch_extra_and_pip_as_configured():
+    command, env = cells.install_command("reference", cells.CELLS["reference"], "py")
+    assert command[:6] == ["py", "-m", "pip", "install", "--quiet", "-e"]
+    assert command[6] == ".[test,torch]"
+    assert sorted(command[7:]) == ["gymnasium==1.4.0", "keras==3.15.1", "numpy==2.4.6", "tensorflow==2.21.0"]
+    assert env is None
+
+
+def test_a_pytorch_cell_drops_the_extra_and_asks_for_its_release(monkeypatch):
+    monkeypatch.setattr(cells, "lift_torch_cap", lambda python: {"lifted": python})
+    command, env = cells.install_command("torch2.14.1", cells.CELLS["torch2.14.1"], "py")
+    assert command[6] == ".[test]" and "torch==2.14.1" in command[7:]
+    assert env == {"lifted": "py"}
+    newest, env = cells.install_command("newest", cells.CELLS["newest"], "py")
+    assert newest[6:] == [".[test]", "torch"] and env == {"lifted": "py"}
+
+
+def test_the_nightly_cell_installs_the_nightly_packages():
+    command, env = cells.install_command("nightly", cells.CELLS["nightly"], "py")
+    assert "tf-nightly==2.23.0.dev20261026" in command and "keras-nightly==3.16.0.dev2026102704" in command
+    assert not any(arg.startswith(("tensorflow==", "keras==")) for arg in command)
+    assert env is None
+
+
+def test_every_cell_names_every_factor():
+    for name, spec in cells.CELLS.items():
+        assert set(spec) == set(cells.FACTORS), name
+
+
+def test_lifting_the_cap_keeps_every_setting_but_the_constraint(monkeypatch):
+    listed = (
+        "global.constraint='/etc/xdg/pip/constraints.txt'\n"
+        "global.extra-index-url='file:///a/simple file:///b/simple'\n"
+        "install.no-cache-dir='1'\n"
+        ":env:.find-links='/opt/wheels'\n"
+    )
+
+    class Done:
+        stdout = listed
+
+    monkeypatch.setattr(cells.subprocess, "run", lambda *a, **k: Done())
+    monkeypatch.delenv("PIP_EXTRA_INDEX_URL", raising=False)
+    monkeypatch.delenv("PIP_NO_CACHE_DIR", raising=False)
+    env = cells.lift_torch_cap("py")
+    assert env["PIP_CONFIG_FILE"] == os.devnull
+    assert env["PIP_EXTRA_INDEX_URL"] == "file:///a/simple file:///b/simple"
+    assert env["PIP_NO_CACHE_DIR"] == "1"
+    assert "PIP_CONSTRAINT" not in env or env["PIP_CONSTRAINT"] == os.environ.get("PIP_CONSTRAINT")
