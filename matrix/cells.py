@@ -8,7 +8,13 @@ import os
 import subprocess
 
 FACTORS = ("tensorflow", "keras", "gymnasium", "numpy", "torch")
-REFERENCE = {"tensorflow": "2.21.0", "keras": "3.15.1", "gymnasium": "1.4.0", "numpy": "2.4.6", "torch": "2.13.0"}
+REFERENCE: dict[str, str | None] = {
+    "tensorflow": "2.21.0",
+    "keras": "3.15.1",
+    "gymnasium": "1.4.0",
+    "numpy": "2.4.6",
+    "torch": "2.13.0",
+}
 PINNED_TORCH = "2.13.0"  # setup.cfg's torch extra: the CPU wheel
 
 # cell -> the version of each factor it asks for (None: pip resolves it)
