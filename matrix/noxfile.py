@@ -4,6 +4,7 @@ of TensorFlow, Keras, Gymnasium, NumPy and PyTorch (``make matrix`` runs them al
     .venv/bin/nox -f matrix/noxfile.py                          # every cell, then the table
     .venv/bin/nox -f matrix/noxfile.py -s cell-tf2.19.1 table   # one cell, then the table
     .venv/bin/nox -f matrix/noxfile.py -l                       # the cells
+    .venv/bin/nox -f matrix/noxfile.py -s cell-reference -- --redo check   # one step again
 
 The cell scripts sit beside this file (``matrix/``); every session runs from the repository
 root, whatever folder nox starts in.
@@ -84,6 +85,7 @@ def _cell(name: str, spec: dict[str, str | None]):
             json.dumps(spec),
             "--reference-python",
             reference_python,
+            *session.posargs,  # e.g. -- --redo check
             external=True,
         )
 
