@@ -64,6 +64,7 @@ def _cell(name: str, spec: dict[str, str | None]):
                 "torch_cap_lifted": env is not None,
                 "exit_code": done.returncode,
                 "seconds": round(time.perf_counter() - start, 1),
+                "venv_mb": _megabytes(Path(session.virtualenv.location)),
                 "error": done.stderr[-4000:] if done.returncode else None,
             }
             _write_json(marker, record)
@@ -92,6 +93,11 @@ def _cell(name: str, spec: dict[str, str | None]):
     session.__name__ = f"cell_{name}"
     session.__doc__ = ", ".join(f"{f} {v or 'as resolved'}" for f, v in spec.items())
     return session
+
+
+def _megabytes(folder: Path) -> int:
+    """What a cell's virtualenv holds on disk (a CUDA build of PyTorch is several GB of it)."""
+    return round(sum(f.stat().st_size for f in folder.rglob("*") if f.is_file() and not f.is_symlink()) / 2**20)
 
 
 def _write_json(path: Path, payload: dict) -> None:
