@@ -46,23 +46,38 @@ CELLS: dict[str, dict[str, str | None]] = {
 }
 # cell -> factor -> the package it installs from, where not the factor's own name
 DISTRIBUTIONS: dict[str, dict[str, str]] = {"nightly": {"tensorflow": "tf-nightly", "keras": "keras-nightly"}}
+# cell -> the factors it installs over the project's own install, past setup.cfg's ranges (which
+# stop below TensorFlow 2.22 and Keras 3.16), as a user upgrading would: pip installs them and
+# warns of the conflict. A factor taken from another package is uninstalled first.
+OVER: dict[str, tuple[str, ...]] = {"tf2.22.0rc0": ("tensorflow",), "nightly": ("tensorflow", "keras")}
 
 
-def install_command(name: str, spec: dict[str, str | None], python: str) -> tuple[list[str], dict[str, str] | None]:
-    """The cell's pip command, and the environment it runs in (None: this one). The torch extra
-    pins the CPU wheel; a cell with another PyTorch installs the project without it."""
+def install_commands(
+    name: str, spec: dict[str, str | None], python: str
+) -> tuple[list[list[str]], dict[str, str] | None]:
+    """The cell's pip commands, run in order, and the environment they run in (None: this one).
+    The torch extra pins the CPU wheel; a cell with another PyTorch installs the project without
+    it."""
     torch = spec.get("torch", PINNED_TORCH)
     extras = "test,torch" if torch == PINNED_TORCH else "test"
-    names = DISTRIBUTIONS.get(name, {})
-    requirements = [
-        f"{names.get(factor, factor)}=={version}"
-        for factor, version in spec.items()
-        if version is not None and not (factor == "torch" and torch == PINNED_TORCH)
-    ]
+    names, over = DISTRIBUTIONS.get(name, {}), OVER.get(name, ())
+
+    def pins(factors) -> list[str]:
+        return [
+            f"{names.get(factor, factor)}=={spec[factor]}"
+            for factor in factors
+            if spec[factor] is not None and not (factor == "torch" and torch == PINNED_TORCH)
+        ]
+
+    pip = [python, "-m", "pip"]
+    commands = [[*pip, "install", "--quiet", "-e", f".[{extras}]", *pins(f for f in spec if f not in over)]]
     if torch is None:
-        requirements.append("torch")
-    command = [python, "-m", "pip", "install", "--quiet", "-e", f".[{extras}]", *requirements]
-    return command, None if torch == PINNED_TORCH else lift_torch_cap(python)
+        commands[0].append("torch")
+    if over:
+        if replaced := [factor for factor in over if factor in names]:
+            commands.append([*pip, "uninstall", "--quiet", "--yes", *replaced])
+        commands.append([*pip, "install", "--quiet", *pins(over)])
+    return commands, None if torch == PINNED_TORCH else lift_torch_cap(python)
 
 
 def lift_torch_cap(python: str) -> dict[str, str]:

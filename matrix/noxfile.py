@@ -39,7 +39,7 @@ import nox
 ROOT = Path(__file__).resolve().parents[1]
 COMPAT = ROOT / "results" / "compat"
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # matrix/cells.py, beside this file
-from cells import CELLS, install_command  # noqa: E402
+from cells import CELLS, install_commands  # noqa: E402
 
 nox.options.sessions = [f"cell-{name}" for name in CELLS] + ["table"]
 nox.options.reuse_venv = "yes"  # a cell resumes at its first unfinished step, in the venv it made
@@ -52,15 +52,15 @@ def _cell(name: str, spec: dict[str, str | None]):
         session.chdir(ROOT)
         python = str(Path(session.bin) / "python")
         reference_python = str(Path(session.virtualenv.location).parent / "cell-reference" / "bin" / "python")
-        install, env = install_command(name, spec, python)
+        install, env = install_commands(name, spec, python)
         marker = out / "install.json"
         if not marker.exists() or json.loads(marker.read_text())["exit_code"] != 0:
-            session.log(" ".join(install[2:]))
+            session.log(" && ".join(" ".join(command[2:]) for command in install))
             start = time.perf_counter()
-            done = subprocess.run(install, cwd=ROOT, capture_output=True, text=True, env=env)
+            done = _pip(install, env)
             record = {
                 "spec": spec,
-                "command": "pip " + " ".join(install[3:]),
+                "command": " && ".join("pip " + " ".join(command[3:]) for command in install),
                 "torch_cap_lifted": env is not None,
                 "exit_code": done.returncode,
                 "seconds": round(time.perf_counter() - start, 1),
@@ -74,7 +74,7 @@ def _cell(name: str, spec: dict[str, str | None]):
             # the cell's folder is committed but this machine's virtualenv is new (a fresh machine,
             # or a step added since the cell ran): install again, keeping the first install's record
             session.log(f"{name}: a new virtualenv for a cell run before; installing (install.json kept)")
-            done = subprocess.run(install, cwd=ROOT, capture_output=True, text=True, env=env)
+            done = _pip(install, env)
             if done.returncode != 0:
                 session.error(f"{name}: the install failed:\n{done.stderr[-4000:]}")
         session.run(
@@ -93,6 +93,15 @@ def _cell(name: str, spec: dict[str, str | None]):
     session.__name__ = f"cell_{name}"
     session.__doc__ = ", ".join(f"{f} {v or 'as resolved'}" for f, v in spec.items())
     return session
+
+
+def _pip(commands: list[list[str]], env: dict[str, str] | None) -> subprocess.CompletedProcess:
+    """Run a cell's pip commands in order, stopping at the first that fails (its result)."""
+    for command in commands:
+        done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, env=env)
+        if done.returncode != 0:
+            break
+    return done
 
 
 def _megabytes(folder: Path) -> int:

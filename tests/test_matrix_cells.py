@@ -22,7 +22,7 @@ cells = _cells()
 
 
 def test_the_reference_keeps_the_torch_extra_and_pip_as_configured():
-    command, env = cells.install_command("reference", cells.CELLS["reference"], "py")
+    (command,), env = cells.install_commands("reference", cells.CELLS["reference"], "py")
     assert command[:6] == ["py", "-m", "pip", "install", "--quiet", "-e"]
     assert command[6] == ".[test,torch]"
     assert sorted(command[7:]) == ["gymnasium==1.4.0", "keras==3.15.1", "numpy==2.4.6", "tensorflow==2.21.0"]
@@ -31,17 +31,24 @@ def test_the_reference_keeps_the_torch_extra_and_pip_as_configured():
 
 def test_a_pytorch_cell_drops_the_extra_and_asks_for_its_release(monkeypatch):
     monkeypatch.setattr(cells, "lift_torch_cap", lambda python: {"lifted": python})
-    command, env = cells.install_command("torch2.14.1", cells.CELLS["torch2.14.1"], "py")
+    (command,), env = cells.install_commands("torch2.14.1", cells.CELLS["torch2.14.1"], "py")
     assert command[6] == ".[test]" and "torch==2.14.1" in command[7:]
     assert env == {"lifted": "py"}
-    newest, env = cells.install_command("newest", cells.CELLS["newest"], "py")
+    (newest,), env = cells.install_commands("newest", cells.CELLS["newest"], "py")
     assert newest[6:] == [".[test]", "torch"] and env == {"lifted": "py"}
 
 
-def test_the_nightly_cell_installs_the_nightly_packages():
-    command, env = cells.install_command("nightly", cells.CELLS["nightly"], "py")
-    assert "tf-nightly==2.23.0.dev20261026" in command and "keras-nightly==3.16.0.dev2026102704" in command
-    assert not any(arg.startswith(("tensorflow==", "keras==")) for arg in command)
+def test_a_release_past_the_projects_ranges_goes_over_its_install():
+    """TensorFlow 2.22 and the nightlies lie outside setup.cfg's ranges: the project installs
+    first with the factors that fit, then the release goes over it as a user's upgrade would; the
+    nightlies replace the packages the project brought, which go first."""
+    (project, over), env = cells.install_commands("tf2.22.0rc0", cells.CELLS["tf2.22.0rc0"], "py")
+    assert project[6:] == [".[test,torch]", "gymnasium==1.4.0"]
+    assert over[3:] == ["install", "--quiet", "tensorflow==2.22.0rc0"] and env is None
+    (project, uninstall, over), env = cells.install_commands("nightly", cells.CELLS["nightly"], "py")
+    assert project[6:] == [".[test,torch]", "gymnasium==1.4.0"]
+    assert uninstall[3:] == ["uninstall", "--quiet", "--yes", "tensorflow", "keras"]
+    assert over[5:] == ["tf-nightly==2.23.0.dev20261026", "keras-nightly==3.16.0.dev2026102704"]
     assert env is None
 
 
