@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 from scipy import stats
+from statsmodels.stats.multitest import multipletests
 
 from keras_rl.report.stats import fisher_exact, mann_whitney
 
@@ -251,13 +252,10 @@ def detectable_shift(
 def holm_adjusted(pvalues: Sequence[float]) -> list[float]:
     """Holm's step-down adjusted p-values (Holm 1979): ``changed`` where adjusted p < alpha
     keeps the family-wise false-alarm rate of the whole set of tests at alpha, whatever
-    their dependence. One test: its own p."""
-    order = sorted(range(len(pvalues)), key=lambda i: pvalues[i])
-    adjusted, running = [1.0] * len(pvalues), 0.0
-    for rank, i in enumerate(order):
-        running = max(running, min(1.0, (len(pvalues) - rank) * pvalues[i]))
-        adjusted[i] = running
-    return adjusted
+    their dependence. One test: its own p. (statsmodels' ``multipletests``.)"""
+    if not len(pvalues):
+        return []
+    return [float(p) for p in multipletests(list(pvalues), method="holm")[1]]
 
 
 def _ranks_with_sum(total: int, size: int, rank_sum: int) -> list[int]:

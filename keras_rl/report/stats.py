@@ -1,11 +1,11 @@
-"""Multi-seed statistics for comparing two sets of runs (SciPy underneath).
+"""Multi-seed statistics for comparing two sets of runs (SciPy and statsmodels underneath).
 
 - ``median_difference_ci``: a percentile-bootstrap 95% CI of median(a) - median(b), the
   two samples resampled independently (``scipy.stats.bootstrap``).
 - ``mann_whitney``: the two-sided Mann-Whitney U test (``scipy.stats.mannwhitneyu``).
 - ``success_difference_ci``: a difference of two success rates with Newcombe's hybrid score
-  95% interval, built from each rate's Wilson interval (``scipy.stats.binomtest``); unlike a
-  bootstrap it stays informative at 10/10 and 0/10.
+  95% interval, built from each rate's Wilson interval (statsmodels'
+  ``confint_proportions_2indep``); unlike a bootstrap it stays informative at 10/10 and 0/10.
 - ``iqm_ci``: the interquartile mean (the mean of the middle 50%, ``trim_mean(x, 0.25)``)
   with rliable's stratified-bootstrap percentile CI. rliable resamples runs with
   replacement *within each task* and recomputes the aggregate; with one task per
@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
+from statsmodels.stats.proportion import confint_proportions_2indep
 
 
 def iqm(x) -> float:
@@ -103,22 +104,19 @@ def fisher_exact(successes_a: int, n_a: int, successes_b: int, n_b: int) -> floa
 
 
 def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
-    """A success rate's Wilson score interval (``scipy.stats.binomtest``): the one place it is
-    computed (tables and Newcombe's difference use it)."""
+    """A success rate's Wilson score interval (``scipy.stats.binomtest``), as the tables give it."""
     ci = stats.binomtest(successes, n).proportion_ci(confidence_level=confidence, method="wilson")
     return float(ci.low), float(ci.high)
 
 
 def success_difference_ci(successes_a: int, n_a: int, successes_b: int, n_b: int, confidence: float = 0.95) -> Interval:
-    """rate(a) - rate(b) with Newcombe's (1998, method 10) hybrid score interval:
-    ``d - sqrt((p_a - l_a)^2 + (u_b - p_b)^2)`` to ``d + sqrt((u_a - p_a)^2 + (p_b - l_b)^2)``,
-    where (l, u) is each rate's Wilson score interval at ``confidence`` (95% by default)."""
-    rates, bounds = [], []
+    """rate(a) - rate(b) with Newcombe's (1998, method 10) hybrid score interval at
+    ``confidence`` (95% by default), from each rate's Wilson score interval (statsmodels'
+    ``confint_proportions_2indep``, method ``newcomb``)."""
     for k, n in ((successes_a, n_a), (successes_b, n_b)):
         if n < 1 or not 0 <= k <= n:
             raise ValueError(f"successes must lie in [0, n] with n >= 1, got {k} of {n}")
-        rates.append(k / n)
-        bounds.append(wilson_interval(k, n, confidence))
-    (pa, pb), ((la, ua), (lb, ub)) = rates, bounds
-    d = pa - pb
-    return Interval(d, d - float(np.hypot(pa - la, ub - pb)), d + float(np.hypot(ua - pa, pb - lb)))
+    low, high = confint_proportions_2indep(
+        successes_a, n_a, successes_b, n_b, method="newcomb", compare="diff", alpha=1 - confidence
+    )
+    return Interval(successes_a / n_a - successes_b / n_b, float(low), float(high))
