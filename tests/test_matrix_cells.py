@@ -76,3 +76,33 @@ def test_lifting_the_cap_keeps_every_setting_but_the_constraint(monkeypatch):
     assert env["PIP_EXTRA_INDEX_URL"] == "file:///a/simple file:///b/simple"
     assert env["PIP_NO_CACHE_DIR"] == "1"
     assert "PIP_CONSTRAINT" not in env or env["PIP_CONSTRAINT"] == os.environ.get("PIP_CONSTRAINT")
+
+
+def test_the_table_reads_a_twin_check_and_names_what_changed():
+    """A cell checked with the twins shows the same bits where every twin kept them, the paired
+    test's p elsewhere, and the versions and replaced packages the check named; a failed install
+    gives pip's reason."""
+    from maintainers.tables import compat
+
+    environment = {
+        "versions": {"tensorflow": {"was": "2.21.0", "now": "2.22.0-rc0"}},
+        "replaced": {"keras": "keras-nightly"},
+    }
+    same = {"p": 1.0, "alpha": 0.01, "same_bits": True, "twins": 4, "identical": 4, "environment": environment}
+    moved = {"p": 0.002, "alpha": 0.01, "same_bits": False, "twins": 80, "identical": 0, "environment": environment}
+    cell = {
+        "check": {
+            "sensitive": {"exit_code": 1, "posts": {"pendulum": moved, "cartpole": same}},
+            "torch": {"exit_code": 0, "posts": {"cartpole": {"p": 0.5, "alpha": 0.01}}},
+        }
+    }
+    assert compat.check_text(cell, "cartpole") == "same bits (4/4 twins)"
+    assert compat.check_text(cell, "pendulum") == "**changed** (p=0.002, 80 twins)"
+    assert compat.check_text(cell, "mountaincar") == "**no verdict** (exit 1)"
+    assert compat.torch_check_text(cell) == "consistent (p=0.5)"
+    assert compat.changes_text(cell) == "tensorflow 2.21.0 -> 2.22.0-rc0; `keras` -> `keras-nightly`"
+    smoke = {"check": {"smoke": {"exit_code": 0, "posts": {"cartpole": {"p": 0.79}}}, "rerun_at_full_tier": []}}
+    assert compat.check_text(smoke, "cartpole") == "smoke: consistent (p=0.79)"
+    assert compat.torch_check_text(smoke) == "not run" and compat.changes_text(smoke) == "not recorded"
+    failed = {"error": "Looking in indexes: ...\nERROR: No matching distribution found for numpy==2.5.*\n"}
+    assert compat.install_failure(failed) == "**failed**: No matching distribution found for numpy==2.5.*"
