@@ -8,9 +8,11 @@ The plan was committed before its runs (``results/checks/twin_plan.md``; the run
 difference of its statistic (``statistics.paired_differences``) removes the spread between seeds
 that comparing strangers keeps.
 
-- **n** (post 000): the tuning mutants' paired differences on seeds 0-29, each centred on its median
-  and pooled, n drawn with replacement and a 10% move added either way; the smallest size of
-  ``SIZES`` that sees both moves at least 90% of the time at 0.01 / 3.
+- **n** (posts 000 and 003): the tuning mutants' paired differences on seeds 0-29, each centred on
+  its median and pooled, n drawn with replacement and a 10% move added either way; the smallest size
+  of ``SIZES`` that sees both moves at least 90% of the time at 0.01 / 3 (none does: the largest).
+  Post 003 also chooses its statistic so (the plan's addendum of 2026-11-29): among ``CANDIDATES``,
+  on the differences of the log statistic, the smallest n, ties to the first (today's).
 - **False alarms**: real changes of arithmetic that keep the algorithm (the engine swap, oneDNN
   off), against the baseline seed by seed: n twins drawn without replacement, 10,000 times, and the
   twins cut in seed order into disjoint real checks with their Clopper-Pearson interval.
@@ -40,8 +42,14 @@ HEADING = "## The twin check (issue 70): its size and error rates on real change
 SIZES = (20, 30, 40, 50, 60, 80)
 CHOICE_POWER, MOVE = 0.90, np.log(1.10)
 CHOICE_DRAWS, DRAWS = 4_000, 10_000
-TUNING = {"pendulum": ("actor_lr_x0.3", "gamma_0.9", "broadcast_target_off", "tau_x10")}
-"""The subtle tuning mutants whose seeds 0-29 choose post 000's n (the plan's list)."""
+TUNING = {
+    "pendulum": ("actor_lr_x0.3", "gamma_0.9", "broadcast_target_off", "tau_x10"),
+    "cartpole": ("lr_x0.3", "q_frozen", "tau_x10", "random_policy", "gamma_0.9", "weight_decay_off"),
+}
+"""The tuning mutants whose seeds 0-29 choose n (the plan's lists; post 003's, gross ones included,
+in its addendum)."""
+CANDIDATES = {"cartpole": ("episodes_to_threshold", "auc", "final_metric")}
+"""Post 003's statistics the addendum chooses among, today's first (a tie goes to it)."""
 TUNING_SEEDS = range(0, 30)
 ENGINES = CHECKS.parent / "engines"
 REAL_CHANGES: dict[str, dict[str, Path]] = {
@@ -57,39 +65,54 @@ REAL_CHANGES: dict[str, dict[str, Path]] = {
     },
 }
 """Real changes of arithmetic that keep the algorithm, each a set of twins of the baseline's seeds."""
+SEEN = " (seen while the addendum was written)"
+"""Post 003's committed held-out mutants, whose shifts were seen before its statistic was chosen."""
 HELD_OUT: dict[str, dict[str, list[Path]]] = {
     "pendulum": {
         name: [CHECKS / "pendulum" / "twins" / "held-out" / name]
         for name in ("critic_lr_x0.7", "batch_16", "noise_sigma_x0.5", "actor_hidden_32", "batch_32", "noise_sigma_x2")
     },
     "cartpole": {
-        name: [CHECKS / "cartpole" / "held-out" / name, CHECKS / "cartpole" / "held-out-seeds-30-79" / name]
-        for name in ("eps_decay_x0.5", "batch_64", "buffer_x0.3", "grad_clip_1")
+        **{
+            name: [CHECKS / "cartpole" / "twins" / "held-out" / name]
+            for name in ("batch_96", "eps_decay_x0.75", "buffer_x0.6", "lr_x0.7", "tau_x0.5", "eps_end_0.1")
+        },
+        **{
+            f"{name}{SEEN}": [
+                CHECKS / "cartpole" / "held-out" / name,
+                CHECKS / "cartpole" / "held-out-seeds-30-79" / name,
+            ]
+            for name in ("eps_decay_x0.5", "batch_64", "buffer_x0.3", "grad_clip_1")
+        },
     },
     "mountaincar": {
         name: [CHECKS / "mountaincar" / "twins" / "held-out" / name] for name in ("critic_lr_x0.5", "gamma_0.99")
     },
 }
-"""Held-out mutants on twin seeds: post 000's written down in the plan before their runs, post 003's
-the committed ``HELD_OUT`` (seeds 0-79)."""
-POWER_SEEDS = {"pendulum": range(30, 200), "cartpole": range(0, 80), "mountaincar": range(0, 200)}
-"""The twins power is read on: post 000's seeds 0-29 chose n; nothing chose post 003's or post 001's 40."""
+"""Held-out mutants on twin seeds: post 000's written down in the plan before their runs; post 003's
+six of the addendum (twins 0-119), then the four committed before it (seeds 0-79), whose shifts
+were seen while it was written."""
+POWER_SEEDS = {"pendulum": range(30, 200), "cartpole": range(30, 120), "mountaincar": range(0, 200)}
+"""The twins power is read on: seeds 0-29 chose post 000's n and post 003's statistic and n; nothing
+chose post 001's 40. Post 003's mutants seen while its addendum was written keep the seeds they were
+read on before it (0-79, all they hold)."""
+SEEN_SEEDS = range(0, 80)
 NOT_MEASURED: dict[str, str] = {}
 """Posts whose twins no committed set measures (with why)."""
 
 
-def twin_statistics(post: str, folders: list[Path]) -> dict[int, float]:
-    """Seed -> the tier's statistic, over every seed of ``folders``."""
+def twin_statistics(post: str, folders: list[Path], statistic: str | None = None) -> dict[int, float]:
+    """Seed -> the tier's statistic (or ``statistic``), over every seed of ``folders``."""
     rule = RULES[(post, TIER)]
     out: dict[int, float] = {}
     for folder in folders:
         seeds = RunSet(folder).seeds
-        out.update(zip(seeds, values(post, rule.statistic, rule.episodes, load(folder)).tolist()))
+        out.update(zip(seeds, values(post, statistic or rule.statistic, rule.episodes, load(folder)).tolist()))
     return out
 
 
-def baseline_statistics(post: str) -> dict[int, float]:
-    return twin_statistics(post, [CHECKS / post / RULES[(post, TIER)].baseline])
+def baseline_statistics(post: str, statistic: str | None = None) -> dict[int, float]:
+    return twin_statistics(post, [CHECKS / post / RULES[(post, TIER)].baseline], statistic)
 
 
 def differences(post: str, baseline: dict[int, float], twins: dict[int, float], seeds=None) -> np.ndarray:
@@ -143,12 +166,17 @@ def rates(post: str, baseline: dict[int, float], twins: dict[int, float], n: int
     }
 
 
-def choose_n(post: str, baseline: dict[int, float]) -> dict:
-    """The plan's choice of n on the tuning mutants' centred paired noise, seeds 0-29 only."""
+def choose_n(post: str, baseline: dict[int, float], statistic: str | None = None) -> dict:
+    """The plan's choice of n on the tuning mutants' centred paired noise, seeds 0-29 only: of the
+    rule's statistic, or of the log of ``statistic`` (post 003's addendum)."""
     pooled = []
     for name in TUNING[post]:
-        twins = twin_statistics(post, [CHECKS / post / "mutants" / name])
-        d = differences(post, baseline, twins, TUNING_SEEDS)
+        twins = twin_statistics(post, [CHECKS / post / "mutants" / name], statistic)
+        if statistic is None:
+            d = differences(post, baseline, twins, TUNING_SEEDS)
+        else:
+            common = sorted(set(baseline) & set(twins) & set(TUNING_SEEDS))
+            d = np.log([twins[s] for s in common]) - np.log([baseline[s] for s in common])
         pooled.append(d - np.median(d))
     noise = np.concatenate(pooled)
     rng = np.random.default_rng(2026)
@@ -163,6 +191,14 @@ def choose_n(post: str, baseline: dict[int, float]) -> dict:
     return {"pooled_twins": len(noise), "rows": rows, "chosen": chosen, "tuning": list(TUNING[post])}
 
 
+def choose_statistic(post: str) -> dict:
+    """Post 003's addendum: each candidate's ``choose_n`` on the log statistic; the smallest n wins,
+    a tie going to the earlier candidate (today's statistic first)."""
+    by = {statistic: choose_n(post, baseline_statistics(post, statistic), statistic) for statistic in CANDIDATES[post]}
+    chosen = min(CANDIDATES[post], key=lambda statistic: (by[statistic]["chosen"], CANDIDATES[post].index(statistic)))
+    return {"candidates": by, "chosen": chosen, "n": by[chosen]["chosen"]}
+
+
 def compute() -> dict:
     posts: dict = {}
     for post in ("pendulum", "cartpole", "mountaincar"):
@@ -175,7 +211,9 @@ def compute() -> dict:
             continue
         baseline = baseline_statistics(post)
         entry: dict = {"rule": {"seeds": rule.seeds, "statistic": rule.statistic, "episodes": rule.episodes}}
-        if post in TUNING:
+        if post in CANDIDATES:
+            entry["statistic_choice"] = choose_statistic(post)
+        elif post in TUNING:
             entry["choice"] = choose_n(post, baseline)
         n = rule.seeds
         entry["false_alarms"], entry["missing"] = {}, []
@@ -189,7 +227,8 @@ def compute() -> dict:
             if not all((f / "runs.parquet").is_file() for f in folders):
                 entry["missing"] += [str(f.relative_to(CHECKS.parent.parent)) for f in folders]
                 continue
-            entry["power"][name] = rates(post, baseline, twin_statistics(post, folders), n, POWER_SEEDS[post])
+            seeds = SEEN_SEEDS if name.endswith(SEEN) else POWER_SEEDS[post]
+            entry["power"][name] = rates(post, baseline, twin_statistics(post, folders), n, seeds)
         posts[post] = entry
     return {"tier": TIER, "plan": str(PLAN.relative_to(CHECKS.parent.parent)), "posts": posts}
 
@@ -218,6 +257,33 @@ def render(data: dict) -> str:
         if "not_measured" in entry:
             lines += [f"Not measured: {entry['not_measured']}."]
             continue
+        picked = entry.get("statistic_choice")
+        if picked:
+            sizes = [r["n"] for r in next(iter(picked["candidates"].values()))["rows"]]
+            lines += [
+                f"**The statistic and n**, chosen as the plan's addendum said on the tuning mutants' seeds 0-29 "
+                f"({', '.join(next(iter(picked['candidates'].values()))['tuning'])}): for each candidate, the paired "
+                "differences of its log, each mutant's centred on their median and pooled, power at 0.01 / 3 against a "
+                f"10% move added to that noise, {CHOICE_DRAWS:,} draws with replacement (x1.10 / x0.90). The smallest "
+                f"n at {CHOICE_POWER:.0%} both ways wins, a tie going to today's statistic; where no size reaches "
+                f"it the largest is taken, as for post 000. Chosen: **{picked['chosen']}, n = {picked['n']}**.",
+                "",
+                "| statistic | " + " | ".join(f"n = {n}" for n in sizes) + " |",
+                "|---|" + "---|" * len(sizes),
+                *(
+                    f"| {statistic} | "
+                    + " | ".join(f"{_pct(r['x1.10'])} / {_pct(r['x0.90'])}" for r in c["rows"])
+                    + " |"
+                    for statistic, c in picked["candidates"].items()
+                ),
+                "",
+            ]
+            if (picked["chosen"], picked["n"]) != (entry["rule"]["statistic"], entry["rule"]["seeds"]):
+                lines += [
+                    f"**The rule has not taken the choice yet**: it runs {entry['rule']['statistic']} on "
+                    f"{entry['rule']['seeds']} twins (`keras_rl/check/rules.py`).",
+                    "",
+                ]
         choice = entry.get("choice")
         if choice:
             lines += [
