@@ -186,7 +186,7 @@ def test_compare_resumes_an_interrupted_seed_from_its_checkpoint_and_restarts_on
 
     from keras_rl.dispatch.compare_runs import gather
     from keras_rl.registry import get_experiment
-    from keras_rl.runs.checkpoint import write_checkpoint
+    from keras_rl.runs.checkpoint import VERSION, write_checkpoint
 
     runs = tmp_path / "runs"
     shutil.copytree(compared / "runs", runs)
@@ -197,7 +197,7 @@ def test_compare_resumes_an_interrupted_seed_from_its_checkpoint_and_restarts_on
         for old in seed_dir.glob("checkpoint*.pkl"):  # a finished solo run keeps its last one
             old.unlink()
         if checkpointed:
-            write_checkpoint(seed_dir, {"version": 2, "batch": [seed], "vector_step": 5})
+            write_checkpoint(seed_dir, {"version": VERSION, "batch": [seed], "vector_step": 5})
     jobs = gather(get_experiment("cartpole"), "faithful", [0, 1], runs, False, False, {"episodes": 20})
     assert [(j.config.framework, j.config.seed, j.start) for j in jobs] == [
         ("torch", 0, "resume"),
@@ -213,7 +213,7 @@ def test_a_sweep_resumes_an_interrupted_seed_from_its_checkpoint(compared, tmp_p
 
     from keras_rl.dispatch.sweep import GridPoint, sweep_jobs
     from keras_rl.posts.cartpole import CartPoleDQNConfig
-    from keras_rl.runs.checkpoint import write_checkpoint
+    from keras_rl.runs.checkpoint import VERSION, write_checkpoint
 
     point = tmp_path / "sweep" / "episodes=20"
     for seed in (0, 1):
@@ -221,13 +221,13 @@ def test_a_sweep_resumes_an_interrupted_seed_from_its_checkpoint(compared, tmp_p
     seed_dir = point / "seed_1"
     summary = json.loads((seed_dir / "summary.json").read_text())
     (seed_dir / "summary.json").write_text(json.dumps({**summary, "status": "interrupted", "finished": False}))
-    write_checkpoint(seed_dir, {"version": 2, "batch": [1], "vector_step": 5})
+    write_checkpoint(seed_dir, {"version": VERSION, "batch": [1], "vector_step": 5})
     base = CartPoleDQNConfig.for_variant("faithful")
     every, todo, _ = sweep_jobs(base, [GridPoint("episodes=20", {"episodes": 20})], [0, 1], tmp_path / "sweep")
     assert len(every) == 2 and [(j.config.seed, j.start) for j in todo] == [(1, "resume")]
     # seed 0 finished inside a batch with seed 1 that was stopped after: it rejoins the batch
     for seed in (0, 1):
-        write_checkpoint(point / f"seed_{seed}", {"version": 2, "batch": [0, 1], "vector_step": 5})
+        write_checkpoint(point / f"seed_{seed}", {"version": VERSION, "batch": [0, 1], "vector_step": 5})
     _, todo, _ = sweep_jobs(base, [GridPoint("episodes=20", {"episodes": 20})], [0, 1], tmp_path / "sweep")
     assert [(j.config.seed, j.start) for j in todo] == [(0, "resume"), (1, "resume")]
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -240,19 +241,19 @@ def test_a_killed_and_resumed_batch_equals_an_uninterrupted_batch_for_every_seed
 
 def test_a_batch_killed_while_writing_its_checkpoints_resumes_from_the_step_every_seed_holds(tmp_path):
     from keras_rl.errors import RunFolderError
-    from keras_rl.runs.checkpoint import read_batch_checkpoints, write_checkpoint
+    from keras_rl.runs.checkpoint import VERSION, read_batch_checkpoints, write_checkpoint
 
     dirs = [tmp_path / f"seed_{s}" for s in (0, 1)]
     for step in (4, 9):
         for d in dirs:
-            write_checkpoint(d, {"version": 2, "batch": [0, 1], "vector_step": step, "who": d.name})
-    write_checkpoint(dirs[0], {"version": 2, "batch": [0, 1], "vector_step": 15, "who": "seed_0"})  # then killed
+            write_checkpoint(d, {"version": VERSION, "batch": [0, 1], "vector_step": step, "who": d.name})
+    write_checkpoint(dirs[0], {"version": VERSION, "batch": [0, 1], "vector_step": 15, "who": "seed_0"})  # then killed
     states = read_batch_checkpoints(dirs, [0, 1])
     assert [(st["vector_step"], st["who"]) for st in states] == [(9, "seed_0"), (9, "seed_1")]
     with pytest.raises(RunFolderError, match="belongs to a batch of seeds \\[0, 1\\]"):
         read_batch_checkpoints(dirs, [0, 1, 2])
-    write_checkpoint(dirs[1], {"version": 2, "batch": [0, 1], "vector_step": 20, "who": "seed_1"})
-    write_checkpoint(dirs[1], {"version": 2, "batch": [0, 1], "vector_step": 21, "who": "seed_1"})
+    write_checkpoint(dirs[1], {"version": VERSION, "batch": [0, 1], "vector_step": 20, "who": "seed_1"})
+    write_checkpoint(dirs[1], {"version": VERSION, "batch": [0, 1], "vector_step": 21, "who": "seed_1"})
     with pytest.raises(RunFolderError, match="not written at one vector step"):
         read_batch_checkpoints(dirs, [0, 1])
 
@@ -261,11 +262,11 @@ def test_a_resumed_seed_must_resume_with_its_batch(tmp_path):
     from keras_rl.dispatch.jobs import SeedBatchJob, SeedJob, batched
     from keras_rl.errors import RunFolderError
     from keras_rl.posts.cartpole import CartPoleDQNConfig
-    from keras_rl.runs.checkpoint import write_checkpoint
+    from keras_rl.runs.checkpoint import VERSION, write_checkpoint
 
     jobs = []
     for seed in (4, 5):
-        write_checkpoint(tmp_path / f"seed_{seed}", {"version": 2, "batch": [5, 4], "vector_step": 3})
+        write_checkpoint(tmp_path / f"seed_{seed}", {"version": VERSION, "batch": [5, 4], "vector_step": 3})
         jobs.append(SeedJob.of(CartPoleDQNConfig(seed=seed), tmp_path / f"seed_{seed}", start="resume", command="x"))
     packed = batched(jobs, 1)  # whatever --seed-batch says now, the batch that wrote them resumes whole
     assert len(packed) == 1 and isinstance(packed[0], SeedBatchJob)
@@ -343,11 +344,33 @@ def test_the_resume_extension_and_closing_rules_are_written_once_for_every_engin
     assert life.checkpoint_at_close([seed("completed"), seed("non_finite_loss", episode=3)]) == "delete"
     assert life.checkpoint_at_close([seed("error")]) is None
     assert "--resume continues" in life.interruption([]) and "dispatcher" in life.interruption([])
+    # the whole life around the steps is life.py's: the checkpoint envelope and its reading, the
+    # cadence, the interrupt check and the close; an engine module restates none of them
     root = Path(__file__).resolve().parents[1] / "keras_rl" / "train"
-    for engine in ("loop.py", "compiled.py"):
+    restatements = (
+        "check_resume_config(self.out_dir",
+        "< wanted[",
+        'episodes.csv",',
+        "stopped by {by}",
+        "write_checkpoint(",
+        "read_batch_checkpoints(",
+        "check_checkpoint_engine(",
+        '"version"',
+        "global_rng_state(",
+        '"interrupted", interruption(',
+        "checkpoint_at_close(",
+        "checkpoint_every *",
+        "stopped on an error",
+    )
+    engines = sorted(p.name for p in root.glob("*.py") if p.name not in ("life.py", "__init__.py"))
+    assert {"loop.py", "compiled.py", "vectorised.py"} <= set(engines)
+    for engine in engines:
         text = (root / engine).read_text()
-        for restated in ("check_resume_config(self.out_dir", "< wanted[", 'episodes.csv",', "stopped by {by}"):
-            assert restated not in text, (engine, restated)
+        for restated in restatements:  # as a name of its own, not inside one (the engine's _write_checkpoint)
+            assert not re.search(r"(?<!\w)" + re.escape(restated), text), (engine, restated)
+    life_text = (root / "life.py").read_text()
+    for written_here in ("write_checkpoint(", "read_batch_checkpoints(", "check_checkpoint_engine(", '"version"'):
+        assert written_here in life_text, written_here
 
 
 def test_a_dry_run_refuses_what_the_real_run_would_and_touches_nothing(tmp_path):

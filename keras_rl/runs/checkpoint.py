@@ -35,8 +35,9 @@ from keras_rl.errors import RunFolderError, argument
 CHECKPOINT = "checkpoint.pkl"
 PREVIOUS = "checkpoint.prev.pkl"
 MAGIC = b"keras-rl checkpoint 1\n"
-VERSION = 2
-"""The layout of the payload (``train/loop.py``); 1 was the per-episode layout of the solo loop."""
+VERSION = 3
+"""The layout of the payload (``train/life.Checkpoints``, every engine's); 2 kept the loop's
+seed-axis state under ``axis`` and named no engine, 1 was the per-episode layout of the solo loop."""
 
 
 def write_checkpoint(run_dir: Path, state: dict[str, Any]) -> None:

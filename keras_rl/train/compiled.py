@@ -43,14 +43,12 @@ from keras_rl.errors import ConfigError, NonFiniteLossError, argument
 from keras_rl.experiment import Experiment
 from keras_rl.learners.common import step_function
 from keras_rl.learners.table import implementation
-from keras_rl.rngs import global_rng_state, rng_state, set_global_rng_state, set_rng_state
-from keras_rl.runs.checkpoint import VERSION, delete_checkpoints, read_batch_checkpoints, write_checkpoint
-from keras_rl.runs.lifecycle import check_checkpoint_engine
+from keras_rl.rngs import rng_state, set_rng_state
 from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import configure_tensorflow, seed_everything
 from keras_rl.tf_envs import MAX_STEPS, CartPole, MountainCarContinuous, Pendulum
 from keras_rl.train.compiled_scope import ENGINE, refusal
-from keras_rl.train.life import SeedLife, checkpoint_at_close, interruption, live
+from keras_rl.train.life import Checkpoints, SeedLife, close_lives, live, stop_requested
 from keras_rl.train.settings import TrainSettings
 
 
@@ -209,6 +207,7 @@ class CompiledRun:
         """Steps the current episode has played in the chunks before this one (post 003)."""
         self.tally = LossTally(self.learner.loss_names)
         """Each episode's losses and the run's update count, as the loop keeps them."""
+        self.checkpoints = Checkpoints(ENGINE, [c.seed], settings.checkpoint_every)
 
     def _reset_env(self) -> np.ndarray:
         """The next episode's start state, drawn by the Gymnasium env as the loop resets it."""
@@ -255,7 +254,6 @@ class CompiledRun:
 
     def _loop(self, interrupted: list, bar, should_stop) -> None:
         life = self.life
-        since = 0
         while life.active:
             played = self._play_episode()
             if isinstance(played, str):
@@ -266,37 +264,31 @@ class CompiledRun:
             greedy = lambda obs: self.learner.act(self.transitions.observe(obs))  # noqa: E731 as the policy sees it (P001)
             if not life.end_episode(score, steps, stats, greedy, self.learner.save, bar):
                 return
-            if interrupted or (should_stop is not None and should_stop()):
-                life.finish("interrupted", interruption(interrupted))
+            if stop_requested([life], interrupted, should_stop, ask=True):
                 return
-            since += 1
-            if self.settings.checkpoint_every and since >= self.settings.checkpoint_every:
+            self.checkpoints.episode_ended()
+            if self.checkpoints.due([life], 1):
                 self._write_checkpoint()
-                since = 0
 
-    # -- checkpoints ---------------------------------------------------------------------------
-    def _snapshot(self) -> dict[str, Any]:
-        run = self.records
+    # -- checkpoints: the engine's own state (the envelope and the rest are life.Checkpoints') --
+    def _engine_state(self) -> dict[str, Any]:
         return {
-            "version": VERSION,
-            "engine": ENGINE,
-            "batch": [self.config.seed],
-            "vector_step": self.life.episode,
-            "global_rng": global_rng_state(),
-            "seed": {
-                **run.snapshot(self.life.status, self.life.message),
-                "episode": self.life.episode,
-                "saved": self.life.saved,
-            },
-            "engine_state": {
-                "learner": self.learner.state_dict(),
-                **self._replay_state(),
-                "updates": self.tally.total_updates,
-                "explorer": self.explorer.state_dict(),
-                "env_rng": rng_state(self.env.unwrapped.np_random),
-                "action_space_rng": rng_state(self.action_space.np_random),
-            },
+            "learner": self.learner.state_dict(),
+            **self._replay_state(),
+            "updates": self.tally.total_updates,
+            "explorer": self.explorer.state_dict(),
+            "env_rng": rng_state(self.env.unwrapped.np_random),
+            "action_space_rng": rng_state(self.action_space.np_random),
         }
+
+    def _load_engine_state(self, states: list[dict[str, Any]]) -> None:
+        (own,) = states
+        self.learner.load_state_dict(own["learner"])
+        self._load_replay_state(own)
+        self.tally.total_updates = int(own["updates"])
+        self.explorer.load_state_dict(own["explorer"])
+        set_rng_state(self.env.unwrapped.np_random, own["env_rng"])
+        set_rng_state(self.action_space.np_random, own["action_space_rng"])
 
     def _replay_state(self) -> dict[str, Any]:
         """What the replay holds between episodes: the program's ring, how much was stored, and
@@ -309,36 +301,16 @@ class CompiledRun:
         set_rng_state(self.buffer.rng, own["buffer_rng"])
 
     def _write_checkpoint(self) -> None:
-        write_checkpoint(self.life.out_dir, self._snapshot())
+        self.checkpoints.write(self.life.episode, [(self.life, self._engine_state())])
 
     def _restore(self) -> None:
-        out_dir = self.life.out_dir
-        (state,) = read_batch_checkpoints([out_dir], [self.config.seed])
-        check_checkpoint_engine(out_dir, state, ENGINE)
-        seed, own = state["seed"], state["engine_state"]
-        self.life.resume(seed)  # first: a config the learner's state would not fit is refused, naming the field
-        self.learner.load_state_dict(own["learner"])
-        self._load_replay_state(own)
-        self.tally.total_updates = int(own["updates"])
-        self.explorer.load_state_dict(own["explorer"])
-        set_rng_state(self.env.unwrapped.np_random, own["env_rng"])
-        set_rng_state(self.action_space.np_random, own["action_space_rng"])
-        set_global_rng_state(state["global_rng"])
+        lives = [self.life]
+        Checkpoints.resume(lives, self.checkpoints.read(lives), self._load_engine_state)
 
     # -- the end ---------------------------------------------------------------------------------
-    def _close(self) -> RunSummary:
-        life = self.life
-        if life.active:
-            life.finish("error", "the run stopped on an error")
-        action = checkpoint_at_close([life])
-        if action in ("write", "keep"):
-            self._write_checkpoint()
-        elif action == "delete":
-            delete_checkpoints(life.out_dir)
-        if life.evaluator is not None:
-            life.evaluator.close()
+    def _close(self) -> None:
+        close_lives([self.life], self._write_checkpoint, lambda k: self.life.flush(self.learner.save))
         self.env.close()
-        return life.flush(self.learner.save)
 
 
 class PendulumRun(CompiledRun):

@@ -1,8 +1,10 @@
 """One seed's life, the same on every engine.
 
 An engine computes the steps (the Gymnasium loop steps envs over a seed axis, ``train/loop.py``;
-the compiled engine runs a program per episode or chunk, ``train/compiled.py``) and keeps its own
-state in a checkpoint. Everything else a run folder shows is written here, once:
+the compiled engine runs a program per episode or chunk, ``train/compiled.py``; the vectorised
+engine steps a batch of seeds in PyTorch, ``train/vectorised.py``) and supplies its own state
+for a checkpoint. Everything else a run folder shows, and the whole life around the steps, is
+written here, once:
 
 - ``SeedRecords``: the rows of ``episodes.csv``, the metric, the counters and the ``summary.json``
   they make, and their part of a checkpoint;
@@ -11,6 +13,9 @@ state in a checkpoint. Everything else a run folder shows is written here, once:
   an episode does (``SeedLife.end_episode``: the row, TensorBoard, evaluation, progress, the
   stop rule), why it stops on a signal (``interruption``), which checkpoint it leaves at the end
   (``checkpoint_at_close``) and its last word (``SeedLife.flush``: weights, final summary);
+- ``live``: a job's run under signals, and ``stop_requested``, the interrupt check between steps;
+- ``Checkpoints``: a job's checkpoint envelope, its cadence, and reading it back; and
+  ``close_lives``: how a job ends, its checkpoints kept, written or removed;
 - ``progress_bar`` and ``TensorBoardWriter``.
 """
 
@@ -27,9 +32,11 @@ from typing import Any, Literal
 
 from keras_rl.atomic import atomic_write_text
 from keras_rl.experiment import Experiment
+from keras_rl.rngs import global_rng_state, set_global_rng_state
+from keras_rl.runs.checkpoint import VERSION, delete_checkpoints, read_batch_checkpoints, write_checkpoint
 from keras_rl.runs.evaluate import TrainingEvaluator
 from keras_rl.runs.files import RunRecorder, episode_columns, episodes_csv_text
-from keras_rl.runs.lifecycle import check_resume_config
+from keras_rl.runs.lifecycle import check_checkpoint_engine, check_resume_config
 from keras_rl.runs.provenance import command_line, library_versions, provenance
 from keras_rl.runs.signals import signal_name
 from keras_rl.runs.summary import RunSummary, Status
@@ -183,6 +190,21 @@ class SeedLife:
         ended in; one stopped at its threshold stays as it is."""
         return self.status == "completed" and played == budget_then < self.config.episodes and not self.stopped_early
 
+    # -- its part of a checkpoint ----------------------------------------------------------------
+    def snapshot(self) -> dict[str, Any]:
+        """The seed's part of a checkpoint: its records (``SeedRecords.snapshot``), the episode
+        and whether its weights were saved. An engine that keeps more of a seed outside its own
+        state (the loop's env mid-episode) adds it here, and takes it back in ``restore``."""
+        return {
+            **self.records.snapshot(self.status, self.message),
+            "episode": self.episode,
+            "saved": self.saved,
+        }
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """``snapshot``'s part back (``resume``)."""
+        self.resume(state)
+
     # -- start ----------------------------------------------------------------------------------
     def resume(self, state: dict[str, Any]) -> None:
         """The resume rule: a checkpoint's records back (``SeedRecords.snapshot`` with the seed's
@@ -295,11 +317,83 @@ def live(
     return [s.final for s in lives if s.final is not None]
 
 
+def stop_requested(
+    lives: Sequence[SeedLife], interrupted: list, should_stop: Callable[[], bool] | None, ask: bool
+) -> bool:
+    """The interrupt check between steps, every engine's: whether the job stops here on a signal
+    (``interrupted``, ``live``'s flag) or on its dispatcher's request (``should_stop``, asked
+    only where ``ask``: it costs a round trip, a Ray actor call, so engines ask when an episode
+    ended). Every seed still running is then finished as interrupted."""
+    if not interrupted and not (ask and should_stop is not None and should_stop()):
+        return False
+    for life in lives:
+        if life.active:
+            life.finish("interrupted", interruption(interrupted))
+    return True
+
+
 def interruption(interrupted: list) -> str:
     """Why a run stops on a signal (``runs/signals.stop_signals_as_flag``'s flag) or on its
     dispatcher's stop request: the message its summary keeps."""
     by = signal_name(interrupted) if interrupted else "the dispatcher's stop request (Ctrl-C or SIGTERM)"
     return f"stopped by {by}; the episodes so far are kept (--resume continues)"
+
+
+class Checkpoints:
+    """A job's checkpoints on any engine, written and read here alone. Each seed's file holds
+    the envelope (the format's version, the engine that wrote it, the batch the job started as,
+    the engine's step counter, and Python's and NumPy's global generators), the seed's part
+    (``SeedLife.snapshot``) and the engine's own state for that seed (``engine_state``): an
+    engine supplies only that state and how to load it. The cadence: every ``every`` episodes
+    per seed (``TrainSettings.checkpoint_every``; 0 writes none before the end)."""
+
+    def __init__(self, engine: str, batch: list[int], every: int):
+        self.engine, self.batch, self.every = engine, batch, every
+        self.since = 0
+        """Episodes ended, over the job's seeds, since the last checkpoint."""
+
+    def episode_ended(self) -> None:
+        self.since += 1
+
+    def due(self, lives: Sequence[SeedLife], seeds: int) -> bool:
+        """Whether a checkpoint is due now: some seed still runs and the ``seeds`` seeds stepped
+        together have ended ``every`` episodes each, on average, since the last one."""
+        return bool(self.every) and any(life.active for life in lives) and self.since >= self.every * seeds
+
+    def write(self, step: int, seeds: Sequence[tuple[SeedLife, dict[str, Any]]]) -> None:
+        """Each seed's checkpoint into its own folder: ``(life, engine_state)`` pairs at the
+        engine's step ``step``."""
+        envelope = {
+            "version": VERSION,
+            "engine": self.engine,
+            "batch": self.batch,
+            "vector_step": step,
+            "global_rng": global_rng_state(),
+        }
+        for life, own in seeds:
+            write_checkpoint(life.out_dir, {**envelope, "seed": life.snapshot(), "engine_state": own})
+        self.since = 0
+
+    def read(self, lives: Sequence[SeedLife], part: bool = False) -> list[dict[str, Any]]:
+        """The checkpoints of ``lives`` (the batch's, in order; ``part``: a batch that shed seeds
+        as it went, ``runs/checkpoint.read_batch_checkpoints``), each refused where another
+        engine wrote it. Nothing is restored yet: an engine may refuse them first (``resume``)."""
+        out_dirs = [life.out_dir for life in lives]
+        states = read_batch_checkpoints(out_dirs, self.batch, part=part)
+        for out_dir, state in zip(out_dirs, states):
+            check_checkpoint_engine(out_dir, state, self.engine)
+        return states
+
+    @staticmethod
+    def resume(lives: Sequence[SeedLife], states: list[dict[str, Any]], load: Callable[[list], None]) -> int:
+        """``read``'s checkpoints restored: each seed's part first (a config the engine's state
+        would not fit is refused, naming the field), then the engine's states (``load``, in the
+        seeds' order), then the global generators. The engine's step counter they hold."""
+        for life, state in zip(lives, states):
+            life.restore(state["seed"])
+        load([state["engine_state"] for state in states])
+        set_global_rng_state(states[0]["global_rng"])
+        return int(states[0]["vector_step"])
 
 
 CloseCheckpoint = Literal["write", "keep", "delete"]
@@ -319,18 +413,18 @@ def checkpoint_at_close(lives: Sequence[SeedLife]) -> CloseCheckpoint | None:
     return None
 
 
-def close_lives(lives: Sequence[SeedLife], write_checkpoints: Callable[[], None], flush: Callable[[int], None]) -> None:
+def close_lives(
+    lives: Sequence[SeedLife], write_checkpoints: Callable[[], None], flush: Callable[[int], object]
+) -> None:
     """How a job of one or more seeds ends on any engine: a seed still running after an error
     outside any one seed says so; the checkpoints ``checkpoint_at_close`` asks for are written
     (``write_checkpoints``: every seed's) or removed; every seed without a final summary flushes
     (``flush(k)``) and its evaluator closes. A checkpoint an interrupted seed cannot write (a full
     disk) makes that seed an error naming the folder; a solo run's kept final checkpoint that
     cannot be written costs only the extension, with a warning."""
-    from keras_rl.runs.checkpoint import delete_checkpoints
-
     for life in lives:
         if life.active:
-            life.finish("error", "the batch stopped on an error")
+            life.finish("error", f"the {'run' if len(lives) == 1 else 'batch'} stopped on an error")
     action = checkpoint_at_close(lives)
     if action == "write":
         try:

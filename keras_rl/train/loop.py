@@ -48,13 +48,13 @@ from keras_rl.errors import ConfigError, NonFiniteLossError, argument
 from keras_rl.experiment import Experiment
 from keras_rl.learners.axis import SeedAxisLearner
 from keras_rl.learners.table import implementation, stacked_implementation
-from keras_rl.rngs import global_rng_state, set_global_rng_state
-from keras_rl.runs.checkpoint import read_batch_checkpoints, write_checkpoint
-from keras_rl.runs.lifecycle import check_checkpoint_engine
 from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import configure_tensorflow, seed_everything
-from keras_rl.train.life import SeedLife, close_lives, interruption, live
+from keras_rl.train.engine import GymnasiumEngine
+from keras_rl.train.life import Checkpoints, SeedLife, close_lives, live, stop_requested
 from keras_rl.train.settings import DEFAULT_SETTINGS, TrainSettings
+
+ENGINE = GymnasiumEngine.name
 
 
 def run_seed(
@@ -105,11 +105,9 @@ def run_seeds(
     for s in seeds:
         if len(seeds) > 1:  # which seeds shared its stacked updates: its bits depend on them
             s.records.provenance["seed_batch"] = batch
-    state = _Batch(seeds, axis, settings.checkpoint_every, batch)
+    state = _Batch(seeds, axis, Checkpoints(ENGINE, batch, settings.checkpoint_every))
     if settings.resume:
-        checkpoints = read_batch_checkpoints([s.recorder.out_dir for s in seeds], batch)
-        check_checkpoint_engine(seeds[0].recorder.out_dir, checkpoints[0], "gymnasium")
-        state.restore(checkpoints)
+        state.restore()
     return live(experiment, configs, seeds, settings, lambda flag, bar: state.loop(flag, bar, should_stop), state.close)
 
 
@@ -381,10 +379,9 @@ def _load_env_state(env, saved) -> None:
 class _Batch:
     """The loop's state: the seeds, the seed axis, and the vector-step counter checkpoints carry."""
 
-    def __init__(self, seeds: list[_Seed], axis, checkpoint_every: int, batch: list[int]):
-        self.seeds, self.axis, self.checkpoint_every, self.batch = seeds, axis, checkpoint_every, batch
+    def __init__(self, seeds: list[_Seed], axis, checkpoints: Checkpoints):
+        self.seeds, self.axis, self.checkpoints = seeds, axis, checkpoints
         self.vector_step = 0
-        self.since_checkpoint = 0
         self.started = False
 
     # -- the loop -------------------------------------------------------------------------
@@ -440,7 +437,7 @@ class _Batch:
                     lambda d, k=k: axis.save(k, d),
                     bar,
                 )
-                self.since_checkpoint += 1
+                self.checkpoints.episode_ended()
                 if goes_on:
                     s.episode += 1
                     s.score, s.steps = 0.0, 0
@@ -449,39 +446,24 @@ class _Batch:
             stopped = [k for k, s in enumerate(seeds) if not s.active and s.final is None]
             for k in stopped:  # it stopped on this step: its files and summary now
                 self.flush(k)
-            # the dispatcher's flag costs a round trip (a Ray actor call): asked when an episode ends
-            if interrupted or (ended and should_stop is not None and should_stop()):
-                for s in seeds:
-                    if s.active:
-                        s.finish("interrupted", interruption(interrupted))
+            if stop_requested(seeds, interrupted, should_stop, ask=bool(ended)):
                 return
-            if (
-                self.checkpoint_every
-                and any(s.active for s in seeds)
-                and self.since_checkpoint >= self.checkpoint_every * len(seeds)
-            ):
+            if self.checkpoints.due(seeds, len(seeds)):
                 self.write_checkpoints()
 
     # -- checkpoints ------------------------------------------------------------------------
     def write_checkpoints(self) -> None:
-        """Every seed's state at this vector step, each into its own folder."""
-        shared = {
-            "version": 2,
-            "batch": self.batch,
-            "vector_step": self.vector_step,
-            "global_rng": global_rng_state(),
-        }
-        for k, s in enumerate(self.seeds):
-            write_checkpoint(s.recorder.out_dir, {**shared, "seed": s.snapshot(), "axis": self.axis.seed_state(k)})
-        self.since_checkpoint = 0
+        """Every seed's state at this vector step, each into its own folder (its slice of the
+        seed axis is the engine's state)."""
+        self.checkpoints.write(self.vector_step, [(s, self.axis.seed_state(k)) for k, s in enumerate(self.seeds)])
 
-    def restore(self, states: list[dict[str, Any]]) -> None:
-        for k, (s, state) in enumerate(zip(self.seeds, states)):
-            s.restore(state["seed"])
-            self.axis.load_seed_state(k, state["axis"])
-        set_global_rng_state(states[0]["global_rng"])
-        self.vector_step = int(states[0]["vector_step"])
+    def restore(self) -> None:
+        self.vector_step = Checkpoints.resume(self.seeds, self.checkpoints.read(self.seeds), self._load_axis)
         self.started = True
+
+    def _load_axis(self, states: list[dict[str, Any]]) -> None:
+        for k, state in enumerate(states):
+            self.axis.load_seed_state(k, state)
 
     # -- the end ------------------------------------------------------------------------------
     def flush(self, k: int) -> None:

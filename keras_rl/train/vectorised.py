@@ -70,10 +70,9 @@ from keras_rl.config import check_same_but_seed
 from keras_rl.dynamics import MAX_STEPS
 from keras_rl.errors import ConfigError, RunFolderError, argument
 from keras_rl.experiment import Experiment
-from keras_rl.runs.checkpoint import VERSION, delete_checkpoints, read_batch_checkpoints, write_checkpoint
-from keras_rl.runs.lifecycle import check_checkpoint_engine
+from keras_rl.runs.checkpoint import delete_checkpoints
 from keras_rl.runs.summary import RunSummary
-from keras_rl.train.life import SeedLife, close_lives, interruption, live
+from keras_rl.train.life import Checkpoints, SeedLife, close_lives, live, stop_requested
 from keras_rl.train.settings import TrainSettings
 
 ENGINE = "vectorised"
@@ -176,6 +175,7 @@ class VectorisedRun:
                 life.records.provenance["seed_batch"] = self.batch
         self.policies: dict[int, Any] = {}
         """Each seed's ``SeedPolicy`` read since the last chunk."""
+        self.checkpoints = Checkpoints(self.engine, self.batch, settings.checkpoint_every)
 
     # -- the run -----------------------------------------------------------------------------
     def run(self, should_stop: Callable[[], bool] | None = None) -> list[RunSummary]:
@@ -192,7 +192,6 @@ class VectorisedRun:
 
     def _loop(self, interrupted: list, bar, should_stop) -> None:
         lives = self.lives
-        since = 0
         while any(life.active for life in lives):
             ends = self.core.play(self._chunk_steps())
             self.policies.clear()
@@ -204,7 +203,7 @@ class VectorisedRun:
                 if end.episode != life.episode + 1:
                     raise RuntimeError(f"seed {end.seed} ended episode {end.episode} after {life.episode}")
                 life.episode = end.episode
-                since += 1
+                self.checkpoints.episode_ended()
                 if not math.isfinite(end.loss_sum):
                     life.finish(
                         "non_finite_loss",
@@ -219,16 +218,10 @@ class VectorisedRun:
                 save = lambda d, k=k: self._policy(k).save(d)  # noqa: E731
                 if not life.end_episode(float(end.steps), end.steps, stats, greedy, save, bar):
                     self._flush(k)
-            # the dispatcher's flag costs a round trip (a Ray actor call): asked when an episode ends
-            if interrupted or (ends and should_stop is not None and should_stop()):
-                for life in lives:
-                    if life.active:
-                        life.finish("interrupted", interruption(interrupted))
+            if stop_requested(lives, interrupted, should_stop, ask=bool(ends)):
                 return
-            every = self.settings.checkpoint_every
-            if every and any(life.active for life in lives) and since >= every * len(self.core.seeds):
+            if self.checkpoints.due(lives, len(self.core.seeds)):
                 self._write_checkpoints()
-                since = 0
             self._shed()
 
     def _shed(self) -> None:
@@ -277,41 +270,27 @@ class VectorisedRun:
         naming the batch the job started as; then the shed seeds' older ones go, so that the
         batch resumes as it is now. Killed before they go, the batch resumes whole from the step
         its seeds share (the seeds ahead from their previous checkpoint) and sheds them again."""
-        for seed, own in zip(self.core.seeds, self.core.seed_states()):
-            life = self.lives[self.life_of[seed]]
-            write_checkpoint(
-                life.out_dir,
-                {
-                    "version": VERSION,
-                    "engine": self.engine,
-                    "batch": self.batch,
-                    "vector_step": self.core.t,
-                    "seed": {
-                        **life.records.snapshot(life.status, life.message),
-                        "episode": life.episode,
-                        "saved": life.saved,
-                    },
-                    "engine_state": own,
-                },
-            )
+        self.checkpoints.write(
+            self.core.t,
+            [(self.lives[self.life_of[seed]], own) for seed, own in zip(self.core.seeds, self.core.seed_states())],
+        )
         for seed in set(self.batch) - set(self.core.seeds):  # shed: their older checkpoints go
             delete_checkpoints(self.lives[self.life_of[seed]].out_dir)
 
     def _restore(self) -> None:
-        out_dirs = [life.out_dir for life in self.lives]
-        states = read_batch_checkpoints(out_dirs, self.batch, part=True)
-        for out_dir, state in zip(out_dirs, states):
-            check_checkpoint_engine(out_dir, state, self.engine)
+        states = self.checkpoints.read(self.lives, part=True)
         steps = sorted({int(state["engine_state"]["t"]) for state in states})
         if len(steps) != 1:
             raise RunFolderError(
                 f"the checkpoints of seeds {self.batch} hold env steps {steps}; the seeds of one vectorised "
                 f"batch resume at one step: resume each one alone, or pass {argument('overwrite')} to start again"
             )
-        for life, state in zip(self.lives, states):
-            life.resume(state["seed"])  # first: a config the core's state would not fit is refused, naming the field
+        Checkpoints.resume(self.lives, states, self._load_engine_states)
+
+    def _load_engine_states(self, states: list[dict[str, Any]]) -> None:
+        for life in self.lives:
             life.extending = False  # the core's next episode has begun (its reset is inside the step)
-        self.core.load_seed_states([state["engine_state"] for state in states])
+        self.core.load_seed_states(states)
 
     # -- the end ---------------------------------------------------------------------------------
     def _flush(self, k: int) -> None:
