@@ -20,9 +20,9 @@ from keras_rl.errors import RunFolderError, argument
 from keras_rl.experiment import Experiment
 from keras_rl.learners.table import compared_frameworks
 from keras_rl.runs.files import run_folder
+from keras_rl.runs.lifecycle import UNRECORDED_ENGINE
 from keras_rl.runs.provenance import code_version
 from keras_rl.runs.reuse import check_reusable, start_of
-from keras_rl.train.engine import UNRECORDED_ENGINE
 
 
 def framework_overrides(framework: str, matched_init: bool) -> dict[str, Any]:

@@ -26,13 +26,13 @@ from keras_rl.registry import get_experiment
 from keras_rl.runs.checkpoint import CHECKPOINT, checkpoint_batch
 from keras_rl.runs.evaluate import EvalSchedule
 from keras_rl.runs.files import run_folder_locks
+from keras_rl.runs.lifecycle import UNRECORDED_ENGINE
 from keras_rl.runs.packed import refuse_packed
 from keras_rl.runs.provenance import command_line
 from keras_rl.runs.signals import sigterm_as_interrupt
 from keras_rl.runs.summary import RunSummary
-from keras_rl.train.engine import UNRECORDED_ENGINE, get_engine
+from keras_rl.train.engine import VECTORISED, get_engine
 from keras_rl.train.settings import TrainSettings
-from keras_rl.train.vectorised import COMPILED_ENGINE, ENGINE
 
 
 @dataclass(frozen=True)
@@ -109,7 +109,7 @@ def batched(jobs: list[SeedJob], seed_batch: int | str, workers: int = 1) -> lis
             if len(batch) > 1:
                 resumed.setdefault((tuple(batch), job.command), []).append(job)
                 continue
-        seed_axis = (job.experiment, job.config.framework) in STACKED or job.engine in (ENGINE, COMPILED_ENGINE)
+        seed_axis = (job.experiment, job.config.framework) in STACKED or job.engine in VECTORISED
         if seed_batch == 1 or job.start == "resume" or not seed_axis:
             alone.append(job)
             continue

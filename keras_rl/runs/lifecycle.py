@@ -189,12 +189,19 @@ def set_engine(folder: Path, leaving: list[Path] | tuple[Path, ...] = ()) -> str
     return next(iter(held), None)
 
 
+UNRECORDED_ENGINE = "gymnasium"
+"""The Gymnasium loop's name (``train/engine.GymnasiumEngine``, ``train/loop.py``), kept here, below
+both: the engine of a run or checkpoint that recorded none (every one made before the engine seam),
+and of a job built without one. Not what a user gets by default: that is ``auto``
+(``dispatch.options.AUTO``, ``study.choose_engine``), declared once in ``RunOptions``."""
+
+
 def check_checkpoint_engine(out_dir: Path, state: dict, engine: str) -> None:
     """A RunFolderError where the checkpoint ``state`` of ``out_dir`` was written by another
     engine than the one asked to resume it (every engine's rule, and ``plan``'s)."""
     from keras_rl.errors import RunFolderError
 
-    wrote = state.get("engine", "gymnasium")
+    wrote = state.get("engine", UNRECORDED_ENGINE)
     if wrote != engine:
         raise RunFolderError(
             f"{out_dir}'s checkpoint was written by the {wrote} engine; resume it with {argument('engine', wrote)}, "

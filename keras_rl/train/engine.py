@@ -21,6 +21,7 @@ from typing import Protocol
 
 from keras_rl.errors import ConfigError
 from keras_rl.experiment import Experiment
+from keras_rl.runs.lifecycle import UNRECORDED_ENGINE
 from keras_rl.runs.summary import RunSummary
 from keras_rl.train.compiled_scope import ENGINE as COMPILED
 from keras_rl.train.settings import TrainSettings
@@ -51,7 +52,7 @@ class GymnasiumEngine:
     """The episode loop of ``train/loop.py``: Gymnasium envs stepped in NumPy, one learner
     call per env step over the seed axis. It runs every experiment, framework and quirk."""
 
-    name = "gymnasium"
+    name = UNRECORDED_ENGINE
 
     def refusal(self, experiment: Experiment, config) -> str | None:
         return None
@@ -89,10 +90,6 @@ VECTORISED = (VECTORISED_EAGER, COMPILED_ENGINE)
 """The vectorised engine's two programs (``train/vectorised.py``): eager, and its step compiled."""
 ENGINES: dict[str, Engine] = {}
 """The engines built so far, by name (``get_engine`` builds each on first use)."""
-UNRECORDED_ENGINE = GymnasiumEngine.name
-"""The engine of a run that recorded none (every run made before the engine seam), and of a job
-built without one. Not what a user gets by default: that is ``auto`` (``dispatch.options.AUTO``,
-``study.choose_engine``), declared once in ``RunOptions``."""
 
 
 def get_engine(name: str) -> Engine:

@@ -48,13 +48,11 @@ from keras_rl.errors import ConfigError, NonFiniteLossError, argument
 from keras_rl.experiment import Experiment
 from keras_rl.learners.axis import SeedAxisLearner
 from keras_rl.learners.table import implementation, stacked_implementation
+from keras_rl.runs.lifecycle import UNRECORDED_ENGINE as ENGINE
 from keras_rl.runs.summary import RunSummary
 from keras_rl.seeding import configure_tensorflow, seed_everything
-from keras_rl.train.engine import GymnasiumEngine
 from keras_rl.train.life import Checkpoints, SeedLife, close_lives, live, stop_requested
 from keras_rl.train.settings import DEFAULT_SETTINGS, TrainSettings
-
-ENGINE = GymnasiumEngine.name
 
 
 def run_seed(
