@@ -106,3 +106,24 @@ def test_the_table_reads_a_twin_check_and_names_what_changed():
     assert compat.torch_check_text(smoke) == "not run" and compat.changes_text(smoke) == "not recorded"
     failed = {"error": "Looking in indexes: ...\nERROR: No matching distribution found for numpy==2.5.*\n"}
     assert compat.install_failure(failed) == "**failed**: No matching distribution found for numpy==2.5.*"
+
+
+def test_a_cell_stopped_before_its_last_step_shows_what_it_ran(tmp_path, monkeypatch):
+    """A cell stopped midway (no cell.json) is read from the steps it finished; the rest show as
+    not run yet, and its cost says so far."""
+    import json
+
+    from maintainers.tables import compat
+
+    folder = tmp_path / "tf9.9"
+    folder.mkdir()
+    (folder / "install.json").write_text(json.dumps({"spec": {"tensorflow": "9.9"}, "exit_code": 0, "seconds": 60}))
+    tests = {"exit_code": 0, "tests": 3, "failures": 0, "errors": 0, "skipped": 0, "passed": 3, "step_seconds": 120}
+    (folder / "tests.json").write_text(json.dumps(tests))
+    monkeypatch.setattr(compat, "COMPAT", tmp_path)
+    ((name, install, cell),) = compat.load_cells()
+    assert cell["partial"] and cell["seconds"] == 180
+    row = compat.table().splitlines()[-1]
+    assert row.startswith("| tf9.9 | 9.9 |") and "| 3 passed |" in row and row.endswith("| 3 (so far) |")
+    assert row.count("not run yet") == 11  # env parity, 3 replays, first numbers, 3 checks, PyTorch, changes, speed
+    assert compat.short_table().splitlines()[-1].endswith("| all passed | not run yet | not run yet |")

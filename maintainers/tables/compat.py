@@ -34,23 +34,38 @@ def cell_order(name: str) -> tuple[int, str]:
     return ({"reference": 0, "oldest": 2, "newest": 3}.get(name, 1), name)
 
 
+STEPS = ("versions", "tests", "envs", "replay", "probe", "check", "speed")
+"""``matrix/compat_cell.py``'s steps, each a ``<step>.json`` in the cell's folder as it finishes."""
+
+
 def load_cells() -> list[tuple[str, dict, dict | None]]:
-    """(cell, install.json, cell.json or None) for every cell folder, reference first."""
+    """(cell, install.json, cell.json or None) for every cell folder, reference first. A cell
+    stopped before its last step is read from the steps it finished (``partial``: the others
+    show as not run yet); one that finished none is None."""
     cells = []
     for folder in sorted((p for p in COMPAT.iterdir() if p.is_dir()), key=lambda p: cell_order(p.name)):
         install = folder / "install.json"
         if not install.exists():
             continue
-        cell = folder / "cell.json"
-        cells.append(
-            (folder.name, json.loads(install.read_text()), json.loads(cell.read_text()) if cell.exists() else None)
-        )
+        record = json.loads(install.read_text())
+        cell: dict | None = None
+        if (folder / "cell.json").exists():
+            cell = json.loads((folder / "cell.json").read_text())
+        elif steps := {s: json.loads(f.read_text()) for s in STEPS if (f := folder / f"{s}.json").exists()}:
+            seconds = sum(step["step_seconds"] for step in steps.values()) + record.get("seconds", 0)
+            cell = {**steps, "partial": True, "seconds": seconds}
+        cells.append((folder.name, record, cell))
     return cells
+
+
+def ran(cell: dict, step: str, text) -> str:
+    """``text(cell)`` where the cell ran ``step``; otherwise that it has not yet."""
+    return text(cell) if step in cell else "not run yet"
 
 
 def versions_text(install: dict, cell: dict | None) -> list[str]:
     """Each factor's installed version (what the cell asked for, until it has run)."""
-    got = cell["versions"]["versions"] if cell else {}
+    got = cell["versions"]["versions"] if cell and "versions" in cell else {}
     spec = {"torch": DEFAULT_TORCH, **install["spec"]}
     return [got.get(f) or (spec.get(f) or "as resolved") for f in FACTORS]
 
@@ -195,16 +210,32 @@ def table() -> str:
         if cell is None:
             lines.append(f"| {name} | {' | '.join(versions)} | ok |" + " not run yet |" * steps)
             continue
-        replays = [replay_text(cell["replay"]["posts"][p]) for p in POSTS]
-        checks = [check_text(cell, p) for p in POSTS]
+        replays = [ran(cell, "replay", lambda c, p=p: replay_text(c["replay"]["posts"][p])) for p in POSTS]
+        checks = [ran(cell, "check", lambda c, p=p: check_text(c, p)) for p in POSTS]
+        cost = f"{cell['seconds'] / 60:.0f}" + (" (so far)" if cell.get("partial") else "")
         lines.append(
-            f"| {name} | {' | '.join(versions)} | ok ({install['seconds'] / 60:.0f} min) | {tests_text(cell)} | "
-            f"{envs_text(cell)} | "
-            f"{' | '.join(replays)} | {probe_text(cell)} | {' | '.join(checks)} | {torch_check_text(cell)} | "
-            f"{changes_text(cell)} | {speed_text(cell)} | "
-            f"{cell['seconds'] / 60:.0f} |"
+            f"| {name} | {' | '.join(versions)} | ok ({install['seconds'] / 60:.0f} min) | "
+            f"{ran(cell, 'tests', tests_text)} | {ran(cell, 'envs', envs_text)} | {' | '.join(replays)} | "
+            f"{ran(cell, 'probe', probe_text)} | {' | '.join(checks)} | {ran(cell, 'check', torch_check_text)} | "
+            f"{ran(cell, 'check', changes_text)} | {ran(cell, 'speed', speed_text)} | {cost} |"
         )
     return "\n".join(lines)
+
+
+def exact_text(cell: dict) -> str:
+    exact = [POST_NAMES[p] for p in POSTS if cell["replay"]["posts"][p]["bit_exact"]]
+    return f"{', '.join(exact) or 'none'} ({len(exact)}/3)"
+
+
+def short_check_text(cell: dict) -> str:
+    tier = "sensitive" if "sensitive" in cell["check"] else "smoke"
+    run = cell["check"][tier]["posts"]
+    changed = [POST_NAMES[p] for p in POSTS if p not in run or post_verdict(run[p]) == "changed"]
+    if changed:
+        return f"{tier}: changed or no verdict: " + ", ".join(changed)
+    if all(run[p].get("same_bits") for p in POSTS):
+        return f"{tier}: the same bits, all 3"
+    return f"{tier}: all 3 consistent"
 
 
 def short_table() -> str:
@@ -219,19 +250,9 @@ def short_table() -> str:
             state = "install failed" if install["exit_code"] != 0 else "not run yet"
             lines.append(f"| {name} | {versions} | {state} | - | - |")
             continue
-        exact = [POST_NAMES[p] for p in POSTS if cell["replay"]["posts"][p]["bit_exact"]]
-        tier = "sensitive" if "sensitive" in cell["check"] else "smoke"
-        run = cell["check"][tier]["posts"]
-        changed = [POST_NAMES[p] for p in POSTS if p not in run or post_verdict(run[p]) == "changed"]
-        if changed:
-            checks = f"{tier}: changed or no verdict: " + ", ".join(changed)
-        elif all(run[p].get("same_bits") for p in POSTS):
-            checks = f"{tier}: the same bits, all 3"
-        else:
-            checks = f"{tier}: all 3 consistent"
         lines.append(
-            f"| {name} | {versions} | {short_tests_text(cell)} | {', '.join(exact) or 'none'} ({len(exact)}/3) "
-            f"| {checks} |"
+            f"| {name} | {versions} | {ran(cell, 'tests', short_tests_text)} | {ran(cell, 'replay', exact_text)} "
+            f"| {ran(cell, 'check', short_check_text)} |"
         )
     return "\n".join(lines)
 
@@ -239,6 +260,7 @@ def short_table() -> str:
 def page() -> str:
     cells = load_cells()
     done = [c for _, i, c in cells if c is not None]
+    partial = sum(bool(c.get("partial")) for c in done)
     cost = sum(c["seconds"] for c in done) / 60
     return "\n".join(
         [
@@ -253,7 +275,8 @@ def page() -> str:
             "",
             table(),
             "",
-            f"{len(done)} cells run, {cost:.0f} minutes in all on this project's machine (2 cores).",
+            f"{len(done)} cells run{f' ({partial} stopped before their last step)' if partial else ''}, "
+            f"{cost:.0f} minutes in all on this project's machine (2 cores).",
             "",
             *(
                 ["Why the bits change where they do, with the evidence: [FINDINGS.md](FINDINGS.md).", ""]
