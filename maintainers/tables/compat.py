@@ -238,22 +238,43 @@ def short_check_text(cell: dict) -> str:
     return f"{tier}: all 3 consistent"
 
 
-def short_table() -> str:
-    lines = [
-        "| cell | TF / Keras / Gymnasium / NumPy / PyTorch | fast tests (when the cell ran) | seed 0 bit-exact "
-        "| check (Keras; the tier it ran) |",
-        "|---|---|---|---|---|",
+GROUPS = (
+    ("the reference", ("reference",)),
+    ("TensorFlow", ("tf", "nightly")),
+    ("Keras", ("keras",)),
+    ("Gymnasium", ("gymnasium",)),
+    ("NumPy", ("numpy",)),
+    ("PyTorch", ("torch",)),
+    ("all at once", ("oldest", "newest")),
+)
+"""The README's rows: the cells grouped by the factor they vary (by their names' beginnings)."""
+
+
+def short_cell(name: str, install: dict, cell: dict | None) -> str:
+    """One cell in the README's short table: its versions, then what it found."""
+    if install["exit_code"] != 0:
+        return f"{name}: install failed"
+    if cell is None:
+        return f"{name}: not run yet"
+    parts = [
+        ran(cell, "tests", lambda c: "tests " + short_tests_text(c)),
+        ran(cell, "replay", lambda c: "seed 0 bit-exact " + exact_text(c)),
+        ran(cell, "check", short_check_text),
     ]
-    for name, install, cell in load_cells():
-        versions = " / ".join(versions_text(install, cell))
-        if install["exit_code"] != 0 or cell is None:
-            state = "install failed" if install["exit_code"] != 0 else "not run yet"
-            lines.append(f"| {name} | {versions} | {state} | - | - |")
-            continue
-        lines.append(
-            f"| {name} | {versions} | {ran(cell, 'tests', short_tests_text)} | {ran(cell, 'replay', exact_text)} "
-            f"| {ran(cell, 'check', short_check_text)} |"
-        )
+    return f"{name}: " + "; ".join(parts)
+
+
+def short_table() -> str:
+    """The README's table: one row per factor the cells vary, each cell in a line of its own, so
+    that a new cell lengthens a row, not the page."""
+    lines = ["| what varies | each cell: what it found |", "|---|---|"]
+    cells = load_cells()
+    grouped = [(title, [c for c in cells if c[0].startswith(prefixes)]) for title, prefixes in GROUPS]
+    placed = {c[0] for _, mine in grouped for c in mine}
+    grouped.append(("other", [c for c in cells if c[0] not in placed]))
+    for title, mine in grouped:
+        if mine:
+            lines.append(f"| {title} | " + "<br>".join(short_cell(*c) for c in mine) + " |")
     return "\n".join(lines)
 
 
