@@ -16,6 +16,8 @@ REFERENCE: dict[str, str | None] = {
     "torch": "2.13.0",
 }
 PINNED_TORCH = "2.13.0"  # setup.cfg's torch extra: the CPU wheel
+STEPS = ("versions", "tests", "envs", "replay", "probe", "check", "speed")
+"""``compat_cell.py``'s steps, in order, each a ``<step>.json`` in the cell's folder as it finishes."""
 
 # cell -> the version of each factor it asks for (None: pip resolves it)
 CELLS: dict[str, dict[str, str | None]] = {

@@ -45,9 +45,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from cells import STEPS  # noqa: E402 beside this script
+
 from keras_rl.atomic import atomic_write_json, atomic_write_text  # noqa: E402
 
-STEPS = ("versions", "tests", "envs", "replay", "probe", "check", "speed")
 # Tests of the repository's committed state, not of the libraries: the matrix table is made from
 # the cell folders, which a running cell is still writing.
 DESELECTED = ("tests/test_results_docs.py::test_the_version_matrix_table_is_generated_from_the_committed_cells",)

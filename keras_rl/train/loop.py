@@ -333,14 +333,8 @@ class _Seed(SeedLife):
         self.score, self.steps = 0.0, 0
 
     def snapshot(self) -> dict[str, Any]:
-        return {
-            **self.records.snapshot(self.status, self.message),
-            "episode": self.episode,
-            "score": self.score,
-            "steps": self.steps,
-            "saved": self.saved,
-            "env": self.env,
-        }
+        """``SeedLife.snapshot`` and where this seed's episode stands: its score, steps and env."""
+        return {**super().snapshot(), "score": self.score, "steps": self.steps, "env": self.env}
 
     def restore(self, state: dict[str, Any]) -> None:
         if getattr(self.config, "learning_phase_training", False):

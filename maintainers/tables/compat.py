@@ -10,16 +10,31 @@ once the cell has run, ``cell.json`` (see ``matrix/compat_cell.py``).
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 
 from maintainers.checkout import ROOT
 from maintainers.markdown import replace_block
 
 COMPAT = ROOT / "results" / "compat"
+
+
+def _matrix_cells():
+    """``matrix/cells.py`` (the cells, their factors and steps), which imports nothing of ours."""
+    spec = importlib.util.spec_from_file_location("matrix_cells", ROOT / "matrix" / "cells.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+_CELLS = _matrix_cells()
+FACTORS: tuple[str, ...] = _CELLS.FACTORS
+STEPS: tuple[str, ...] = _CELLS.STEPS
+DEFAULT_TORCH: str = _CELLS.PINNED_TORCH
+"""The CPU wheel; cells made before PyTorch was a factor used it."""
 POSTS = ("pendulum", "cartpole", "mountaincar")
 POST_NAMES = {"pendulum": "000", "cartpole": "003", "mountaincar": "001"}
-FACTORS = ("tensorflow", "keras", "gymnasium", "numpy", "torch")
-DEFAULT_TORCH = "2.13.0"  # the CPU wheel; cells made before PyTorch was a factor used it
 ENV_IDS = ("Pendulum-v1", "CartPole-v1", "MountainCarContinuous-v0")
 """The envs of ``tests/test_tf_envs.py``, whose parametrised names carry them."""
 SHORT_BEGIN, SHORT_END = "<!-- compat-short:begin -->", "<!-- compat-short:end -->"
@@ -32,10 +47,6 @@ SPEED_KEYS = {
 
 def cell_order(name: str) -> tuple[int, str]:
     return ({"reference": 0, "oldest": 2, "newest": 3}.get(name, 1), name)
-
-
-STEPS = ("versions", "tests", "envs", "replay", "probe", "check", "speed")
-"""``matrix/compat_cell.py``'s steps, each a ``<step>.json`` in the cell's folder as it finishes."""
 
 
 def load_cells() -> list[tuple[str, dict, dict | None]]:
