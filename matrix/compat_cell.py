@@ -1,10 +1,11 @@
 """One cell of the version matrix, run inside that cell's virtualenv (``noxfile.py`` calls it).
 
     python matrix/compat_cell.py --cell NAME --spec '{"tensorflow": "2.20.0"}' \
-        --reference-python .nox/cell-reference/bin/python [--out results/compat/NAME] [--redo STEP]
+        --reference-python .nox/cell-reference/bin/python [--out results/compat/NAME] [--redo STEP] [--only STEP]
 
 Steps, each written to ``<out>/<step>.json`` as it finishes (a killed cell resumes at the first
-step without its file; ``--redo STEP`` reruns one):
+step without its file; ``--redo STEP`` reruns one, ``--only STEP`` runs just the steps named, so a
+cell's verdict can come before its slower steps):
 
 - ``versions``: the library versions this interpreter imports, and ``pip freeze`` (``pip-freeze.txt``);
 - ``tests``: the fast suite (``pytest -m "not slow"``), its counts and the names of failures;
@@ -260,6 +261,13 @@ def main() -> None:
     parser.add_argument("--reference-python", required=True, help="the reference cell's interpreter (speed ratios)")
     parser.add_argument("--out", type=Path, default=None, help="default results/compat/<cell>")
     parser.add_argument("--redo", action="append", choices=STEPS, default=[], help="rerun this step (repeatable)")
+    parser.add_argument(
+        "--only",
+        action="append",
+        choices=STEPS,
+        default=[],
+        help="run just this step (repeatable), the others left for a later run; no cell.json until all are done",
+    )
     args = parser.parse_args()
     if not Path(args.reference_python).exists():
         print(
@@ -273,6 +281,8 @@ def main() -> None:
     spec = json.loads(args.spec)
     for step in STEPS:
         target = out / f"{step}.json"
+        if args.only and step not in args.only:
+            continue
         if target.exists() and step not in args.redo:
             print(f"[{args.cell}] {step}: done before ({target.name}), skipped", flush=True)
             continue
@@ -286,6 +296,11 @@ def main() -> None:
         result["commit"] = _commit()
         atomic_write_json(target, result)
         print(f"[{args.cell}] {step}: {result['step_seconds']:.0f} s", flush=True)
+    missing = [step for step in STEPS if not (out / f"{step}.json").exists()]
+    if missing:
+        shutil.rmtree(work, ignore_errors=True)
+        print(f"[{args.cell}] left for a later run: {', '.join(missing)} (no cell.json yet)", flush=True)
+        return
     steps = {step: json.loads((out / f"{step}.json").read_text()) for step in STEPS}
     install = json.loads((out / "install.json").read_text()) if (out / "install.json").exists() else None
     cell = {"cell": args.cell, "spec": spec, "install": install, **steps}

@@ -5,6 +5,7 @@ of TensorFlow, Keras, Gymnasium, NumPy and PyTorch (``make matrix`` runs them al
     .venv/bin/nox -f matrix/noxfile.py -s cell-tf2.19.1 table   # one cell, then the table
     .venv/bin/nox -f matrix/noxfile.py -l                       # the cells
     .venv/bin/nox -f matrix/noxfile.py -s cell-reference -- --redo check   # one step again
+    .venv/bin/nox -f matrix/noxfile.py -s cell-nightly -- --only versions --only check   # its verdict first
 
 The cell scripts sit beside this file (``matrix/``); every session runs from the repository
 root, whatever folder nox starts in.
