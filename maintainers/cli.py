@@ -3,7 +3,7 @@ checkout as ``python -m maintainers ...`` (this folder is not part of the instal
 
 - ``python -m maintainers calibrate rules|family|held-out|designs|sensitive|real|twins|torch|bisect-levels``:
   the check's calibration (``maintainers/calibrate/``), whose JSON ships as package data;
-- ``python -m maintainers tables findings|ablations|compat|forest|check-figure|runs``: the generated Markdown tables
+- ``python -m maintainers tables findings|ablations|compat|forest|check-figure|prose|runs``: the generated Markdown
   (``maintainers/tables/``), each spliced between its markers (``maintainers/markdown.py``);
 - ``python -m maintainers manifest``: ``results/MANIFEST``, and ``--regenerate`` to rerun sets and compare;
 - ``python -m maintainers audit``: rerun K drawn seeds of every set and compare (``results/AUDIT.md``);
@@ -164,6 +164,14 @@ def add_parser(sub) -> None:
         "maintainers.tables.check_figure",
         "what check.png shows at the sensitive tier: post 000's baseline against 80 real unchanged seeds "
         "(docs/check-example.png)",
+        "--write",
+    )
+    _what(
+        inner,
+        "prose",
+        "maintainers.prose",
+        "every number the docs' prose takes from the data, written between its markers (without --write: "
+        "what is stale, exit 1)",
         "--write",
     )
     p = _what(

@@ -99,7 +99,7 @@ def test_users_pages_speak_of_the_project_not_of_its_issue_tracker():
     pages += sorted((ROOT / "docs").glob("*.md"))
     found = []
     for page in pages:
-        text = page.read_text()
+        text = re.sub(r"<!--.*?-->", "", page.read_text(), flags=re.S)  # as a reader sees it
         for match in re.finditer(r"#\d+\b", text):
             before = text[max(0, match.start() - 40) : match.start()]
             if "tutorials" in before or "PR" in before[-6:]:

@@ -1,14 +1,20 @@
-"""Numbers written by hand in the docs come from the data (issue 52 item 3).
+"""The numbers in the docs' prose, written from the data between markers (issue 71 item 7).
+
+    python -m maintainers tables prose           # the pages whose prose is stale, and what changes
+    python -m maintainers tables prose --write   # write every claim's block
 
 Each claim is a page, a sentence fragment with ``{}`` slots, and a function that computes the
 slots from the committed runs (``RunSet``, ``maintainers.certified.arm``) or from a generated file
-(``results/forest.json``, a report's per-seed table). The test formats the fragment and asserts
-the page holds it, whitespace folded: a number edited by hand, or data that moved under it,
-fails here.
+(``results/forest.json``, a report's per-seed table). The formatted fragment is the page's text
+between ``<!-- prose:ID -->`` and ``<!-- /prose -->``, an HTML comment pair that neither GitHub
+nor the docs site shows; ``ID`` is the fragment's first words. The whole block is written here, so
+a number typed into a page by hand, or data that moved under it, makes the page differ from what
+this module writes (``tests/test_generated.py`` regenerates and compares).
 """
 
 from __future__ import annotations
 
+import argparse
 import gzip
 import json
 import re
@@ -17,8 +23,9 @@ from functools import cache
 from pathlib import Path
 
 import numpy as np
-import pytest
 
+from keras_rl.atomic import atomic_write_text
+from keras_rl.errors import ConfigError
 from keras_rl.report.equivalence import CONVERGED_AT_END, FIRST_PASSING, Arm
 from keras_rl.report.stats import fisher_exact
 from keras_rl.runs.run_set import RunSet
@@ -416,14 +423,14 @@ CLAIMS: list[Claim] = [
     # item 3's five numbers, as rewritten
     (
         "docs/findings.md",
-        "179 of 200 seeds first meet the threshold at the same episode on both ({} of them also agree on "
-        "success), and {} agree on success",
-        lambda: (engines_001()["and_success"], engines_001()["success"]),
-    ),
-    (
-        "docs/findings.md",
-        "Seed by seed the engines mostly agree: {} of {} seeds",
-        lambda: (engines_001()["first"], len(table_pairs("engines/mountaincar/report.md"))),
+        "Seed by seed the engines mostly agree: {} of {} seeds first meet the threshold at the same episode on "
+        "both ({} of them also agree on success), and {} agree on success",
+        lambda: (
+            engines_001()["first"],
+            len(table_pairs("engines/mountaincar/report.md")),
+            engines_001()["and_success"],
+            engines_001()["success"],
+        ),
     ),
     (
         "docs/findings.md",
@@ -667,7 +674,7 @@ CLAIMS: list[Claim] = [
     ],
     (
         "results/cartpole/vectorised-torch/xeon-pinned/README.md",
-        "The best S gives **{}**",
+        "best S gives **{}**",
         lambda: (best_ratio(markdown_rows((PINNED / "torch_vectorised.txt").read_text())),),
     ),
     (
@@ -683,7 +690,7 @@ CLAIMS: list[Claim] = [
     ),
     (
         "results/cartpole/vectorised-torch/xeon-pinned/README.md",
-        "On the AMD EPYC the same benchmark gives {} to {}",
+        "the AMD EPYC the same benchmark gives {} to {}",
         lambda: (epyc()["lowest_best"], epyc()["best"]),
     ),
     (
@@ -724,24 +731,21 @@ CLAIMS: list[Claim] = [
     ),
     (
         "README.md",
-        "| the tutorial's code: {} on the AMD EPYC; {} on the project's machine when it was an Intel Xeon with AVX-512 "
-        "| {}; {} at S=32",
+        "the tutorial's code: {} on the AMD EPYC; {} on the project's machine when it was an Intel Xeon with AVX-512 "
+        "| {}; {} at S=32 ([Xeon](results/cartpole/vectorised-torch/xeon-pinned/README.md)) | {}; **{}**",
         lambda: (
             epyc()["tutorial_quoted"],
             pinned("torch_vectorised.txt", "the tutorial's code (gathered)")[0],
             epyc()["s8_quoted"],
             pinned("torch_vectorised.txt", "vectorised, S=32, compiled")[0],
+            epyc()["lowest_best"],
+            best_ratio(markdown_rows((PINNED / "torch_vectorised.txt").read_text())),
         ),
     ),
     (
         "docs/performance.md",
         "with nothing beside it (`--rounds 5 --sizes 8,32`), gave {} at the best S.",
         lambda: (best_ratio(markdown_rows((PINNED / "torch_vectorised_quiet.txt").read_text())),),
-    ),
-    (
-        "README.md",
-        "| {}; **{}** |",
-        lambda: (epyc()["lowest_best"], best_ratio(markdown_rows((PINNED / "torch_vectorised.txt").read_text()))),
     ),
     # issue 53 item 3 on an Intel AVX-512 CPU (the device machine's, 2026-11-28)
     (
@@ -766,7 +770,7 @@ CLAIMS: list[Claim] = [
     ),
     (
         "results/cartpole/vectorised-torch/xeon-cpu/README.md",
-        "The best S gives **{}** in run 1 and **{}** in run 2",
+        "best S gives **{}** in run 1 and **{}** in run 2",
         lambda: (xeon_best("torch_vectorised.txt"), xeon_best("torch_vectorised_r5.txt")),
     ),
     (
@@ -831,19 +835,23 @@ CLAIMS: list[Claim] = [
     ),
     (
         "results/cartpole/vectorised-torch/xeon-cpu/README.md",
-        "| its own choice | {} | {} ({}) | | `MKL_ENABLE_INSTRUCTIONS=AVX512` | {} | {} ({}) |",
-        lambda: tuple(
-            cell
-            for kernels in ("default", "AVX512")
-            for cell in (
-                mkl_pair()[kernels]["the tutorial's code (gathered)"][0],
-                *mkl_pair()[kernels]["vectorised, S=8, compiled"][:2],
-            )
+        "| its own choice | {} | {} ({}) |",
+        lambda: (
+            mkl_pair()["default"]["the tutorial's code (gathered)"][0],
+            *mkl_pair()["default"]["vectorised, S=8, compiled"][:2],
         ),
     ),
     (
         "results/cartpole/vectorised-torch/xeon-cpu/README.md",
-        "The forced kernel made `bmm` alone {} faster in run 1, but the compiled step only {} faster here",
+        "| `MKL_ENABLE_INSTRUCTIONS=AVX512` | {} | {} ({}) |",
+        lambda: (
+            mkl_pair()["AVX512"]["the tutorial's code (gathered)"][0],
+            *mkl_pair()["AVX512"]["vectorised, S=8, compiled"][:2],
+        ),
+    ),
+    (
+        "results/cartpole/vectorised-torch/xeon-cpu/README.md",
+        "forced kernel made `bmm` alone {} faster in run 1, but the compiled step only {} faster here",
         lambda: (
             faster(
                 xeon_bmm(forced=False)[0],
@@ -917,7 +925,7 @@ CLAIMS: list[Claim] = [
     ),
     (
         "README.md",
-        "against 62/100, and {}/100 against {}/100 on the vectorised engine, more often and sooner (all **different**)",
+        "and {}/100 against {}/100 on the vectorised engine, more often and sooner (all **different**)",
         lambda: fix_and_published("pr-3384", "vectorised", 100),
     ),
     (
@@ -1007,37 +1015,79 @@ CLAIMS: list[Claim] = [
     ),
 ]
 
-
-@pytest.mark.parametrize("where, fragment, values", CLAIMS, ids=[f"{p}:{f[:40]}" for p, f, _ in CLAIMS])
-def test_a_number_in_prose_is_the_number_its_data_gives(where, fragment, values):
-    said = fragment.format(*values())
-    assert said in page(where), f"{where} should say: {said}"
+BEGIN, END = "<!-- prose:{} -->", "<!-- /prose -->"
+BLOCKS = re.compile(r"<!-- prose:([a-z0-9-]+) -->(.*?)<!-- /prose -->", re.S)
 
 
-def test_a_claim_fails_when_its_number_is_wrong():
-    """The check can fail: a fragment formatted with a number one off is not on the page."""
-    where, fragment, values = CLAIMS[0]
-    wrong = [v + 1 if isinstance(v, int) else v for v in values()]
-    assert fragment.format(*wrong) not in page(where)
+def claim_id(fragment: str) -> str:
+    """A claim's marker name: the first words of its fragment, slots and punctuation dropped."""
+    words = re.findall(r"[a-z0-9]+", re.sub(r"\{[^}]*\}", " ", fragment.lower()))
+    return "-".join(words[:6])
 
 
-def test_the_tables_on_bits_that_are_the_chips_are_rows_their_commands_printed():
-    """``docs/performance.md``'s tables on torch's square root, the traces and the portable references
-    are rows printed by ``benchmarks/approximate_bits.py`` and ``python -m maintainers replay-references``
-    (``check --trace``, ``probe --trace``), as committed under ``tests/replay_references``; a table with
-    a CPU column names the report (``emulation-<CPU>.md``) its row comes from."""
-    text = (ROOT / "docs" / "performance.md").read_text()
-    start = text.index("### Why: an instruction whose bits are the chip's")
-    section = text[start : text.index("\n## ", start)]
-    references = ROOT / "tests" / "replay_references"
-    printed = "\n".join(p.read_text() for p in sorted(references.glob("*/*.md")))
-    rows = [line for line in section.splitlines() if line.startswith("| ") and "---" not in line]
-    rows = [row for row in rows if not row.startswith(("| vendor |", "| case |", "| CPU |"))]
-    assert len(rows) >= 10
-    for row in rows:
-        cpu, _, rest = row[2:].partition(" | ")
-        report = references / "portable-torch" / f"emulation-{cpu}.md"
-        if report.is_file():
-            assert f"| {rest}" in report.read_text().splitlines(), row
-        else:
-            assert row in printed.splitlines(), row
+def claims() -> dict[str, tuple[str, str, Callable[[], tuple]]]:
+    """Every claim by its marker name (a name that repeats gets ``-2``, ``-3``, ... in order)."""
+    named: dict[str, tuple[str, str, Callable[[], tuple]]] = {}
+    for where, fragment, values in CLAIMS:
+        base = name = claim_id(fragment)
+        count = 1
+        while name in named:
+            count += 1
+            name = f"{base}-{count}"
+        named[name] = (where, fragment, values)
+    return named
+
+
+def _block(name: str) -> re.Pattern[str]:
+    return re.compile(re.escape(BEGIN.format(name)) + r"(.*?)" + re.escape(END), re.S)
+
+
+def said(name: str) -> str:
+    """What the data give for one claim's block (a table row's cells without their outer bars)."""
+    _, fragment, values = claims()[name]
+    text = fragment.format(*values())
+    return text[2:-2] if text.startswith("| ") and text.endswith(" |") else text  # a row: markers inside it
+
+
+def stale(names: list[str] | None = None) -> list[str]:
+    """The claims (default: all) whose block on its page is not what the data give."""
+    named = claims()
+    pages_read: dict[str, dict[str, str]] = {}
+    out = []
+    for name in names or list(named):
+        where = named[name][0]
+        blocks = pages_read.setdefault(where, dict(BLOCKS.findall((ROOT / where).read_text())))
+        if blocks.get(name) != said(name):
+            out.append(name)
+    return out
+
+
+def pages() -> dict[Path, str]:
+    """Each page that holds claims, as this module writes it: every block's text formatted from the
+    data. A ConfigError (exit 2) names a claim whose block its page lacks, or holds twice."""
+    texts: dict[Path, str] = {}
+    for name, (where, _, _) in claims().items():
+        path = ROOT / where
+        text = texts.setdefault(path, path.read_text())
+        found = list(_block(name).finditer(text))
+        if len(found) != 1:
+            raise ConfigError(f"{where} holds {len(found)} blocks {BEGIN.format(name)}, not one")
+        start, end = found[0].span(1)
+        texts[path] = text[:start] + said(name) + text[end:]
+    return texts
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print each block that differs from what the data give (``--write``: and write its page)."""
+    written = pages()
+    stale = {path: text for path, text in written.items() if path.read_text() != text}
+    for path, text in stale.items():
+        before = dict(BLOCKS.findall(path.read_text()))
+        for name, said in BLOCKS.findall(text):
+            if before.get(name) != said:
+                print(f"{path.relative_to(ROOT)} {name}:\n  was {before.get(name)!r}\n  now {said!r}")
+        if args.write:
+            atomic_write_text(path, text)
+    verb = "wrote" if args.write else "stale"
+    print(f"{len(CLAIMS)} claims on {len(written)} pages; {verb}: {len(stale)} page(s)")
+    return 1 if stale and not args.write else 0
