@@ -154,12 +154,13 @@ def ablation(point: str) -> dict:
 
 
 def audit_counts() -> tuple[int, int, int, int]:
-    """results/AUDIT.json: sets audited, committed sets, seeds rerun to the same bits, mismatches."""
-    from maintainers.manifest import manifest
-
+    """results/AUDIT.json: sets audited; committed sets (``results/MANIFEST.json``, which
+    ``python -m maintainers manifest`` writes from every set and its test holds to them); seeds rerun
+    to the same bits; mismatches."""
     results = json.loads((RESULTS / "AUDIT.json").read_text())["results"]
     same = sum(v["verdict"] == "same bits" for r in results for v in r["by_seed"].values())
-    return len(results), len(manifest()), same, sum(r["mismatches"] for r in results)
+    sets = len(json.loads((RESULTS / "MANIFEST.json").read_text()))
+    return len(results), sets, same, sum(r["mismatches"] for r in results)
 
 
 POP_600 = "mountaincar ablation vs faithful, the planned seeds"
@@ -260,6 +261,7 @@ def engine_check() -> dict:
     )
 
 
+@cache
 def thousand_seeds() -> dict:
     """The H200 run of ``benchmarks/thousand_seeds.py`` (issue 53 item 4): its report, its chunks'
     full-batch time per step, and the seeds whose 100-episode mean of steps reaches 475."""
