@@ -138,8 +138,8 @@ def median_ratio_equivalence(
         )
     rng = np.random.default_rng(0) if rng is None else rng
 
-    def ratio(u, v):
-        return np.median(u) / np.median(v)
+    def ratio(u, v, axis=-1):
+        return np.median(u, axis=axis) / np.median(v, axis=axis)
 
     intervals = []
     for confidence in (1 - 2 * TOST_ALPHA, 0.95):

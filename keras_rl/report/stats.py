@@ -21,9 +21,11 @@ from scipy import stats
 from statsmodels.stats.proportion import confint_proportions_2indep
 
 
-def iqm(x) -> float:
-    """Interquartile mean: the 25%-trimmed mean (rliable's ``aggregate_iqm``)."""
-    return float(stats.trim_mean(np.asarray(x, float), 0.25, axis=None))
+def iqm(x, axis=None):
+    """Interquartile mean: the 25%-trimmed mean (rliable's ``aggregate_iqm``); one number, or one per
+    row along ``axis`` (the bootstrap's resamples)."""
+    value = stats.trim_mean(np.asarray(x, float), 0.25, axis=axis)
+    return float(value) if axis is None else value
 
 
 @dataclass(frozen=True)
@@ -39,8 +41,11 @@ class Interval:
 def bootstrap_interval(
     samples: tuple, statistic, rng: np.random.Generator, n_resamples: int, confidence: float = 0.95
 ) -> tuple[float, float]:
+    """A percentile-bootstrap interval of ``statistic(*samples, axis=-1)``, which takes every
+    resample at once as the rows of its arguments (the same resamples, and the same numbers, as one
+    call per resample; 10,000 calls were most of a forest row's time)."""
     if any(len(s) < 2 for s in samples) or all(np.ptp(s) == 0 for s in samples):
-        value = statistic(*samples)  # a degenerate sample has a degenerate interval
+        value = statistic(*samples, axis=-1)  # a degenerate sample has a degenerate interval
         return float(value), float(value)
     res = stats.bootstrap(
         samples,
@@ -48,7 +53,7 @@ def bootstrap_interval(
         n_resamples=n_resamples,
         confidence_level=confidence,
         method="percentile",
-        vectorized=False,
+        vectorized=True,
         random_state=rng,
     )
     return float(res.confidence_interval.low), float(res.confidence_interval.high)
@@ -59,8 +64,8 @@ def median_difference_ci(a, b, rng: np.random.Generator | None = None, n_resampl
     a, b = np.asarray(a, float), np.asarray(b, float)
     rng = np.random.default_rng(0) if rng is None else rng
 
-    def diff(x, y):
-        return np.median(x) - np.median(y)
+    def diff(x, y, axis=-1):
+        return np.median(x, axis=axis) - np.median(y, axis=axis)
 
     low, high = bootstrap_interval((a, b), diff, rng, n_resamples)
     return Interval(float(diff(a, b)), low, high)
