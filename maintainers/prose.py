@@ -378,9 +378,33 @@ def forced_step(kernels: str) -> str:
     return mkl_pair()[kernels]["vectorised, S=8, compiled"][0]
 
 
+def regeneration() -> tuple:
+    """``results/MANIFEST.json``'s price of regenerating every committed set, as
+    ``maintainers/manifest.py`` writes it in ``MANIFEST.md``: process-hours counted once, those of
+    PyTorch, compiled-engine and Gymnasium-loop runs, and the wall time on 2, 16, 64 and 256 cores."""
+    from maintainers.manifest import PRICED_CORES, by_kind, cost
+
+    entries = json.loads((RESULTS / "MANIFEST.json").read_text())
+    unique = sum(cost(e) for e in entries)
+    longest = max(e["longest_job_minutes"] for e in entries)
+    kinds = by_kind(entries)
+    hours = [f"{kinds[k] / 60:.1f}" for k in ("PyTorch", "Keras on the compiled engine", "Keras on the Gymnasium loop")]
+    return (f"{unique / 60:.1f}", *hours, *(f"{max(unique / n, longest) / 60:.1f}" for n in PRICED_CORES))
+
+
 Claim = tuple[str, str, Callable[[], tuple]]
 
 CLAIMS: list[Claim] = [
+    # the price of regenerating results/ (issue 52 item 6), from the manifest
+    (
+        "docs/performance.md",
+        "the committed sets cost {} process-hours: {} of them are PyTorch runs (the tutorial's own code and "
+        "the ports, which no compiled engine runs, and the vectorised engine's sets: its certification arm and "
+        "both proposals of the tutorial's community fix), {} compiled-engine runs, {} Keras Gymnasium-loop runs "
+        "(the reference arms and the ablations the compiled engine does not run, run there on purpose). In wall "
+        "time, at least {} h on 2 cores, {} h on 16, {} h on 64 and {} h on 256",
+        regeneration,
+    ),
     # issue 52 item 4: post 003 on real runs
     (
         "docs/check.md",

@@ -311,38 +311,6 @@ def test_the_manifest_splits_the_regeneration_cost_by_how_the_runs_ran():
     assert "256 cores 0.8 h (the longest single job, 45 minutes, bounds it from below)" in line
 
 
-def test_the_performance_page_quotes_the_manifests_regeneration_cost():
-    """``docs/performance.md``'s "all of results/ regenerated" row is written by hand: it must quote
-    the committed manifest's figures (counted once, by kind, and the wall time on 2 and 256 cores)."""
-    manifest = (ROOT / "results" / "MANIFEST.md").read_text()
-    # the kinds come largest first, so their order follows the runs
-    found = [
-        re.search(pattern, manifest)
-        for pattern in (
-            r"PyTorch ([\d.]+) process-hours",
-            r"Keras on the Gymnasium loop ([\d.]+) process-hours",
-            r"Keras on the compiled engine ([\d.]+) process-hours",
-            r"costs ([\d.]+) process-hours; in wall time at least: 2 cores ([\d.]+) h; .*; 256 cores ([\d.]+) h",
-        )
-    ]
-    assert all(found), "results/MANIFEST.md no longer states its cost the way this test reads it"
-    (torch,), (gymnasium,), (compiled,), (total, two, many) = (m.groups() for m in found)
-    row = next(
-        line
-        for line in (ROOT / "docs" / "performance.md").read_text().splitlines()
-        if line.startswith("| all of `results/` regenerated")
-    )
-    for quoted in (
-        f"cost {total} process-hours",
-        f"{torch} of them are PyTorch runs",
-        f"{gymnasium} Keras Gymnasium-loop runs",
-        f"{compiled} compiled-engine runs",
-        f"{two} h on 2 cores",
-        f"{many} h on 256",
-    ):
-        assert quoted in row, f"docs/performance.md's regeneration row lacks {quoted!r}: quote results/MANIFEST.md"
-
-
 def test_the_forest_marks_cut_intervals_and_says_no_estimate_under_one_heading_per_group(monkeypatch, tmp_path):
     """Issue 54 item 22: intervals past the axis ran off unmarked, rows without an estimate were
     blank, and no heading said which arm was first."""
