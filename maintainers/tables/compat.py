@@ -162,16 +162,19 @@ def twin_text(run: dict, post: str) -> str:
 
 
 def changes_text(cell: dict) -> str:
-    """What the cell's check names as differing from the baseline's (the first post's report)."""
+    """What the cell's checks name as differing from their baselines': the first post's report of
+    the Keras check, and PyTorch's (whose baseline may have been made under other versions)."""
     check = cell["check"]
     if "sensitive" not in check:
         return "not recorded"
-    posts = [e for e in check["sensitive"]["posts"].values() if e.get("environment")]
-    if not posts:
+    reports = [check["sensitive"], check.get("torch") or {"posts": {}}]
+    envs = [e["environment"] for r in reports for e in list(r["posts"].values())[:1] if e.get("environment")]
+    if not envs:
         return "-"
-    env = posts[0]["environment"]
-    names = [f"{lib} {v['was']} -> {v['now']}" for lib, v in sorted(env["versions"].items())]
-    names += [f"`{was}` -> `{now}`" for was, now in sorted(env.get("replaced", {}).items())]
+    versions = {lib: v for env in envs for lib, v in env["versions"].items()}
+    replaced = {was: now for env in envs for was, now in env.get("replaced", {}).items()}
+    names = [f"{lib} {v['was']} -> {v['now']}" for lib, v in sorted(versions.items())]
+    names += [f"`{was}` -> `{now}`" for was, now in sorted(replaced.items())]
     return "; ".join(names) or "nothing"
 
 
