@@ -235,7 +235,16 @@ def test_out_inside_a_seed_folder_is_refused(capsys, tmp_path):
     _exit_2(["reproduce", "pendulum", "--dry-run", "--out", str(seed / "more")], capsys, "is inside the run folder")
 
 
-def test_a_bad_ray_address_from_the_environment_is_named_as_such(capsys, tmp_path, monkeypatch):
+@pytest.mark.parametrize("ray_installed", [True, False])
+def test_a_bad_ray_address_from_the_environment_is_named_as_such(capsys, tmp_path, monkeypatch, ray_installed):
+    """Named before Ray is looked for: a matrix cell installs the project without Ray."""
+    import importlib.util
+
+    if not ray_installed:
+        find_spec = importlib.util.find_spec
+        monkeypatch.setattr(
+            importlib.util, "find_spec", lambda name, *a: None if name == "ray" else find_spec(name, *a)
+        )
     monkeypatch.setenv("RAY_ADDRESS", "garbage")
     err = _exit_2(
         ["reproduce", "pendulum", "--dry-run", "--out", str(tmp_path / "o")], capsys, "$RAY_ADDRESS 'garbage'"

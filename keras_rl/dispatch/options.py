@@ -98,8 +98,9 @@ class RunOptions:
         """A ConfigError unless the cluster at ``address`` (if any) answers; call it once the
         rest of the input is known to be good."""
         if self.address:
-            from keras_rl.dispatch.ray_backend import check_reachable, require_ray
+            from keras_rl.dispatch.ray_backend import address_parts, check_reachable, require_ray
 
+            address_parts(self.address, self.address_source)  # a malformed address first, Ray or not
             require_ray()
             check_reachable(self.address, source=self.address_source)
 

@@ -118,18 +118,29 @@ def require_ray() -> None:
         )
 
 
+def address_parts(address: str, source: str = "address") -> tuple[str, int] | None:
+    """``(host, port)`` of a ``HOST:PORT`` address, None for Ray's own names (``auto``, ``local``,
+    ``ray://...``), or a ConfigError naming a malformed one and where it came from; no network."""
+    if address in ("auto", "local") or address.startswith("ray://"):
+        return None
+    host, _, port = address.rpartition(":")
+    if not host or not port.isdigit():
+        named = source if source.startswith("$") else argument(source)
+        raise ConfigError(f"{named} {address!r} is not HOST:PORT (for example 127.0.0.1:6379)")
+    return host, int(port)
+
+
 def check_reachable(address: str, timeout: float = 5.0, source: str = "address") -> None:
     """A ConfigError within ``timeout`` seconds if nothing listens at ``HOST:PORT``, instead of
     Ray's own long retries. ``source`` names where the address came from (the argument
     ``address`` or ``$RAY_ADDRESS``), as the message says."""
-    source = source if source.startswith("$") else argument(source)
-    if address in ("auto", "local") or address.startswith("ray://"):
+    parsed = address_parts(address, source)
+    if parsed is None:
         return
-    host, _, port = address.rpartition(":")
-    if not host or not port.isdigit():
-        raise ConfigError(f"{source} {address!r} is not HOST:PORT (for example 127.0.0.1:6379)")
+    host, port = parsed
+    source = source if source.startswith("$") else argument(source)
     try:
-        with socket.create_connection((host, int(port)), timeout=timeout):
+        with socket.create_connection((host, port), timeout=timeout):
             pass
     except OSError as exc:
         raise ConfigError(
