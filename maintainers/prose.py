@@ -392,9 +392,41 @@ def regeneration() -> tuple:
     return (f"{unique / 60:.1f}", *hours, *(f"{max(unique / n, longest) / 60:.1f}" for n in PRICED_CORES))
 
 
+@cache
+def timed(name: str) -> tuple[str, str, int, str]:
+    """A ``results/checks/timing`` output of ``time_check.sh``: its wall time, its CPU seconds (user
+    and system), its exit code, and each post's verdict as the check printed it."""
+    text = (RESULTS / "checks" / "timing" / name).read_text()
+    found = {
+        key: re.search(pattern, text, re.M)
+        for key, pattern in (
+            ("wall", r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): (\S+)"),
+            ("user", r"User time \(seconds\): ([\d.]+)"),
+            ("system", r"System time \(seconds\): ([\d.]+)"),
+            ("exit", r"^exit (\d+)$"),
+        )
+    }
+    read = {key: match[1] for key, match in found.items() if match is not None}
+    if len(read) < len(found):
+        raise ConfigError(f"{name} lacks {sorted(set(found) - set(read))}: rerun results/checks/timing/time_check.sh")
+    posts = re.findall(r"^(\w+): (consistent|changed|no verdict) \(\w+, (the same bits|[^,]+, p = [\d.]+)", text, re.M)
+    said = "; ".join(f"{post} {verdict} ({how.split(', ')[-1]})" for post, verdict, how in posts)
+    cpu = f"{float(read['user']) + float(read['system']):.0f}"
+    return read["wall"], cpu, int(read["exit"]), said
+
+
 Claim = tuple[str, str, Callable[[], tuple]]
 
 CLAIMS: list[Claim] = [
+    # issue 70: the sensitive command's time, quiet, as installed and under a real change
+    *(
+        (
+            "results/checks/timing/README.md",
+            f"`{name}`: {{}} of wall time and {{}} s of CPU, exit {{}}: {{}}",
+            lambda name=name: timed(name),
+        )
+        for name in ("sensitive-unchanged.txt", "sensitive-fastmath.txt")
+    ),
     # the price of regenerating results/ (issue 52 item 6), from the manifest
     (
         "docs/performance.md",
