@@ -208,16 +208,22 @@ PRICED_CORES = (2, 16, 64, 256)
 2-core machine is withdrawn; what a maintainer needs is the price where there are cores)."""
 
 
-def regeneration_line(entries: list[dict]) -> str:
-    """A full regeneration's price: the sets counted once, in process-hours, and in wall time on
-    N cores, at least the larger of those hours over N and the longest single job (a seed, or a
-    seed batch, runs on one core from start to end)."""
+def regeneration_hours(entries: list[dict]) -> tuple[float, dict[int, float], float]:
+    """A full regeneration's price: the sets counted once, in process-hours; the wall time on each
+    of ``PRICED_CORES``, at least the larger of those hours over N and the longest single job (a
+    seed, or a seed batch, runs on one core from start to end); and that job's minutes."""
     unique = sum(cost(e) for e in entries)
     longest = max(e["longest_job_minutes"] for e in entries)
-    walls = "; ".join(f"{n} cores {max(unique / n, longest) / 60:.1f} h" for n in PRICED_CORES)
+    return unique / 60, {n: max(unique / n, longest) / 60 for n in PRICED_CORES}, longest
+
+
+def regeneration_line(entries: list[dict]) -> str:
+    """A full regeneration's price, as ``MANIFEST.md`` states it (``regeneration_hours``)."""
+    hours, walls_h, longest = regeneration_hours(entries)
+    walls = "; ".join(f"{n} cores {h:.1f} h" for n, h in walls_h.items())
     return (
         f"A full regeneration (`python -m maintainers manifest --regenerate '*' --out DIR --workers N`, or "
-        f"`--address` on a Ray cluster) costs {unique / 60:.1f} process-hours; in wall time at least: {walls} "
+        f"`--address` on a Ray cluster) costs {hours:.1f} process-hours; in wall time at least: {walls} "
         f"(the longest single job, {longest:.0f} minutes, bounds it from below)."
     )
 
