@@ -79,6 +79,7 @@ class ExperimentConfig:
     if TYPE_CHECKING:  # every post's config declares these, with the post's values
         episodes: int
         threshold: float
+        stop_at_threshold: bool
 
     variant: str = "faithful"
     """Which named variant produced this config (for the record; set by ``for_variant``)."""

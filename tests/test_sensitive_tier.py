@@ -85,6 +85,19 @@ def test_a_sensitive_check_runs_its_fresh_seeds_alone_on_the_compiled_engine(tmp
     assert [j.config.seed for j in seen] == rule.seed_list()[: rule.bits_seeds] == [0, 1, 2, 3]
 
 
+def test_the_checks_seeds_stop_at_the_threshold_only_where_it_settles_the_statistic(tmp_path, replace_backend):
+    """Post 003's twins (episodes to the threshold) are sent stopping there, against a baseline that
+    played on; post 001's (its final metric) play every episode."""
+    from keras_rl.cli import main
+
+    seen = []
+    replace_backend(lambda todo, backend, progress=True, after_job=None: seen.extend(todo))
+    argv = ["check", "cartpole", "mountaincar", "--tier", "sensitive", "--workers", "1", "--no-progress"]
+    assert main([*argv, "--out", str(tmp_path)]) == 3
+    stops = {(j.config.env_id, j.config.stop_at_threshold) for j in seen}
+    assert stops == {("CartPole-v1", True), ("MountainCarContinuous-v0", False)}
+
+
 def test_the_sensitive_tiers_committed_rates_are_its_rules_on_the_committed_baselines():
     """``python -m maintainers calibrate sensitive --write``: calibration.md's block is rendered from
     keras_rl/check/sensitive.json; each rule's rates are found for it (so the check report states

@@ -84,6 +84,31 @@ def test_bits_are_compared_exactly_but_for_wall_time():
     reading = command.read_twins({0: rows, 1: rows}, {0: again, 1: rows + again}, [0, 1])
     assert reading.parted == {1: 2} and not reading.same_bits
     assert command.read_twins({0: rows}, {0: again}, [0]).text() == "the same bits as the baseline for 1 of 1 seeds"
+    # a rerun that stops at its threshold is compared as far as it played; one that plays past
+    # its baseline seed's end, or parts before it stopped, still parts
+    ended = [dict(rows[0], episode=2, score=-1.0)]
+    assert command.first_difference(rows + ended, rows, stops_at_threshold=True) is None
+    assert command.first_difference(rows + ended, rows) == 2
+    assert command.first_difference(rows, rows + again, stops_at_threshold=True) == 2
+    assert command.first_difference(rows + ended, again[:0] + [ended[0]], stops_at_threshold=True) == 1
+    assert command.read_twins({0: rows + ended}, {0: rows}, [0], stops_at_threshold=True).same_bits
+
+
+def test_a_check_stops_a_solo_seed_at_its_threshold_where_that_settles_the_statistic():
+    """Post 003's sensitive twins played 23% of their wall time after the threshold, which settles
+    their episodes to it; a rerun of baseline seed 31 stopped there gave its first 382 rows bit for
+    bit. Post 001's final metric needs every episode, and a seed batch (PyTorch's post 003) keeps
+    its seeds to the end."""
+    from keras_rl.check.statistics import settles_at_threshold
+
+    assert settles_at_threshold("episodes_to_threshold") and settles_at_threshold("success")
+    assert not settles_at_threshold("success", success_at_end=True) and not settles_at_threshold("final_metric")
+    assert command.seeds_stop_at_threshold(rule_for("cartpole", "sensitive"))
+    assert not command.seeds_stop_at_threshold(rule_for("mountaincar", "sensitive"))
+    torch_rule = rule_for("cartpole", "smoke", "torch")
+    assert torch_rule.seed_batch > 1 and not command.seeds_stop_at_threshold(torch_rule)
+    plan = command.describe_plan(rule_for("cartpole", "sensitive"), list(range(40)), 200, None)
+    assert "episodes_to_threshold over 600 episodes, each seed stopping at its threshold" in plan
 
 
 def test_a_baseline_without_the_twins_falls_back_to_fresh_seeds_and_says_so():

@@ -43,6 +43,7 @@ from keras_rl.check.statistics import (
     family_false_alarm_rate,
     holm_adjusted,
     seed_statistic,
+    settles_at_threshold,
 )
 from keras_rl.dispatch.options import RunOptions
 from keras_rl.errors import ConfigError, NoVerdictError, RunFolderError, argument
@@ -135,10 +136,15 @@ class TwinReading:
         )
 
 
-def first_difference(baseline_rows: list[dict[str, Any]], new_rows: list[dict[str, Any]]) -> int | None:
+def first_difference(
+    baseline_rows: list[dict[str, Any]], new_rows: list[dict[str, Any]], stops_at_threshold: bool = False
+) -> int | None:
     """The first episode (from 1) where a rerun's row differs from its baseline seed's in anything but
-    wall time, compared exactly (NaN equal to NaN); None when every row is the same bits."""
-    for i in range(max(len(baseline_rows), len(new_rows))):
+    wall time, compared exactly (NaN equal to NaN); None when every row is the same bits. A rerun
+    that ``stops_at_threshold`` (``settles_at_threshold``) is compared as far as it played: its
+    baseline seed, which played on, crossed there too if every row before was the same bits."""
+    compared = len(new_rows) if stops_at_threshold and len(new_rows) <= len(baseline_rows) else None
+    for i in range(compared if compared is not None else max(len(baseline_rows), len(new_rows))):
         if i >= len(baseline_rows) or i >= len(new_rows):
             return i + 1
         a, b = baseline_rows[i], new_rows[i]
@@ -149,8 +155,12 @@ def first_difference(baseline_rows: list[dict[str, Any]], new_rows: list[dict[st
     return None
 
 
-def read_twins(baseline_rows: dict[int, list], new_rows: dict[int, list], seeds: list[int]) -> TwinReading:
-    parted = {s: e for s in seeds if (e := first_difference(baseline_rows[s], new_rows[s])) is not None}
+def read_twins(
+    baseline_rows: dict[int, list], new_rows: dict[int, list], seeds: list[int], stops_at_threshold: bool = False
+) -> TwinReading:
+    parted = {
+        s: e for s in seeds if (e := first_difference(baseline_rows[s], new_rows[s], stops_at_threshold)) is not None
+    }
     return TwinReading(len(seeds), len(seeds) - len(parted), parted)
 
 
@@ -357,6 +367,13 @@ def rates_source(rule: CheckRule) -> str:
     return (TWIN_RATES if rule.twins else SENSITIVE_RATES if rule.tier == "sensitive" else CALIBRATION).name
 
 
+def seeds_stop_at_threshold(rule: CheckRule) -> bool:
+    """Nothing after the threshold moves the rule's statistic, so its solo seeds stop there (post
+    003's sensitive twins played 23% of their wall time after it). A seed batch keeps every seed to
+    the end, so that its arithmetic, shared by the batch, stays whole."""
+    return rule.seed_batch == 1 and settles_at_threshold(rule.statistic, get_experiment(rule.experiment).success_at_end)
+
+
 def describe_plan(
     rule: CheckRule, fresh: list[int], baseline: int, design, fallback: str | None = None, committed: bool = True
 ) -> str:
@@ -382,8 +399,9 @@ def describe_plan(
         if rule.twins
         else f"fresh seeds {fresh[0]}-{fresh[-1]} ({len(fresh)})"
     )
+    stops = ", each seed stopping at its threshold" if seeds_stop_at_threshold(rule) else ""
     return (
-        f"{rule.experiment} ({rule.tier}): {rule.statistic} over {rule.episodes} episodes, {how}; "
+        f"{rule.experiment} ({rule.tier}): {rule.statistic} over {rule.episodes} episodes{stops}, {how}; "
         f"{seeds}{engine} against a baseline of {baseline}; {measured}" + (f" [{fallback}]" if fallback else "")
     )
 
@@ -621,6 +639,8 @@ def run_check(
         else:
             check_baseline_size(name, rule.statistic, len(baseline), len(fresh), level)
         config = experiment.config_cls.for_variant("faithful", episodes=rule.episodes, framework=rule.framework)
+        if seeds_stop_at_threshold(rule):
+            config = config.replace(stop_at_threshold=True)
         config = config.replace(**(overrides or {}).get(name, {}))
         plan.append((experiment, rule, fresh, config, baseline, baseline_rows))
     if dry_run:
@@ -647,10 +667,12 @@ def run_check(
             options,
         )
         readings: dict[str, TwinReading] = {}
-        for experiment, rule, _fresh, _config, _baseline, baseline_rows in plan:
+        for experiment, rule, _fresh, config, _baseline, baseline_rows in plan:
             if rule.twins:
                 _new, rows = _read_new(out / experiment.name, experiment, rule, first[experiment.name])
-                readings[experiment.name] = read_twins(baseline_rows, rows, first[experiment.name])
+                readings[experiment.name] = read_twins(
+                    baseline_rows, rows, first[experiment.name], config.stop_at_threshold
+                )
         rest = [
             (experiment, rule, config, fresh[rule.bits_seeds :])
             for experiment, rule, fresh, config, *_ in plan
@@ -658,7 +680,7 @@ def run_check(
         ]
         if rest:
             _run_seeds(out, rest, options)
-        for experiment, rule, fresh, _config, baseline, baseline_rows in plan:
+        for experiment, rule, fresh, config, baseline, baseline_rows in plan:
             reading = readings.get(experiment.name)
             if reading is not None and reading.same_bits:
                 ran = first[experiment.name]
@@ -667,7 +689,7 @@ def run_check(
                 baseline_of = {s: baseline[s] for s in ran}
             elif reading is not None:
                 new, new_rows = _read_new(out / experiment.name, experiment, rule, fresh)
-                reading = read_twins(baseline_rows, new_rows, fresh)
+                reading = read_twins(baseline_rows, new_rows, fresh, config.stop_at_threshold)
                 baseline_of = {s: baseline[s] for s in fresh}
                 decision = decide_paired(
                     [baseline[s] for s in fresh], [new[s] for s in fresh], rule.statistic, rule.alpha

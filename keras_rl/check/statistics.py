@@ -65,6 +65,13 @@ def seed_statistic(
     return metrics[-1]
 
 
+def settles_at_threshold(name: str, success_at_end: bool = False) -> bool:
+    """Whether a seed's first crossing of its threshold settles statistic ``name``, so that nothing
+    it plays after can move it: episodes to the threshold, and ``success`` read at any time (post
+    001's, read after the last episode, is not). A check's solo seeds stop there."""
+    return name == "episodes_to_threshold" or (name == "success" and not success_at_end)
+
+
 @dataclass(frozen=True)
 class Decision:
     p: float
