@@ -285,3 +285,21 @@ def test_an_unchanged_install_says_the_same_bits_and_a_change_runs_every_twin(tm
     assert not entry["twins"]["same_bits"] and sorted(map(int, entry["new"])) == list(range(8))
     assert entry["decision"]["test"] == "Wilcoxon signed-rank on twins (two-sided)"
     assert "not the committed one" in entry["baseline_note"]
+
+
+def test_calibration_md_states_the_twin_rates_twins_json_holds():
+    """``python -m maintainers calibrate twins --write`` renders calibration.md's block from
+    keras_rl/check/twins.json; a block edited by hand, or a json recomputed without it, fails here.
+    The one size the check does not take from its plan (post 003 keeps 40 twins) is stated there."""
+    from maintainers.calibrate import twins
+
+    data = json.loads(command.TWIN_RATES.read_text())
+    text = (RESULTS / "checks" / "calibration.md").read_text()
+    stated = text.split(twins.BEGIN, 1)[1].split(twins.END, 1)[0].strip()
+    assert stated == twins.render(data).strip(), "stale: python -m maintainers calibrate twins --write"
+    for post, entry in data["posts"].items():
+        rule = RULES[(post, "sensitive")]
+        assert entry["rule"]["seeds"] == rule.seeds and entry["rule"]["statistic"] == rule.statistic, post
+        picked = entry.get("statistic_choice")
+        if picked and picked["n"] != rule.seeds:
+            assert f"**The check keeps {rule.seeds} twins**" in stated
