@@ -79,7 +79,13 @@ def short_run(tmp_path_factory):
 # `make test` runs the suite in two processes (pytest-xdist, --dist loadgroup). A module- or
 # session-scoped fixture that trains is built once per process that runs a test using it, so each such test
 # joins its fixture's group; the tests of test_ray.py (clusters, socket checks) keep to one.
-GROUP_OF_FIXTURE = {"compared": "compare-runs", "sweep_dir": "sweep", "short_run": "short-run", "tiny": "tiny-runs"}
+GROUP_OF_FIXTURE = {
+    "compared": "compare-runs",
+    "sweep_dir": "sweep",
+    "short_run": "short-run",
+    "tiny": "tiny-runs",
+    "installed": "installed-wheel",
+}
 
 
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist's hook, which reads the groups set here

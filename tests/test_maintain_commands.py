@@ -208,9 +208,18 @@ def test_a_written_audit_extends_the_committed_report_and_reruns_only_the_sets_i
     text = report.read_text()
     assert f"2 of {len(manifest())} sets audited" in text and "| HEAD 0123abcd | same bits |" in text
     assert [r["set"] for r in json.loads(record.read_text())["results"]] == [new, old]  # the manifest's order
+    # another draw keeps nothing: the set reruns (the rerun itself is checked above, with gamma_0.9's;
+    # here, which sets are sent to it)
+    reran = []
+
+    def recorded(entry, batches, *args):
+        reran.append(entry["set"])
+        return {**result, "seeds": [b[0] for b in batches], "batches": batches}
+
+    monkeypatch.setattr(audit, "audit_set", recorded)
     other_draw = ["audit", "--sets", old, "--draw-seed", "7", "--write", "--out", str(tmp_path / "audit-7")]
-    assert main(other_draw) == 0  # another draw keeps nothing: the set reruns
-    assert "tau_x10: seeds" in capsys.readouterr().out
+    assert main(other_draw) == 0
+    assert reran == [old] and "tau_x10: seeds" in capsys.readouterr().out
 
 
 @READS_THE_MANIFEST
