@@ -420,6 +420,21 @@ def timed(name: str) -> tuple[str, str, int, str]:
     return read["wall"], cpu, int(read["exit"]), said
 
 
+def twin_power(post: str) -> tuple[str, str]:
+    """A post's held-out mutants in ``keras_rl/check/twins.json`` (``calibrate twins``): their twins'
+    seeds, and each mutant with its true shift of the median over all its twins and how often the
+    rule's twins flag it at Holm's first level (0.01 / 3), resampled."""
+    from maintainers.calibrate.twins import SEEN
+
+    power = json.loads((ROOT / "keras_rl" / "check" / "twins.json").read_text())["posts"][post]["power"]
+    held = {name: m for name, m in power.items() if not name.endswith(SEEN)}  # those that chose nothing
+    seeds = {m["seeds"] for m in held.values()}
+    assert len(seeds) == 1, f"{post}'s held-out mutants ran on different twins: {seeds}"
+    return seeds.pop(), "; ".join(
+        f"`{name}` x{m['true_shift']:.2f}, {m['resampled_holm_first']:.1%}" for name, m in held.items()
+    )
+
+
 def minutes(wall: str) -> str:
     """``/usr/bin/time``'s ``m:ss.ss`` (or ``h:mm:ss``) as prose: ``1 min 33 s``."""
     parts = [float(x) for x in wall.split(":")]
@@ -445,6 +460,15 @@ CLAIMS: list[Claim] = [
         "(post 000's 80 at about 3-5 s each; post 003's 40 at about half a minute each, each stopping at its "
         "threshold): {} for the three posts on a 2-core machine, measured quiet under XLA fast math",
         lambda: tuple(minutes(timed(name)[0]) for name in ("sensitive-unchanged.txt", "sensitive-fastmath.txt")),
+    ),
+    *(
+        (
+            "docs/check.md",
+            f"{post}'s held-out mutants, run on its twin seeds {{}}, each with its true shift of the median "
+            "and how often the rule's twins flag it at 0.01 / 3: {}",
+            lambda post=post: twin_power(post),
+        )
+        for post in ("pendulum", "cartpole")
     ),
     # the price of regenerating results/ (issue 52 item 6), from the manifest
     (
