@@ -127,3 +127,32 @@ def test_a_cell_stopped_before_its_last_step_shows_what_it_ran(tmp_path, monkeyp
     assert row.startswith("| tf9.9 | 9.9 |") and "| 3 passed |" in row and row.endswith("| 3 (so far) |")
     assert row.count("not run yet") == 11  # env parity, 3 replays, first numbers, 3 checks, PyTorch, changes, speed
     assert compat.short_table().splitlines()[-1] == "| TensorFlow | tf9.9: tests all passed; not run yet; not run yet |"
+
+
+def test_a_cell_run_with_only_runs_those_steps_and_writes_no_cell_json_until_every_step_is_done(tmp_path, monkeypatch):
+    """``compat_cell.py --only versions --only check`` (a cell's verdict first, issue 70) runs those
+    two steps and leaves the others for a later run, which runs just them and writes ``cell.json``."""
+    import json
+    import sys
+
+    monkeypatch.syspath_prepend(str(ROOT / "matrix"))  # as the script runs: its cells.py beside it
+    spec = importlib.util.spec_from_file_location("compat_cell", ROOT / "matrix" / "compat_cell.py")
+    cell = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cell)
+    ran = []
+    for step in cell.STEPS:
+        monkeypatch.setattr(cell, f"step_{step}", lambda *args, step=step: ran.append(step) or {"step": step})
+    monkeypatch.setattr(cell, "_commit", lambda: "0123abcd")
+    python, out = tmp_path / "python", tmp_path / "cell"
+    python.write_text("")
+    argv = ["compat_cell.py", "--cell", "x", "--spec", "{}", "--reference-python", str(python), "--out", str(out)]
+    monkeypatch.setattr(sys, "argv", [*argv, "--only", "check", "--only", "versions"])
+    cell.main()
+    assert ran == [s for s in cell.STEPS if s in ("versions", "check")] and len(cell.STEPS) > 2
+    assert not (out / "cell.json").exists()
+    ran.clear()
+    monkeypatch.setattr(sys, "argv", argv)
+    cell.main()
+    assert ran == [s for s in cell.STEPS if s not in ("versions", "check")]  # the two are not run again
+    made = json.loads((out / "cell.json").read_text())
+    assert all(made[s]["step"] == s and made[s]["commit"] == "0123abcd" for s in cell.STEPS)
