@@ -66,7 +66,7 @@ class CheckRule:
     """The baseline's folder under ``--against``'s ``<experiment>/``."""
     twins: bool = False
     """Twin seeds (issue 70): the seeds are the baseline's own, ``first_seed ..``, rerun; the
-    first ``bits_seeds`` run whole first, and where each gives its baseline seed's bits the check
+    first ``bits_seeds`` run first, and where each gives its baseline seed's bits the check
     stops there ("the same bits"); otherwise the rest run and the paired test decides
     (``statistics.decide_paired``). A baseline that does not hold the twins is checked unpaired,
     with fresh seeds from ``SENSITIVE_FIRST_SEED``, and the report says so."""
