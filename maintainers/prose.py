@@ -426,13 +426,14 @@ def twin_power(post: str) -> tuple[str, str]:
     rule's twins flag it at Holm's first level (0.01 / 3), resampled."""
     from maintainers.calibrate.twins import SEEN
 
-    power = json.loads((ROOT / "keras_rl" / "check" / "twins.json").read_text())["posts"][post]["power"]
-    held = {name: m for name, m in power.items() if not name.endswith(SEEN)}  # those that chose nothing
+    entry = json.loads((ROOT / "keras_rl" / "check" / "twins.json").read_text())["posts"][post]
+    held = {name: m for name, m in entry["power"].items() if not name.endswith(SEEN)}  # those that chose nothing
     seeds = {m["seeds"] for m in held.values()}
     assert len(seeds) == 1, f"{post}'s held-out mutants ran on different twins: {seeds}"
+    missing = [f"`{Path(folder).name}`" for folder in entry.get("missing", [])]
     return seeds.pop(), "; ".join(
         f"`{name}` x{m['true_shift']:.2f}, {m['resampled_holm_first']:.1%}" for name, m in held.items()
-    )
+    ) + (f" (planned and not landed yet: {', '.join(missing)})" if missing else "")
 
 
 def minutes(wall: str) -> str:
@@ -458,7 +459,7 @@ CLAIMS: list[Claim] = [
         "docs/check.md",
         "for 4 of 4 twins in {} for the three posts; a release that moves the arithmetic runs every twin "
         "(post 000's 80 at about 3-5 s each; post 003's 40 at about half a minute each, each stopping at its "
-        "threshold): {} for the three posts on a 2-core machine, measured quiet under XLA fast math",
+        "threshold if it gets there): {} for the three posts on a 2-core machine, measured quiet under XLA fast math",
         lambda: tuple(minutes(timed(name)[0]) for name in ("sensitive-unchanged.txt", "sensitive-fastmath.txt")),
     ),
     *(

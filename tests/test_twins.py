@@ -84,14 +84,35 @@ def test_bits_are_compared_exactly_but_for_wall_time():
     reading = command.read_twins({0: rows, 1: rows}, {0: again, 1: rows + again}, [0, 1])
     assert reading.parted == {1: 2} and not reading.same_bits
     assert command.read_twins({0: rows}, {0: again}, [0]).text() == "the same bits as the baseline for 1 of 1 seeds"
-    # a rerun that stops at its threshold is compared as far as it played; one that plays past
-    # its baseline seed's end, or parts before it stopped, still parts
-    ended = [dict(rows[0], episode=2, score=-1.0)]
-    assert command.first_difference(rows + ended, rows, stops_at_threshold=True) is None
+    # a rerun that stopped where its baseline seed first met the threshold is compared as far as it
+    # played; one that ended anywhere else (a non-finite loss, another budget), played past its
+    # baseline seed's end, or parted before it stopped, parts
+    ended = [dict(rows[0], episode=k, score=-1.0) for k in (2, 3)]
+    assert command.first_difference(rows + ended, rows, crossed_at=1) is None
     assert command.first_difference(rows + ended, rows) == 2
-    assert command.first_difference(rows, rows + again, stops_at_threshold=True) == 2
-    assert command.first_difference(rows + ended, again[:0] + [ended[0]], stops_at_threshold=True) == 1
-    assert command.read_twins({0: rows + ended}, {0: rows}, [0], stops_at_threshold=True).same_bits
+    assert command.first_difference(rows + ended, rows + ended[:1], crossed_at=1) == 3  # ended after it
+    assert command.first_difference(rows + ended, rows, crossed_at=2) == 2  # ended before it: no stop
+    assert command.first_difference(rows + ended, [], crossed_at=1) == 1
+    assert command.first_difference(rows, rows + again, crossed_at=1) == 2
+    assert command.first_difference(rows + ended, [ended[0]], crossed_at=1) == 1
+
+
+def test_a_cartpole_twin_stopped_at_its_threshold_reads_the_same_bits_and_one_cut_short_parts():
+    """Baseline seed 31 of post 003 meets 475 at episode 382 (a rerun stopped there gave those 382
+    rows bit for bit); its first 382 rows read "the same bits", its first 381 (a run that ended
+    on a non-finite loss) part at 382, and the plot's baseline is cut where a stopping run ends."""
+    from keras_rl.check.command import BASELINES
+
+    experiment = get_experiment("cartpole")
+    full = {31: RunSet(BASELINES / "cartpole" / "baseline").run(31).rows()}
+    assert command.first_crossing(experiment, full[31]) == 382 and len(full[31]) == 600
+    stopped = command.read_twins(full, {31: full[31][:382]}, [31], experiment, stops=True)
+    assert stopped.same_bits and stopped.text().endswith("(each to its threshold, or to its last episode)")
+    assert not command.read_twins(full, {31: full[31][:382]}, [31], experiment, stops=False).same_bits
+    cut = command.read_twins(full, {31: full[31][:381]}, [31], experiment, stops=True)
+    assert cut.parted == {31: 382}
+    assert len(command.as_played(experiment, full, True)[31]) == 382
+    assert command.as_played(experiment, full, False) is full
 
 
 def test_a_check_stops_a_solo_seed_at_its_threshold_where_that_settles_the_statistic():
@@ -105,10 +126,12 @@ def test_a_check_stops_a_solo_seed_at_its_threshold_where_that_settles_the_stati
     assert not settles_at_threshold("success", success_at_end=True) and not settles_at_threshold("final_metric")
     assert command.seeds_stop_at_threshold(rule_for("cartpole", "sensitive"))
     assert not command.seeds_stop_at_threshold(rule_for("mountaincar", "sensitive"))
-    torch_rule = rule_for("cartpole", "smoke", "torch")
-    assert torch_rule.seed_batch > 1 and not command.seeds_stop_at_threshold(torch_rule)
+    batched = replace(rule_for("cartpole", "sensitive"), seed_batch=10)  # a batch keeps its seeds whole
+    assert not command.seeds_stop_at_threshold(batched)
     plan = command.describe_plan(rule_for("cartpole", "sensitive"), list(range(40)), 200, None)
-    assert "episodes_to_threshold over 600 episodes, each seed stopping at its threshold" in plan
+    assert "episodes_to_threshold over 600 episodes, each seed stopping at its threshold if it gets there" in plan
+    kept = command.describe_plan(rule_for("cartpole", "sensitive"), list(range(40)), 200, None, stopping=False)
+    assert "stopping" not in kept  # --set stop_at_threshold=false: the plan says what runs
 
 
 def test_a_baseline_without_the_twins_falls_back_to_fresh_seeds_and_says_so():

@@ -120,6 +120,8 @@ class TwinReading:
     compared: int
     identical: int
     parted: dict[int, int]
+    to_threshold: bool = False
+    """The reruns stopped at their threshold, so each was compared as far as it played."""
 
     @property
     def same_bits(self) -> bool:
@@ -127,7 +129,8 @@ class TwinReading:
 
     def text(self) -> str:
         if self.same_bits:
-            return f"the same bits as the baseline for {self.identical} of {self.compared} seeds"
+            how = " (each to its threshold, or to its last episode)" if self.to_threshold else ""
+            return f"the same bits as the baseline for {self.identical} of {self.compared} seeds{how}"
         where = ", ".join(f"seed {s} at episode {e}" for s, e in sorted(self.parted.items())[:3])
         more = "" if len(self.parted) <= 3 else f" and {len(self.parted) - 3} more"
         return (
@@ -137,14 +140,16 @@ class TwinReading:
 
 
 def first_difference(
-    baseline_rows: list[dict[str, Any]], new_rows: list[dict[str, Any]], stops_at_threshold: bool = False
+    baseline_rows: list[dict[str, Any]], new_rows: list[dict[str, Any]], crossed_at: int | None = None
 ) -> int | None:
     """The first episode (from 1) where a rerun's row differs from its baseline seed's in anything but
-    wall time, compared exactly (NaN equal to NaN); None when every row is the same bits. A rerun
-    that ``stops_at_threshold`` (``settles_at_threshold``) is compared as far as it played: its
-    baseline seed, which played on, crossed there too if every row before was the same bits."""
-    compared = len(new_rows) if stops_at_threshold and len(new_rows) <= len(baseline_rows) else None
-    for i in range(compared if compared is not None else max(len(baseline_rows), len(new_rows))):
+    wall time, compared exactly (NaN equal to NaN); None when every row is the same bits.
+    ``crossed_at``: the episode where the baseline seed first met its threshold, given where the
+    rerun stops there (``seeds_stop_at_threshold``); a rerun that ended exactly there, while its
+    baseline seed played on, is compared as far as it played. One that ended anywhere else (a
+    non-finite loss, another budget) parts where it ended."""
+    stopped = crossed_at is not None and len(new_rows) == crossed_at < len(baseline_rows)
+    for i in range(len(new_rows) if stopped else max(len(baseline_rows), len(new_rows))):
         if i >= len(baseline_rows) or i >= len(new_rows):
             return i + 1
         a, b = baseline_rows[i], new_rows[i]
@@ -155,13 +160,32 @@ def first_difference(
     return None
 
 
+def first_crossing(experiment, rows: list[dict[str, Any]]) -> int | None:
+    """The first episode (from 1) whose metric meets the post's faithful threshold; None if none does."""
+    config = experiment.config_cls.for_variant("faithful")
+    metric = experiment.make_metric(config)
+    met = (r["metric"] is not None and metric.passes(float(r["metric"]), config.threshold) for r in rows)
+    return next((i + 1 for i, hit in enumerate(met) if hit), None)
+
+
+def as_played(experiment, rows: dict[int, list], stops: bool) -> dict[int, list]:
+    """Each seed's rows as a run that ``stops`` at its threshold would have played them."""
+    if not stops:
+        return rows
+    return {s: r[: first_crossing(experiment, r) or len(r)] for s, r in rows.items()}
+
+
 def read_twins(
-    baseline_rows: dict[int, list], new_rows: dict[int, list], seeds: list[int], stops_at_threshold: bool = False
+    baseline_rows: dict[int, list],
+    new_rows: dict[int, list],
+    seeds: list[int],
+    experiment=None,
+    stops: bool = False,
 ) -> TwinReading:
-    parted = {
-        s: e for s in seeds if (e := first_difference(baseline_rows[s], new_rows[s], stops_at_threshold)) is not None
-    }
-    return TwinReading(len(seeds), len(seeds) - len(parted), parted)
+    """What the twins' bits say; ``stops``: the reruns stop at ``experiment``'s threshold."""
+    crossed = {s: first_crossing(experiment, baseline_rows[s]) if stops else None for s in seeds}
+    parted = {s: e for s in seeds if (e := first_difference(baseline_rows[s], new_rows[s], crossed[s])) is not None}
+    return TwinReading(len(seeds), len(seeds) - len(parted), parted, stops)
 
 
 @dataclass
@@ -375,10 +399,18 @@ def seeds_stop_at_threshold(rule: CheckRule) -> bool:
 
 
 def describe_plan(
-    rule: CheckRule, fresh: list[int], baseline: int, design, fallback: str | None = None, committed: bool = True
+    rule: CheckRule,
+    fresh: list[int],
+    baseline: int,
+    design,
+    fallback: str | None = None,
+    committed: bool = True,
+    stopping: bool | None = None,
 ) -> str:
     """One post's plan, as ``check --dry-run`` prints it. ``committed``: the baseline is the committed
-    one the rule's error rates were measured on (else none is quoted, issue 72 item 6)."""
+    one the rule's error rates were measured on (else none is quoted, issue 72 item 6). ``stopping``:
+    the seeds stop at their threshold (``seeds_stop_at_threshold`` unless a ``--set`` says otherwise)."""
+    stopping = seeds_stop_at_threshold(rule) if stopping is None else stopping
     rates = error_rates(rule) if committed else None
     if not committed:
         measured = "error rates not measured for this baseline (they were measured on the committed one)"
@@ -399,7 +431,7 @@ def describe_plan(
         if rule.twins
         else f"fresh seeds {fresh[0]}-{fresh[-1]} ({len(fresh)})"
     )
-    stops = ", each seed stopping at its threshold" if seeds_stop_at_threshold(rule) else ""
+    stops = ", each seed stopping at its threshold if it gets there" if stopping else ""
     return (
         f"{rule.experiment} ({rule.tier}): {rule.statistic} over {rule.episodes} episodes{stops}, {how}; "
         f"{seeds}{engine} against a baseline of {baseline}; {measured}" + (f" [{fallback}]" if fallback else "")
@@ -644,10 +676,11 @@ def run_check(
         config = config.replace(**(overrides or {}).get(name, {}))
         plan.append((experiment, rule, fresh, config, baseline, baseline_rows))
     if dry_run:
-        for experiment, rule, fresh, _config, baseline, _rows in plan:
+        for experiment, rule, fresh, config, baseline, _rows in plan:
             committed = committed_baseline(Path(against) / experiment.name / rule.baseline, rule)
             planned = designs.get(experiment.name)
-            print(describe_plan(rule, fresh, len(baseline), planned, fallbacks.get(experiment.name), committed))
+            fallback = fallbacks.get(experiment.name)
+            print(describe_plan(rule, fresh, len(baseline), planned, fallback, committed, config.stop_at_threshold))
         return []
     for experiment, *_ in plan:
         if (out / experiment.name).exists():
@@ -671,7 +704,7 @@ def run_check(
             if rule.twins:
                 _new, rows = _read_new(out / experiment.name, experiment, rule, first[experiment.name])
                 readings[experiment.name] = read_twins(
-                    baseline_rows, rows, first[experiment.name], config.stop_at_threshold
+                    baseline_rows, rows, first[experiment.name], experiment, config.stop_at_threshold
                 )
         rest = [
             (experiment, rule, config, fresh[rule.bits_seeds :])
@@ -689,7 +722,7 @@ def run_check(
                 baseline_of = {s: baseline[s] for s in ran}
             elif reading is not None:
                 new, new_rows = _read_new(out / experiment.name, experiment, rule, fresh)
-                reading = read_twins(baseline_rows, new_rows, fresh, config.stop_at_threshold)
+                reading = read_twins(baseline_rows, new_rows, fresh, experiment, config.stop_at_threshold)
                 baseline_of = {s: baseline[s] for s in fresh}
                 decision = decide_paired(
                     [baseline[s] for s in fresh], [new[s] for s in fresh], rule.statistic, rule.alpha
@@ -710,7 +743,9 @@ def run_check(
                 fallback=fallbacks.get(experiment.name),
             )
             results.append(result)
-            plots.append((out / experiment.name / "check.png", experiment, result, baseline_rows, new_rows))
+            # the baseline as far as a run that stops where the fresh ones do would have played
+            played = as_played(experiment, baseline_rows, config.stop_at_threshold)
+            plots.append((out / experiment.name / "check.png", experiment, result, played, new_rows))
         adjust_for_family(results)
     else:
         active = list(plan)
@@ -726,7 +761,7 @@ def run_check(
             )
             still = []
             for entry in active:
-                experiment, rule, fresh, _config, baseline, baseline_rows = entry
+                experiment, rule, fresh, config, baseline, baseline_rows = entry
                 design, null_rate = designs[experiment.name]
                 new, new_rows = _read_new(out / experiment.name, experiment, rule, fresh[:n])
                 decision = decide(list(baseline.values()), list(new.values()), rule.statistic, design.efficacy)
@@ -753,7 +788,13 @@ def run_check(
                 )
                 done[experiment.name] = (
                     result,
-                    (out / experiment.name / "check.png", experiment, result, baseline_rows, new_rows),
+                    (
+                        out / experiment.name / "check.png",
+                        experiment,
+                        result,
+                        as_played(experiment, baseline_rows, config.stop_at_threshold),
+                        new_rows,
+                    ),
                 )
             active = still
             if not active:

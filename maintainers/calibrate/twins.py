@@ -291,7 +291,7 @@ def render(data: dict) -> str:
                     f"**The check keeps {kept} twins** (`keras_rl/check/rules.py`), not the {picked['n']} this rule "
                     f"takes when no size reaches {CHOICE_POWER:.0%} both ways. {kept} already see a 10% slow-down "
                     f"{_pct(at[kept]['x1.10'])} of the time ({_pct(at[picked['n']]['x1.10'])} at {picked['n']}); a 10% "
-                    f"speed-up goes unseen at any size ({_pct(at[kept]['x0.90'])} at {kept}, "
+                    f"speed-up is seen less than 80% of the time at every size ({_pct(at[kept]['x0.90'])} at {kept}, "
                     f"{_pct(at[picked['n']]['x0.90'])} at {picked['n']}: issue 70's 80% is missed by "
                     f"{(0.8 - at[picked['n']]['x0.90']) * 100:.0f} points or more), while {picked['n']} twins would "
                     f"take {picked['n'] / kept:.0f}x this post's share of the sensitive command, which must fit in 15 "
