@@ -160,12 +160,17 @@ def first_difference(
     return None
 
 
-def first_crossing(experiment, rows: list[dict[str, Any]]) -> int | None:
-    """The first episode (from 1) whose metric meets the post's faithful threshold; None if none does."""
+def _passes(experiment):
+    """Whether a metric meets the post's faithful threshold."""
     config = experiment.config_cls.for_variant("faithful")
     metric = experiment.make_metric(config)
-    met = (r["metric"] is not None and metric.passes(float(r["metric"]), config.threshold) for r in rows)
-    return next((i + 1 for i, hit in enumerate(met) if hit), None)
+    return lambda m: metric.passes(m, config.threshold)
+
+
+def first_crossing(experiment, rows: list[dict[str, Any]]) -> int | None:
+    """The first episode (from 1) whose metric meets the post's faithful threshold; None if none does."""
+    reached = seed_statistic("episodes_to_threshold", rows, len(rows), _passes(experiment)) if rows else None
+    return None if reached is None or reached > len(rows) else int(reached)
 
 
 def as_played(experiment, rows: dict[int, list], stops: bool) -> dict[int, list]:
@@ -377,11 +382,7 @@ def check_twin_count(name: str, statistic: str, n: int, alpha: float) -> None:
 
 
 def _statistic(experiment, rule: CheckRule, rows: list[dict[str, Any]]) -> float:
-    config = experiment.config_cls.for_variant("faithful")
-    metric = experiment.make_metric(config)
-    return seed_statistic(
-        rule.statistic, rows, rule.episodes, lambda m: metric.passes(m, config.threshold), experiment.success_at_end
-    )
+    return seed_statistic(rule.statistic, rows, rule.episodes, _passes(experiment), experiment.success_at_end)
 
 
 def rates_source(rule: CheckRule) -> str:
