@@ -47,7 +47,7 @@ import numpy as np
 from keras_rl.errors import ConfigError
 from keras_rl.runs.run_set import RunSet
 from maintainers.checkout import ROOT
-from maintainers.manifest import RESULTS, compare_seeds, manifest, reproduce_command
+from maintainers.manifest import RESULTS, committed_sets, compare_seeds, manifest, reproduce_command
 
 AT_RECORDED_COMMIT: dict[str, str] = {}
 """Set -> why HEAD no longer makes its bits by design; such a set reruns at its recorded commit.
@@ -251,12 +251,12 @@ def run(args: argparse.Namespace) -> int:
     args.out = args.out.resolve()  # the reruns' paths hold from any working folder (a worktree's too)
     if args.out.is_relative_to(RESULTS.resolve()):
         raise ConfigError("--out must not be inside results/: the reruns are compared with it, never written over it")
+    if args.sets and not any(  # named at once, before the manifest reads every set
+        fnmatch.fnmatch(s.folder.relative_to(RESULTS).as_posix(), p) for s in committed_sets() for p in args.sets
+    ):
+        raise ConfigError(f"no committed set matches {' '.join(args.sets)} (python -m maintainers manifest)")
     every = manifest()
-    entries = every
-    if args.sets:
-        entries = [e for e in every if any(fnmatch.fnmatch(e["set"], p) for p in args.sets)]
-        if not entries:
-            raise ConfigError(f"no committed set matches {' '.join(args.sets)} (python -m maintainers manifest)")
+    entries = [e for e in every if any(fnmatch.fnmatch(e["set"], p) for p in args.sets)] if args.sets else every
     drawn = draw(every, args.per_set, args.draw_seed)
     args.out.mkdir(parents=True, exist_ok=True)
     log = args.out / "audit.json"

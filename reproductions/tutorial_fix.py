@@ -160,7 +160,7 @@ def report(a: dict, b: dict, labels: tuple[str, str], command: str, first_look: 
     return "\n".join(lines)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("published", help="the tutorial as published (the reference arm): folder[,folder...]")
     parser.add_argument("fix", help="the fix's arm: folder[,folder...]")
@@ -168,7 +168,7 @@ def main() -> None:
     parser.add_argument("--seeds", default=None, help="read both arms on these seeds only (each must hold them all)")
     parser.add_argument("--first-look", default=None, help="also give the planned earlier reading on these seeds")
     parser.add_argument("--write", type=Path, default=None, help="write the report here (else print it)")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     labels = tuple(args.labels.split(","))
     if len(labels) != 2 or not all(labels):
         parser.error("--labels takes two names, comma-separated")

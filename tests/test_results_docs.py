@@ -190,6 +190,26 @@ def test_the_manifest_lists_every_committed_run_set_as_it_is():
     assert gen.cost(sets["mountaincar/faithful"]) == 0 and not sets["checks/mountaincar/baseline"]["copies"]
 
 
+def test_a_seed_is_a_copy_only_where_its_config_its_batch_and_every_episode_are_the_same(tmp_path, monkeypatch):
+    """The manifest reads a seed's episodes only where an earlier seed shares its config and batch
+    (``run_head``); one changed value in one episode makes it a run of its own."""
+    gen = load_generator("manifest")
+    first = RunSet(ROOT / "results" / "checks" / "mountaincar" / "baseline").runs()[:2]
+    for name in ("same", "changed"):
+        for run in first:
+            run.extract(tmp_path / name / f"seed_{run.seed}")
+    csv = tmp_path / "changed" / "seed_1" / "episodes.csv"
+    header, *rows, last = csv.read_text().splitlines()
+    fields = last.split(",")
+    score = header.split(",").index("score")
+    fields[score] = repr(float(fields[score]) + 1.0)
+    csv.write_text("\n".join([header, *rows, ",".join(fields)]) + "\n")
+    sets = {"a/first": first, **{f"{k}/{n}": RunSet(tmp_path / n).runs() for k, n in (("b", "same"), ("c", "changed"))}}
+    monkeypatch.setattr(gen, "find_sets", lambda results: sets)
+    copies = {e["set"]: e["copies"] for e in gen._read_manifest(tmp_path)}
+    assert copies == {"a/first": {}, "b/same": {"a/first": [0, 1]}, "c/changed": {"a/first": [0]}}
+
+
 def test_a_seeds_batch_comes_from_its_summary_or_else_its_command():
     gen = load_generator("manifest")
     recorded = {"seed": 3, "experiment": "pendulum", "provenance": {"seed_batch": [2, 3]}, "command": ""}

@@ -3,7 +3,10 @@ published, read from run folders; its numbers checked against the folders by han
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import importlib.util
+import io
 import json
 import subprocess
 import sys
@@ -16,26 +19,40 @@ from committed import copy_seeds
 ROOT = Path(__file__).resolve().parents[1]
 PUBLISHED = ROOT / "results" / "engines" / "cartpole" / "compiled"
 FIX = ROOT / "results" / "cartpole" / "tutorial-fix" / "issue-3080"
+SCRIPT_PATH = ROOT / "reproductions" / "tutorial_fix.py"
+_spec = importlib.util.spec_from_file_location("tutorial_fix_script", SCRIPT_PATH)
+assert _spec is not None and _spec.loader is not None
+SCRIPT = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(SCRIPT)
 
 
 def arm(tmp_path: Path, name: str, seeds: range, source: Path = PUBLISHED) -> Path:
     return copy_seeds(source, tmp_path / name, lambda seed: seed in seeds)
 
 
-def run(*args: str) -> subprocess.CompletedProcess:
+def run_script(*args: str) -> subprocess.CompletedProcess:
+    """The script on its command line, in a process of its own, as a maintainer runs it."""
     return subprocess.run(
-        [sys.executable, str(ROOT / "reproductions" / "tutorial_fix.py"), *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=ROOT,
+        [sys.executable, str(SCRIPT_PATH), *args], capture_output=True, text=True, timeout=120, cwd=ROOT
     )
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    """The script's ``main`` on these arguments in this process, from the checkout's root, with what
+    it prints and its exit status as ``run_script`` gives them (without a Python start-up each)."""
+    out, err, code = io.StringIO(), io.StringIO(), 0
+    with contextlib.chdir(ROOT), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            SCRIPT.main(list(args))
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else 1
+    return subprocess.CompletedProcess([str(SCRIPT_PATH), *args], code, out.getvalue(), err.getvalue())
 
 
 def test_the_report_counts_what_the_folders_hold(tmp_path):
     a, b = arm(tmp_path, "a", range(0, 10)), arm(tmp_path, "b", range(10, 20))
     out = tmp_path / "report.md"
-    proc = run(str(a), str(b), "--labels", "published,issue-3080", "--write", str(out))
+    proc = run_script(str(a), str(b), "--labels", "published,issue-3080", "--write", str(out))
     assert proc.returncode == 0, proc.stderr
     text = out.read_text()
     for folder, seeds in ((a, range(0, 10)), (b, range(10, 20))):

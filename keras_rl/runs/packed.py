@@ -146,14 +146,19 @@ class PackedSet:
             self._episodes = (table, spans)
         return self._episodes
 
-    def _seed_rows(self, seed: int) -> list[dict[str, Any]]:
+    def columns_of(self, seed: int) -> dict[str, list[Any]]:
+        """The seed's episodes column by column (``episodes.csv``'s columns, typed as ``rows``)."""
         table, spans = self._slices()
         if seed not in spans:
-            return []
+            return {c: [] for c in self.columns}
         part = table.slice(*spans[seed])
         values = {c: part.column(_stored(c)).to_pylist() for c in self.columns}
         if WALL in values:
             values[WALL] = [None if ms is None else ms / 1000 for ms in values[WALL]]
+        return values
+
+    def _seed_rows(self, seed: int) -> list[dict[str, Any]]:
+        values = self.columns_of(seed)
         return [dict(zip(self.columns, row)) for row in zip(*(values[c] for c in self.columns))]
 
     def record(self, seed: int) -> SeedRecord:
@@ -198,7 +203,7 @@ def open_packed(path: Path) -> PackedSet:
         stat = path.stat()
     except OSError as exc:
         raise RunFolderError(f"cannot read {path} ({exc.strerror or exc})") from None
-    return _open(str(path.resolve()), stat.st_size, stat.st_mtime_ns)
+    return _open(os.path.abspath(path), stat.st_size, stat.st_mtime_ns)  # abspath: no syscall per call, as resolve has
 
 
 def _ranges(seeds: Iterable[int]) -> str:

@@ -77,6 +77,14 @@ class SeedRun:
             return read_episodes(path, expected_rows=expected_rows) if path.is_file() else []
         return self.run_set.packed().rows(self.seed)
 
+    def columns(self) -> dict[str, list[Any]]:
+        """The typed episodes column by column (``rows`` turned on its side; the packed form
+        reads them so without building a row at all)."""
+        if self.folder is None:
+            return self.run_set.packed().columns_of(self.seed)
+        rows = self.rows()
+        return {c: [row[c] for row in rows] for c in (rows[0] if rows else {})}
+
     def text_rows(self) -> list[dict[str, str]]:
         """The rows as the exact text written, without the timing column (what a replay compares)."""
         from keras_rl.runs.files import seed_rows
