@@ -178,8 +178,7 @@ def manifest(results: Path = RESULTS) -> list[dict]:
 
 def _read_manifest(results: Path) -> list[dict]:
     """``manifest``'s entries. A seed's episodes are read for ``run_key`` only where an earlier
-    seed has its ``run_head``: most seeds have none, and reading every episode of 14,902 seeds
-    took 20-25 s of the manifest's 25-30."""
+    seed has its ``run_head``: most seeds have none (the cost is under ``_MANIFESTS``)."""
     entries: list[dict] = []
     heads: dict[str, list[list]] = {}  # run_head -> [first run, its set, its run_key once read] per distinct run
     for name, runs in find_sets(results).items():
