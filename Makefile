@@ -11,12 +11,22 @@ $(BIN)/python:
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
 ## Both install the exact versions that made results/ (constraints.txt); setup.cfg admits the
-## range the version matrix proves.
-install: $(BIN)/python
-	$(BIN)/pip install --quiet -c constraints.txt -e .
+## range the version matrix proves. The install is editable, so a stamp in the venv stands for it
+## until the files that say what to install change: pip's no-op check costs about 6 s a call.
+INSTALLED := $(VENV)/.installed
+INSTALLED_TEST := $(VENV)/.installed-test
+INSTALL_INPUTS := $(BIN)/python setup.cfg pyproject.toml constraints.txt
 
-install-test: $(BIN)/python
+install: $(INSTALLED)
+install-test: $(INSTALLED_TEST)
+
+$(INSTALLED): $(INSTALL_INPUTS)
+	$(BIN)/pip install --quiet -c constraints.txt -e .
+	touch $@
+
+$(INSTALLED_TEST): $(INSTALL_INPUTS)
 	$(BIN)/pip install --quiet -c constraints.txt -e ".[test,torch,ray]"
+	touch $@ $(INSTALLED)
 
 ## The main reproduction: post 000's faithful DDPG on Pendulum-v1 to EMA > -300. It writes under runs/
 ## (gitignored), never results/: results/ holds only committed evidence, which the suite reads.
