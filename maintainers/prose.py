@@ -381,6 +381,27 @@ def cpu_named(folder: Path) -> str:
     return named[1]
 
 
+STACKED_PATHS = RESULTS / "engines" / "stacked-paths"
+RETIRE_AT = 1.25
+"""Issue 51's rule: a stacked learner is retired where a seed alone costs at most this per seed."""
+
+
+def stacked_cost(post: str) -> tuple[str, str, str]:
+    """``benchmarks/seed_batch.py --table``'s 10 seeds against one seed alone, for ``post`` as its
+    table names it: that ratio, what a seed alone costs against a seed of the batch, and whether
+    the path stays by issue 51's rule."""
+    rows = markdown_rows((STACKED_PATHS / "table.txt").read_text())
+    batch = rows[f"{post}, 10 seeds in one process against one solo seed"][2]
+    alone = 10 / float(batch.rstrip("x"))
+    return batch, f"{alone:.2f}x", "yes" if alone > RETIRE_AT else "no"
+
+
+def study_speedup(post: str) -> str:
+    """The same run's 30-seed study: how much faster ``--seed-batch auto`` ran than seeds alone."""
+    rows = markdown_rows((STACKED_PATHS / "table.txt").read_text())
+    return next(cells[2].split()[0] for what, cells in rows.items() if what.startswith(f"{post}, a 30-seed study"))
+
+
 def xeon(name: str) -> dict[str, list[str]]:
     """A table the Intel Xeon's CPU printed (issue 53 item 3, ``xeon-cpu/README.md``)."""
     return markdown_rows((XEON / name).read_text())
@@ -1212,6 +1233,25 @@ CLAIMS: list[Claim] = [
         "`bmm` takes {} ms for the 8 products of 128x128 by 128x128 ({} GFLOP/s), where OpenBLAS's AVX-512 kernel "
         "takes {} ms ({} GFLOP/s).",
         lambda: (*epyc()["products"][GEMM_ROWS[0]], *epyc()["products"][GEMM_ROWS[-1]]),
+    ),
+    # issue 71 item 1: which stacked learners stay (engines/stacked-paths/, 2026-11-30)
+    *(
+        (
+            "results/engines/stacked-paths/README.md",
+            f"| {label} | {{}} | {{}} | {{}} |",
+            lambda post=post: stacked_cost(post),
+        )
+        for label, post in (
+            ("post 001 (Keras), the configs the compiled engine refuses", "post 001"),
+            ("post 000 (PyTorch port)", "post 000 (PyTorch port)"),
+            ("post 001 (PyTorch port)", "post 001 (PyTorch port)"),
+        )
+    ),
+    (
+        "results/engines/stacked-paths/README.md",
+        "batched, they ran {} faster for post 001 in Keras, whose seeds alone ran on the compiled engine, {} for "
+        "post 000's port and {} for post 001's",
+        lambda: tuple(study_speedup(p) for p in ("post 001", "post 000 (PyTorch port)", "post 001 (PyTorch port)")),
     ),
 ]
 
