@@ -12,10 +12,11 @@ $(BIN)/python:
 
 ## Both install the exact versions that made results/ (constraints.txt); setup.cfg admits the
 ## range the version matrix proves. The install is editable, so a stamp in the venv stands for it
-## until the files that say what to install change: pip's no-op check costs about 6 s a call.
+## until the files that say what to install change (setup.cfg reads the version from keras_rl/__init__.py):
+## pip's no-op check costs about 6 s a call. After a pip install by hand, `make -B install-test`.
 INSTALLED := $(VENV)/.installed
 INSTALLED_TEST := $(VENV)/.installed-test
-INSTALL_INPUTS := $(BIN)/python setup.cfg pyproject.toml constraints.txt
+INSTALL_INPUTS := $(BIN)/python setup.cfg pyproject.toml constraints.txt keras_rl/__init__.py
 
 install: $(INSTALLED)
 install-test: $(INSTALLED_TEST)
