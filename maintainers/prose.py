@@ -301,11 +301,17 @@ def markdown_rows(text: str) -> dict[str, list[str]]:
     return {k: [c.strip() for c in r[1:]] for k, r in zip(keys, rows)}
 
 
+def best_arm(rows: dict[str, list[str]]) -> tuple[str, str]:
+    """The vectorised arm of a ``benchmarks/torch_vectorised.py`` table with the best ratio to the
+    tutorial's code: its S (``S=8``) and that ratio, as printed (bold marks dropped)."""
+    ratios = {arm: cells[1].strip("*") for arm, cells in rows.items() if arm.startswith("vectorised")}
+    arm = max(ratios, key=lambda a: float(ratios[a].rstrip("x")))
+    return arm.split(", ")[1], ratios[arm]
+
+
 def best_ratio(rows: dict[str, list[str]]) -> str:
-    """The best ratio to the tutorial's code over a ``benchmarks/torch_vectorised.py`` table's vectorised
-    arms, as printed (bold marks dropped)."""
-    ratios = [cells[1].strip("*") for arm, cells in rows.items() if arm.startswith("vectorised")]
-    return max(ratios, key=lambda r: float(r.rstrip("x")))
+    """The best ratio to the tutorial's code over a ``benchmarks/torch_vectorised.py`` table's vectorised arms."""
+    return best_arm(rows)[1]
 
 
 EPYC = RESULTS / "cartpole" / "vectorised-torch" / "epyc-cpu"
@@ -354,12 +360,6 @@ GEMM_ROWS = (
 """The rows of ``benchmarks/gemm_isa.py``'s table."""
 
 
-def best_arm(rows: dict[str, list[str]]) -> tuple[str, str]:
-    """The vectorised arm with the best ratio to the tutorial's code: its S (``S=8``) and ratio."""
-    arm = max((a for a in rows if a.startswith("vectorised")), key=lambda a: float(rows[a][1].rstrip("x")))
-    return arm.split(", ")[1], rows[arm][1]
-
-
 def faster_products() -> tuple[str, ...]:
     """docs/performance.md's estimate: the S=8 step with its products at OpenBLAS's AVX-512 rate. A
     seed's step makes four of the 128x128x128 products that ``gemm_isa.py`` times eight of, so the
@@ -386,8 +386,12 @@ def compile_seconds() -> tuple[str, str]:
     return span(*(cells[2] for arm, cells in run.items() if arm.endswith("compiled")))
 
 
+TARGET = 4.0
+"""Issue 53's target: the vectorised engine steps a seed this many times faster than the tutorial's code."""
+
+
 def met(ratio: str) -> str:
-    return "met" if float(ratio.rstrip("x")) >= 4 else "not met"
+    return "met" if float(ratio.rstrip("x")) >= TARGET else "not met"
 
 
 def cpu_named(folder: Path) -> str:
@@ -1205,11 +1209,7 @@ CLAIMS: list[Claim] = [
     (
         "docs/performance.md",
         "**{}** on this AMD EPYC: {} at {}",
-        lambda: (
-            met(best_arm(epyc()["run"])[1]),
-            best_arm(epyc()["run"])[1],
-            best_arm(epyc()["run"])[0],
-        ),
+        lambda: (met(best_ratio(epyc()["run"])), *reversed(best_arm(epyc()["run"]))),
     ),
     (
         "docs/performance.md",
@@ -1251,7 +1251,7 @@ CLAIMS: list[Claim] = [
         "results/cartpole/vectorised-torch/epyc-cpu/README.md",
         "best S gives **{}** in the run over every S, and **{}** in the run over S=8 and 16: issue 53's 4x per seed "
         "at the best S is {} on this CPU",
-        lambda: (best_arm(epyc()["run"])[1], best_arm(epyc()["sizes"])[1], met(epyc()["best"][1])),
+        lambda: (best_ratio(epyc()["run"]), best_ratio(epyc()["sizes"]), met(epyc()["best"][1])),
     ),
     (
         "results/cartpole/vectorised-torch/epyc-cpu/README.md",
